@@ -1,0 +1,41 @@
+# wristmark: `make run` (main job) and `make test` (whole suite) set up .venv when needed.
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed-stamp
+
+.PHONY: setup run test lint typecheck pytest bench browser clean
+
+setup: $(STAMP)
+
+$(STAMP): pyproject.toml
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+# Main job: the paper's cube experiment, open vs closed loop, on the simulated rig.
+run: setup
+	$(VENV)/bin/wristmark experiment cube --out runs/cube --json runs/cube/result.json
+
+browser:
+	bash scripts/ensure-chromium.sh
+
+lint: setup
+	$(VENV)/bin/ruff check models cvs solvers viz rig tests bench
+
+typecheck: setup
+	$(VENV)/bin/mypy models cvs solvers viz rig
+
+pytest: setup browser
+	$(PY) -m pytest
+
+test: lint typecheck pytest
+
+bench: setup
+	mkdir -p runs/bench
+	for b in bench/*.py; do echo "== $$b"; $(PY) $$b | tee runs/bench/$$(basename $$b .py).json; done
+
+clean:
+	rm -rf $(VENV) runs .pytest_cache .mypy_cache .ruff_cache *.egg-info

@@ -1,0 +1,1 @@
+"""Computer vision for stereo: cameras, marker, image synthesis, corner detection, tracking."""

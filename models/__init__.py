@@ -1,0 +1,1 @@
+"""Robot description: closed-form kinematics, Pinocchio model, actuation map, the true plant."""

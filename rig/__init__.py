@@ -1,0 +1,1 @@
+"""The servo loop, actuator protocol/driver/emulator, experiments and the command line."""

@@ -1,0 +1,1 @@
+"""Subcommands of the wristmark command line, one module each (add_arguments + run)."""

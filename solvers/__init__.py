@@ -1,0 +1,1 @@
+"""CasADi formulations: stereo pose solve and controllers."""

@@ -1,0 +1,1 @@
+"""Meshcat scene and plots."""

@@ -55,3 +55,8 @@ class RobotParams:
         if set(data) == {"robot"}:
             data = data["robot"]
         return from_mapping(cls, data, str(path))
+
+
+# Home configuration: the workspace centre (cube centre) is the tip here; the default camera
+# (configs/camera.yaml) looks at it from ~80 mm with the marker axis (x_w) horizontal.
+HOME_PSI: tuple[float, float, float, float, float, float] = (0.0, 0.04, 0.7, 0.0, 0.9, 0.0)

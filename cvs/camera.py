@@ -42,15 +42,14 @@ class Camera:
         """Project Nx3 points given in this camera's frame [m] to raw (distorted) pixels Nx2."""
         P = np.ascontiguousarray(np.asarray(points_cam, float).reshape(-1, 3))
         uv, _ = cv2.projectPoints(P, np.zeros(3), np.zeros(3), self.K, self.dist)
-        return uv.reshape(-1, 2)
+        return np.asarray(uv, dtype=np.float64).reshape(-1, 2)
 
     def undistort(self, uv: Array) -> Array:
         """Raw pixels Nx2 -> normalized image coordinates Nx2 (x/z, y/z), distortion removed."""
         pts = np.asarray(uv, float).reshape(-1, 1, 2)
-        return cv2.undistortPointsIter(
-            pts, self.K, self.dist, None, None,
-            (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-12),
-        ).reshape(-1, 2)
+        crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-12)
+        out = cv2.undistortPoints(pts, self.K, self.dist, None, None, None, crit)
+        return np.asarray(out, dtype=np.float64).reshape(-1, 2)
 
 
 @dataclass(frozen=True)
@@ -117,3 +116,26 @@ class StereoCamera:
             raise InputError("this calibration has no 'world_T_left': the world frame is unknown")
         W = np.asarray(self.T_world_left)
         return np.asarray(points_left, float).reshape(-1, 3) @ W[:3, :3].T + W[:3, 3]
+
+
+def scaled_stereo_camera(cam: StereoCamera, factor: float) -> StereoCamera:
+    """The same stereo endoscope imaged at ``factor`` times the resolution (for fast tests).
+
+    Focal lengths and principal points scale with the image (pixel-centre convention kept);
+    distortion, R, T and T_world_left are unchanged.
+    """
+    if not factor > 0:
+        raise InputError(f"scale factor must be > 0, got {factor}")
+
+    def sc(c: Camera) -> Camera:
+        K = np.array(c.K, float).copy()
+        K[0, 0] *= factor
+        K[1, 1] *= factor
+        K[0, 1] *= factor
+        K[0, 2] = (K[0, 2] + 0.5) * factor - 0.5
+        K[1, 2] = (K[1, 2] + 0.5) * factor - 0.5
+        return Camera(K, np.array(c.dist, float))
+
+    w, h = cam.image_size
+    size = (int(round(w * factor)), int(round(h * factor)))
+    return StereoCamera(size, sc(cam.left), sc(cam.right), cam.R, cam.T, cam.T_world_left)

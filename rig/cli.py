@@ -12,6 +12,7 @@ import argparse
 import importlib
 import os
 import sys
+from typing import NoReturn
 
 from models.errors import WristmarkError
 
@@ -27,9 +28,16 @@ COMMANDS: dict[str, str] = {
 }
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """argparse with usage errors reported as one line on stderr (exit status 2)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
+
+
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     """Top-level parser; adds the arguments of ``command`` only (lazy imports)."""
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="wristmark",
         description="Stereo tracking of a continuum manipulator's wrist marker and closed-loop control.",
     )

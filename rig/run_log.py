@@ -1,0 +1,115 @@
+"""Per-cycle records of a servo run and the run folder they are written to.
+
+``log.csv`` columns (SI: s, m, rad): t, phase, p_des_{x,y,z}, p_cmd_{x,y,z} (model tip at the
+commanded configuration), p_est_{x,y,z} (vision estimate, empty when none), p_true_{x,y,z},
+p_trk_{x,y,z} (optical tracker), psi_cmd_0..5, psi_true_0..5, meas_ok, rejected, vision_ms,
+ctrl_us. ``config.json`` holds every configuration used; ``result.json`` the metrics.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+Array = NDArray[np.float64]
+
+_XYZ = ("x", "y", "z")
+COLUMNS: tuple[str, ...] = (
+    ("t", "phase")
+    + tuple(f"p_{k}_{a}" for k in ("des", "cmd", "est", "true", "trk") for a in _XYZ)
+    + tuple(f"psi_cmd_{i}" for i in range(6))
+    + tuple(f"psi_true_{i}" for i in range(6))
+    + ("meas_ok", "rejected", "vision_ms", "ctrl_us")
+)
+
+
+@dataclass
+class CycleRecord:
+    """One servo cycle; positions in {w} [m], configurations [rad, m]."""
+
+    t: float
+    phase: str
+    p_des: Array
+    p_cmd: Array
+    p_est: Array | None
+    p_true: Array
+    p_trk: Array
+    psi_cmd: Array
+    psi_true: Array
+    meas_ok: bool
+    rejected: bool
+    vision_ms: float
+    ctrl_us: float
+
+    def row(self) -> list[Any]:
+        """CSV row in COLUMNS order."""
+        est = self.p_est if self.p_est is not None else [math.nan] * 3
+        vals: list[Any] = [f"{self.t:.6f}", self.phase]
+        for v in (self.p_des, self.p_cmd, est, self.p_true, self.p_trk, self.psi_cmd, self.psi_true):
+            vals += ["" if not math.isfinite(x) else f"{x:.9g}" for x in np.asarray(v, float)]
+        vals += [int(self.meas_ok), int(self.rejected), f"{self.vision_ms:.3f}", f"{self.ctrl_us:.1f}"]
+        return vals
+
+
+@dataclass
+class RunLog:
+    """All cycles of one or more phases of a run."""
+
+    records: list[CycleRecord] = field(default_factory=list)
+
+    def add(self, rec: CycleRecord) -> None:
+        """Append a cycle."""
+        self.records.append(rec)
+
+    def phase(self, name: str) -> list[CycleRecord]:
+        """The records of one phase."""
+        return [r for r in self.records if r.phase == name]
+
+    def write_csv(self, path: str | Path) -> None:
+        """Write log.csv."""
+        with open(path, "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(COLUMNS)
+            for r in self.records:
+                w.writerow(r.row())
+
+
+def read_log_csv(path: str | Path) -> dict[str, Array | list[str]]:
+    """Read a log.csv into columns (floats; 'phase' as strings; empty cells as NaN)."""
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    out: dict[str, Array | list[str]] = {}
+    if not rows:
+        return out
+    for k in rows[0]:
+        if k == "phase":
+            out[k] = [r[k] for r in rows]
+        else:
+            out[k] = np.array([float(r[k]) if r[k] != "" else math.nan for r in rows])
+    return out
+
+
+def write_json(path: str | Path, data: dict[str, Any]) -> None:
+    """Write JSON with a trailing newline (NaN written as null)."""
+
+    def clean(v: Any) -> Any:
+        if isinstance(v, dict):
+            return {k: clean(x) for k, x in v.items()}
+        if isinstance(v, list | tuple):
+            return [clean(x) for x in v]
+        if isinstance(v, np.ndarray):
+            return clean(v.tolist())
+        if isinstance(v, float | np.floating):
+            return float(v) if math.isfinite(v) else None
+        if isinstance(v, np.integer):
+            return int(v)
+        return v
+
+    Path(path).write_text(json.dumps(clean(data), indent=2) + "\n")

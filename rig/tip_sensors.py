@@ -1,0 +1,78 @@
+"""Where the servo loop's tip measurement comes from.
+
+``VisionTipSensor`` is the default and the real thing: it renders the stereo endoscope's
+images of the true arm and runs the marker tracker on the pixels. ``NoisyTruthSensor`` is an
+explicit fast option (``sensor: truth-noise``) that never runs unless asked for.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from cvs.camera import StereoCamera
+from cvs.marker import MarkerModel
+from models.arm_shape import ArmShape
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class TipMeasurement:
+    """One tip measurement in {w} [m]; ``ok`` False with a ``reason`` when there is none."""
+
+    ok: bool
+    p_world: Array | None
+    reason: str = ""
+    time_ms: float = 0.0
+    rms_px: float = float("nan")
+
+
+class TipSensor(Protocol):
+    """Anything that measures the tip of the arm from its true shape."""
+
+    def measure(self, shape: ArmShape) -> TipMeasurement:
+        """Measure the tip of ``shape`` (the true arm now)."""
+
+
+class NoisyTruthSensor:
+    """The true tip plus isotropic Gaussian noise of 3D RMS ``rms`` [m] (fast option)."""
+
+    def __init__(self, rms: float, seed: int = 0) -> None:
+        self._sigma = rms / np.sqrt(3.0)
+        self._rng = np.random.default_rng(seed)
+
+    def measure(self, shape: ArmShape) -> TipMeasurement:
+        """True tip + noise; never fails."""
+        p = shape.tip + self._rng.normal(0.0, self._sigma, 3)
+        return TipMeasurement(True, p)
+
+
+class VisionTipSensor:
+    """Render the stereo pair of the true arm, track the marker in it, return the tip in {w}."""
+
+    def __init__(
+        self, camera: StereoCamera, marker: MarkerModel, noise: str = "default", seed: int = 0
+    ) -> None:
+        from cvs.marker_tracker import MarkerTracker
+        from cvs.render import StereoRenderer, render_settings_preset
+
+        self.camera = camera
+        self.renderer = StereoRenderer(camera, marker, render_settings_preset(noise), seed=seed)
+        self.tracker = MarkerTracker(camera, marker)
+        self.last_images: tuple[np.ndarray, np.ndarray] | None = None
+
+    def measure(self, shape: ArmShape) -> TipMeasurement:
+        """Render + track; the time reported is the tracking time only [ms]."""
+        frame = self.renderer.render(shape)
+        self.last_images = (frame.left, frame.right)
+        t0 = time.perf_counter()
+        res = self.tracker.track(frame.left, frame.right)
+        ms = 1000.0 * (time.perf_counter() - t0)
+        if not res.ok or res.tip_world is None:
+            return TipMeasurement(False, None, res.reason or "marker not found", ms)
+        return TipMeasurement(True, np.asarray(res.tip_world, float), "", ms, float(res.rms_px))

@@ -1,0 +1,39 @@
+"""Error statistics and corner overshoot."""
+
+import numpy as np
+import pytest
+
+from rig.metrics import corner_overshoot, error_stats, tracking_errors
+from rig.run_log import CycleRecord
+
+
+def _rec(t: float, p_des, p_true) -> CycleRecord:
+    z = np.zeros(6)
+    return CycleRecord(t, "x", np.asarray(p_des, float), np.zeros(3), None, np.asarray(p_true, float),
+                       np.asarray(p_true, float), z, z, True, False, 0.0, 0.0)
+
+
+def test_error_stats_in_mm() -> None:
+    st = error_stats(np.array([0.001, 0.003, np.nan]))
+    assert st.mean_mm == pytest.approx(2.0)
+    assert st.max_mm == pytest.approx(3.0)
+    assert st.n == 2
+
+
+def test_overshoot_detects_passing_a_corner() -> None:
+    # desired: along +x to (1,0,0) then along +y; true tip overshoots 0.2 mm in x after the corner
+    recs = []
+    for k in range(21):
+        t = 0.1 * k
+        p = (min(t, 1.0), max(0.0, t - 1.0), 0.0)
+        extra = 0.0002 if 1.0 < t < 1.5 else 0.0
+        recs.append(_rec(t, p, (p[0] + extra, p[1], 0.0)))
+    over = corner_overshoot(recs, window=1.0)
+    assert over.size == 1
+    assert over[0] == pytest.approx(0.0002, abs=1e-9)
+    assert tracking_errors(recs, "p_true").max() == pytest.approx(0.0002)
+
+
+def test_no_overshoot_on_straight_path() -> None:
+    recs = [_rec(0.1 * k, (0.1 * k, 0, 0), (0.1 * k, 0, 0)) for k in range(10)]
+    assert corner_overshoot(recs).size == 0

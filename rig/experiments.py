@@ -9,20 +9,20 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from models.ik import solve_tip_ik
 
+from models.ik import solve_tip_ik
 from models.kinematics import tip_position
 from models.robot_params import HOME_PSI
 from rig.metrics import corner_overshoot, error_stats, tracking_errors
 from rig.run_log import RunLog, write_json
 from rig.servo_loop import ServoLoop
 from rig.sim_setup import SimSetup, make_direct_loop, make_plant, make_sensor
-from rig.trajectories import accuracy_targets, cube_trajectory
+from rig.trajectories import Trajectory, accuracy_targets, cube_trajectory
 
 PAPER_CUBE = {"open_loop": {"mean_mm": 3.25, "max_mm": 8.40},
               "closed_loop": {"mean_mm": 0.82, "max_mm": 2.59}, "ratio": 0.2523}
 PAPER_ACCURACY = {"mean_mm": 0.67, "max_mm": 1.21}
-CUBE_SIZE = (0.040, 0.040, 0.020)  # [m] edges along x_w, y_w, z_w (paper: 20 x 40 x 40 mm)
+CUBE_SIZE = (0.040, 0.020, 0.040)  # [m] edges along x_w, y_w (depth from the camera), z_w (paper: 40 x 20 x 40 mm)
 CUBE_SPEED = 0.010  # [m/s] (paper: 10 mm/s)
 
 
@@ -31,11 +31,11 @@ def workspace_centre(setup: SimSetup) -> np.ndarray:
     return tip_position(setup.params, HOME_PSI)
 
 
-def _phase_summary(log: RunLog, phase: str) -> dict[str, Any]:
+def _phase_summary(log: RunLog, phase: str, traj: Trajectory) -> dict[str, Any]:
     recs = log.phase(phase)
     trk = error_stats(tracking_errors(recs, "p_trk"))
     true = error_stats(tracking_errors(recs, "p_true"))
-    over = corner_overshoot(recs)
+    over = corner_overshoot(recs, traj.waypoints, traj.times)
     out: dict[str, Any] = {
         "mean_mm": trk.mean_mm, "max_mm": trk.max_mm, "rms_mm": trk.rms_mm, "p95_mm": trk.p95_mm,
         "cycles": trk.n,
@@ -64,7 +64,7 @@ def run_cube(setup: SimSetup, out_dir: Path, progress: bool = True, seed: int | 
     out_dir.mkdir(parents=True, exist_ok=True)
     write_json(out_dir / "config.json", {"experiment": "cube", **setup.describe()})
     centre = workspace_centre(setup)
-    traj = cube_trajectory(centre, CUBE_SIZE, CUBE_SPEED, setup.rig.control_dt)
+    traj = cube_trajectory(centre, CUBE_SIZE, CUBE_SPEED)
     psi0 = solve_tip_ik(setup.params, traj.sample(0.0)[0], np.asarray(HOME_PSI)).psi
     log = RunLog()
     stats = {}
@@ -80,8 +80,8 @@ def run_cube(setup: SimSetup, out_dir: Path, progress: bool = True, seed: int | 
         "controller": setup.controller.kind,
         "control_dt_s": setup.rig.control_dt,
         "sensor": setup.rig.sensor,
-        "open_loop": _phase_summary(log, "open_loop"),
-        "closed_loop": _phase_summary(log, "closed_loop"),
+        "open_loop": _phase_summary(log, "open_loop", traj),
+        "closed_loop": _phase_summary(log, "closed_loop", traj),
         "paper": PAPER_CUBE,
         "trajectory": {"size_m": list(CUBE_SIZE), "speed_m_s": CUBE_SPEED, "duration_s": traj.duration,
                        "centre_world_m": centre.tolist()},
@@ -121,10 +121,10 @@ def cube_table(res: dict[str, Any]) -> str:
 def run_accuracy(setup: SimSetup, out_dir: Path, n: int = 40, progress: bool = True,
                  seed: int | None = None) -> dict[str, Any]:
     """Paper IV.B: n positions reached by incremental moves; stereo estimate vs tracker."""
-    from models.tracker import OpticalTracker
     from tqdm import tqdm
 
     from models.actuation import actuators_from_psi
+    from models.tracker import OpticalTracker
     from viz.plots import plot_accuracy
 
     seed = setup.rig.seed if seed is None else seed

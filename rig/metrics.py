@@ -47,31 +47,25 @@ def tracking_errors(records: list[CycleRecord], which: str = "p_trk") -> Array:
     return np.asarray(out)
 
 
-def corner_overshoot(records: list[CycleRecord], window: float = 1.0) -> Array:
-    """Overshoot at each direction change of the desired path [m].
+def corner_overshoot(records: list[CycleRecord], waypoints: Array, times: Array, window: float = 1.0) -> Array:
+    """Overshoot at each corner of a piecewise-linear desired path [m].
 
-    A corner is where the desired direction of motion turns by more than 45 deg. The overshoot
-    is the largest excursion of the true tip past the corner along the incoming direction within
-    ``window`` seconds after it (zero if it never passes the corner).
+    ``waypoints`` (N,3) and their arrival ``times`` (N,) relative to the first record. At an
+    inner waypoint where the path turns, the overshoot is the largest excursion of the true tip
+    past the corner along the incoming edge direction within ``window`` seconds after the
+    desired path reached it (zero if the tip never passes the corner).
     """
-    if len(records) < 3:
+    if not records or len(waypoints) < 3:
         return np.zeros(0)
-    t = np.array([r.t for r in records])
-    P = np.array([r.p_des for r in records])
+    t = np.array([r.t for r in records]) - records[0].t
     Q = np.array([r.p_true for r in records])
-    d = np.diff(P, axis=0)
-    n = np.linalg.norm(d, axis=1)
-    moving = n > 1e-9
     out = []
-    last_dir: Array | None = None
-    for i in range(len(d)):
-        if not moving[i]:
+    for i in range(1, len(waypoints) - 1):
+        u = waypoints[i] - waypoints[i - 1]
+        u = u / np.linalg.norm(u)
+        sel = (t >= times[i]) & (t <= times[i] + window)
+        if not np.any(sel):
             continue
-        u = d[i] / n[i]
-        if last_dir is not None and float(u @ last_dir) < np.cos(np.radians(45)):
-            corner = P[i]
-            sel = (t >= t[i]) & (t <= t[i] + window)
-            past = (Q[sel] - corner) @ last_dir
-            out.append(max(0.0, float(past.max())) if past.size else 0.0)
-        last_dir = u
+        past = (Q[sel] - waypoints[i]) @ u
+        out.append(max(0.0, float(past.max())))
     return np.asarray(out)

@@ -38,6 +38,7 @@ class RigConfig:
     model_gate: float = 0.025  # [m]
     max_lost_cycles: int = 25
     settle_time: float = 1.5  # [s]
+    feedforward_preview: float = 0.14  # [s] desired velocity taken this far ahead (loop delay)
     seed: int = 0
     realtime: bool = False
 
@@ -46,7 +47,7 @@ class RigConfig:
         for k in ("control_dt", "plant_dt", "image_scale", "gate", "model_gate"):
             if getattr(self, k) <= 0:
                 raise ConfigError(f"'{k}' must be > 0, got {getattr(self, k)}")
-        for k in ("vision_latency", "truth_noise_rms", "tracker_rms", "settle_time"):
+        for k in ("vision_latency", "truth_noise_rms", "tracker_rms", "settle_time", "feedforward_preview"):
             if getattr(self, k) < 0:
                 raise ConfigError(f"'{k}' must be >= 0, got {getattr(self, k)}")
         if self.vision_latency >= self.control_dt:

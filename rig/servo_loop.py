@@ -16,23 +16,23 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from models.ik import solve_tip_ik
-from models.tracker import OpticalTracker
 from numpy.typing import NDArray
-from solvers.controller import Controller
 from tqdm import tqdm
 
 from models.actuation import actuators_from_psi
 from models.errors import WristmarkError
+from models.ik import solve_tip_ik
 from models.kinematics import tip_position
 from models.limits import clamp_psi
 from models.plant_interface import ActuatedArm
 from models.robot_params import RobotParams
+from models.tracker import OpticalTracker
 from rig.actuator_link import ActuatorLink
 from rig.rig_config import RigConfig
 from rig.run_log import CycleRecord, RunLog
 from rig.tip_sensors import TipSensor
 from rig.trajectories import Trajectory
+from solvers.controller import Controller
 
 Array = NDArray[np.float64]
 
@@ -131,9 +131,13 @@ class ServoLoop:
             t_k = t0 + k * dt
             self._advance(t_k)
             tau = max(0.0, (k - n_settle) * dt)
-            p_des, v_des = traj.sample(tau)
+            p_des, _ = traj.sample(tau)
+            # feed-forward velocity previewed by the loop's delay (latency + actuator response)
+            v_des = traj.sample(tau + self.rig.feedforward_preview)[1]
             if k < n_settle:
                 v_des = np.zeros(3)
+            # open loop commands a position reached over the coming cycle: aim at its end
+            p_next = traj.sample(tau + dt)[0] if k >= n_settle - 1 else p_des
             shape = self.arm.true_shape()
             p_true = shape.tip.copy()
             p_trk = self.tracker.measure(p_true)
@@ -175,7 +179,7 @@ class ServoLoop:
                         raise MarkerLostError(stats.stopped + ": arm held")
                 self._advance(t_k + self.rig.vision_latency)
             else:
-                ik = solve_tip_ik(self.params, p_des, self.psi_cmd)
+                ik = solve_tip_ik(self.params, p_next, self.psi_cmd)
                 self.psi_cmd = clamp_psi(self.params, ik.psi)
             self._send(self.psi_cmd)
             stats.cycles += 1

@@ -5,6 +5,7 @@ import pytest
 
 from rig.metrics import corner_overshoot, error_stats, tracking_errors
 from rig.run_log import CycleRecord
+from rig.trajectories import Trajectory
 
 
 def _rec(t: float, p_des, p_true) -> CycleRecord:
@@ -20,20 +21,25 @@ def test_error_stats_in_mm() -> None:
     assert st.n == 2
 
 
-def test_overshoot_detects_passing_a_corner() -> None:
-    # desired: along +x to (1,0,0) then along +y; true tip overshoots 0.2 mm in x after the corner
+def _corner_run(extra: float) -> tuple[list[CycleRecord], Trajectory]:
+    traj = Trajectory(np.array([[0.0, 0, 0], [1.0, 0, 0], [1.0, 1.0, 0]]), 1.0)
     recs = []
     for k in range(21):
         t = 0.1 * k
-        p = (min(t, 1.0), max(0.0, t - 1.0), 0.0)
-        extra = 0.0002 if 1.0 < t < 1.5 else 0.0
-        recs.append(_rec(t, p, (p[0] + extra, p[1], 0.0)))
-    over = corner_overshoot(recs, window=1.0)
+        p, _ = traj.sample(t)
+        bump = extra if 1.0 < t < 1.5 else 0.0
+        recs.append(_rec(t, p, (p[0] + bump, p[1], 0.0)))
+    return recs, traj
+
+
+def test_overshoot_detects_passing_a_corner() -> None:
+    recs, traj = _corner_run(0.0002)
+    over = corner_overshoot(recs, traj.waypoints, traj.times, window=1.0)
     assert over.size == 1
     assert over[0] == pytest.approx(0.0002, abs=1e-9)
     assert tracking_errors(recs, "p_true").max() == pytest.approx(0.0002)
 
 
-def test_no_overshoot_on_straight_path() -> None:
-    recs = [_rec(0.1 * k, (0.1 * k, 0, 0), (0.1 * k, 0, 0)) for k in range(10)]
-    assert corner_overshoot(recs).size == 0
+def test_no_overshoot_when_the_tip_turns_at_the_corner() -> None:
+    recs, traj = _corner_run(0.0)
+    assert corner_overshoot(recs, traj.waypoints, traj.times)[0] == pytest.approx(0.0, abs=1e-12)

@@ -1,0 +1,75 @@
+"""Desired tip paths: the paper's cube (IV.C) and the incremental accuracy targets (IV.B)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+Array = NDArray[np.float64]
+
+# Corner order of a walk that covers all 12 edges of a box (3 edges twice): bottom square,
+# up, top square, then the remaining verticals. Signs of (x, y, z) relative to the centre.
+_CUBE_WALK = [(-1, -1, -1), (1, -1, -1), (1, 1, -1), (-1, 1, -1), (-1, -1, -1), (-1, -1, 1),
+              (1, -1, 1), (1, 1, 1), (-1, 1, 1), (-1, -1, 1), (1, -1, 1), (1, -1, -1),
+              (1, 1, -1), (1, 1, 1), (-1, 1, 1), (-1, 1, -1)]
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Piecewise-linear path through ``waypoints`` (N,3) [m] at ``speed`` [m/s]."""
+
+    waypoints: Array
+    speed: float
+
+    @property
+    def times(self) -> Array:
+        """Arrival time at each waypoint [s]."""
+        seg = np.linalg.norm(np.diff(self.waypoints, axis=0), axis=1)
+        return np.concatenate([[0.0], np.cumsum(seg) / self.speed])
+
+    @property
+    def duration(self) -> float:
+        """Total time [s]."""
+        return float(self.times[-1])
+
+    def sample(self, t: float) -> tuple[Array, Array]:
+        """Desired position [m] and velocity [m/s] at time t (held at the ends)."""
+        ts = self.times
+        if t <= 0.0:
+            return self.waypoints[0].copy(), np.zeros(3)
+        if t >= ts[-1]:
+            return self.waypoints[-1].copy(), np.zeros(3)
+        i = int(np.searchsorted(ts, t, side="right")) - 1
+        a, b = self.waypoints[i], self.waypoints[i + 1]
+        d = b - a
+        L = float(np.linalg.norm(d))
+        u = d / L
+        return a + u * self.speed * (t - ts[i]), u * self.speed
+
+
+def cube_trajectory(centre_world: Array, size: tuple[float, float, float] = (0.040, 0.020, 0.040),
+                    speed: float = 0.010) -> Trajectory:
+    """All 12 edges of a box of edge lengths ``size`` (x_w, y_w, z_w) [m] around the centre."""
+    c = np.asarray(centre_world, float)
+    half = 0.5 * np.asarray(size, float)
+    pts = np.array([c + half * np.array(s) for s in _CUBE_WALK])
+    return Trajectory(pts, speed)
+
+
+def accuracy_targets(centre_world: Array, n: int = 40, seed: int = 0, box: float = 0.030,
+                     step: tuple[float, float] = (0.002, 0.006)) -> Array:
+    """``n`` positions (n,3) [m] reached by incremental moves of ``step`` length inside a cube of
+    edge ``box`` around the centre (paper IV.B)."""
+    rng = np.random.default_rng(seed)
+    c = np.asarray(centre_world, float)
+    p = c.copy()
+    out: list[Array] = []
+    while len(out) < n:
+        d = rng.normal(size=3)
+        q = p + d / np.linalg.norm(d) * rng.uniform(*step)
+        if np.all(np.abs(q - c) <= box / 2):
+            p = q
+            out.append(p.copy())
+    return np.asarray(out)

@@ -1,0 +1,127 @@
+"""The controller interface, its configuration, and the registry of kinds.
+
+A controller turns the commanded configuration psi_cmd, the measured tip p_meas and the desired
+tip p_des (+ its velocity v_des) into the next commanded configuration (paper eq. 21:
+psi <- psi + psi_dot dt), always within the joint and velocity limits.
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from models.config_io import from_mapping, load_yaml
+from models.errors import ConfigError
+from models.kinematics import check_psi
+from models.limits import clamp_psi, clamp_velocity, psi_bounds
+from models.robot_params import RobotParams
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    """Controller settings (configs/controller.yaml, under 'controller:'); SI units.
+
+    kind: "paper" (eq. 17-21) or "qp" (velocity-bounded QP). dt: servo cycle [s].
+    paper: v_xlim constant tip speed [m/s]; gamma [m^2/s^2-free, eq. 20 damping]; xi threshold on
+    the smallest singular value; saturate_near_target: use min(v_xlim, |dp|/dt) instead of the
+    paper's constant speed. qp: kp feedback gain [1/s]; max_correction_speed [m/s];
+    feed_forward: add the desired velocity; damping: weight of ||S psi_dot||^2 relative to the
+    tip-velocity error (S converts rad to tip metres, ``lever`` [m/rad]); orientation_weight:
+    weight [m^2/rad^2] on keeping the tip frame's orientation (0 = position only).
+    """
+
+    kind: str = "qp"
+    dt: float = 0.060
+    v_xlim: float = 0.020
+    gamma: float = 1e-6
+    xi: float = 1e-3
+    saturate_near_target: bool = False
+    kp: float = 6.0
+    max_correction_speed: float = 0.02
+    feed_forward: bool = True
+    damping: float = 1e-3
+    lever: float = 0.05
+    orientation_weight: float = 1e-3
+    qp_solver: str = "daqp"
+
+    def validate(self) -> None:
+        """Raise ConfigError naming the offending key."""
+        for k in ("dt", "v_xlim", "gamma", "xi", "max_correction_speed", "damping", "lever"):
+            if getattr(self, k) <= 0:
+                raise ConfigError(f"'{k}' must be > 0, got {getattr(self, k)}")
+        for k in ("kp", "orientation_weight"):
+            if getattr(self, k) < 0:
+                raise ConfigError(f"'{k}' must be >= 0, got {getattr(self, k)}")
+        if self.qp_solver not in ("daqp", "qpoases"):
+            raise ConfigError(f"'qp_solver' must be daqp or qpoases, got {self.qp_solver!r}")
+
+    @classmethod
+    def load(cls, path: str | Path) -> ControllerConfig:
+        """Load from YAML (a 'controller:' mapping, or the mapping itself)."""
+        data = load_yaml(path)
+        if set(data) == {"controller"}:
+            data = data["controller"] or {}
+        return from_mapping(cls, data, str(path))
+
+
+@dataclass(frozen=True)
+class ControlStep:
+    """One controller step: next psi (in limits), psi_dot (in limits), commanded tip velocity."""
+
+    psi_next: Array
+    psi_dot: Array
+    v_tip_cmd: Array
+    status: str
+    solve_time_us: float
+
+
+class Controller(abc.ABC):
+    """Base of every controller kind."""
+
+    def __init__(self, params: RobotParams, config: ControllerConfig) -> None:
+        self.params = params
+        self.config = config
+
+    @abc.abstractmethod
+    def velocity(self, psi: Array, p_meas: Array, p_des: Array, v_des: Array | None,
+                 dt: float) -> tuple[Array, Array, str]:
+        """psi_dot [rad/s, m/s], commanded tip velocity [m/s] and a status word."""
+
+    def step(self, psi_cmd: Array, p_meas_world: Array, p_des_world: Array,
+             v_des_world: Array | None, dt: float) -> ControlStep:
+        """Next commanded configuration from the measured and desired tip in {w} [m]."""
+        import time
+
+        psi = clamp_psi(self.params, check_psi(psi_cmd))
+        t0 = time.perf_counter()
+        psi_dot, v_tip, status = self.velocity(psi, np.asarray(p_meas_world, float),
+                                               np.asarray(p_des_world, float),
+                                               None if v_des_world is None else np.asarray(v_des_world, float), dt)
+        us = 1e6 * (time.perf_counter() - t0)
+        psi_dot = clamp_velocity(self.params, np.nan_to_num(psi_dot))
+        lo, hi = psi_bounds(self.params)
+        nxt = np.clip(psi + psi_dot * dt, lo, hi)
+        psi_dot = (nxt - psi) / dt
+        return ControlStep(clamp_psi(self.params, nxt), psi_dot, v_tip, status, us)
+
+
+CONTROLLER_KINDS = ("paper", "qp")
+
+
+def make_controller(params: RobotParams, config: ControllerConfig) -> Controller:
+    """Build the controller ``config.kind``; an unknown kind lists the valid ones."""
+    if config.kind == "paper":
+        from solvers.paper_controller import PaperController
+
+        return PaperController(params, config)
+    if config.kind == "qp":
+        from solvers.qp_controller import QpController
+
+        return QpController(params, config)
+    raise ConfigError(f"unknown controller kind {config.kind!r}; valid kinds: {', '.join(CONTROLLER_KINDS)}")

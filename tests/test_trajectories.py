@@ -1,0 +1,89 @@
+"""Cube trajectory (paper IV.C) and accuracy targets (paper IV.B)."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from rig.trajectories import accuracy_targets, cube_trajectory
+
+CENTRE = np.array([0.01, -0.005, 0.16])
+SIZE = (0.040, 0.020, 0.040)
+SPEED = 0.010
+
+
+def _dense(traj: object, dt: float = 0.01) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    ts = np.arange(0.0, traj.duration + 1e-12, dt)  # type: ignore[attr-defined]
+    ps, vs = zip(*(traj.sample(float(t)) for t in ts))  # type: ignore[attr-defined]
+    return ts, np.array(ps), np.array(vs)
+
+
+def test_constant_speed() -> None:
+    traj = cube_trajectory(CENTRE, SIZE, SPEED)
+    ts, ps, vs = _dense(traj)
+    inner = (ts > 1e-9) & (ts < traj.duration - 1e-9)
+    np.testing.assert_allclose(np.linalg.norm(vs[inner], axis=1), SPEED, rtol=1e-12)
+    # positions advance at the speed (finite differences, away from corners)
+    steps = np.linalg.norm(np.diff(ps, axis=0), axis=1)
+    assert np.max(steps) <= SPEED * 0.01 * (1 + 1e-9)
+    assert np.median(steps) == pytest.approx(SPEED * 0.01, rel=1e-9)
+
+
+def test_continuous() -> None:
+    traj = cube_trajectory(CENTRE, SIZE, SPEED)
+    _, ps, _ = _dense(traj, 0.001)
+    assert np.max(np.linalg.norm(np.diff(ps, axis=0), axis=1)) <= SPEED * 0.001 * (1 + 1e-9)
+
+
+def test_visits_all_corners_and_stays_on_the_box() -> None:
+    traj = cube_trajectory(CENTRE, SIZE, SPEED)
+    half = 0.5 * np.asarray(SIZE)
+    corners = [CENTRE + half * np.array(s) for s in itertools.product((-1, 1), repeat=3)]
+    wp = traj.waypoints
+    for c in corners:
+        assert np.min(np.linalg.norm(wp - c, axis=1)) < 1e-12
+    _, ps, _ = _dense(traj)
+    rel = np.abs(ps - CENTRE) / half
+    assert np.all(rel <= 1 + 1e-9)
+    # on an edge: at least two coordinates are at a face
+    assert np.all(np.sum(np.isclose(rel, 1.0, atol=1e-9), axis=1) >= 2)
+
+
+def test_covers_all_twelve_edges_with_the_right_lengths() -> None:
+    traj = cube_trajectory(CENTRE, SIZE, SPEED)
+    half = 0.5 * np.asarray(SIZE)
+    signs = np.rint((traj.waypoints - CENTRE) / half).astype(int)
+    edges = set()
+    for a, b, pa, pb in zip(signs[:-1], signs[1:], traj.waypoints[:-1], traj.waypoints[1:]):
+        axis = int(np.flatnonzero(a != b)[0])
+        assert np.sum(a != b) == 1  # every leg runs along one box edge
+        assert np.linalg.norm(pb - pa) == pytest.approx(SIZE[axis], rel=1e-12)
+        edges.add(frozenset((tuple(a), tuple(b))))
+    assert len(edges) == 12
+    legs = len(traj.waypoints) - 1
+    assert traj.duration == pytest.approx(
+        sum(np.linalg.norm(np.diff(traj.waypoints, axis=0), axis=1)) / SPEED, rel=1e-12
+    )
+    assert legs >= 12
+
+
+def test_sample_holds_at_the_ends() -> None:
+    traj = cube_trajectory(CENTRE, SIZE, SPEED)
+    p0, v0 = traj.sample(-1.0)
+    p1, v1 = traj.sample(traj.duration + 5.0)
+    np.testing.assert_allclose(p0, traj.waypoints[0])
+    np.testing.assert_allclose(p1, traj.waypoints[-1])
+    assert np.all(v0 == 0.0) and np.all(v1 == 0.0)
+
+
+def test_accuracy_targets() -> None:
+    t = accuracy_targets(CENTRE, n=40, seed=4)
+    assert t.shape == (40, 3)
+    assert np.all(np.isfinite(t))
+    assert np.max(np.abs(t - CENTRE)) <= 0.05
+    steps = np.linalg.norm(np.diff(np.vstack([CENTRE, t]), axis=0), axis=1)
+    assert np.all(steps > 0.0) and np.all(steps < 0.02)  # incremental moves
+    np.testing.assert_array_equal(t, accuracy_targets(CENTRE, n=40, seed=4))
+    assert not np.allclose(t, accuracy_targets(CENTRE, n=40, seed=5))

@@ -1,0 +1,106 @@
+"""Controllers: the paper's eq. 17-21, the CasADi QP, limits, convergence, configuration."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.optimize import lsq_linear
+
+from models.errors import ConfigError
+from models.kinematics import tip_jacobian, tip_position
+from models.limits import psi_bounds
+from models.robot_params import HOME_PSI, RobotParams
+from solvers.controller import ControllerConfig, make_controller
+from solvers.paper_controller import sr_pseudo_inverse
+from solvers.qp_controller import BoxQp
+
+P = RobotParams()
+HOME = np.array(HOME_PSI)
+CONFIGS = Path(__file__).resolve().parent.parent / "configs"
+
+
+def test_default_file_loads() -> None:
+    cfg = ControllerConfig.load(CONFIGS / "controller.yaml")
+    assert cfg.kind in ("paper", "qp") and cfg.dt == pytest.approx(0.060)
+
+
+def test_unknown_kind_lists_valid_ones() -> None:
+    with pytest.raises(ConfigError, match="valid kinds: paper, qp"):
+        make_controller(P, ControllerConfig(kind="pid"))
+
+
+@pytest.mark.parametrize("text, key", [("controller:\n  kp: -1\n", "kp"), ("controller:\n  dt: 0\n", "dt"),
+                                       ("controller:\n  foo: 1\n", "foo"),
+                                       ("controller:\n  qp_solver: osqp\n", "qp_solver")])
+def test_config_errors_name_key_and_file(tmp_path: Path, text: str, key: str) -> None:
+    f = tmp_path / "c.yaml"
+    f.write_text(text)
+    with pytest.raises(ConfigError) as e:
+        ControllerConfig.load(f)
+    assert key in str(e.value) and str(f) in str(e.value)
+
+
+def test_paper_step_matches_eq_18_to_21_by_hand() -> None:
+    cfg = ControllerConfig(kind="paper", v_xlim=0.01, gamma=1e-6, xi=1e-3)
+    c = make_controller(P, cfg)
+    dt = 0.06
+    p_c = tip_position(P, HOME)
+    p_d = p_c + np.array([0.003, -0.001, 0.002])
+    dp = p_d - p_c  # eq. 17
+    v = 0.01 * dp / np.linalg.norm(dp)  # eq. 18
+    J = tip_jacobian(P, HOME)
+    s = np.linalg.svd(J, compute_uv=False)
+    Jp = J.T @ np.linalg.inv(J @ J.T + 1e-6 * np.eye(6)) if s[-1] < 1e-3 else np.linalg.pinv(J)  # eq. 20
+    psi_dot = Jp @ np.r_[v, 0, 0, 0]  # eq. 19
+    step = c.step(HOME, p_c, p_d, None, dt)
+    np.testing.assert_allclose(step.psi_next, HOME + psi_dot * dt, atol=1e-12)  # eq. 21
+    np.testing.assert_allclose(step.v_tip_cmd, v, atol=1e-15)
+
+
+def test_sr_pseudo_inverse_damps_only_near_singular() -> None:
+    J = np.diag([1.0, 1.0, 1e-5])
+    assert np.allclose(sr_pseudo_inverse(np.eye(3), 1e-2, 1e-3), np.eye(3))
+    damped = sr_pseudo_inverse(J, 1e-4, 1e-3)
+    assert damped[2, 2] == pytest.approx(1e-5 / (1e-10 + 1e-4))
+
+
+@pytest.mark.parametrize("kind", ["paper", "qp"])
+def test_error_decreases_on_a_static_target(kind: str) -> None:
+    c = make_controller(P, ControllerConfig(kind=kind, saturate_near_target=True))
+    q = HOME.copy()
+    target = tip_position(P, q) + np.array([0.004, 0.003, -0.005])
+    errs = [np.linalg.norm(tip_position(P, q) - target)]
+    for _ in range(25):
+        q = c.step(q, tip_position(P, q), target, np.zeros(3), 0.06).psi_next
+        errs.append(np.linalg.norm(tip_position(P, q) - target))
+    big = [e for e in errs if e > 2e-4]
+    assert all(b < a for a, b in zip(big, big[1:])), errs
+    assert errs[-1] < 1e-4
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st.sampled_from(["paper", "qp"]), st.lists(st.floats(-1, 1), min_size=6, max_size=6),
+       st.lists(st.floats(-0.05, 0.05), min_size=3, max_size=3), st.floats(0.005, 0.2))
+def test_limits_never_exceeded(kind: str, u: list[float], dp: list[float], dt: float) -> None:
+    lo, hi = psi_bounds(P)
+    span_lo = np.where(np.isfinite(lo), lo, -np.pi)
+    span_hi = np.where(np.isfinite(hi), hi, np.pi)
+    q = span_lo + (np.asarray(u) + 1) / 2 * (span_hi - span_lo)
+    c = make_controller(P, ControllerConfig(kind=kind, v_xlim=0.05, kp=50.0, max_correction_speed=0.2))
+    step = c.step(q, tip_position(P, q), tip_position(P, q) + np.asarray(dp), np.asarray(dp), dt)
+    assert np.all(step.psi_next >= lo - 1e-12) and np.all(step.psi_next <= hi + 1e-12)
+    assert np.all(np.abs(step.psi_dot) <= np.asarray(P.max_velocity) + 1e-9)
+
+
+def test_box_qp_matches_bounded_least_squares() -> None:
+    qp = BoxQp("daqp")
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        A = rng.normal(size=(9, 6))
+        b = rng.normal(size=9)
+        lo, hi = -rng.uniform(0.05, 1, 6), rng.uniform(0.05, 1, 6)
+        x = qp.solve(2 * A.T @ A, -2 * A.T @ b, lo, hi)
+        ref = lsq_linear(A, b, bounds=(lo, hi), tol=1e-12).x
+        np.testing.assert_allclose(x, ref, atol=1e-7)

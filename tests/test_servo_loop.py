@@ -1,0 +1,118 @@
+"""The servo loop: closed loop removes the plant's errors, a lost marker holds the arm,
+jumping measurements are rejected, commands stay in the limits."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from models.ik import solve_tip_ik
+from models.kinematics import tip_position
+from models.limits import within_limits
+from models.plant import TruePlant
+from models.plant_params import PlantParams
+from models.robot_params import HOME_PSI, RobotParams
+from models.tracker import OpticalTracker
+from rig.actuator_link import DirectLink
+from rig.rig_config import RigConfig
+from rig.run_log import RunLog
+from rig.servo_loop import MarkerLostError, ServoLoop
+from rig.tip_sensors import NoisyTruthSensor, TipMeasurement
+from rig.trajectories import Trajectory
+from solvers.controller import ControllerConfig, make_controller
+
+P = RobotParams()
+PLANT = PlantParams(bend_gain=(0.95, 0.92), plane_offset=(0.02, -0.03), actuator_tau=0.03,
+                    backlash=(0.004, 5e-5, 3e-5, 3e-5, 3e-5, 3e-5))
+RIG = RigConfig(sensor="truth-noise", truth_noise_rms=1e-4, settle_time=1.0, max_lost_cycles=5)
+
+
+def _line() -> Trajectory:
+    c = tip_position(P, HOME_PSI)
+    return Trajectory(np.array([c, c + [0.01, 0.0, 0.005]]), 0.01)
+
+
+def _loop(sensor: object, closed: bool, rig: RigConfig = RIG, kind: str = "qp") -> tuple[ServoLoop, TruePlant]:
+    traj = _line()
+    psi0 = solve_tip_ik(P, traj.sample(0)[0], np.array(HOME_PSI)).psi
+    plant = TruePlant(P, PLANT, psi0=psi0)
+    loop = ServoLoop(P, rig, DirectLink(plant), plant, OpticalTracker(1.2e-4, seed=1),
+                     sensor=sensor if closed else None,  # type: ignore[arg-type]
+                     controller=make_controller(P, ControllerConfig(kind=kind)) if closed else None)
+    loop.start_at(psi0)
+    return loop, plant
+
+
+def _mean_err(log: RunLog, phase: str) -> float:
+    return float(np.mean([np.linalg.norm(r.p_true - r.p_des) for r in log.phase(phase)]))
+
+
+@pytest.mark.parametrize("kind", ["qp", "paper"])
+def test_closed_loop_removes_most_of_the_open_loop_error(kind: str) -> None:
+    log = RunLog()
+    ol, _ = _loop(None, False)
+    ol.run(_line(), "open", False, log)
+    cl, _ = _loop(NoisyTruthSensor(1e-4, seed=2), True, kind=kind)
+    cl.run(_line(), "closed", True, log, settle=1.0)
+    assert _mean_err(log, "open") > 1e-3
+    assert _mean_err(log, "closed") < 0.4 * _mean_err(log, "open")
+    assert all(within_limits(P, r.psi_cmd) for r in log.records)
+
+
+class _Blinking:
+    """Real measurements until cycle ``lose_at``, then nothing (marker out of view)."""
+
+    def __init__(self, lose_at: int) -> None:
+        self.inner = NoisyTruthSensor(1e-4, seed=3)
+        self.n = 0
+        self.lose_at = lose_at
+
+    def measure(self, shape: object) -> TipMeasurement:
+        self.n += 1
+        if self.n > self.lose_at:
+            return TipMeasurement(False, None, "marker not found")
+        return self.inner.measure(shape)  # type: ignore[arg-type]
+
+
+def test_lost_marker_holds_then_stops() -> None:
+    loop, plant = _loop(_Blinking(lose_at=8), True)
+    log = RunLog()
+    with pytest.raises(MarkerLostError, match="marker lost"):
+        loop.run(_line(), "closed", True, log, settle=0.0)
+    held = [r for r in log.records if not r.meas_ok]
+    assert len(held) == RIG.max_lost_cycles + 1
+    # while lost the command does not change: the arm is held
+    assert all(np.array_equal(held[0].psi_cmd, r.psi_cmd) for r in held)
+    a = plant.measured_actuators()
+    plant.advance(1.0)
+    np.testing.assert_allclose(plant.measured_actuators(), a, atol=1e-12)
+
+
+class _Jumpy:
+    def __init__(self) -> None:
+        self.inner = NoisyTruthSensor(1e-5, seed=4)
+        self.n = 0
+
+    def measure(self, shape: object) -> TipMeasurement:
+        self.n += 1
+        m = self.inner.measure(shape)  # type: ignore[arg-type]
+        if self.n == 10:
+            assert m.p_world is not None
+            return TipMeasurement(True, m.p_world + np.array([0.01, 0, 0]))
+        return m
+
+
+def test_a_jumping_measurement_is_rejected() -> None:
+    loop, _ = _loop(_Jumpy(), True)
+    log = RunLog()
+    loop.run(_line(), "closed", True, log, settle=0.0)
+    rej = [r for r in log.records if r.rejected]
+    assert len(rej) == 1
+    assert np.allclose(rej[0].psi_cmd, log.records[8].psi_cmd)
+
+
+def test_config_rejects_latency_longer_than_cycle() -> None:
+    with pytest.raises(Exception, match="vision_latency"):
+        dataclasses.replace(RIG, control_dt=0.03, vision_latency=0.05).validate()

@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 from models.actuation import actuators_from_psi, psi_from_actuators
 from models.arm_shape import ArmShape, shape_from_frames
 from models.constant_curvature import rot_z, segment_point, segment_transform
+from models.errors import InputError
 from models.kinematics import ArmFrames, check_psi
 from models.plant_params import PlantParams
 from models.robot_params import RobotParams
@@ -69,7 +70,7 @@ class TruePlant:
         """Set actuator targets [rad, m, m, m, m, m]."""
         a = np.asarray(actuators, float)
         if a.shape != (6,) or not np.all(np.isfinite(a)):
-            raise ValueError(f"actuator targets must be 6 finite numbers, got {a}")
+            raise InputError(f"actuator targets must be 6 finite numbers, got {a}")
         self._target = a.copy()
 
     def hold(self) -> None:

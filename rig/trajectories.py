@@ -10,7 +10,8 @@ from numpy.typing import NDArray
 Array = NDArray[np.float64]
 
 # Corner order of a walk that covers all 12 edges of a box (4 edges twice): bottom square,
-# up, top square, then the remaining verticals and back to the start (a closed walk). Signs of (x, y, z) relative to the centre.
+# up, top square, the remaining verticals and back to the start (a closed walk).
+# Signs of (x, y, z) relative to the centre.
 _CUBE_WALK = [(-1, -1, -1), (1, -1, -1), (1, 1, -1), (-1, 1, -1), (-1, -1, -1), (-1, -1, 1),
               (1, -1, 1), (1, 1, 1), (-1, 1, 1), (-1, -1, 1), (1, -1, 1), (1, -1, -1),
               (1, 1, -1), (1, 1, 1), (-1, 1, 1), (-1, 1, -1), (-1, -1, -1)]

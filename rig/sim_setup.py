@@ -8,21 +8,21 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from models.plant import TruePlant
-from models.plant_params import PlantParams
-from models.tracker import OpticalTracker
 from numpy.typing import NDArray
-from solvers.controller import ControllerConfig, make_controller
 
 from cvs.camera import StereoCamera, scaled_stereo_camera
 from cvs.marker import MarkerModel
 from models.config_io import to_mapping
 from models.errors import ConfigError
+from models.plant import TruePlant
+from models.plant_params import PlantParams
 from models.robot_params import RobotParams
+from models.tracker import OpticalTracker
 from rig.actuator_link import DirectLink
 from rig.rig_config import RigConfig
 from rig.servo_loop import ServoLoop
 from rig.tip_sensors import NoisyTruthSensor, TipSensor, VisionTipSensor
+from solvers.controller import ControllerConfig, make_controller
 
 Array = NDArray[np.float64]
 CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs"

@@ -59,10 +59,11 @@ class VisionTipSensor:
         self, camera: StereoCamera, marker: MarkerModel, noise: str = "default", seed: int = 0
     ) -> None:
         from cvs.marker_tracker import MarkerTracker
-        from cvs.render import StereoRenderer, render_settings_preset
+        from cvs.render import StereoRenderer
+        from cvs.render_settings import noise_preset
 
         self.camera = camera
-        self.renderer = StereoRenderer(camera, marker, render_settings_preset(noise), seed=seed)
+        self.renderer = StereoRenderer(camera, marker, noise_preset(noise), seed=seed)
         self.tracker = MarkerTracker(camera, marker)
         self.last_images: tuple[np.ndarray, np.ndarray] | None = None
 

@@ -35,10 +35,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from solvers.controller import make_controller
-
     from rig import experiments
     from rig.sim_setup import load_setup
+    from solvers.controller import make_controller
 
     setup = load_setup(robot=args.robot, marker=args.marker, camera=args.camera, plant=args.plant,
                        rig=args.rig, controller=args.controller_config)

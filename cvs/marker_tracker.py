@@ -1,0 +1,287 @@
+"""The stereo tracking pipeline of paper Sec. III: corners -> correspondence -> pose -> tip.
+
+``MarkerTracker.track(left_img, right_img)`` runs, per stereo pair: the corner detector in each
+image (ROI tracking from pair to pair, whole frame when lost), rectified-y correspondence with
+relative indices (cvs.stereo_match), the homography start (eq. 14-15, or triangulation + Kabsch
+when a camera sees fewer than 4 corners or the homography start does not converge), the CasADi
+stereo solve (eq. 16) and the tip (eq. 5). It returns ``ok=False`` with a reason rather than a
+doubtful pose: no marker, too few corners, no stereo pairs, or a residual above ``max_rms_px``.
+``track_corners`` takes corners directly (controller loops, baselines, tests).
+"""
+
+from __future__ import annotations
+
+import importlib
+import time
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from cvs.camera import StereoCamera
+from cvs.marker import MarkerModel
+from cvs.stereo_match import StereoMatch, StereoRectifier, match_corners
+from models.errors import InputError
+from solvers.homography_init import homography_pose
+from solvers.stereo_pose import MarkerPose, PoseSettings, StereoPoseSolver
+
+Array = NDArray[np.float64]
+IntArray = NDArray[np.int_]
+
+
+class CornerDetector(Protocol):
+    """What the tracker needs from a detector (cvs.corner_detector.MarkerCornerDetector)."""
+
+    def detect(self, gray: Any, roi: Any = None) -> Any: ...
+
+    def track(self, gray: Any) -> Any: ...
+
+
+@dataclass(frozen=True)
+class TrackerSettings:
+    """min_corners: per camera [-]; min_pairs: stereo pairs needed [-]; max_dy_px: rectified-y
+    tolerance of a pair [px]; max_rms_px: largest accepted reprojection RMS [px]; good_rms_px: an
+    RMS that ends the search over start poses [px] (local minima of eq. 16 sit near 0.8-1 px at
+    0.2 px corner noise, the true pose near the noise level); detector:
+    'auto' (the paper's detector if installed, else the saddle fallback), 'paper' or 'saddle';
+    pose: solver settings."""
+
+    min_corners: int = 3
+    min_pairs: int = 2
+    max_dy_px: float = 2.0
+    max_rms_px: float = 0.75
+    good_rms_px: float = 0.4
+    detector: str = "auto"
+    pose: PoseSettings = field(default_factory=PoseSettings)
+
+
+@dataclass(frozen=True)
+class TrackResult:
+    """One stereo pair's tracking result (left camera frame {ll}, metres).
+
+    ok: a pose was found and passed the checks; reason: why not ('' when ok); tip_left, tip_world
+    [m] (tip_world None without world_T_left); T_left_marker: 4x4 pose of {wm} in {ll};
+    corners_left/right: detected corners in raw pixels (N, 2); rms_px [px]; time_ms: total [ms];
+    timings: ms per stage (detect, match, init, solve); pose: the solver result when one ran.
+    """
+
+    ok: bool
+    reason: str
+    tip_left: Array | None
+    tip_world: Array | None
+    T_left_marker: Array | None
+    corners_left: Array
+    corners_right: Array
+    rms_px: float
+    time_ms: float
+    timings: dict[str, float]
+    pose: MarkerPose | None = None
+    match: StereoMatch | None = None
+
+
+def _make_detector(kind: str) -> CornerDetector:
+    if kind not in ("auto", "paper", "saddle"):
+        raise InputError(f"unknown detector '{kind}' (valid: auto, paper, saddle)")
+    if kind in ("auto", "paper"):
+        try:
+            mod = importlib.import_module("cvs.corner_detector")
+            det: CornerDetector = mod.MarkerCornerDetector()
+            return det
+        except ImportError as e:
+            if kind == "paper":
+                raise InputError("the paper's detector (cvs.corner_detector) is not installed") from e
+    from cvs.saddle_corners import SaddleCornerDetector
+
+    return SaddleCornerDetector()
+
+
+def _as_gray(img: Any, size: tuple[int, int], name: str) -> NDArray[np.uint8]:
+    a = np.asarray(img)
+    if a.ndim == 3 and a.shape[2] in (3, 4):
+        a = cv2.cvtColor(a, cv2.COLOR_BGR2GRAY if a.shape[2] == 3 else cv2.COLOR_BGRA2GRAY)
+    if a.ndim != 2:
+        raise InputError(f"{name} image must be grayscale (h, w) or BGR (h, w, 3), got shape {a.shape}")
+    w, h = size
+    if a.shape != (h, w):
+        raise InputError(f"{name} image is {a.shape[1]}x{a.shape[0]} but the calibration expects {w}x{h}")
+    if a.dtype != np.uint8:
+        raise InputError(f"{name} image must be 8-bit (uint8), got {a.dtype}")
+    return a
+
+
+def kabsch(P_model: Array, P_obs: Array) -> Array:
+    """4x4 rigid transform T with P_obs ~ R P_model + t (least squares, proper rotation)."""
+    cm, co = P_model.mean(axis=0), P_obs.mean(axis=0)
+    H = (P_model - cm).T @ (P_obs - co)
+    u, _, vt = np.linalg.svd(H)
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(vt.T @ u.T)) or 1.0])
+    R = vt.T @ D @ u.T
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, co - R @ cm
+    return T
+
+
+class MarkerTracker:
+    """Stereo tip tracker for one calibration and marker; keeps ROI state between pairs."""
+
+    def __init__(self, camera: StereoCamera, marker: MarkerModel, settings: TrackerSettings | None = None) -> None:
+        self.settings = settings or TrackerSettings()
+        camera.validate()
+        marker.validate()
+        self.camera, self.marker = camera, marker
+        self.rectifier = StereoRectifier(camera)
+        self.solver = StereoPoseSolver(camera, marker, self.settings.pose)
+        self.detector_left = _make_detector(self.settings.detector)
+        self.detector_right = _make_detector(self.settings.detector)
+        T_rl = np.eye(4)
+        T_rl[:3, :3], T_rl[:3, 3] = camera.R, camera.T
+        self._T_left_right = np.linalg.inv(T_rl)
+        self._tracking = False
+        self._last_T: Array | None = None
+        cv2.setNumThreads(1)
+
+    def _fail(self, reason: str, cl: Array, cr: Array, t0: float, timings: dict[str, float], **kw: Any) -> TrackResult:
+        return TrackResult(
+            False, reason, None, None, None, cl, cr, float("nan"), 1e3 * (time.perf_counter() - t0), timings, **kw
+        )
+
+    def track(self, left_img: Any, right_img: Any) -> TrackResult:
+        """Track the marker in one stereo pair (grayscale or BGR uint8 images of the calibrated size)."""
+        t0 = time.perf_counter()
+        gl = _as_gray(left_img, self.camera.image_size, "left")
+        gr = _as_gray(right_img, self.camera.image_size, "right")
+        roi = self._tracking
+        if roi:
+            dl, dr = self.detector_left.track(gl), self.detector_right.track(gr)
+        else:
+            dl, dr = self.detector_left.detect(gl), self.detector_right.detect(gr)
+        t_det = 1e3 * (time.perf_counter() - t0)
+        res = self.track_corners(dl.corners, dr.corners, dl.polarity, dr.polarity, _t0=t0)
+        res.timings["detect"] = t_det
+        if not res.ok and roi:
+            # the ROI may have lost the marker: search both whole frames once more
+            t1 = time.perf_counter()
+            dl, dr = self.detector_left.detect(gl), self.detector_right.detect(gr)
+            t_full = 1e3 * (time.perf_counter() - t1)
+            res = self.track_corners(dl.corners, dr.corners, dl.polarity, dr.polarity, _t0=t0)
+            res.timings["detect"] = t_det + t_full
+        self._tracking = res.ok
+        self._last_T = res.T_left_marker
+        return res
+
+    def reset(self) -> None:
+        """Forget the ROI state: the next pair is searched in the whole frames."""
+        self._tracking = False
+        self._last_T = None
+
+    def _initial_pose(self, idx_l: IntArray, ul: Array, idx_r: IntArray, ur: Array, m: StereoMatch) -> list[Array]:
+        """Start poses, most likely first: the previous pair's pose (tracking), the homography of
+        the camera with more corners (paper eq. 14-15), both planar solutions of cv2 IPPE (the
+        homography's mirror-tilt ambiguity) and triangulation + Kabsch."""
+        starts: list[Array] = []
+        if self._tracking and self._last_T is not None:
+            starts.append(self._last_T)
+        pts = self.solver.marker_points
+        use_left = idx_l.size >= idx_r.size
+        idx, uv, cam = (idx_l, ul, self.camera.left) if use_left else (idx_r, ur, self.camera.right)
+        T_fix = np.eye(4) if use_left else self._T_left_right
+        if idx.size >= 4:
+            try:
+                starts.append(T_fix @ homography_pose(cam, pts(idx), uv))
+            except (InputError, np.linalg.LinAlgError):
+                pass
+            try:
+                n, rvecs, tvecs, _ = cv2.solvePnPGeneric(
+                    pts(idx), uv, np.asarray(cam.K, float), np.asarray(cam.dist, float), flags=cv2.SOLVEPNP_IPPE
+                )
+                for rv, tv in zip(rvecs[:n], tvecs[:n]):
+                    T = np.eye(4)
+                    T[:3, :3], T[:3, 3] = cv2.Rodrigues(rv)[0], np.asarray(tv).reshape(3)
+                    starts.append(T_fix @ T)
+            except cv2.error:
+                pass
+        if m.n_pairs >= 3:
+            X = cv2.triangulatePoints(
+                self.rectifier.P1, self.rectifier.P2, m.rect_left[m.pairs[:, 0]].T, m.rect_right[m.pairs[:, 1]].T
+            )
+            X = (X[:3] / X[3]).T @ np.asarray(self.rectifier.R1)  # rectified-left -> {ll}
+            starts.append(kabsch(pts(m.index_left[m.pairs[:, 0]]), X))
+        return starts
+
+    def track_corners(
+        self,
+        corners_left: Array,
+        corners_right: Array,
+        polarity_left: Array | None = None,
+        polarity_right: Array | None = None,
+        _t0: float | None = None,
+    ) -> TrackResult:
+        """Pose and tip from raw-pixel corners (N, 2) of each image and optional polarities (+-1)."""
+        t0 = time.perf_counter() if _t0 is None else _t0
+        s = self.settings
+        cl = np.asarray(corners_left, float).reshape(-1, 2)
+        cr = np.asarray(corners_right, float).reshape(-1, 2)
+        timings: dict[str, float] = {}
+        if cl.shape[0] == 0 and cr.shape[0] == 0:
+            return self._fail("no marker found in either image", cl, cr, t0, timings)
+        if min(cl.shape[0], cr.shape[0]) < s.min_corners:
+            return self._fail(
+                f"too few marker corners (left {cl.shape[0]}, right {cr.shape[0]}; need {s.min_corners} each)",
+                cl,
+                cr,
+                t0,
+                timings,
+            )
+        t1 = time.perf_counter()
+        pl = None if polarity_left is None else np.asarray(polarity_left, int)
+        pr = None if polarity_right is None else np.asarray(polarity_right, int)
+        m = match_corners(self.rectifier, cl, cr, pl, pr, s.max_dy_px)
+        timings["match"] = 1e3 * (time.perf_counter() - t1)
+        if m.n_pairs < s.min_pairs:
+            return self._fail(
+                f"only {m.n_pairs} left/right corner pairs (need {s.min_pairs})", cl, cr, t0, timings, match=m
+            )
+        kl, kr = m.index_left >= 0, m.index_right >= 0
+        idx_l, ul, idx_r, ur = m.index_left[kl], cl[kl], m.index_right[kr], cr[kr]
+        t2 = time.perf_counter()
+        starts = self._initial_pose(idx_l, ul, idx_r, ur, m)
+        timings["init"] = 1e3 * (time.perf_counter() - t2)
+        t3 = time.perf_counter()
+        best: MarkerPose | None = None
+        for T0 in starts:  # stop at the first good fit, else keep the best of all starts
+            pose = self.solver.solve(idx_l, ul, idx_r, ur, T0)
+            if np.isfinite(pose.rms_px) and (best is None or pose.rms_px < best.rms_px):
+                best = pose
+            if best is not None and best.rms_px <= s.good_rms_px:
+                break
+        timings["solve"] = 1e3 * (time.perf_counter() - t3)
+        if best is None:
+            return self._fail(
+                "no start pose (need 4 corners in one image or 3 stereo pairs)", cl, cr, t0, timings, match=m
+            )
+        if not best.rms_px <= s.max_rms_px or best.T_left_marker[2, 3] <= 0:
+            return self._fail(
+                f"reprojection RMS {best.rms_px:.2f} px above {s.max_rms_px} px: corners do not fit the marker",
+                cl,
+                cr,
+                t0,
+                timings,
+                pose=best,
+                match=m,
+            )
+        return TrackResult(
+            True,
+            "",
+            best.tip_left,
+            best.tip_world,
+            best.T_left_marker,
+            cl,
+            cr,
+            best.rms_px,
+            1e3 * (time.perf_counter() - t0),
+            timings,
+            pose=best,
+            match=m,
+        )

@@ -1,0 +1,62 @@
+"""Is the wrist marker seen by both cameras? And random configurations where it is."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from cvs.camera import StereoCamera
+from cvs.marker import MarkerModel
+from cvs.render import corner_truth
+from models.arm_shape import ArmShape, arm_shape
+from models.errors import InputError
+from models.limits import clamp_psi
+from models.robot_params import HOME_PSI, RobotParams
+
+Array = NDArray[np.float64]
+
+
+def marker_visible(
+    camera: StereoCamera, marker: MarkerModel, shape: ArmShape, min_corners: int = 3, margin_px: float = 20.0
+) -> bool:
+    """True if the whole sleeve projects inside both images (``margin_px`` from the border) and
+    each camera sees at least ``min_corners`` corners with cos_view > 0.3."""
+    if camera.T_world_left is None:
+        raise InputError("the calibration has no 'world_T_left': cannot place the arm in the images")
+    W = np.linalg.inv(np.asarray(camera.T_world_left, float))
+    T_lm = W @ shape.T_world_marker
+    T_rl = np.eye(4)
+    T_rl[:3, :3], T_rl[:3, 3] = camera.R, camera.T
+    w, h = camera.image_size
+    ang = np.linspace(0, 2 * np.pi, 16, endpoint=False)
+    ring = np.column_stack([np.cos(ang), np.sin(ang), np.zeros_like(ang)]) * marker.radius
+    rim = np.vstack([ring + [0, 0, marker.row_height], ring - [0, 0, marker.row_height]])
+    for cam, T in ((camera.left, T_lm), (camera.right, T_rl @ T_lm)):
+        P = rim @ T[:3, :3].T + T[:3, 3]
+        if np.any(P[:, 2] < 0.02):
+            return False
+        uv = cam.project(P)
+        if np.any(uv < margin_px) or np.any(uv[:, 0] > w - 1 - margin_px) or np.any(uv[:, 1] > h - 1 - margin_px):
+            return False
+        if sum(c.cos_view > 0.3 for c in corner_truth(cam, marker, T)) < min_corners:
+            return False
+    return True
+
+
+def random_visible_psi(
+    params: RobotParams,
+    camera: StereoCamera,
+    marker: MarkerModel,
+    rng: np.random.Generator,
+    spread: tuple[float, ...],
+    max_tries: int = 400,
+) -> Array:
+    """A configuration drawn uniformly within ``spread`` around HOME_PSI, clamped to the joint
+    limits, at which the marker is visible to both cameras."""
+    home = np.asarray(HOME_PSI, float)
+    half = np.asarray(spread, float)
+    for _ in range(max_tries):
+        q = clamp_psi(params, home + rng.uniform(-half, half))
+        if marker_visible(camera, marker, arm_shape(params, q)):
+            return q
+    raise InputError(f"no configuration with the marker in both views after {max_tries} draws: check the calibration")

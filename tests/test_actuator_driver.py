@@ -1,0 +1,109 @@
+"""ActuatorDriver against scripted devices on a pty: resend on corruption, late replies, decoding."""
+
+from __future__ import annotations
+
+import os
+import threading
+import tty
+
+import numpy as np
+import pytest
+
+from models.actuation import actuators_from_psi
+from models.robot_params import HOME_PSI, RobotParams
+from rig import protocol as P
+from rig.actuator_driver import ActuatorDriver, ActuatorProtocolError, DeviceState
+
+
+class ScriptedDevice:
+    """Answers each request frame with ``script(request) -> bytes`` on a raw pty."""
+
+    def __init__(self, script) -> None:
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.master)
+        tty.setraw(self.slave)
+        self.script = script
+        self.requests: list[P.Packet] = []
+        self._parser = P.StreamParser()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    @property
+    def path(self) -> str:
+        return os.ttyname(self.slave)
+
+    def _run(self) -> None:
+        while True:
+            try:
+                data = os.read(self.master, 4096)
+            except OSError:
+                return
+            for item in self._parser.feed(data):
+                if not isinstance(item, P.ParseError):
+                    self.requests.append(item)
+                    os.write(self.master, self.script(item, len(self.requests)))
+
+    def close(self) -> None:
+        os.close(self.slave)
+        os.close(self.master)
+
+
+def _state(seq: int, flags: int = P.FLAG_ENABLED) -> bytes:
+    return P.encode(P.State((1000, 2000, -3, 0, 4, 5), flags, 77, seq=seq))
+
+
+def test_resends_at_once_when_device_reports_corruption() -> None:
+    def script(req: P.Packet, n: int) -> bytes:
+        return P.encode(P.Error(P.ERR_BAD_CRC, seq=0)) if n == 1 else _state(req.seq)
+
+    dev = ScriptedDevice(script)
+    try:
+        drv = ActuatorDriver(dev.path, timeout=1.0, retries=2)
+        st = drv.get_state()
+        assert len(dev.requests) == 2 and dev.requests[0].seq != dev.requests[1].seq
+        assert drv.stats["retries"] == 1
+        assert np.allclose(st.positions, [1e-3, 2e-3, -3e-6, 0, 4e-6, 5e-6])
+        assert st.enabled and not st.estopped and st.clock_ms == 77
+        drv.close()
+    finally:
+        dev.close()
+
+
+def test_stale_replies_are_skipped_and_wrong_type_is_a_protocol_error() -> None:
+    def script(req: P.Packet, n: int) -> bytes:
+        stale = _state((req.seq - 1) % 256, flags=P.FLAG_ESTOPPED)
+        if isinstance(req, P.Ping):
+            return stale + P.encode(P.Pong(2, 6, seq=req.seq))
+        return stale + P.encode(P.Pong(1, 6, seq=req.seq))
+
+    dev = ScriptedDevice(script)
+    try:
+        drv = ActuatorDriver(dev.path, timeout=1.0, retries=0)
+        with pytest.raises(ActuatorProtocolError, match="v2"):
+            drv.ping()
+        with pytest.raises(ActuatorProtocolError, match="expected STATE"):
+            drv.get_state()
+        assert drv.stats["dropped"] == 2
+        drv.close()
+    finally:
+        dev.close()
+
+
+def test_device_state_flags() -> None:
+    s = DeviceState.from_packet(P.State((0,) * 6, P.FLAG_WATCHDOG | P.FLAG_REJECTED | P.FLAG_FAULT, 1500))
+    assert (s.enabled, s.estopped, s.watchdog_tripped, s.target_rejected, s.fault) == (False, False, True, True, True)
+    assert s.clock_s == 1.5
+
+
+def test_set_psi_sends_the_actuation_map() -> None:
+    params = RobotParams()
+    dev = ScriptedDevice(lambda req, n: _state(req.seq))
+    try:
+        drv = ActuatorDriver(dev.path, timeout=1.0, params=params)
+        drv.set_psi(HOME_PSI)
+        sent = dev.requests[-1]
+        assert isinstance(sent, P.SetTarget)
+        assert sent.targets_micro == P.micro_from_si(actuators_from_psi(params, HOME_PSI))
+        drv.close()
+    finally:
+        dev.close()

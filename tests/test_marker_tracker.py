@@ -1,0 +1,126 @@
+"""The stereo tracking pipeline on rendered 1080p pairs and on corners fed directly."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cvs.calibration_io import load_calibration
+from cvs.marker import MarkerModel
+from cvs.marker_tracker import MarkerTracker, kabsch
+from cvs.render import StereoFrame, StereoRenderer
+from cvs.render_settings import RenderSettings
+from cvs.visibility import random_visible_psi
+from models.arm_shape import arm_shape
+from models.errors import InputError
+from models.robot_params import RobotParams
+
+CAM = load_calibration(Path(__file__).resolve().parents[1] / "configs" / "camera.yaml")
+MARKER = MarkerModel()
+SPREAD = (0.25, 0.012, 0.2, 0.6, 0.3, 0.6)  # as `wristmark render`
+
+
+@pytest.fixture(scope="module")
+def frames() -> list[StereoFrame]:
+    """Three rendered pairs at the default render noise."""
+    params = RobotParams()
+    rng = np.random.default_rng(21)
+    renderer = StereoRenderer(CAM, MARKER, RenderSettings(), seed=21)
+    return [renderer.render(arm_shape(params, random_visible_psi(params, CAM, MARKER, rng, SPREAD))) for _ in range(3)]
+
+
+@pytest.fixture(scope="module")
+def tracker() -> MarkerTracker:
+    return MarkerTracker(CAM, MARKER)
+
+
+def test_rendered_pairs_tip_accuracy_or_honest_failure(tracker: MarkerTracker, frames: list[StereoFrame]) -> None:
+    tracker.reset()
+    n_ok = 0
+    for f in frames:
+        res = tracker.track(f.left, f.right)
+        assert res.time_ms > 0 and "detect" in res.timings
+        if res.ok:
+            assert res.tip_left is not None and res.T_left_marker is not None
+            assert np.linalg.norm(res.tip_left - f.tip_left) < 0.2e-3  # never a wrong pose
+            assert res.rms_px <= tracker.settings.max_rms_px
+            assert res.tip_world is not None
+            assert np.allclose(res.tip_world, CAM.world_from_left(res.tip_left)[0])
+            n_ok += 1
+        else:
+            assert res.reason and res.tip_left is None
+    assert n_ok >= 2
+
+
+def test_roi_tracking_on_the_same_pair_again(tracker: MarkerTracker, frames: list[StereoFrame]) -> None:
+    tracker.reset()
+    f = frames[1]
+    cold = tracker.track(f.left, f.right)
+    warm = tracker.track(f.left, f.right)
+    assert cold.ok and warm.ok
+    assert np.linalg.norm(warm.tip_left - f.tip_left) < 0.2e-3  # type: ignore[operator]
+    assert warm.timings["detect"] < cold.timings["detect"]
+
+
+def test_grayscale_images_accepted(tracker: MarkerTracker, frames: list[StereoFrame]) -> None:
+    import cv2
+
+    tracker.reset()
+    f = frames[1]
+    res = tracker.track(cv2.cvtColor(f.left, cv2.COLOR_BGR2GRAY), cv2.cvtColor(f.right, cv2.COLOR_BGR2GRAY))
+    assert res.ok and np.linalg.norm(res.tip_left - f.tip_left) < 0.2e-3  # type: ignore[operator]
+
+
+def test_no_marker_gives_ok_false(tracker: MarkerTracker, frames: list[StereoFrame]) -> None:
+    tracker.reset()
+    w, h = CAM.image_size
+    flat = np.random.default_rng(0).normal(120, 2, (h, w)).clip(0, 255).astype(np.uint8)
+    res = tracker.track(flat, flat)
+    assert not res.ok and res.reason and res.T_left_marker is None
+    # the rendered scene with the marker painted over
+    f = frames[0]
+    imgs = []
+    for img, cs in ((f.left, f.corners_left), (f.right, f.corners_right)):
+        img = img.copy()
+        uv = np.array([c.uv for c in cs])
+        lo, hi = (uv.min(axis=0) - 60).astype(int), (uv.max(axis=0) + 60).astype(int)
+        img[lo[1] : hi[1], lo[0] : hi[0]] = np.median(img.reshape(-1, 3), axis=0).astype(np.uint8)
+        imgs.append(img)
+    res = tracker.track(*imgs)
+    assert not res.ok and res.reason
+
+
+def test_wrong_image_input(tracker: MarkerTracker) -> None:
+    with pytest.raises(InputError, match="calibration expects 1920x1080"):
+        tracker.track(np.zeros((480, 640), np.uint8), np.zeros((480, 640), np.uint8))
+    with pytest.raises(InputError, match="8-bit"):
+        tracker.track(np.zeros((1080, 1920), np.float32), np.zeros((1080, 1920), np.float32))
+    with pytest.raises(InputError, match="grayscale"):
+        tracker.track(np.zeros((1080, 1920, 2), np.uint8), np.zeros((1080, 1920, 2), np.uint8))
+
+
+def test_track_corners_from_truth(tracker: MarkerTracker, frames: list[StereoFrame]) -> None:
+    """Visible truth corners + 0.1 px noise fed directly: tip well under 0.1 mm."""
+    rng = np.random.default_rng(2)
+    for f in frames:
+        sel = [[c for c in cs if c.cos_view > 0.3] for cs in (f.corners_left, f.corners_right)]
+        uv = [np.array([c.uv for c in s]) + rng.normal(0, 0.1, (len(s), 2)) for s in sel]
+        pol = [np.array([MARKER.polarity(c.index) for c in s]) for s in sel]
+        res = tracker.track_corners(uv[0], uv[1], pol[0], pol[1])
+        assert res.ok, res.reason
+        assert np.linalg.norm(res.tip_left - f.tip_left) < 0.1e-3  # type: ignore[operator]
+    res = tracker.track_corners(np.zeros((2, 2)), np.zeros((5, 2)))
+    assert not res.ok and "too few" in res.reason
+
+
+def test_kabsch_recovers_transform() -> None:
+    rng = np.random.default_rng(4)
+    P = rng.normal(size=(6, 3))
+    T = kabsch(P, P)
+    assert np.allclose(T, np.eye(4))
+    Q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    Q *= np.sign(np.linalg.det(Q))
+    T = kabsch(P, P @ Q.T + [1.0, 2.0, 3.0])
+    assert np.allclose(T[:3, :3], Q) and np.allclose(T[:3, 3], [1, 2, 3])

@@ -9,6 +9,7 @@ raw pixel corners with their cos_view per camera) follows DESIGN.md's truth.json
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import cv2
@@ -104,6 +105,7 @@ class StereoRenderer:
         cv2.setNumThreads(1)
         self.camera, self.marker, self.settings, self.seed = camera, marker, settings, int(seed)
         self._count = 0
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="render-right")
         self._maps = (RayMap(camera.left, camera.image_size), RayMap(camera.right, camera.image_size))
         disparity = float(camera.left.K[0, 0]) * camera.baseline / 0.12  # tissue ~120 mm away
         bg_rng = np.random.default_rng([self.seed, 0])
@@ -130,21 +132,29 @@ class StereoRenderer:
         mix = np.where(layer.hit[:hs, :ws, None], layer.radiance[:hs, :ws], up)
         img[v0:v1, u0:u1] = cv2.resize(mix, (u1 - u0, v1 - v0), interpolation=cv2.INTER_AREA)
 
-    def render(self, shape: ArmShape) -> StereoFrame:
-        """Render both cameras for an arm shape in {w}; returns images and ground truth."""
-        rng = np.random.default_rng([self.seed, 1, self._count])
-        self._count += 1
+    def _render_camera(self, cam: int, shape: ArmShape, count: int) -> NDArray[np.uint8]:
+        """One camera's image (cam 0 = left, 1 = right) of render call number ``count``."""
+        T_cw = (self.T_left_world, self.T_right_world)[cam]
+        rmap, bg = self._maps[cam], self._bg[cam]
+        rng = np.random.default_rng([self.seed, 1, count, cam])
         ss = self.settings.supersampling
-        images = []
-        for T_cw, rmap, bg in zip((self.T_left_world, self.T_right_world), self._maps, self._bg):
-            caps, sleeve = arm_primitives(shape, self.marker, T_cw)
-            img = bg.copy()
-            mbox = sleeve_box(rmap, sleeve) if ss != self.settings.arm_supersampling else None
-            arm_ss = self.settings.arm_supersampling
-            self._compose(img, bg, render_arm(rmap, caps, sleeve, arm_ss, EXPOSURE, exclude=mbox))
-            if mbox is not None:  # the marker and what surrounds it at full supersampling
-                self._compose(img, bg, render_arm(rmap, caps, sleeve, ss, EXPOSURE, clip=mbox))
-            images.append(apply_optics(img, self.settings, self._vignette, rng))
+        caps, sleeve = arm_primitives(shape, self.marker, T_cw)
+        img = bg.copy()
+        mbox = sleeve_box(rmap, sleeve) if ss != self.settings.arm_supersampling else None
+        arm_ss = self.settings.arm_supersampling
+        self._compose(img, bg, render_arm(rmap, caps, sleeve, arm_ss, EXPOSURE, exclude=mbox))
+        if mbox is not None:  # the marker and what surrounds it at full supersampling
+            self._compose(img, bg, render_arm(rmap, caps, sleeve, ss, EXPOSURE, clip=mbox))
+        return apply_optics(img, self.settings, self._vignette, rng)
+
+    def render(self, shape: ArmShape) -> StereoFrame:
+        """Render both cameras for an arm shape in {w}; returns images and ground truth.
+
+        The two cameras render in two threads (numpy and OpenCV release the GIL)."""
+        count = self._count
+        self._count += 1
+        right = self._pool.submit(self._render_camera, 1, shape, count)
+        images = [self._render_camera(0, shape, count), right.result()]
         T_lm = self.T_left_world @ shape.T_world_marker
         T_rm = self.T_right_world @ shape.T_world_marker
         tip = shape.tip @ self.T_left_world[:3, :3].T + self.T_left_world[:3, 3]

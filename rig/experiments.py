@@ -13,7 +13,7 @@ import numpy as np
 from models.ik import solve_tip_ik
 from models.kinematics import tip_position
 from models.robot_params import HOME_PSI
-from rig.metrics import corner_overshoot, error_stats, tracking_errors
+from rig.metrics import corner_overshoot, error_stats, estimate_errors, tracking_errors
 from rig.run_log import RunLog, write_json
 from rig.servo_loop import ServoLoop
 from rig.sim_setup import SimSetup, make_direct_loop, make_plant, make_sensor
@@ -46,7 +46,7 @@ def _phase_summary(log: RunLog, phase: str, traj: Trajectory) -> dict[str, Any]:
             "corners": int(over.size),
         },
     }
-    est = error_stats(tracking_errors(recs, "p_est"))
+    est = error_stats(estimate_errors(recs))
     if est.n:
         out["vision_vs_true"] = {"mean_mm": est.mean_mm, "max_mm": est.max_mm}
         ok = [r for r in recs if r.meas_ok]
@@ -56,8 +56,11 @@ def _phase_summary(log: RunLog, phase: str, traj: Trajectory) -> dict[str, Any]:
     return out
 
 
-def run_cube(setup: SimSetup, out_dir: Path, progress: bool = True, seed: int | None = None) -> dict[str, Any]:
-    """Cube trajectory open loop then closed loop on fresh plants; writes the run folder."""
+def run_cube(setup: SimSetup, out_dir: Path, progress: bool = True, seed: int | None = None,
+             duration: float | None = None) -> dict[str, Any]:
+    """Cube trajectory open loop then closed loop on fresh plants; writes the run folder.
+
+    ``duration`` [s] cuts the walk short (quick checks); None runs all 12 edges."""
     from viz.plots import plot_cube
 
     seed = setup.rig.seed if seed is None else seed
@@ -65,6 +68,8 @@ def run_cube(setup: SimSetup, out_dir: Path, progress: bool = True, seed: int | 
     write_json(out_dir / "config.json", {"experiment": "cube", **setup.describe()})
     centre = workspace_centre(setup)
     traj = cube_trajectory(centre, CUBE_SIZE, CUBE_SPEED)
+    if duration is not None:
+        traj = traj.truncated(duration)
     psi0 = solve_tip_ik(setup.params, traj.sample(0.0)[0], np.asarray(HOME_PSI)).psi
     log = RunLog()
     stats = {}
@@ -160,13 +165,15 @@ def run_accuracy(setup: SimSetup, out_dir: Path, n: int = 40, progress: bool = T
     return res
 
 
-def run_load(setup: SimSetup, out_dir: Path, forces: list[float], progress: bool = True) -> dict[str, Any]:
+def run_load(setup: SimSetup, out_dir: Path, forces: list[float], progress: bool = True,
+             duration: float | None = None) -> dict[str, Any]:
     """Tip force swept (magnitude [N], direction -z_w, gravity-like): cube open vs closed loop."""
     out_dir.mkdir(parents=True, exist_ok=True)
     rows = []
     for f in forces:
         plant = dataclasses.replace(setup.plant, tip_force=(0.0, 0.0, -float(f)))
-        res = run_cube(setup.with_changes(plant=plant), out_dir / f"force_{f:.2f}N", progress=progress)
+        res = run_cube(setup.with_changes(plant=plant), out_dir / f"force_{f:.2f}N", progress=progress,
+                       duration=duration)
         rows.append({"force_N": f, "open_loop": {k: res["open_loop"][k] for k in ("mean_mm", "max_mm")},
                      "closed_loop": {k: res["closed_loop"][k] for k in ("mean_mm", "max_mm")},
                      "ratio": res["ratio"]})

@@ -47,6 +47,13 @@ def tracking_errors(records: list[CycleRecord], which: str = "p_trk") -> Array:
     return np.asarray(out)
 
 
+def estimate_errors(records: list[CycleRecord]) -> Array:
+    """|p_est - p_true| per record [m]: the vision estimate against the true tip at capture (nan
+    where there was no estimate)."""
+    return np.asarray([np.nan if r.p_est is None else float(np.linalg.norm(np.asarray(r.p_est) - r.p_true))
+                       for r in records])
+
+
 def corner_overshoot(records: list[CycleRecord], waypoints: Array, times: Array, window: float = 1.0) -> Array:
     """Overshoot at each corner of a piecewise-linear desired path [m].
 

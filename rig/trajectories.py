@@ -49,6 +49,18 @@ class Trajectory:
         u = d / L
         return a + u * self.speed * (t - ts[i]), u * self.speed
 
+    def truncated(self, duration: float) -> Trajectory:
+        """The first ``duration`` seconds of the path (the whole path if it is shorter)."""
+        if not duration > 0:
+            raise ValueError(f"duration must be > 0 s, got {duration}")
+        ts = self.times
+        if duration >= ts[-1]:
+            return self
+        k = int(np.searchsorted(ts, duration, side="right"))
+        end = self.sample(duration)[0]
+        pts = np.vstack([self.waypoints[:k], end]) if not np.isclose(ts[k - 1], duration) else self.waypoints[:k]
+        return Trajectory(pts, self.speed)
+
 
 def cube_trajectory(centre_world: Array, size: tuple[float, float, float] = (0.040, 0.020, 0.040),
                     speed: float = 0.010) -> Trajectory:

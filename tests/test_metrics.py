@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from rig.metrics import corner_overshoot, error_stats, tracking_errors
+from rig.metrics import corner_overshoot, error_stats, estimate_errors, tracking_errors
 from rig.run_log import CycleRecord
 from rig.trajectories import Trajectory
 
@@ -43,3 +43,13 @@ def test_overshoot_detects_passing_a_corner() -> None:
 def test_no_overshoot_when_the_tip_turns_at_the_corner() -> None:
     recs, traj = _corner_run(0.0)
     assert corner_overshoot(recs, traj.waypoints, traj.times)[0] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_estimate_errors_compare_vision_with_the_true_tip_not_the_desired() -> None:
+    import dataclasses
+
+    a = _rec(0.0, [0.0, 0, 0], [0.001, 0, 0])
+    b = dataclasses.replace(a, p_est=np.array([0.001, 0.0, 0.0005]))
+    e = estimate_errors([a, b])
+    assert np.isnan(e[0])  # no estimate
+    assert e[1] == pytest.approx(0.0005)

@@ -87,3 +87,14 @@ def test_accuracy_targets() -> None:
     assert np.all(steps > 0.0) and np.all(steps < 0.02)  # incremental moves
     np.testing.assert_array_equal(t, accuracy_targets(CENTRE, n=40, seed=4))
     assert not np.allclose(t, accuracy_targets(CENTRE, n=40, seed=5))
+
+
+def test_truncated_keeps_the_first_seconds() -> None:
+    traj = cube_trajectory(np.zeros(3))
+    short = traj.truncated(2.5)
+    assert short.duration == pytest.approx(2.5)
+    for t in (0.0, 1.0, 2.4999):
+        np.testing.assert_allclose(short.sample(t)[0], traj.sample(t)[0], atol=1e-12)
+    assert traj.truncated(1e6) is traj
+    with pytest.raises(ValueError, match="duration"):
+        traj.truncated(0.0)

@@ -27,6 +27,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sensor", choices=("vision", "truth-noise"),
                    help="tip measurement: rendered images + tracker (default) or truth+noise (fast)")
     p.add_argument("--image-scale", type=float, metavar="F", help="render at F x the calibrated size")
+    p.add_argument("--duration", type=float, metavar="S",
+                   help="cube/load: run only the first S seconds of the cube walk (quick checks)")
     p.add_argument("--positions", type=int, default=40, help="accuracy: number of positions")
     p.add_argument("--forces", type=float, nargs="+", default=[0.0, 0.1, 0.2, 0.3],
                    help="load: tip forces [N] to sweep")
@@ -66,13 +68,15 @@ def run(args: argparse.Namespace) -> int:
         ctrl = dataclasses.replace(ctrl, kind=args.controller)
     if args.dt is not None:
         ctrl = dataclasses.replace(ctrl, dt=args.dt)
+    if args.duration is not None and not args.duration > 0:
+        raise ConfigError(f"--duration must be > 0 s, got {args.duration}")
     make_controller(setup.params, ctrl)  # validates the kind (lists the valid ones)
     setup = setup.with_changes(controller=ctrl)
     out = Path(args.out) if args.out else Path("runs") / f"{args.name}-{time.strftime('%Y%m%d-%H%M%S')}"
     progress = not args.no_progress
     t0 = time.perf_counter()
     if args.name == "cube":
-        res = experiments.run_cube(setup, out, progress=progress)
+        res = experiments.run_cube(setup, out, progress=progress, duration=args.duration)
         print(experiments.cube_table(res))
     elif args.name == "accuracy":
         res = experiments.run_accuracy(setup, out, n=args.positions, progress=progress)
@@ -80,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
               f"mean {res['mean_mm']:.3f} mm, max {res['max_mm']:.3f} mm "
               f"(paper: {res['paper']['mean_mm']} / {res['paper']['max_mm']} mm)")
     else:
-        res = experiments.run_load(setup, out, args.forces, progress=progress)
+        res = experiments.run_load(setup, out, args.forces, progress=progress, duration=args.duration)
         print((out / "results.md").read_text())
     res["wall_time_s"] = time.perf_counter() - t0
     if args.json:

@@ -15,7 +15,7 @@ from models.kinematics import tip_position
 from models.robot_params import HOME_PSI
 from rig.metrics import corner_overshoot, error_stats, estimate_errors, tracking_errors
 from rig.run_log import RunLog, write_json
-from rig.servo_loop import ServoLoop
+from rig.servo_loop import MarkerLostError, PhaseStats, ServoLoop
 from rig.sim_setup import SimSetup, make_direct_loop, make_plant, make_sensor
 from rig.trajectories import Trajectory, accuracy_targets, cube_trajectory
 
@@ -77,8 +77,11 @@ def run_cube(setup: SimSetup, out_dir: Path, progress: bool = True, seed: int | 
     stats["open_loop"] = open_loop.run(traj, "open_loop", False, log, settle=setup.rig.settle_time,
                                        progress=progress)
     closed = make_direct_loop(setup, psi0, closed_loop=True, seed=seed)
-    stats["closed_loop"] = closed.run(traj, "closed_loop", True, log, settle=setup.rig.settle_time,
-                                      progress=progress)
+    try:
+        stats["closed_loop"] = closed.run(traj, "closed_loop", True, log, settle=setup.rig.settle_time,
+                                          progress=progress)
+    except MarkerLostError as e:  # a safe stop is a result too: report what ran up to it
+        stats["closed_loop"] = e.stats if e.stats is not None else PhaseStats(stopped=str(e))
     log.write_csv(out_dir / "log.csv")
     res: dict[str, Any] = {
         "experiment": "cube",
@@ -96,6 +99,7 @@ def run_cube(setup: SimSetup, out_dir: Path, progress: bool = True, seed: int | 
     for k, s in stats.items():
         res[k]["lost"] = s.lost
         res[k]["rejected"] = s.rejected
+        res[k]["stopped"] = s.stopped
     write_json(out_dir / "result.json", res)
     (out_dir / "results.md").write_text(cube_table(res))
     plot_cube(log, out_dir)
@@ -120,6 +124,8 @@ def cube_table(res: dict[str, Any]) -> str:
         f"{c['corner_overshoot_mm']['corners']} corners. Errors: optical-tracker tip vs desired tip.",
         "",
     ]
+    if c.get("stopped"):
+        lines += [f"**The closed loop stopped safely: {c['stopped']}** (statistics cover the cycles before).", ""]
     return "\n".join(lines)
 
 
@@ -175,7 +181,7 @@ def run_load(setup: SimSetup, out_dir: Path, forces: list[float], progress: bool
         res = run_cube(setup.with_changes(plant=plant), out_dir / f"force_{f:.2f}N", progress=progress,
                        duration=duration)
         rows.append({"force_N": f, "open_loop": {k: res["open_loop"][k] for k in ("mean_mm", "max_mm")},
-                     "closed_loop": {k: res["closed_loop"][k] for k in ("mean_mm", "max_mm")},
+                     "closed_loop": {k: res["closed_loop"][k] for k in ("mean_mm", "max_mm", "stopped")},
                      "ratio": res["ratio"]})
     out = {"experiment": "load", "rows": rows, "run_dir": str(out_dir)}
     write_json(out_dir / "result.json", out)

@@ -38,7 +38,13 @@ Array = NDArray[np.float64]
 
 
 class MarkerLostError(WristmarkError):
-    """The marker stayed out of sight longer than the loop allows; the arm was held."""
+    """The marker stayed out of sight longer than the loop allows; the arm was held.
+
+    ``stats`` holds the phase's counters up to the stop (None when raised elsewhere)."""
+
+    def __init__(self, message: str, stats: PhaseStats | None = None) -> None:
+        super().__init__(message)
+        self.stats = stats
 
 
 @dataclass
@@ -176,7 +182,7 @@ class ServoLoop:
                         stats.stopped = f"marker lost for {lost_run} cycles at t = {t_k:.2f} s"
                         log.add(self._record(t_k, phase, k < n_settle, p_des, p_est, p_true,
                                              p_trk, psi_true, False, rejected, vision_ms, 0.0))
-                        raise MarkerLostError(stats.stopped + ": arm held")
+                        raise MarkerLostError(stats.stopped + ": arm held", stats)
                 self._advance(t_k + self.rig.vision_latency)
             else:
                 ik = solve_tip_ik(self.params, p_next, self.psi_cmd)

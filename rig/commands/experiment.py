@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import sys
 import time
 from pathlib import Path
 
@@ -91,4 +92,15 @@ def run(args: argparse.Namespace) -> int:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
         write_json(args.json, res)
     print(f"run folder: {out}")
+    stopped = [r for r in _phases(res) if r.get("stopped")]
+    if stopped:
+        print(f"wristmark experiment: error: closed loop stopped safely: {stopped[0]['stopped']}", file=sys.stderr)
+        return 3
     return 0
+
+
+def _phases(res: dict) -> list[dict]:
+    """Every phase summary in a result (cube: open/closed loop; load: those of each force)."""
+    if "rows" in res:
+        return [ph for row in res["rows"] for ph in (row["open_loop"], row["closed_loop"])]
+    return [res[k] for k in ("open_loop", "closed_loop") if k in res]

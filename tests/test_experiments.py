@@ -1,0 +1,42 @@
+"""Experiment runners: a safe stop is reported with what ran before it, and the files are written."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import pytest
+
+import rig.sim_setup as sim_setup
+from models.arm_shape import ArmShape
+from rig.experiments import cube_table, run_cube
+from rig.sim_setup import load_setup
+from rig.tip_sensors import NoisyTruthSensor, TipMeasurement
+
+
+class BlindAfter:
+    """Truth + noise for ``n`` frames, then never a marker (as if it left the view)."""
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+        self.inner = NoisyTruthSensor(1e-4, seed=1)
+
+    def measure(self, shape: ArmShape) -> TipMeasurement:
+        self.n -= 1
+        return self.inner.measure(shape) if self.n >= 0 else TipMeasurement(False, None, "marker not found")
+
+
+def test_cube_reports_a_safe_stop_and_still_writes_the_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    setup = load_setup()
+    setup = setup.with_changes(rig=dataclasses.replace(setup.rig, sensor="truth-noise", max_lost_cycles=5))
+    monkeypatch.setattr(sim_setup, "make_sensor", lambda s, seed: BlindAfter(60))
+    res = run_cube(setup, tmp_path, progress=False, duration=6.0)
+    c = res["closed_loop"]
+    assert "marker lost for 6 cycles" in c["stopped"]
+    assert c["lost"] == 6
+    assert res["open_loop"]["stopped"] == ""
+    assert c["cycles"] > 0 and c["mean_mm"] < 1.0  # statistics of the cycles before the stop
+    assert json.loads((tmp_path / "result.json").read_text())["closed_loop"]["stopped"] == c["stopped"]
+    assert "stopped safely" in cube_table(res)
+    assert (tmp_path / "log.csv").is_file()

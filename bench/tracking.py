@@ -1,14 +1,19 @@
 """Stereo tracking benchmark: prints JSON.
 
-Usage: python bench/tracking.py [DATASET_DIR] [--pairs N] [--seed S]
+Usage: python bench/tracking.py [DATASET_DIR] [--pairs N] [--seed S] [--detectors paper,saddle]
 Without a folder it renders N pairs (default 20) at the default render noise into a temporary
 folder. Per pair, measured in the same run:
-- ours: MarkerTracker (detector in use: the paper's if installed, else the saddle fallback),
-  cold (whole frame, state reset) and again on the same pair in ROI tracking;
+- ours: MarkerTracker once per corner detector, side by side ("paper": cvs.corner_detector,
+  the paper's Sec. III.A; "saddle": the cvs.saddle_corners fallback), cold (whole frame, state
+  reset) and again on the same pair in ROI tracking; times per stereo pair (total and the
+  detection stage);
+- detector_only: the paper's detector alone per image, cold (whole frame) and in ROI tracking,
+  with the corner RMS of its final (HTM-refined) corners and of the paper's eq. 10 quadric;
 - baseline_gftt: cv2.goodFeaturesToTrack + cv2.cornerSubPix in a box around the marker, each
   feature associated with the nearest visible true corner (oracle correspondence: favours the
   baseline) and fed to the same stereo pose solve;
-- baseline_pnp: single-camera cv2.solvePnP (SOLVEPNP_SQPNP) on our left corners and indices.
+- baseline_pnp: single-camera cv2.solvePnP (SOLVEPNP_SQPNP) on our left corners and indices
+  (those of the first detector listed).
 Corner RMS [px] is against the true corners (detections within 2 px of a corner with
 cos_view > 0), tip error [mm] against truth.json.
 """
@@ -28,8 +33,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from cvs.dataset import load_dataset  # noqa: E402
-from cvs.marker_tracker import MarkerTracker  # noqa: E402
+from cvs.corner_detector import MarkerCornerDetector  # noqa: E402
+from cvs.dataset import StereoDataset, load_dataset  # noqa: E402
+from cvs.marker_tracker import MarkerTracker, TrackerSettings  # noqa: E402
 from rig.cli import main as cli_main  # noqa: E402
 from solvers.homography_init import homography_pose  # noqa: E402
 
@@ -75,36 +81,112 @@ def _gftt(gray: np.ndarray, truth: list) -> tuple[np.ndarray, np.ndarray]:
     return np.array(idx, int), np.array(out, float).reshape(-1, 2)
 
 
-def run(root: Path) -> dict:
+def _ours(ds: StereoDataset, detector: str) -> tuple[dict, list]:
+    """The tracker with one detector over the dataset: summary and the cold results per pair."""
+    tracker = MarkerTracker(ds.camera, ds.marker, TrackerSettings(detector=detector))
+    err: list[float] = []
+    tip: list[float] = []
+    tip_roi: list[float] = []
+    cold: list[float] = []
+    roi: list[float] = []
+    det_cold: list[float] = []
+    det_roi: list[float] = []
+    stages: dict[str, list[float]] = {}
+    ok = ok_roi = 0
+    results = []
+    for (lp, rp), t in zip(ds.pairs, ds.truth):
+        L, R = cv2.imread(str(lp)), cv2.imread(str(rp))
+        tracker.reset()
+        r = tracker.track(L, R)
+        results.append(r)
+        cold.append(r.time_ms)
+        det_cold.append(r.timings["detect"])
+        err += _corner_errors(r.corners_left, t.corners_left) + _corner_errors(r.corners_right, t.corners_right)
+        if r.ok and r.tip_left is not None:
+            ok += 1
+            tip.append(1e3 * float(np.linalg.norm(r.tip_left - t.tip)))
+        r2 = tracker.track(L, R)  # ROI tracking on the same pair
+        roi.append(r2.time_ms)
+        det_roi.append(r2.timings["detect"])
+        for k, v in r2.timings.items():
+            stages.setdefault(k, []).append(v)
+        if r2.ok and r2.tip_left is not None:
+            ok_roi += 1
+            tip_roi.append(1e3 * float(np.linalg.norm(r2.tip_left - t.tip)))
+    n = len(ds.pairs)
+    out = _summary(err, tip, ok, n, cold)
+    out["time_ms_cold_median"] = out.pop("time_ms_median")
+    out["time_ms_roi_median"] = float(np.median(roi))
+    out["detect_ms_cold_median"] = float(np.median(det_cold))
+    out["detect_ms_roi_median"] = float(np.median(det_roi))
+    out["tip_error_mean_mm_roi"] = float(np.mean(tip_roi)) if tip_roi else None
+    out["success_rate_roi"] = ok_roi / n
+    out["roi_stage_ms_median"] = {k: float(np.median(v)) for k, v in stages.items()}
+    out["detector_class"] = type(tracker.detector_left).__module__ + "." + type(tracker.detector_left).__name__
+    return out, results
+
+
+def _detector_only(ds: StereoDataset) -> dict:
+    """The paper's detector alone, per image: cold and ROI time, RMS of final and eq. 10 corners."""
+    det = MarkerCornerDetector()
+    cold: list[float] = []
+    roi: list[float] = []
+    err: list[float] = []
+    err_q: list[float] = []
+    found = roi_used = 0
+    for (lp, rp), t in zip(ds.pairs, ds.truth):
+        for path, truth in ((lp, t.corners_left), (rp, t.corners_right)):
+            g = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+            det.reset()
+            t0 = time.perf_counter()
+            c = det.track(g)
+            cold.append(1e3 * (time.perf_counter() - t0))
+            t0 = time.perf_counter()
+            c2 = det.track(g)
+            roi.append(1e3 * (time.perf_counter() - t0))
+            roi_used += int(c2.roi is not None)
+            found += int(c.corners.shape[0] >= 3)
+            vis = np.array([x.uv for x in truth if x.cos_view > 0])
+            if c.corners.shape[0] and vis.size:
+                d = np.linalg.norm(c.corners[:, None] - vis[None], axis=2)
+                j = d.argmin(axis=1)
+                keep = d[np.arange(j.size), j] < 2.0
+                err += d[np.arange(j.size), j][keep].tolist()
+                err_q += np.linalg.norm(c.corners_quadric[keep] - vis[j[keep]], axis=1).tolist()
+    e, q = np.array(err), np.array(err_q)
+    return {
+        "images": 2 * len(ds.pairs),
+        "chain_found_rate": found / (2 * len(ds.pairs)),
+        "roi_used_rate": roi_used / (2 * len(ds.pairs)),
+        "corner_rms_px": float(np.sqrt(np.mean(e**2))) if e.size else None,
+        "corner_rms_px_eq10_quadric": float(np.sqrt(np.mean(q**2))) if q.size else None,
+        "corners_matched": int(e.size),
+        "time_ms_per_image_cold_median": float(np.median(cold)),
+        "time_ms_per_image_cold_max": float(np.max(cold)),
+        "time_ms_per_image_roi_median": float(np.median(roi)),
+        "time_ms_per_image_roi_max": float(np.max(roi)),
+        "image_size": list(ds.camera.image_size),
+    }
+
+
+def run(root: Path, detectors: tuple[str, ...] = ("paper", "saddle")) -> dict:
     ds = load_dataset(root)
     cam, marker = ds.camera, ds.marker
-    tracker = MarkerTracker(cam, marker)
-    solver = tracker.solver
-    res_ours: dict[str, list] = {"err": [], "tip": [], "cold": [], "roi": [], "tip_roi": []}
-    ok = ok_roi = ok_g = ok_p = 0
-    stages: dict[str, list[float]] = {}
+    ours: dict[str, dict] = {}
+    first: list = []
+    for name in detectors:
+        ours[name], res = _ours(ds, name)
+        first = first or res
+    solver = MarkerTracker(cam, marker, TrackerSettings(detector=detectors[0])).solver
+    max_rms = TrackerSettings().max_rms_px
+    ok_g = ok_p = 0
     g_err: list[float] = []
     g_tip: list[float] = []
     g_time: list[float] = []
     p_tip: list[float] = []
     p_time: list[float] = []
-    for (lp, rp), t in zip(ds.pairs, ds.truth):
+    for (lp, rp), t, r in zip(ds.pairs, ds.truth, first):
         L, R = cv2.imread(str(lp)), cv2.imread(str(rp))
-        tracker.reset()
-        r = tracker.track(L, R)
-        res_ours["cold"].append(r.time_ms)
-        res_ours["err"] += _corner_errors(r.corners_left, t.corners_left)
-        res_ours["err"] += _corner_errors(r.corners_right, t.corners_right)
-        if r.ok and r.tip_left is not None:
-            ok += 1
-            res_ours["tip"].append(1e3 * float(np.linalg.norm(r.tip_left - t.tip)))
-        r2 = tracker.track(L, R)  # ROI tracking on the same pair
-        res_ours["roi"].append(r2.time_ms)
-        for k, v in r2.timings.items():
-            stages.setdefault(k, []).append(v)
-        if r2.ok and r2.tip_left is not None:
-            ok_roi += 1
-            res_ours["tip_roi"].append(1e3 * float(np.linalg.norm(r2.tip_left - t.tip)))
         # baseline (a): gFTT + cornerSubPix, oracle correspondence, same stereo solve
         gl, gr = cv2.cvtColor(L, cv2.COLOR_BGR2GRAY), cv2.cvtColor(R, cv2.COLOR_BGR2GRAY)
         t0 = time.perf_counter()
@@ -119,7 +201,7 @@ def run(root: Path) -> dict:
                 if best is None or p.rms_px < best.rms_px:
                     best = p
             g_time.append(1e3 * (time.perf_counter() - t0))
-            if best is not None and best.rms_px <= tracker.settings.max_rms_px:
+            if best is not None and best.rms_px <= max_rms:
                 ok_g += 1
                 g_tip.append(1e3 * float(np.linalg.norm(best.tip_left - t.tip)))
         # baseline (b): left camera only, SQPnP on our corners and indices
@@ -141,22 +223,17 @@ def run(root: Path) -> dict:
                     ok_p += 1
                     p_tip.append(1e3 * float(np.linalg.norm(tip - t.tip)))
     n = len(ds.pairs)
-    ours = _summary(res_ours["err"], res_ours["tip"], ok, n, res_ours["cold"])
-    ours["time_ms_cold_median"] = ours.pop("time_ms_median")
-    ours["time_ms_roi_median"] = float(np.median(res_ours["roi"]))
-    ours["tip_error_mean_mm_roi"] = float(np.mean(res_ours["tip_roi"])) if res_ours["tip_roi"] else None
-    ours["success_rate_roi"] = ok_roi / n
-    ours["roi_stage_ms_median"] = {k: float(np.median(v)) for k, v in stages.items()}
-    det = type(tracker.detector_left).__module__
-    return {
+    out = {
         "dataset": str(root),
         "pairs": n,
-        "detector": det,
         "ours": ours,
         "baseline_gftt_oracle_same_solve": _summary(g_err, g_tip, ok_g, n, g_time),
         "baseline_pnp_sqpnp_left_only": _summary([], p_tip, ok_p, n, p_time),
         "targets": {"corner_rms_px": 0.08, "tip_error_mean_mm": 0.1, "time_ms_roi": 5.0, "time_ms_cold": 60.0},
     }
+    if "paper" in detectors:
+        out["detector_only_paper"] = _detector_only(ds)
+    return out
 
 
 def main() -> int:
@@ -164,10 +241,12 @@ def main() -> int:
     ap.add_argument("dataset", nargs="?", help="dataset folder (default: render one)")
     ap.add_argument("--pairs", type=int, default=20)
     ap.add_argument("--seed", type=int, default=11)
+    ap.add_argument("--detectors", default="paper,saddle", help="comma-separated: paper, saddle, auto")
     a = ap.parse_args()
     cv2.setNumThreads(1)
+    dets = tuple(d.strip() for d in a.detectors.split(",") if d.strip())
     if a.dataset:
-        print(json.dumps(run(Path(a.dataset)), indent=1))
+        print(json.dumps(run(Path(a.dataset), dets), indent=1))
         return 0
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp) / "ds"
@@ -175,7 +254,7 @@ def main() -> int:
             rc = cli_main(["render", "--out", str(root), "--pairs", str(a.pairs), "--seed", str(a.seed)])
         if rc:
             return rc
-        print(json.dumps(run(root), indent=1))
+        print(json.dumps(run(root, dets), indent=1))
     return 0
 
 

@@ -17,7 +17,7 @@ $(STAMP): pyproject.toml
 
 # Main job: the paper's cube experiment, open vs closed loop, on the simulated rig.
 run: setup
-	$(VENV)/bin/wristmark experiment cube --out runs/cube --json runs/cube/result.json
+	$(VENV)/bin/wristmark experiment cube --view --out runs/cube --json runs/cube/result.json
 
 browser:
 	bash scripts/ensure-chromium.sh

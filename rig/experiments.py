@@ -5,6 +5,7 @@ results.md and PNG plots."""
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -14,7 +15,7 @@ from models.ik import solve_tip_ik
 from models.kinematics import tip_position
 from models.robot_params import HOME_PSI
 from rig.metrics import corner_overshoot, error_stats, estimate_errors, tracking_errors
-from rig.run_log import RunLog, write_json
+from rig.run_log import CycleRecord, RunLog, write_json
 from rig.servo_loop import MarkerLostError, PhaseStats, ServoLoop
 from rig.sim_setup import SimSetup, make_direct_loop, make_plant, make_sensor
 from rig.trajectories import Trajectory, accuracy_targets, cube_trajectory
@@ -57,10 +58,11 @@ def _phase_summary(log: RunLog, phase: str, traj: Trajectory) -> dict[str, Any]:
 
 
 def run_cube(setup: SimSetup, out_dir: Path, progress: bool = True, seed: int | None = None,
-             duration: float | None = None) -> dict[str, Any]:
+             duration: float | None = None, on_cycle: Callable[[CycleRecord], None] | None = None) -> dict[str, Any]:
     """Cube trajectory open loop then closed loop on fresh plants; writes the run folder.
 
-    ``duration`` [s] cuts the walk short (quick checks); None runs all 12 edges."""
+    ``duration`` [s] cuts the walk short (quick checks); None runs all 12 edges. ``on_cycle`` is
+    called with every cycle's record (e.g. a live 3D view)."""
     from viz.plots import plot_cube
 
     seed = setup.rig.seed if seed is None else seed
@@ -74,9 +76,11 @@ def run_cube(setup: SimSetup, out_dir: Path, progress: bool = True, seed: int | 
     log = RunLog()
     stats = {}
     open_loop = make_direct_loop(setup, psi0, closed_loop=False, seed=seed)
+    open_loop.on_cycle = on_cycle
     stats["open_loop"] = open_loop.run(traj, "open_loop", False, log, settle=setup.rig.settle_time,
                                        progress=progress)
     closed = make_direct_loop(setup, psi0, closed_loop=True, seed=seed)
+    closed.on_cycle = on_cycle
     try:
         stats["closed_loop"] = closed.run(traj, "closed_loop", True, log, settle=setup.rig.settle_time,
                                           progress=progress)
@@ -172,14 +176,14 @@ def run_accuracy(setup: SimSetup, out_dir: Path, n: int = 40, progress: bool = T
 
 
 def run_load(setup: SimSetup, out_dir: Path, forces: list[float], progress: bool = True,
-             duration: float | None = None) -> dict[str, Any]:
+             duration: float | None = None, on_cycle: Callable[[CycleRecord], None] | None = None) -> dict[str, Any]:
     """Tip force swept (magnitude [N], direction -z_w, gravity-like): cube open vs closed loop."""
     out_dir.mkdir(parents=True, exist_ok=True)
     rows = []
     for f in forces:
         plant = dataclasses.replace(setup.plant, tip_force=(0.0, 0.0, -float(f)))
         res = run_cube(setup.with_changes(plant=plant), out_dir / f"force_{f:.2f}N", progress=progress,
-                       duration=duration)
+                       duration=duration, on_cycle=on_cycle)
         rows.append({"force_N": f, "open_loop": {k: res["open_loop"][k] for k in ("mean_mm", "max_mm")},
                      "closed_loop": {k: res["closed_loop"][k] for k in ("mean_mm", "max_mm", "stopped")},
                      "ratio": res["ratio"]})

@@ -75,3 +75,12 @@ def test_bad_options_give_one_line_errors(tmp_path: Path, args: list[str], words
     for w in words:
         assert w in last, last
     assert not (tmp_path / "x" / "log.csv").exists()  # nothing ran
+
+
+def test_view_prints_the_url_and_the_replay_command(tmp_path: Path) -> None:
+    r = wristmark("experiment", "cube", "--sensor", "truth-noise", "--duration", "1", "--view", "--no-progress",
+                  "--out", str(tmp_path / "run"), timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert "live 3D view: open http://" in r.stderr
+    assert f"wristmark view {tmp_path / 'run'}" in r.stderr
+    assert (tmp_path / "run" / "log.csv").is_file()

@@ -6,10 +6,16 @@ import argparse
 import dataclasses
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from models.errors import ConfigError
 from rig.run_log import write_json
+
+if TYPE_CHECKING:
+    from rig.run_log import CycleRecord
+    from rig.sim_setup import SimSetup
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -35,10 +41,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="load: tip forces [N] to sweep")
     p.add_argument("--seed", type=int)
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.add_argument("--view", action="store_true",
+                   help="live 3D view in the browser (Meshcat; prints the URL to open)")
 
 
 def run(args: argparse.Namespace) -> int:
-    from rig import experiments
     from rig.sim_setup import load_setup
     from solvers.controller import make_controller
 
@@ -76,17 +83,18 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("runs") / f"{args.name}-{time.strftime('%Y%m%d-%H%M%S')}"
     progress = not args.no_progress
     t0 = time.perf_counter()
-    if args.name == "cube":
-        res = experiments.run_cube(setup, out, progress=progress, duration=args.duration)
-        print(experiments.cube_table(res))
-    elif args.name == "accuracy":
-        res = experiments.run_accuracy(setup, out, n=args.positions, progress=progress)
-        print(f"accuracy over {res['positions']} positions ({res['tracked']} tracked): "
-              f"mean {res['mean_mm']:.3f} mm, max {res['max_mm']:.3f} mm "
-              f"(paper: {res['paper']['mean_mm']} / {res['paper']['max_mm']} mm)")
-    else:
-        res = experiments.run_load(setup, out, args.forces, progress=progress, duration=args.duration)
-        print((out / "results.md").read_text())
+    view = None
+    if args.view:
+        from viz.live import start_live_view
+
+        view = start_live_view(setup)
+    on_cycle = view.on_cycle if view is not None else None
+    try:
+        res = _run(args, setup, out, progress, on_cycle)
+    finally:
+        if view is not None:
+            view.close()
+            print(f"replay in the browser: wristmark view {out}", file=sys.stderr)
     res["wall_time_s"] = time.perf_counter() - t0
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
@@ -97,6 +105,26 @@ def run(args: argparse.Namespace) -> int:
         print(f"wristmark experiment: error: closed loop stopped safely: {stopped[0]['stopped']}", file=sys.stderr)
         return 3
     return 0
+
+
+def _run(args: argparse.Namespace, setup: SimSetup, out: Path, progress: bool,
+         on_cycle: Callable[[CycleRecord], None] | None) -> dict[str, Any]:
+    """Run the experiment ``args.name``, print its summary, return its result."""
+    from rig import experiments
+
+    if args.name == "cube":
+        res = experiments.run_cube(setup, out, progress=progress, duration=args.duration, on_cycle=on_cycle)
+        print(experiments.cube_table(res))
+    elif args.name == "accuracy":
+        res = experiments.run_accuracy(setup, out, n=args.positions, progress=progress)
+        print(f"accuracy over {res['positions']} positions ({res['tracked']} tracked): "
+              f"mean {res['mean_mm']:.3f} mm, max {res['max_mm']:.3f} mm "
+              f"(paper: {res['paper']['mean_mm']} / {res['paper']['max_mm']} mm)")
+    else:
+        res = experiments.run_load(setup, out, args.forces, progress=progress, duration=args.duration,
+                                   on_cycle=on_cycle)
+        print((out / "results.md").read_text())
+    return res
 
 
 def _phases(res: dict) -> list[dict]:

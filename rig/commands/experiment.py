@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import sys
 import time
 from collections.abc import Callable
@@ -11,6 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from models.errors import ConfigError
+from rig.commands.setup_args import add_setup_arguments, setup_from_args
 from rig.run_log import write_json
 
 if TYPE_CHECKING:
@@ -22,64 +22,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("name", choices=("cube", "accuracy", "load"), help="which experiment")
     p.add_argument("--json", metavar="OUT", help="write the result JSON to OUT")
     p.add_argument("--out", metavar="DIR", help="run folder (default: runs/<name>-<time>)")
-    p.add_argument("--plant", help="plant file: how the true arm differs (default configs/plant.yaml)")
-    p.add_argument("--controller", metavar="NAME", help="controller kind (paper, qp, ...)")
-    p.add_argument("--controller-config", metavar="YAML", help="controller file (default configs/controller.yaml)")
-    p.add_argument("--rig", metavar="YAML", help="rig/loop file (default configs/rig.yaml)")
-    p.add_argument("--robot", metavar="YAML")
-    p.add_argument("--camera", "--calib", dest="camera", metavar="YAML", help="stereo calibration")
-    p.add_argument("--marker", metavar="YAML")
-    p.add_argument("--dt", type=float, metavar="S", help="control cycle [s] (paper: 0.060)")
-    p.add_argument("--latency", type=float, metavar="S", help="capture -> command latency [s]")
-    p.add_argument("--sensor", choices=("vision", "truth-noise"),
-                   help="tip measurement: rendered images + tracker (default) or truth+noise (fast)")
-    p.add_argument("--image-scale", type=float, metavar="F", help="render at F x the calibrated size")
+    add_setup_arguments(p)
     p.add_argument("--duration", type=float, metavar="S",
                    help="cube/load: run only the first S seconds of the cube walk (quick checks)")
     p.add_argument("--positions", type=int, default=40, help="accuracy: number of positions")
     p.add_argument("--forces", type=float, nargs="+", default=[0.0, 0.1, 0.2, 0.3],
                    help="load: tip forces [N] to sweep")
-    p.add_argument("--seed", type=int)
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.add_argument("--view", action="store_true",
                    help="live 3D view in the browser (Meshcat; prints the URL to open)")
 
 
 def run(args: argparse.Namespace) -> int:
-    from rig.sim_setup import load_setup
-    from solvers.controller import make_controller
-
-    setup = load_setup(robot=args.robot, marker=args.marker, camera=args.camera, plant=args.plant,
-                       rig=args.rig, controller=args.controller_config)
-    rig_changes = {}
-    if args.dt is not None:
-        rig_changes["control_dt"] = args.dt
-        if args.latency is None and setup.rig.vision_latency >= args.dt:
-            rig_changes["vision_latency"] = 0.75 * args.dt
-    if args.latency is not None:
-        rig_changes["vision_latency"] = args.latency
-    if args.sensor:
-        rig_changes["sensor"] = args.sensor
-    if args.image_scale:
-        rig_changes["image_scale"] = args.image_scale
-    if args.seed is not None:
-        rig_changes["seed"] = args.seed
-    if rig_changes:
-        rig = dataclasses.replace(setup.rig, **rig_changes)
-        try:
-            rig.validate()
-        except ConfigError as e:
-            raise ConfigError(f"command-line options: {e}") from None
-        setup = setup.with_changes(rig=rig)
-    ctrl = setup.controller
-    if args.controller:
-        ctrl = dataclasses.replace(ctrl, kind=args.controller)
-    if args.dt is not None:
-        ctrl = dataclasses.replace(ctrl, dt=args.dt)
     if args.duration is not None and not args.duration > 0:
         raise ConfigError(f"--duration must be > 0 s, got {args.duration}")
-    make_controller(setup.params, ctrl)  # validates the kind (lists the valid ones)
-    setup = setup.with_changes(controller=ctrl)
+    setup = setup_from_args(args)
     out = Path(args.out) if args.out else Path("runs") / f"{args.name}-{time.strftime('%Y%m%d-%H%M%S')}"
     progress = not args.no_progress
     t0 = time.perf_counter()

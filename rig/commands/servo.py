@@ -1,0 +1,193 @@
+"""``wristmark servo``: the closed loop driving the actuators through protocol v1.
+
+By default the command starts the actuator-box emulator in process on a new pseudo-terminal,
+driving the simulated true arm, and talks to it through :class:`rig.actuator_driver.ActuatorDriver`:
+every command crosses the pty as bytes, while the emulator and the loop share a simulated clock
+(faster than real time, deterministic). ``--realtime`` runs that emulator on the wall clock
+instead; ``--serial PORT`` drives an external box (hardware, ``wristmark emulator --pty``, any
+pyserial URL) in real time, the simulated cameras then seeing the arm its encoders report;
+``--direct`` is the in-process reference without serial bytes.
+
+Safe stops (the arm held, then DISABLE; one line on stderr; exit 3): marker lost too long, the
+device silent or gone, an emergency stop, a watchdog trip. Ctrl-C stops the same way (exit 130).
+Bad options fail before any motion command (exit 2).
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from types import FrameType
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from models.errors import InputError
+from rig.commands.setup_args import add_setup_arguments, setup_from_args
+from rig.run_log import write_json
+from rig.servo_session import (
+    HW_TIMEOUT_S,
+    POINT_HOLD_S,
+    SIM_TIMEOUT_S,
+    LinkOptions,
+    PointHold,
+    open_session,
+    run_servo,
+    summarize,
+)
+from rig.trajectories import Trajectory
+
+if TYPE_CHECKING:
+    from rig.sim_setup import SimSetup
+
+Array = NDArray[np.float64]
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    link = p.add_mutually_exclusive_group()
+    link.add_argument("--serial", metavar="PORT",
+                      help="drive an external actuator box in real time: device path or pyserial URL "
+                           "(default: an in-process emulator on a new pty)")
+    link.add_argument("--direct", action="store_true",
+                      help="in-process plant without serial bytes (the reference for the serial path)")
+    p.add_argument("--realtime", action="store_true",
+                   help="run the in-process emulator on the wall clock, its watchdog live, like hardware "
+                        "(implied by --serial)")
+    p.add_argument("--pace", action="store_true",
+                   help="simulated time, but never faster than the wall clock (implied by --view)")
+    p.add_argument("--baud", type=int, default=115200, help="serial baud rate (default 115200)")
+    p.add_argument("--timeout", type=float, metavar="S",
+                   help=f"reply timeout per attempt [s] (default {HW_TIMEOUT_S} real time, "
+                        f"{SIM_TIMEOUT_S} simulated)")
+    p.add_argument("--trajectory", choices=("cube", "point"), default="cube",
+                   help="cube: the paper's cube walk (default); point: hold --point")
+    p.add_argument("--point", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                   help="point to hold in {w} [m] (default: the workspace centre)")
+    p.add_argument("--duration", type=float, metavar="S",
+                   help=f"run only the first S seconds of the trajectory (point: default {POINT_HOLD_S:g})")
+    p.add_argument("--settle", type=float, metavar="S", help="closed-loop approach to the start [s] (rig file)")
+    p.add_argument("--json", metavar="OUT", help="write the result JSON to OUT")
+    p.add_argument("--out", metavar="DIR", help="write config.json, log.csv, result.json to DIR")
+    add_setup_arguments(p)
+    p.add_argument("--view", action="store_true", help="show the run live in the Meshcat view (paced)")
+    p.add_argument("--view-hold", type=float, default=0.0, metavar="S",
+                   help="with --view: keep serving the view S seconds after the run (Ctrl-C ends it)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+# -- command line ------------------------------------------------------------------------------
+def build_setup(args: argparse.Namespace) -> SimSetup:
+    """The simulated setup with the command-line overrides, validated."""
+    return setup_from_args(args, settle_time=args.settle)
+
+
+def build_trajectory(setup: SimSetup, kind: str, point: list[float] | None, duration: float | None) -> Trajectory:
+    """The cube walk around the workspace centre, or a held point; cut to ``duration`` [s]."""
+    from rig.experiments import CUBE_SIZE, CUBE_SPEED, workspace_centre
+    from rig.trajectories import cube_trajectory
+
+    if duration is not None and not (np.isfinite(duration) and duration > 0):
+        raise InputError(f"--duration must be > 0 s, got {duration}")
+    if point is not None and kind != "point":
+        raise InputError("--point needs --trajectory point")
+    centre = workspace_centre(setup)
+    if kind == "point":
+        p = np.asarray(point if point is not None else centre, float)
+        if not np.all(np.isfinite(p)):
+            raise InputError(f"--point must be 3 finite numbers [m], got {p.tolist()}")
+        return PointHold(np.array([p]), 1.0, hold=duration if duration is not None else POINT_HOLD_S)
+    traj = cube_trajectory(centre, CUBE_SIZE, CUBE_SPEED)
+    return traj.truncated(duration) if duration is not None else traj
+
+
+def start_configuration(setup: SimSetup, traj: Trajectory) -> Array:
+    """IK of the trajectory's start (raises InputError when it is out of reach)."""
+    from models.ik import solve_tip_ik
+    from models.robot_params import HOME_PSI
+
+    p0 = traj.sample(0.0)[0]
+    ik = solve_tip_ik(setup.params, p0, np.asarray(HOME_PSI, float))
+    if not ik.error <= 1e-4:
+        raise InputError(f"the start point {np.round(1000 * p0, 2).tolist()} mm is out of reach of the arm "
+                         f"(IK misses it by {1000 * ik.error:.2f} mm)")
+    return np.asarray(ik.psi, float)
+
+
+def live_view(setup: SimSetup) -> Any:
+    """The Meshcat live view (viz.live.start_live_view), or a one-line error when it is missing."""
+    try:
+        from viz.live import start_live_view  # type: ignore[import-not-found, unused-ignore]
+    except ImportError as e:
+        raise InputError(f"--view needs the Meshcat live view (viz/live.py), which is not available: {e}") from None
+    return start_live_view(setup)
+
+
+@contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """SIGTERM stops the run like Ctrl-C (main thread only)."""
+
+    def handler(signum: int, frame: FrameType | None) -> None:
+        raise KeyboardInterrupt
+
+    try:
+        previous = signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def run(args: argparse.Namespace) -> int:
+    setup = build_setup(args)
+    traj = build_trajectory(setup, args.trajectory, args.point, args.duration)
+    psi0 = start_configuration(setup, traj)
+    if args.timeout is not None and not args.timeout > 0:
+        raise InputError(f"--timeout must be > 0 s, got {args.timeout}")
+    if args.baud <= 0:
+        raise InputError(f"--baud must be > 0, got {args.baud}")
+    kind = "serial" if args.serial else "direct" if args.direct else "emulator"
+    if not (np.isfinite(args.view_hold) and args.view_hold >= 0):
+        raise InputError(f"--view-hold must be >= 0 s, got {args.view_hold}")
+    options = LinkOptions(kind=kind, port=args.serial, baudrate=args.baud, timeout=args.timeout,
+                          realtime=bool(args.realtime), pace=bool(args.pace or args.view))
+    with _sigterm_as_interrupt():
+        view = live_view(setup) if args.view else None
+        try:
+            session = open_session(setup, psi0, options)
+            out = run_servo(setup, traj, session, psi0, settle=setup.rig.settle_time, seed=setup.rig.seed,
+                            progress=not args.no_progress, on_cycle=None if view is None else view.on_cycle)
+            if view is not None and args.view_hold > 0:
+                view.hold(args.view_hold)
+        finally:
+            if view is not None:
+                view.close()
+    res = summarize(setup, traj, session, out)
+    if args.out:
+        out_dir = Path(args.out)
+        out_dir.mkdir(parents=True, exist_ok=True)
+        write_json(out_dir / "config.json", {"command": "servo", "link": res["link"], **setup.describe()})
+        out.log.write_csv(out_dir / "log.csv")
+        write_json(out_dir / "result.json", {**res, "run_dir": str(out_dir)})
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        write_json(args.json, res)
+    c = res["closed_loop"]
+    errors = (f"closed-loop tip error mean {c['mean_mm']:.3f} mm, max {c['max_mm']:.3f} mm over {c['cycles']} "
+              "cycles (optical tracker vs desired)" if c["cycles"] else "no trajectory cycle ran")
+    print(f"servo ({res['trajectory']['kind']}, {traj.duration:.1f} s, controller {res['controller']}, "
+          f"sensor {res['sensor']}, link {kind} {session.port}): {errors}")
+    if not out.stopped:
+        return 0
+    safe = ("arm held and disabled" if not out.close_error
+            else f"could not confirm hold/disable ({out.close_error})")
+    print(f"wristmark servo: error: stopped safely at t = {out.t_stop:.2f} s: {out.stopped}; {safe}",
+          file=sys.stderr)
+    return 130 if out.cause == "interrupted" else 3

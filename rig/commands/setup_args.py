@@ -1,0 +1,66 @@
+"""Command-line options shared by the commands that run the simulated rig (experiment, servo):
+which configuration files, and overrides of the loop (cycle, latency, sensor, image scale, seed)
+and of the controller kind. ``setup_from_args`` loads and validates them into a SimSetup."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+from typing import TYPE_CHECKING, Any
+
+from models.errors import ConfigError
+
+if TYPE_CHECKING:
+    from rig.sim_setup import SimSetup
+
+
+def add_setup_arguments(p: argparse.ArgumentParser) -> None:
+    """Configuration files and loop/controller overrides."""
+    p.add_argument("--plant", help="plant file: how the simulated true arm differs (default configs/plant.yaml)")
+    p.add_argument("--controller", metavar="NAME", help="controller kind (paper, qp, ...)")
+    p.add_argument("--controller-config", metavar="YAML", help="controller file (default configs/controller.yaml)")
+    p.add_argument("--rig", metavar="YAML", help="rig/loop file (default configs/rig.yaml)")
+    p.add_argument("--robot", metavar="YAML", help="robot file (default configs/robot.yaml)")
+    p.add_argument("--camera", "--calib", dest="camera", metavar="YAML", help="stereo calibration")
+    p.add_argument("--marker", metavar="YAML", help="marker file (default configs/marker.yaml)")
+    p.add_argument("--dt", type=float, metavar="S", help="control cycle [s] (paper: 0.060)")
+    p.add_argument("--latency", type=float, metavar="S", help="capture -> command latency [s]")
+    p.add_argument("--sensor", choices=("vision", "truth-noise"),
+                   help="tip measurement: rendered images + tracker (default) or truth+noise (fast)")
+    p.add_argument("--image-scale", type=float, metavar="F", help="render at F x the calibrated size")
+    p.add_argument("--seed", type=int)
+
+
+def setup_from_args(args: argparse.Namespace, **rig_overrides: Any) -> SimSetup:
+    """Load the configuration files and apply the command-line overrides (plus ``rig_overrides``
+    that are not None), validated; an unknown controller kind lists the valid ones."""
+    from rig.sim_setup import load_setup
+    from solvers.controller import make_controller
+
+    setup = load_setup(robot=args.robot, marker=args.marker, camera=args.camera, plant=args.plant,
+                       rig=args.rig, controller=args.controller_config)
+    changes: dict[str, Any] = {}
+    if args.dt is not None:
+        changes["control_dt"] = args.dt
+        if args.latency is None and setup.rig.vision_latency >= args.dt:
+            changes["vision_latency"] = 0.75 * args.dt
+    if args.latency is not None:
+        changes["vision_latency"] = args.latency
+    for key, value in (("sensor", args.sensor), ("image_scale", args.image_scale), ("seed", args.seed),
+                       *rig_overrides.items()):
+        if value is not None:
+            changes[key] = value
+    if changes:
+        rig = dataclasses.replace(setup.rig, **changes)
+        try:
+            rig.validate()
+        except ConfigError as e:
+            raise ConfigError(f"command-line options: {e}") from None
+        setup = setup.with_changes(rig=rig)
+    ctrl = setup.controller
+    if args.controller:
+        ctrl = dataclasses.replace(ctrl, kind=args.controller)
+    if args.dt is not None:
+        ctrl = dataclasses.replace(ctrl, dt=args.dt)
+    make_controller(setup.params, ctrl)  # validates the kind (lists the valid ones)
+    return setup.with_changes(controller=ctrl)

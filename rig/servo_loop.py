@@ -19,11 +19,11 @@ import numpy as np
 from numpy.typing import NDArray
 from tqdm import tqdm
 
-from models.actuation import actuators_from_psi
+from models.actuation import actuators_from_psi, psi_from_actuators
 from models.errors import WristmarkError
 from models.ik import solve_tip_ik
 from models.kinematics import tip_position
-from models.limits import clamp_psi
+from models.limits import clamp_psi, wrap_angle
 from models.plant_interface import ActuatedArm
 from models.robot_params import RobotParams
 from models.tracker import OpticalTracker
@@ -35,6 +35,16 @@ from rig.trajectories import Trajectory
 from solvers.controller import Controller
 
 Array = NDArray[np.float64]
+
+
+def ramp_to(params: RobotParams, start: Array, target: Array, dt: float) -> list[Array]:
+    """Intermediate configurations from ``start`` to ``target`` (both excluded), one per cycle of
+    ``dt`` [s], each step within the joint velocity limits; bending-plane angles take the short way."""
+    diff = np.asarray(target, float) - np.asarray(start, float)
+    for i in (3, 5):  # delta1, delta2 [rad]: the short way (phi is not wrapped: the stem has end stops)
+        diff[i] = wrap_angle(float(diff[i]))
+    steps = int(np.ceil(np.max(np.abs(diff) / (np.asarray(params.max_velocity, float) * dt)) - 1e-9))
+    return [clamp_psi(params, np.asarray(start, float) + diff * (k / steps)) for k in range(1, steps)]
 
 
 class MarkerLostError(WristmarkError):
@@ -98,10 +108,24 @@ class ServoLoop:
         self.link.send_target(actuators_from_psi(self.params, psi))
 
     def start_at(self, psi: Array) -> None:
-        """Command ``psi`` and let the arm settle there (2 s of simulated time)."""
-        self.psi_cmd = clamp_psi(self.params, psi)
-        self._send(self.psi_cmd)
+        """Move to ``psi`` and let the arm settle there (2 s of simulated time).
+
+        The way there is a ramp from where the encoders say the arm is, one target per control
+        cycle, each step within the joint velocity limits (an arm far from the start never gets
+        one big jump; a simulated arm already there gets no ramp)."""
+        target = clamp_psi(self.params, psi)
+        dt = self.rig.control_dt
+        for step in ramp_to(self.params, self._encoder_psi(target), target, dt):
+            self.psi_cmd = step
+            self._send(step)
+            self._advance(self.t + dt)
+        self.psi_cmd = target
+        self._send(target)
         self._advance(self.t + 2.0)
+
+    def _encoder_psi(self, hint: Array) -> Array:
+        """The configuration the encoders report (``hint`` picks delta where it is ambiguous)."""
+        return psi_from_actuators(self.params, self.link.measured_actuators(), delta_hint=hint)
 
     # -- one phase -----------------------------------------------------------------------
     def run(

@@ -19,6 +19,7 @@ from rig.actuator_link import DirectLink
 from rig.rig_config import RigConfig
 from rig.run_log import RunLog
 from rig.servo_loop import MarkerLostError, ServoLoop
+from rig.sim_setup import load_setup, make_direct_loop
 from rig.tip_sensors import NoisyTruthSensor, TipMeasurement
 from rig.trajectories import Trajectory
 from solvers.controller import ControllerConfig, make_controller
@@ -116,3 +117,36 @@ def test_a_jumping_measurement_is_rejected() -> None:
 def test_config_rejects_latency_longer_than_cycle() -> None:
     with pytest.raises(Exception, match="vision_latency"):
         dataclasses.replace(RIG, control_dt=0.03, vision_latency=0.05).validate()
+
+
+def test_start_at_ramps_within_velocity_limits_from_where_the_arm_is() -> None:
+    from models.actuation import psi_from_actuators
+    from models.limits import wrap_angle
+
+    setup = load_setup()
+    setup = setup.with_changes(rig=dataclasses.replace(setup.rig, sensor="truth-noise"))
+    loop = make_direct_loop(setup, np.asarray(HOME_PSI), closed_loop=False)
+    sent: list[np.ndarray] = []
+    inner = loop.link.send_target
+    loop.link.send_target = lambda a: (sent.append(np.asarray(a, float).copy()), inner(a))[1]  # type: ignore[method-assign]
+    far = np.asarray(HOME_PSI) + np.array([0.5, 0.01, -0.4, 2.5, 0.3, -3.0])
+    loop.start_at(far)
+    psis = [np.asarray(HOME_PSI)] + [psi_from_actuators(setup.params, a, delta_hint=far) for a in sent]
+    vmax = np.asarray(setup.params.max_velocity) * setup.rig.control_dt
+    for a, b in zip(psis[:-1], psis[1:]):
+        d = b - a
+        d[3], d[5] = wrap_angle(d[3]), wrap_angle(d[5])
+        assert np.all(np.abs(d) <= vmax * (1 + 1e-9) + 1e-12)
+    assert len(sent) > 10  # a real ramp, not one jump
+    np.testing.assert_allclose(loop.psi_cmd, far, atol=1e-12)
+
+
+def test_start_at_where_the_arm_already_is_sends_one_target() -> None:
+    setup = load_setup()
+    loop = make_direct_loop(setup.with_changes(rig=dataclasses.replace(setup.rig, sensor="truth-noise")),
+                            np.asarray(HOME_PSI), closed_loop=False)
+    sent: list[np.ndarray] = []
+    inner = loop.link.send_target
+    loop.link.send_target = lambda a: (sent.append(np.asarray(a)), inner(a))[1]  # type: ignore[method-assign]
+    loop.start_at(np.asarray(HOME_PSI))
+    assert len(sent) == 1

@@ -45,8 +45,9 @@ class TrackerSettings:
     tolerance of a pair [px]; max_rms_px: largest accepted reprojection RMS [px]; good_rms_px: an
     RMS that ends the search over start poses [px] (local minima of eq. 16 sit near 0.8-1 px at
     0.2 px corner noise, the true pose near the noise level); detector:
-    'auto' (the paper's detector if installed, else the saddle fallback), 'paper' or 'saddle';
-    pose: solver settings."""
+    'auto' (the paper's detector if installed, else the saddle fallback; when the paper's
+    detector finds no marker in a pair, the saddle detector gets one try on the same pair),
+    'paper' or 'saddle'; pose: solver settings."""
 
     min_corners: int = 3
     min_pairs: int = 2
@@ -140,6 +141,9 @@ class MarkerTracker:
         self._T_left_right = np.linalg.inv(T_rl)
         self._tracking = False
         self._last_T: Array | None = None
+        self._second: tuple[CornerDetector, CornerDetector] | None = None
+        self._use_second = self.settings.detector == "auto" and type(self.detector_left).__name__ != (
+            "SaddleCornerDetector")
         cv2.setNumThreads(1)
 
     def _fail(self, reason: str, cl: Array, cr: Array, t0: float, timings: dict[str, float], **kw: Any) -> TrackResult:
@@ -167,6 +171,17 @@ class MarkerTracker:
             t_full = 1e3 * (time.perf_counter() - t1)
             res = self.track_corners(dl.corners, dr.corners, dl.polarity, dr.polarity, _t0=t0)
             res.timings["detect"] = t_det + t_full
+        if not res.ok and self._use_second:
+            # 'auto': one try with the other detector (different failure modes, same pose gates)
+            if self._second is None:
+                self._second = (_make_detector("saddle"), _make_detector("saddle"))
+            t2 = time.perf_counter()
+            sl, sr = self._second[0].detect(gl), self._second[1].detect(gr)
+            t_second = 1e3 * (time.perf_counter() - t2)
+            res2 = self.track_corners(sl.corners, sr.corners, sl.polarity, sr.polarity, _t0=t0)
+            if res2.ok:
+                res = res2
+            res.timings["second_detector"] = t_second
         self._tracking = res.ok
         self._last_T = res.T_left_marker
         return res

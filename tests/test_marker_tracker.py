@@ -124,3 +124,30 @@ def test_kabsch_recovers_transform() -> None:
     Q *= np.sign(np.linalg.det(Q))
     T = kabsch(P, P @ Q.T + [1.0, 2.0, 3.0])
     assert np.allclose(T[:3, :3], Q) and np.allclose(T[:3, 3], [1, 2, 3])
+
+
+class _Blind:
+    """A detector that never finds a corner (as the paper's detector on a pair it cannot chain)."""
+
+    def detect(self, gray: np.ndarray, roi: object = None) -> object:
+        from types import SimpleNamespace
+
+        return SimpleNamespace(corners=np.zeros((0, 2)), polarity=np.zeros(0, int))
+
+    track = detect
+
+
+@pytest.mark.parametrize(("kind", "recovers"), [("auto", True), ("paper", False)])
+def test_auto_gives_the_second_detector_one_try(frames: list[StereoFrame], kind: str, recovers: bool) -> None:
+    from cvs.marker_tracker import TrackerSettings
+
+    trk = MarkerTracker(CAM, MARKER, TrackerSettings(detector=kind))
+    trk.detector_left = trk.detector_right = _Blind()  # type: ignore[assignment]
+    f = frames[0]
+    res = trk.track(f.left, f.right)
+    assert res.ok is recovers
+    if recovers:
+        assert "second_detector" in res.timings
+        assert np.linalg.norm(res.tip_left - f.tip_left) < 0.5e-3
+    else:
+        assert "no marker" in res.reason

@@ -160,12 +160,12 @@ class ServoLoop:
         for k in bar:
             t_k = t0 + k * dt
             self._advance(t_k)
-            tau = max(0.0, (k - n_settle) * dt)
+            tau_raw = (k - n_settle) * dt  # trajectory time; negative while settling
+            tau = max(0.0, tau_raw)
             p_des, _ = traj.sample(tau)
-            # feed-forward velocity previewed by the loop's delay (latency + actuator response)
-            v_des = traj.sample(tau + self.rig.feedforward_preview)[1]
-            if k < n_settle:
-                v_des = np.zeros(3)
+            # feed-forward velocity previewed by the loop's delay (latency + actuator response);
+            # the preview also covers the start of motion (zero until then)
+            v_des = traj.sample(tau_raw + self.rig.feedforward_preview)[1]
             # open loop commands a position reached over the coming cycle: aim at its end
             p_next = traj.sample(tau + dt)[0] if k >= n_settle - 1 else p_des
             shape = self.arm.true_shape()

@@ -16,14 +16,16 @@ HEAD = ("| run | open mean [mm] | open max [mm] | closed mean [mm] | closed max 
         "|---|---|---|---|---|---|---|---|---|")
 
 
-def _cube_rows(path: Path) -> list[str]:
+def _cube_rows(path: Path, controller: str | None = None, note: str = "") -> list[str]:
     rows = []
     for r in json.loads(path.read_text())["runs"]:
+        if controller is not None and r["controller"] != controller:
+            continue
         o, c = r["open_loop"], r["closed_loop"]
         v = c.get("vision_vs_true", {})
         vis = f"{v['mean_mm']:.3f} / {v['max_mm']:.3f}" if v else "-"
         stop = f" (stopped: {c['stopped']})" if c.get("stopped") else ""
-        rows.append(f"| {r['name']}{stop} | {o['mean_mm']:.2f} | {o['max_mm']:.2f} | {c['mean_mm']:.2f} | "
+        rows.append(f"| {r['name']}{note}{stop} | {o['mean_mm']:.2f} | {o['max_mm']:.2f} | {c['mean_mm']:.2f} | "
                     f"{c['max_mm']:.2f} | {100 * r['ratio']:.1f} % | {c['corner_overshoot_mm']['max']:.2f} | {vis} "
                     f"| {c.get('lost', 0)} of {c['cycles']} |")
     return rows
@@ -32,12 +34,17 @@ def _cube_rows(path: Path) -> list[str]:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--root", default="runs/bench")
-    root = Path(ap.parse_args().root)
+    ap.add_argument("--paper-rows-from", nargs="*", default=[], metavar="JSON",
+                    help="more cube_matrix outputs whose `paper`-controller rows are added (marked *)")
+    args = ap.parse_args()
+    root = Path(args.root)
     out = ["## Cube trajectory (paper IV.C), vision in the loop", "", HEAD, PAPER]
     for name in ("cube_60ms", "cube_33ms", "cube_unseen"):
         f = root / f"{name}.json"
         if f.is_file() and f.stat().st_size:
             out += _cube_rows(f)
+    for extra in args.paper_rows_from:
+        out += _cube_rows(Path(extra), controller="paper", note=" *")
     acc = root / "accuracy" / "result.json"
     if acc.is_file():
         a = json.loads(acc.read_text())

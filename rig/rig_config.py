@@ -24,6 +24,8 @@ class RigConfig:
     accepted distance between a measurement and the model's commanded tip [m].
     max_lost_cycles: consecutive cycles without a measurement after which the loop stops.
     settle_time: closed-loop approach to the trajectory's start before logging metrics [s].
+    feedforward_preview, feedforward_lead: the feed-forward tip velocity takes the desired path
+    ``preview`` [s] ahead plus a first-order lead of ``lead`` [s] (rig.trajectories.feedforward_velocity).
     """
 
     control_dt: float = 0.060
@@ -38,7 +40,8 @@ class RigConfig:
     model_gate: float = 0.025  # [m]
     max_lost_cycles: int = 25
     settle_time: float = 1.5  # [s]
-    feedforward_preview: float = 0.14  # [s] desired velocity taken this far ahead (loop delay)
+    feedforward_preview: float = 0.035  # [s] desired path previewed this far ahead (loop delay)
+    feedforward_lead: float = 0.06  # [s] first-order lead on the feed-forward (actuator lag)
     seed: int = 0
     realtime: bool = False
 
@@ -47,7 +50,8 @@ class RigConfig:
         for k in ("control_dt", "plant_dt", "image_scale", "gate", "model_gate"):
             if getattr(self, k) <= 0:
                 raise ConfigError(f"'{k}' must be > 0, got {getattr(self, k)}")
-        for k in ("vision_latency", "truth_noise_rms", "tracker_rms", "settle_time", "feedforward_preview"):
+        for k in ("vision_latency", "truth_noise_rms", "tracker_rms", "settle_time", "feedforward_preview",
+                  "feedforward_lead"):
             if getattr(self, k) < 0:
                 raise ConfigError(f"'{k}' must be >= 0, got {getattr(self, k)}")
         if self.vision_latency >= self.control_dt:

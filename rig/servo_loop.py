@@ -31,7 +31,7 @@ from rig.actuator_link import ActuatorLink
 from rig.rig_config import RigConfig
 from rig.run_log import CycleRecord, RunLog
 from rig.tip_sensors import TipSensor
-from rig.trajectories import Trajectory
+from rig.trajectories import Trajectory, feedforward_velocity
 from solvers.controller import Controller
 
 Array = NDArray[np.float64]
@@ -163,9 +163,9 @@ class ServoLoop:
             tau_raw = (k - n_settle) * dt  # trajectory time; negative while settling
             tau = max(0.0, tau_raw)
             p_des, _ = traj.sample(tau)
-            # feed-forward velocity previewed by the loop's delay (latency + actuator response);
-            # the preview also covers the start of motion (zero until then)
-            v_des = traj.sample(tau_raw + self.rig.feedforward_preview)[1]
+            # feed-forward: the desired path previewed by the loop's delay, with a lead for the
+            # actuators' lag; the preview also covers the start of motion (zero until then)
+            v_des = feedforward_velocity(traj, tau_raw, dt, self.rig.feedforward_preview, self.rig.feedforward_lead)
             # open loop commands a position reached over the coming cycle: aim at its end
             p_next = traj.sample(tau + dt)[0] if k >= n_settle - 1 else p_des
             shape = self.arm.true_shape()

@@ -62,6 +62,16 @@ class Trajectory:
         return Trajectory(pts, self.speed)
 
 
+def feedforward_velocity(traj: Trajectory, t: float, dt: float, preview: float, lead: float) -> Array:
+    """Tip velocity [m/s] that moves a command from p_ff(t) to p_ff(t + dt) over one cycle of
+    ``dt`` [s], where p_ff(s) = p_des(s + preview) + lead * v_des(s + preview): the desired path
+    ``preview`` [s] ahead (the loop's delay) plus a first-order lead of ``lead`` [s] (the
+    actuators' lag; at a corner the lead turns the change of velocity into a short burst)."""
+    p0, v0 = traj.sample(t + preview)
+    p1, v1 = traj.sample(t + dt + preview)
+    return (p1 + lead * v1 - p0 - lead * v0) / dt
+
+
 def cube_trajectory(centre_world: Array, size: tuple[float, float, float] = (0.040, 0.020, 0.040),
                     speed: float = 0.010) -> Trajectory:
     """All 12 edges of a box of edge lengths ``size`` (x_w, y_w, z_w) [m] around the centre."""

@@ -42,7 +42,7 @@ class ControllerConfig:
     gamma: float = 1e-6
     xi: float = 1e-3
     saturate_near_target: bool = False
-    kp: float = 6.0
+    kp: float = 8.0
     max_correction_speed: float = 0.02
     feed_forward: bool = True
     damping: float = 1e-3

@@ -7,7 +7,7 @@ import itertools
 import numpy as np
 import pytest
 
-from rig.trajectories import accuracy_targets, cube_trajectory
+from rig.trajectories import accuracy_targets, cube_trajectory, feedforward_velocity
 
 CENTRE = np.array([0.01, -0.005, 0.16])
 SIZE = (0.040, 0.020, 0.040)
@@ -98,3 +98,26 @@ def test_truncated_keeps_the_first_seconds() -> None:
     assert traj.truncated(1e6) is traj
     with pytest.raises(ValueError, match="duration"):
         traj.truncated(0.0)
+
+
+def test_feedforward_is_the_path_velocity_on_straight_edges() -> None:
+    traj = cube_trajectory(CENTRE, SIZE, SPEED)
+    for t in (0.5, 1.3, 7.0):  # well inside an edge (edges take 2 s or 4 s)
+        v = traj.sample(t + 0.035)[1]
+        np.testing.assert_allclose(feedforward_velocity(traj, t, 0.06, 0.035, 0.06), v, atol=1e-15)
+
+
+@pytest.mark.parametrize("preview, lead", [(0.0, 0.0), (0.035, 0.06), (0.1, 0.02)])
+def test_feedforward_integrates_to_the_led_path(preview: float, lead: float) -> None:
+    """Summed over cycles, the feed-forward moves the command exactly to p_des(t + preview) +
+    lead v_des(t + preview), corners included (a lead bends the command outward at a corner)."""
+    traj = cube_trajectory(CENTRE, SIZE, SPEED)
+    dt, t0 = 0.06, -0.2
+    ts = t0 + dt * np.arange(200)  # through the first corners (2 s, 6 s)
+    steps = np.array([feedforward_velocity(traj, float(t), dt, preview, lead) for t in ts]) * dt
+    p0, v0 = traj.sample(t0 + preview)
+    end = ts[-1] + dt + preview
+    p1, v1 = traj.sample(end)
+    np.testing.assert_allclose(p0 + lead * v0 + steps.sum(axis=0), p1 + lead * v1, atol=1e-12)
+    if lead == 0.0:  # without a lead the command never moves faster than the path
+        assert np.linalg.norm(steps / dt, axis=1).max() <= SPEED * (1 + 1e-9)

@@ -3,8 +3,14 @@
 Each camera sees the same world: the distal arm (tube along the true centreline, rigid link,
 checkered marker sleeve, gripper) ray-cast through the camera's exact distortion at
 ``settings.supersampling`` samples per pixel axis over a cached tissue background, then the
-optics and sensor of :mod:`cvs.render_optics`. Ground truth (pose of {wm} in {ll}, tip in {ll},
-raw pixel corners with their cos_view per camera) follows DESIGN.md's truth.json.
+optics of :mod:`cvs.render_optics` and the sensor of :mod:`cvs.render_sensor`. Ground truth
+(pose of {wm} in {ll}, tip in {ll}, raw pixel corners with their cos_view per camera) follows
+DESIGN.md's truth.json.
+
+Only what changes is rendered: the optics of the background are computed once per renderer;
+each frame ray-casts the arm's tiles over the background, blurs only the arm's box (grown by
+the blur's reach) and then draws fresh sensor noise over the whole frame. With motion blur
+(a new direction every frame) the optics run over the whole frame instead.
 """
 
 from __future__ import annotations
@@ -18,9 +24,10 @@ from numpy.typing import NDArray
 
 from cvs.camera import Camera, StereoCamera
 from cvs.marker import MarkerModel
-from cvs.render_arm import METAL, TUBE, ArmLayer, Capsule, RayMap, Sleeve, render_arm, sleeve_box
+from cvs.render_arm import METAL, TUBE, Capsule, RayMap, Sleeve, plan_arm, render_arm
 from cvs.render_background import stereo_backgrounds
-from cvs.render_optics import apply_optics, vignetting_map
+from cvs.render_optics import blur_radius, grow_box, optics_signal, optics_signal_box, vignetting_map
+from cvs.render_sensor import sensor_image
 from cvs.render_settings import RenderSettings
 from models.arm_shape import ArmShape
 from models.errors import InputError
@@ -106,51 +113,74 @@ class StereoRenderer:
         self.camera, self.marker, self.settings, self.seed = camera, marker, settings, int(seed)
         self._count = 0
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="render-right")
-        self._maps = (RayMap(camera.left, camera.image_size), RayMap(camera.right, camera.image_size))
+        right_map = self._pool.submit(RayMap, camera.right, camera.image_size)  # OpenCV releases the GIL
+        self._maps = (RayMap(camera.left, camera.image_size), right_map.result())
         disparity = float(camera.left.K[0, 0]) * camera.baseline / 0.12  # tissue ~120 mm away
         bg_rng = np.random.default_rng([self.seed, 0])
         self._bg = stereo_backgrounds(bg_rng, camera.image_size, disparity, EXPOSURE * 0.9)
         vig = vignetting_map(camera.image_size, settings.vignetting)
-        self._vignette: NDArray[np.float32] = np.asarray(cv2.merge([vig] * 3) if settings.colour else vig, np.float32)
+        self._vignette: NDArray[np.float32] = np.asarray(cv2.merge([vig] * 3), np.float32)
+        # the background's optics, once (None: motion blur changes them every frame)
+        self._bg_signal = (
+            None
+            if settings.motion_blur > 0
+            else tuple(optics_signal(bg, self._vignette, settings) for bg in self._bg)
+        )
         W = np.asarray(camera.T_world_left, float)
         self.T_left_world = np.linalg.inv(W)
         T_right_left = np.eye(4)
         T_right_left[:3, :3], T_right_left[:3, 3] = camera.R, camera.T
         self.T_right_world = T_right_left @ self.T_left_world
 
-    @staticmethod
-    def _compose(img: NDArray[np.float32], bg: NDArray[np.float32], layer: ArmLayer | None) -> None:
-        if layer is None:
-            return
-        h, w = bg.shape[:2]
-        u0, v0 = layer.box[:2]
-        u1, v1 = min(layer.box[2], w), min(layer.box[3], h)  # tiles may overhang the image
-        ss = layer.ss
-        crop = bg[v0:v1, u0:u1]
-        up = np.repeat(np.repeat(crop, ss, axis=0), ss, axis=1)
-        hs, ws = (v1 - v0) * ss, (u1 - u0) * ss
-        mix = np.where(layer.hit[:hs, :ws, None], layer.radiance[:hs, :ws], up)
-        img[v0:v1, u0:u1] = cv2.resize(mix, (u1 - u0, v1 - v0), interpolation=cv2.INTER_AREA)
+    def _arm_signal(
+        self, cam: int, shape: ArmShape, angle: float, incremental: bool
+    ) -> tuple[NDArray[np.float32], NDArray[np.float32] | None, tuple[int, int]]:
+        """Sensor signal of one camera (0 left, 1 right) before noise [grey levels]: the full
+        frame, or the cached background's plus the arm's patch and its origin (u, v)."""
+        T_cw = (self.T_left_world, self.T_right_world)[cam]
+        rmap, bg, st = self._maps[cam], self._bg[cam], self.settings
+        caps, sleeve = arm_primitives(shape, self.marker, T_cw)
+        plan = plan_arm(rmap, caps, sleeve, st.supersampling, st.arm_supersampling)
+        flat = st.shading == "flat"
+        if incremental and self._bg_signal is not None:
+            if plan is None:
+                return self._bg_signal[cam], None, (0, 0)
+            outer = grow_box(plan.box, 2 * blur_radius(st), self.camera.image_size)
+            patch = bg[outer[1] : outer[3], outer[0] : outer[2]].copy()
+            render_arm(rmap, plan, EXPOSURE, patch, (outer[0], outer[1]), flat, st.adaptive_supersampling)
+            sig, origin = optics_signal_box(patch, (outer[0], outer[1]), plan.box, self._vignette, st)
+            return self._bg_signal[cam], sig, origin
+        img = bg.copy()
+        if plan is not None:
+            render_arm(rmap, plan, EXPOSURE, img, (0, 0), flat, st.adaptive_supersampling)
+        return optics_signal(img, self._vignette, st, angle), None, (0, 0)
+
+    def signal(self, shape: ArmShape, cam: int = 0, incremental: bool = True) -> NDArray[np.float32]:
+        """Noise-free sensor signal [grey levels] (h, w, 3), or (h, w) in grayscale, of camera
+        ``cam`` (0 left, 1 right) for an arm shape in {w}; ``incremental=False`` runs the optics
+        over the whole frame (the reference the incremental path must equal). Motion blur, if
+        set, is along the image x axis here."""
+        if cam not in (0, 1):
+            raise InputError(f"cam must be 0 (left) or 1 (right), got {cam}")
+        sig, patch, (u0, v0) = self._arm_signal(cam, shape, 0.0, incremental)
+        if patch is None:
+            return sig.copy()
+        out = sig.copy()
+        out[v0 : v0 + patch.shape[0], u0 : u0 + patch.shape[1]] = patch
+        return out
 
     def _render_camera(self, cam: int, shape: ArmShape, count: int) -> NDArray[np.uint8]:
         """One camera's image (cam 0 = left, 1 = right) of render call number ``count``."""
-        T_cw = (self.T_left_world, self.T_right_world)[cam]
-        rmap, bg = self._maps[cam], self._bg[cam]
         rng = np.random.default_rng([self.seed, 1, count, cam])
-        ss = self.settings.supersampling
-        caps, sleeve = arm_primitives(shape, self.marker, T_cw)
-        img = bg.copy()
-        mbox = sleeve_box(rmap, sleeve) if ss != self.settings.arm_supersampling else None
-        arm_ss = self.settings.arm_supersampling
-        self._compose(img, bg, render_arm(rmap, caps, sleeve, arm_ss, EXPOSURE, exclude=mbox))
-        if mbox is not None:  # the marker and what surrounds it at full supersampling
-            self._compose(img, bg, render_arm(rmap, caps, sleeve, ss, EXPOSURE, clip=mbox))
-        return apply_optics(img, self.settings, self._vignette, rng)
+        angle = float(rng.uniform(0, np.pi)) if self.settings.motion_blur > 0 else 0.0
+        key = int(rng.integers(0, 2**63, dtype=np.uint64))
+        sig, patch, origin = self._arm_signal(cam, shape, angle, incremental=True)
+        return sensor_image(sig, self.settings, key, patch, origin)
 
     def render(self, shape: ArmShape) -> StereoFrame:
         """Render both cameras for an arm shape in {w}; returns images and ground truth.
 
-        The two cameras render in two threads (numpy and OpenCV release the GIL)."""
+        The two cameras render in two threads (the numba kernels and OpenCV release the GIL)."""
         count = self._count
         self._count += 1
         right = self._pool.submit(self._render_camera, 1, shape, count)

@@ -1,5 +1,14 @@
-"""Camera optics and sensor: vignetting, motion and optics blur, shot + read noise, 8-bit
-quantisation and an optional JPEG round trip. Images are float32 BGR in grey levels."""
+"""Linear camera optics: vignetting, motion blur, optics (Gaussian) blur and grey conversion,
+over the whole frame or incrementally over the arm's box. Images are float32 BGR radiance in
+grey levels; pixel (u, v) is column u, row v.
+
+All these steps are linear and local (the blurs reach ``radius`` pixels), so where the frame
+differs from the cached background only inside a box, the optics of the frame equal the
+cached optics of the background outside the box grown by ``radius`` and, inside it, the optics
+of a patch of the frame grown by ``2 radius`` (:func:`optics_signal_box`). Borders follow
+OpenCV's default (BORDER_REFLECT_101) in both paths: a patch edge that is an image edge
+reflects exactly as the whole frame does.
+"""
 
 from __future__ import annotations
 
@@ -13,7 +22,7 @@ from cvs.render_settings import RenderSettings
 from models.errors import InputError
 
 F32 = NDArray[np.float32]
-U8 = NDArray[np.uint8]
+Box = tuple[int, int, int, int]  # pixel rectangle (u0, v0, u1, v1), u1 and v1 exclusive
 
 
 def vignetting_map(size: tuple[int, int], strength: float) -> F32:
@@ -36,29 +45,58 @@ def motion_kernel(length: float, angle: float) -> F32:
     return k / max(float(k.sum()), 1e-9)
 
 
-def apply_optics(img: F32, settings: RenderSettings, vignette: F32, rng: np.random.Generator) -> U8:
-    """Vignetting, motion blur, optics blur, noise, quantisation, JPEG; returns uint8 BGR or gray.
+def gaussian_ksize(sigma: float) -> int:
+    """Odd Gaussian kernel size [px] for blur sigma [px] (OpenCV's default for float images)."""
+    return int(round(sigma * 8 + 1)) | 1 if sigma > 0 else 1
 
-    ``vignette`` has the shape of ``img`` (or (h, w) for grayscale output); noise comes from
-    OpenCV's RNG seeded from ``rng`` (deterministic, ~5x faster than numpy's normals here)."""
-    cv2.setNumThreads(1)
-    out: Any = cv2.multiply(img, vignette if vignette.ndim == img.ndim else cv2.merge([vignette] * img.shape[2]))
+
+def blur_radius(settings: RenderSettings) -> int:
+    """How far [px] the incremental optics reach: the Gaussian kernel's half size (no motion blur)."""
+    return gaussian_ksize(settings.blur_sigma) // 2
+
+
+def grow_box(box: Box, margin: int, size: tuple[int, int]) -> Box:
+    """``box`` grown by ``margin`` [px] on every side and clipped to the image ``size`` (w, h)."""
+    u0, v0, u1, v1 = box
+    return max(0, u0 - margin), max(0, v0 - margin), min(size[0], u1 + margin), min(size[1], v1 + margin)
+
+
+def _linear_optics(img: F32, vignette: F32, settings: RenderSettings, angle: float) -> F32:
+    out: Any = cv2.multiply(img, vignette)
     if settings.motion_blur > 0:
-        out = cv2.filter2D(out, -1, motion_kernel(settings.motion_blur, float(rng.uniform(0, np.pi))))
+        out = cv2.filter2D(out, -1, motion_kernel(settings.motion_blur, angle))
     if settings.blur_sigma > 0:
-        out = cv2.GaussianBlur(out, (0, 0), settings.blur_sigma)
+        k = gaussian_ksize(settings.blur_sigma)
+        out = cv2.GaussianBlur(out, (k, k), settings.blur_sigma)
     if not settings.colour:
         out = cv2.cvtColor(out, cv2.COLOR_BGR2GRAY)
-    if settings.shot_gain > 0 or settings.read_noise > 0:
-        var = np.maximum(out, np.float32(0)) * np.float32(settings.shot_gain) + settings.read_noise**2
-        noise: Any = np.empty_like(out)
-        cv2.setRNGSeed(int(rng.integers(0, 2**31 - 1)))
-        cv2.randn(noise, 0.0, 1.0)  # type: ignore[call-overload]
-        out = cv2.add(out, cv2.multiply(cv2.sqrt(var), noise))
-    u8: Any = cv2.convertScaleAbs(np.maximum(out, np.float32(0)))  # rounds and saturates to 0..255
-    if settings.jpeg_quality is not None:
-        ok, buf = cv2.imencode(".jpg", u8, [cv2.IMWRITE_JPEG_QUALITY, int(settings.jpeg_quality)])
-        if not ok:
-            raise InputError("JPEG encoding failed: try another --jpeg quality")
-        u8 = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
-    return np.asarray(u8, np.uint8)
+    return np.asarray(out, np.float32)
+
+
+def optics_signal(img: F32, vignette: F32, settings: RenderSettings, motion_angle: float = 0.0) -> F32:
+    """Whole-frame optics of radiance ``img`` (h, w, 3) [grey levels]: vignetting (``vignette``
+    (h, w, 3)), motion blur along ``motion_angle`` [rad], optics blur, grey conversion.
+    Returns the sensor signal (h, w, 3), or (h, w) for grayscale, in grey levels."""
+    cv2.setNumThreads(1)
+    return _linear_optics(img, vignette, settings, motion_angle)
+
+
+def optics_signal_box(
+    patch: F32, origin: tuple[int, int], box: Box, vignette: F32, settings: RenderSettings
+) -> tuple[F32, tuple[int, int]]:
+    """Signal of the frame inside ``box`` grown by :func:`blur_radius`, from ``patch``, the
+    frame's radiance over ``box`` grown by twice that (clipped to the image) whose top-left
+    pixel is ``origin`` (u, v). Returns the signal patch and its origin; equal to the same
+    region of :func:`optics_signal` of the whole frame (no motion blur)."""
+    if settings.motion_blur > 0:
+        raise InputError("incremental optics need a fixed blur: motion blur changes every frame")
+    h, w = vignette.shape[:2]
+    r = blur_radius(settings)
+    outer = grow_box(box, 2 * r, (w, h))
+    if (outer[0], outer[1]) != tuple(origin) or patch.shape[:2] != (outer[3] - outer[1], outer[2] - outer[0]):
+        raise InputError(f"patch must cover {outer} (box grown by {2 * r} px), got origin {origin}, {patch.shape}")
+    cv2.setNumThreads(1)
+    sig = _linear_optics(patch, vignette[outer[1] : outer[3], outer[0] : outer[2]], settings, 0.0)
+    inner = grow_box(box, r, (w, h))
+    crop = sig[inner[1] - outer[1] : inner[3] - outer[1], inner[0] - outer[0] : inner[2] - outer[0]]
+    return np.ascontiguousarray(crop), (inner[0], inner[1])

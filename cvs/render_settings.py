@@ -8,6 +8,8 @@ from pathlib import Path
 from models.config_io import from_mapping, load_yaml
 from models.errors import ConfigError
 
+SHADINGS = ("phong", "flat")
+
 
 @dataclass(frozen=True)
 class RenderSettings:
@@ -18,7 +20,11 @@ class RenderSettings:
     None; motion_blur: length of a linear motion blur [px] (0 = off); supersampling: samples per
     pixel along each axis around the marker (anti-aliasing: sub-pixel corner truth);
     arm_supersampling: the same for the rest of the arm; vignetting: brightness lost at the image corners
-    (0-1); colour: BGR images if true, else grayscale.
+    (0-1); adaptive_supersampling: supersample only the pixels whose neighbourhood changes
+    surface or curves its shading (edges, corners, silhouettes, highlights), the others take
+    their centre ray (within 0.1 grey levels of full supersampling, about half the rays);
+    colour: BGR images if true, else grayscale; shading: 'phong' (coaxial light, Lambert plus
+    specular, inverse-square falloff) or 'flat' (albedo only: pure geometry, for tests).
     """
 
     read_noise: float = 1.5
@@ -29,7 +35,9 @@ class RenderSettings:
     supersampling: int = 3
     arm_supersampling: int = 1
     vignetting: float = 0.35
+    adaptive_supersampling: bool = True
     colour: bool = True
+    shading: str = "phong"
 
     def validate(self) -> None:
         """Raise ConfigError naming the offending key."""
@@ -41,6 +49,8 @@ class RenderSettings:
         for k in ("supersampling", "arm_supersampling"):
             if not 1 <= getattr(self, k) <= 8:
                 raise ConfigError(f"'{k}' must be in 1..8, got {getattr(self, k)}")
+        if self.shading not in SHADINGS:
+            raise ConfigError(f"'shading' must be one of {', '.join(SHADINGS)}, got '{self.shading}'")
         if not 0 <= self.vignetting < 1:
             raise ConfigError(f"'vignetting' must be in [0, 1), got {self.vignetting}")
 

@@ -8,7 +8,6 @@ import cv2
 import numpy as np
 import pytest
 
-import cvs.render_arm as render_arm
 from cvs.calibration_io import load_calibration
 from cvs.camera import scaled_stereo_camera
 from cvs.marker import MarkerModel
@@ -54,11 +53,10 @@ def test_truth_corners_agree_with_pixels() -> None:
         assert err.max() < 0.3, err
 
 
-def test_geometry_exact_with_flat_shading(half_camera, monkeypatch) -> None:
+def test_geometry_exact_with_flat_shading(half_camera) -> None:
     # Without shading gradients the detector's bias vanishes: every corner with cos_view > 0.3
     # must be found within 0.1 px of the truth (pure geometry + distortion + supersampling).
-    monkeypatch.setattr(render_arm, "_shade", lambda D, t, N, alb, spec, shin, gain: gain * alb)
-    r = StereoRenderer(half_camera, MarkerModel(), noise_preset("none"), seed=1)
+    r = StereoRenderer(half_camera, MarkerModel(), noise_preset("none", shading="flat"), seed=1)
     f = r.render(arm_shape(RobotParams(), PSI))
     for img, cs in ((f.left, f.corners_left), (f.right, f.corners_right)):
         err = _subpix_errors(img, cs, 0.3)
@@ -148,3 +146,100 @@ def test_renderer_needs_world_pose(half_camera) -> None:
 
     with pytest.raises(InputError, match="world_T_left"):
         StereoRenderer(replace(half_camera, T_world_left=None), MarkerModel(), RenderSettings())
+
+
+# --- incremental optics, adaptive supersampling and the sensor ----------------------------
+
+
+@pytest.mark.parametrize("settings", [noise_preset("default"), RenderSettings(colour=False, blur_sigma=1.4)])
+def test_incremental_optics_equal_full_frame(half_camera, settings) -> None:
+    # Only the arm's box is blurred each frame, over the cached optics of the background: the
+    # signal before noise must equal running vignetting + blur (+ grey) over the whole frame.
+    r = StereoRenderer(half_camera, MarkerModel(), settings, seed=3)
+    for shape in (arm_shape(RobotParams(), PSI), arm_shape(RobotParams(), HOME_PSI)):
+        for cam in (0, 1):
+            inc, full = r.signal(shape, cam), r.signal(shape, cam, incremental=False)
+            assert inc.shape == full.shape == (540, 960, 3)[: inc.ndim]
+            np.testing.assert_allclose(inc, full, rtol=0, atol=1e-4)
+            assert np.abs(full - r._bg_signal[cam]).max() > 50  # the arm is really there
+
+
+def test_adaptive_supersampling_matches_full(half_camera) -> None:
+    # Supersampling only where a pixel's neighbourhood changes surface or curves its shading
+    # leaves the radiance within 0.1 grey levels of supersampling every pixel, with far fewer rays.
+    from cvs.render import EXPOSURE, arm_primitives
+    from cvs.render_arm import plan_arm, render_arm
+
+    raw = dict(read_noise=0.0, shot_gain=0.0, blur_sigma=0.0, vignetting=0.0)
+    a = StereoRenderer(half_camera, MarkerModel(), RenderSettings(**raw), seed=0)
+    b = StereoRenderer(half_camera, MarkerModel(), RenderSettings(adaptive_supersampling=False, **raw), seed=0)
+    shape = arm_shape(RobotParams(), PSI)
+    for cam in (0, 1):
+        np.testing.assert_allclose(a.signal(shape, cam), b.signal(shape, cam), rtol=0, atol=0.1)
+    caps, sleeve = arm_primitives(shape, MarkerModel(), a.T_left_world)
+    plan = plan_arm(a._maps[0], caps, sleeve, 3, 3)  # the whole arm at 3 x 3
+    assert plan is not None
+    img = a._bg[0].copy()
+    n_ada = render_arm(a._maps[0], plan, EXPOSURE, img, (0, 0), adaptive=True)
+    n_full = render_arm(a._maps[0], plan, EXPOSURE, img.copy(), (0, 0), adaptive=False)
+    assert n_ada < 0.5 * n_full
+
+
+def test_noise_fresh_every_frame_with_the_sensor_statistics(half_camera) -> None:
+    # Two renders of the same arm differ by noise alone: zero mean, and variance
+    # 2 (shot_gain s + read^2) + 2/12 (quantisation) per pixel and channel.
+    st = noise_preset("default")
+    r = StereoRenderer(half_camera, MarkerModel(), st, seed=4)
+    shape = arm_shape(RobotParams(), PSI)
+    f1, f2 = r.render(shape), r.render(shape)
+    s = r.signal(shape, 0)
+    ok = (s > 5) & (s < 240)  # away from saturation
+    var = 2 * (st.shot_gain * s + st.read_noise**2) + 2 / 12
+    z = (f1.left.astype(float) - f2.left.astype(float))[ok] / np.sqrt(var[ok])
+    assert abs(z.mean()) < 0.01 and abs(z.std() - 1) < 0.03, (z.mean(), z.std())
+    assert not np.array_equal(f1.right, f2.right)
+    g = StereoRenderer(half_camera, MarkerModel(), st, seed=4).render(shape)  # same seed, same bytes
+    assert np.array_equal(g.left, f1.left) and np.array_equal(g.right, f1.right)
+
+
+def test_sensor_noise_does_not_depend_on_the_patch() -> None:
+    # The noise of a pixel depends on (key, pixel, channel) only: replacing a region by a patch
+    # gives the bytes of rendering the pasted frame whole.
+    from cvs.render_sensor import normal_table, sensor_image
+
+    rng = np.random.default_rng(0)
+    st = noise_preset("default")
+    base = (rng.random((61, 83, 3)) * 260 - 2).astype(np.float32)
+    patch = (rng.random((17, 29, 3)) * 260 - 2).astype(np.float32)
+    whole = base.copy()
+    whole[20:37, 5:34] = patch
+    a = sensor_image(whole, st, 12345)
+    assert np.array_equal(a, sensor_image(base, st, 12345, patch, (5, 20)))
+    assert not np.array_equal(a, sensor_image(whole, st, 12346))
+    quiet = sensor_image(whole, noise_preset("none"), 1)
+    np.testing.assert_array_equal(quiet, np.clip(np.floor(whole + 0.5), 0, 255).astype(np.uint8))
+    t = normal_table().astype(float)
+    assert len(t) == 2**16 and np.all(np.diff(t) > 0)
+    assert abs(t.mean()) < 1e-6 and abs((t**2).mean() - 1) < 1e-6 and 4.3 < t.max() < 4.4
+
+
+def test_shading_setting_validated() -> None:
+    with pytest.raises(ConfigError, match="shading"):
+        RenderSettings(shading="glossy").validate()
+
+
+def test_render_stage_inputs_validated() -> None:
+    from cvs.render_optics import optics_signal_box
+    from cvs.render_sensor import sensor_image
+
+    cam = scaled_stereo_camera(load_calibration(DEFAULT), 0.25)
+    r = StereoRenderer(cam, MarkerModel(), RenderSettings(), seed=0)
+    with pytest.raises(InputError, match="cam must be 0"):
+        r.signal(arm_shape(RobotParams(), HOME_PSI), cam=2)
+    img = np.zeros((8, 8, 3), np.float32)
+    with pytest.raises(InputError, match="does not fit"):
+        sensor_image(img, RenderSettings(), 0, np.zeros((9, 2, 3), np.float32))
+    with pytest.raises(InputError, match="motion blur"):
+        optics_signal_box(img, (0, 0), (2, 2, 4, 4), img, RenderSettings(motion_blur=3.0))
+    with pytest.raises(InputError, match="patch must cover"):
+        optics_signal_box(img[:4], (0, 0), (2, 2, 4, 4), img, RenderSettings())

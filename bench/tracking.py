@@ -8,7 +8,9 @@ folder. Per pair, measured in the same run:
   reset) and again on the same pair in ROI tracking; times per stereo pair (total and the
   detection stage);
 - detector_only: the paper's detector alone per image, cold (whole frame) and in ROI tracking,
-  with the corner RMS of its final (HTM-refined) corners and of the paper's eq. 10 quadric;
+  with the corner RMS of its final (HTM-refined) corners and of the paper's eq. 10 quadric, and
+  the ROI time per stage (crop + grey conversion, smoothing + CL + NMS, X-corner tests + chain,
+  sub-pixel fits; the rest is Python glue);
 - baseline_gftt: cv2.goodFeaturesToTrack + cv2.cornerSubPix in a box around the marker, each
   feature associated with the nearest visible true corner (oracle correspondence: favours the
   baseline) and fed to the same stereo pose solve;
@@ -131,6 +133,7 @@ def _detector_only(ds: StereoDataset) -> dict:
     det = MarkerCornerDetector()
     cold: list[float] = []
     roi: list[float] = []
+    roi_stages: dict[str, list[float]] = {}
     err: list[float] = []
     err_q: list[float] = []
     found = roi_used = 0
@@ -145,6 +148,8 @@ def _detector_only(ds: StereoDataset) -> dict:
             c2 = det.track(g)
             roi.append(1e3 * (time.perf_counter() - t0))
             roi_used += int(c2.roi is not None)
+            for k, v in c2.extras.items():
+                roi_stages.setdefault(k, []).append(v)
             found += int(c.corners.shape[0] >= 3)
             vis = np.array([x.uv for x in truth if x.cos_view > 0])
             if c.corners.shape[0] and vis.size:
@@ -165,6 +170,7 @@ def _detector_only(ds: StereoDataset) -> dict:
         "time_ms_per_image_cold_max": float(np.max(cold)),
         "time_ms_per_image_roi_median": float(np.median(roi)),
         "time_ms_per_image_roi_max": float(np.max(roi)),
+        "roi_stage_ms_median": {k: float(np.median(v)) for k, v in roi_stages.items()},
         "image_size": list(ds.camera.image_size),
     }
 

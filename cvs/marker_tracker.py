@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import importlib
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -21,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cvs.camera import StereoCamera
+from cvs.gray_image import to_gray
 from cvs.marker import MarkerModel
 from cvs.stereo_match import StereoMatch, StereoRectifier, match_corners
 from models.errors import InputError
@@ -32,7 +34,8 @@ IntArray = NDArray[np.int_]
 
 
 class CornerDetector(Protocol):
-    """What the tracker needs from a detector (cvs.corner_detector.MarkerCornerDetector)."""
+    """What the tracker needs from a detector (cvs.corner_detector.MarkerCornerDetector):
+    ``detect`` gets grey frames, ``track`` grey or BGR ones (it converts only what it searches)."""
 
     def detect(self, gray: Any, roi: Any = None) -> Any: ...
 
@@ -98,14 +101,14 @@ def _make_detector(kind: str) -> CornerDetector:
     return SaddleCornerDetector()
 
 
-def _as_gray(img: Any, size: tuple[int, int], name: str) -> NDArray[np.uint8]:
+def _checked_image(img: Any, size: tuple[int, int], name: str) -> NDArray[np.uint8]:
+    """The image as an array after checking shape, size and dtype (InputError, one line);
+    nothing is converted: the detectors crop first and convert only what they search."""
     a = np.asarray(img)
-    if a.ndim == 3 and a.shape[2] in (3, 4):
-        a = cv2.cvtColor(a, cv2.COLOR_BGR2GRAY if a.shape[2] == 3 else cv2.COLOR_BGRA2GRAY)
-    if a.ndim != 2:
+    if not (a.ndim == 2 or (a.ndim == 3 and a.shape[2] in (3, 4))):
         raise InputError(f"{name} image must be grayscale (h, w) or BGR (h, w, 3), got shape {a.shape}")
     w, h = size
-    if a.shape != (h, w):
+    if a.shape[:2] != (h, w):
         raise InputError(f"{name} image is {a.shape[1]}x{a.shape[0]} but the calibration expects {w}x{h}")
     if a.dtype != np.uint8:
         raise InputError(f"{name} image must be 8-bit (uint8), got {a.dtype}")
@@ -152,22 +155,26 @@ class MarkerTracker:
         )
 
     def track(self, left_img: Any, right_img: Any) -> TrackResult:
-        """Track the marker in one stereo pair (grayscale or BGR uint8 images of the calibrated size)."""
+        """Track the marker in one stereo pair (grayscale or BGR uint8 images of the calibrated
+        size). In ROI tracking only the boxes around the previous corners are converted to grey
+        and searched; whole frames are converted once, when a whole-frame search is needed."""
         t0 = time.perf_counter()
-        gl = _as_gray(left_img, self.camera.image_size, "left")
-        gr = _as_gray(right_img, self.camera.image_size, "right")
+        il = _checked_image(left_img, self.camera.image_size, "left")
+        ir = _checked_image(right_img, self.camera.image_size, "right")
         roi = self._tracking
         if roi:
-            dl, dr = self.detector_left.track(gl), self.detector_right.track(gr)
+            dl, dr = self.detector_left.track(il), self.detector_right.track(ir)
         else:
-            dl, dr = self.detector_left.detect(gl), self.detector_right.detect(gr)
+            il, ir = to_gray(il), to_gray(ir)
+            dl, dr = self.detector_left.detect(il), self.detector_right.detect(ir)
         t_det = 1e3 * (time.perf_counter() - t0)
         res = self.track_corners(dl.corners, dr.corners, dl.polarity, dr.polarity, _t0=t0)
         res.timings["detect"] = t_det
         if not res.ok and roi:
             # the ROI may have lost the marker: search both whole frames once more
             t1 = time.perf_counter()
-            dl, dr = self.detector_left.detect(gl), self.detector_right.detect(gr)
+            il, ir = to_gray(il), to_gray(ir)
+            dl, dr = self.detector_left.detect(il), self.detector_right.detect(ir)
             t_full = 1e3 * (time.perf_counter() - t1)
             res = self.track_corners(dl.corners, dr.corners, dl.polarity, dr.polarity, _t0=t0)
             res.timings["detect"] = t_det + t_full
@@ -176,7 +183,8 @@ class MarkerTracker:
             if self._second is None:
                 self._second = (_make_detector("saddle"), _make_detector("saddle"))
             t2 = time.perf_counter()
-            sl, sr = self._second[0].detect(gl), self._second[1].detect(gr)
+            il, ir = to_gray(il), to_gray(ir)
+            sl, sr = self._second[0].detect(il), self._second[1].detect(ir)
             t_second = 1e3 * (time.perf_counter() - t2)
             res2 = self.track_corners(sl.corners, sr.corners, sl.polarity, sr.polarity, _t0=t0)
             if res2.ok:
@@ -191,22 +199,28 @@ class MarkerTracker:
         self._tracking = False
         self._last_T = None
 
-    def _initial_pose(self, idx_l: IntArray, ul: Array, idx_r: IntArray, ur: Array, m: StereoMatch) -> list[Array]:
-        """Start poses, most likely first: the previous pair's pose (tracking), the homography of
-        the camera with more corners (paper eq. 14-15), both planar solutions of cv2 IPPE (the
-        homography's mirror-tilt ambiguity) and triangulation + Kabsch."""
-        starts: list[Array] = []
+    def _start_poses(
+        self, idx_l: IntArray, ul: Array, idx_r: IntArray, ur: Array, m: StereoMatch
+    ) -> Iterator[Array]:
+        """Start poses, most likely first, each computed only when the ones before it did not
+        give a good fit: the previous pair's pose (tracking), the homography of the camera with
+        more corners (paper eq. 14-15), both planar solutions of cv2 IPPE (the homography's
+        mirror-tilt ambiguity) and triangulation + Kabsch."""
         if self._tracking and self._last_T is not None:
-            starts.append(self._last_T)
+            yield self._last_T
         pts = self.solver.marker_points
         use_left = idx_l.size >= idx_r.size
         idx, uv, cam = (idx_l, ul, self.camera.left) if use_left else (idx_r, ur, self.camera.right)
         T_fix = np.eye(4) if use_left else self._T_left_right
         if idx.size >= 4:
+            H: Array | None = None
             try:
-                starts.append(T_fix @ homography_pose(cam, pts(idx), uv))
+                H = T_fix @ homography_pose(cam, pts(idx), uv)
             except (InputError, np.linalg.LinAlgError):
                 pass
+            if H is not None:
+                yield H
+            ippe: list[Array] = []
             try:
                 n, rvecs, tvecs, _ = cv2.solvePnPGeneric(
                     pts(idx), uv, np.asarray(cam.K, float), np.asarray(cam.dist, float), flags=cv2.SOLVEPNP_IPPE
@@ -214,16 +228,16 @@ class MarkerTracker:
                 for rv, tv in zip(rvecs[:n], tvecs[:n]):
                     T = np.eye(4)
                     T[:3, :3], T[:3, 3] = cv2.Rodrigues(rv)[0], np.asarray(tv).reshape(3)
-                    starts.append(T_fix @ T)
+                    ippe.append(T_fix @ T)
             except cv2.error:
                 pass
+            yield from ippe
         if m.n_pairs >= 3:
             X = cv2.triangulatePoints(
                 self.rectifier.P1, self.rectifier.P2, m.rect_left[m.pairs[:, 0]].T, m.rect_right[m.pairs[:, 1]].T
             )
             X = (X[:3] / X[3]).T @ np.asarray(self.rectifier.R1)  # rectified-left -> {ll}
-            starts.append(kabsch(pts(m.index_left[m.pairs[:, 0]]), X))
-        return starts
+            yield kabsch(pts(m.index_left[m.pairs[:, 0]]), X)
 
     def track_corners(
         self,
@@ -260,18 +274,23 @@ class MarkerTracker:
             )
         kl, kr = m.index_left >= 0, m.index_right >= 0
         idx_l, ul, idx_r, ur = m.index_left[kl], cl[kl], m.index_right[kr], cr[kr]
-        t2 = time.perf_counter()
-        starts = self._initial_pose(idx_l, ul, idx_r, ur, m)
-        timings["init"] = 1e3 * (time.perf_counter() - t2)
-        t3 = time.perf_counter()
+        starts = self._start_poses(idx_l, ul, idx_r, ur, m)
         best: MarkerPose | None = None
-        for T0 in starts:  # stop at the first good fit, else keep the best of all starts
+        t_init = t_solve = 0.0
+        while True:  # stop at the first good fit, else keep the best of all starts
+            t2 = time.perf_counter()
+            T0 = next(starts, None)
+            t3 = time.perf_counter()
+            t_init += t3 - t2
+            if T0 is None:
+                break
             pose = self.solver.solve(idx_l, ul, idx_r, ur, T0)
+            t_solve += time.perf_counter() - t3
             if np.isfinite(pose.rms_px) and (best is None or pose.rms_px < best.rms_px):
                 best = pose
             if best is not None and best.rms_px <= s.good_rms_px:
                 break
-        timings["solve"] = 1e3 * (time.perf_counter() - t3)
+        timings["init"], timings["solve"] = 1e3 * t_init, 1e3 * t_solve
         if best is None:
             return self._fail(
                 "no start pose (need 4 corners in one image or 3 stereo pairs)", cl, cr, t0, timings, match=m

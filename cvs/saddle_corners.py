@@ -102,11 +102,12 @@ class SaddleCornerDetector:
 
     def detect(self, gray: NDArray[np.uint8], roi: tuple[int, int, int, int] | None = None) -> SaddleDetection:
         """Whole image (or roi = (x, y, w, h)) -> the longest alternating vertical chain."""
-        g = _gray(gray)
         x0, y0 = 0, 0
-        if roi is not None:
+        img = np.asarray(gray)
+        if roi is not None:  # crop first, then convert only the box
             x0, y0, w, h = roi
-            g = g[y0 : y0 + h, x0 : x0 + w]
+            img = img[y0 : y0 + h, x0 : x0 + w]
+        g = _gray(img)
         s = self.settings
         f = cv2.GaussianBlur(g.astype(np.float32), (0, 0), s.blur_sigma)
         ixx = cv2.Sobel(f, cv2.CV_32F, 2, 0, ksize=3)
@@ -194,16 +195,17 @@ class SaddleCornerDetector:
         return out[::-1]
 
     def track(self, gray: NDArray[np.uint8]) -> SaddleDetection:
-        """ROI around the previous corners when there are some, else the whole frame."""
-        g = _gray(gray)
+        """ROI around the previous corners when there are some, else the whole frame (grey or BGR:
+        in the ROI only the box is converted)."""
+        img = np.asarray(gray)
         if self._last is not None:
             m = self.settings.roi_margin_px
             lo = np.maximum(np.floor(self._last.min(axis=0)) - m, 0).astype(int)
-            hi = np.minimum(np.ceil(self._last.max(axis=0)) + m, [g.shape[1] - 1, g.shape[0] - 1]).astype(int)
-            det = self.detect(g, (int(lo[0]), int(lo[1]), int(hi[0] - lo[0] + 1), int(hi[1] - lo[1] + 1)))
+            hi = np.minimum(np.ceil(self._last.max(axis=0)) + m, [img.shape[1] - 1, img.shape[0] - 1]).astype(int)
+            det = self.detect(img, (int(lo[0]), int(lo[1]), int(hi[0] - lo[0] + 1), int(hi[1] - lo[1] + 1)))
             if det.corners.shape[0] >= self.settings.min_corners:
                 return det
-        return self.detect(g)
+        return self.detect(_gray(img))
 
     def reset(self) -> None:
         """Forget the ROI (next ``track`` searches the whole frame)."""

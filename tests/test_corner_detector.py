@@ -4,6 +4,7 @@ images, the stereo tracker with detector='paper', and the planar-board helpers."
 
 from __future__ import annotations
 
+import math
 import time
 from pathlib import Path
 
@@ -274,3 +275,129 @@ def test_board_grid_matches_truth_and_opencv_order() -> None:
     err = np.hypot(*(grid[:, None] - truth[None]).transpose(2, 0, 1)).min(axis=1)
     assert np.sqrt(np.mean(err**2)) < 0.05
     assert assemble_grid(detect_xcorners(g), (8, 6), g) is None  # two 8x6 windows: ambiguous
+
+
+# ------------------------------------------------------------------ compiled kernels vs references
+
+
+def _cl_opencv(f: np.ndarray, epsilon: float = 2.0, gs: float = 1 / 255) -> tuple[np.ndarray, ...]:
+    """Eq. 6 with OpenCV filters (the formulation the compiled kernel replaces)."""
+    ix = cv2.Sobel(f, cv2.CV_32F, 1, 0, ksize=3, scale=0.125 * gs)
+    iy = cv2.Sobel(f, cv2.CV_32F, 0, 1, ksize=3, scale=0.125 * gs)
+    ixy = np.abs(cv2.Sobel(f, cv2.CV_32F, 1, 1, ksize=3, scale=0.25 * gs))
+    d2 = np.array([[0, -1, 0], [1, 0, 1], [0, -1, 0]], np.float32) * np.float32(gs)
+    i4545 = np.abs(cv2.filter2D(f, cv2.CV_32F, d2))
+    ax, ay = np.abs(ix), np.abs(iy)
+    e2, pen = epsilon**2, 1.5 * epsilon
+    c_xy = cv2.addWeighted(ixy, e2, np.maximum(ax, ay), -pen * np.sqrt(2.0), 0.0)
+    c_45 = cv2.addWeighted(i4545, 0.5 * e2, ax + ay, -pen, 0.0)
+    return np.maximum(c_xy, c_45), ix, iy
+
+
+def test_corner_likelihood_kernel_matches_the_opencv_filters(frames: list[StereoFrame]) -> None:
+    """Whole image, odd-width crops (OpenCV's row-filter tail) and a 1-row strip (reflected
+    borders): the same values (bit for bit on the machine it was written on; a few float32 ulp
+    allowed elsewhere)."""
+    g = cv2.GaussianBlur(_gray(frames[0].left), (7, 7), 1.5)
+    for img in (g, np.ascontiguousarray(g[100:377, 50:333]), g[200:201, 10:47].copy(), g[:, :3].copy()):
+        ref = _cl_opencv(img)
+        for a, b in zip(corner_likelihood(img, 2.0, 1 / 255), ref):
+            assert a.shape == b.shape and a.dtype == np.float32
+            np.testing.assert_allclose(a, b, rtol=0, atol=1e-6)
+
+
+def test_orientation_bins_are_the_exact_atan2_bins() -> None:
+    """The polynomial arctangent with an atan2 fallback near boundaries gives the bin of the exact
+    atan2 for random, quantised (Sobel sums of a uint8 image), axis-aligned, diagonal and
+    one-ulp-off gradients."""
+    from cvs.xcorner_test import NBINS, orientation_bin
+
+    rng = np.random.default_rng(0)
+    s = np.float32(0.125 / 255)
+    q = rng.integers(-60, 61, (4000, 2)).astype(np.float32) * s
+    g = np.concatenate(
+        [
+            rng.normal(size=(4000, 2)),
+            q.astype(np.float64),
+            np.nextafter(q, np.float32(1)).astype(np.float64),
+            [[1, 0], [-1, 0], [0, 1], [0, -1], [1, 1], [-1, 1], [1, -1], [-1, -1], [0.0, -0.0], [-0.0, 1.0]],
+        ]
+    )
+    for gx, gy in g:
+        a = math.atan2(gy, gx)
+        a = a + 2 * math.pi if a < 0 else a  # in [0, 2 pi), as the histogram of eq. 7 bins it
+        assert orientation_bin(float(gx), float(gy), NBINS) == int(a * (NBINS / math.pi)) % NBINS, (gx, gy)
+
+
+def test_htm_correlation_matches_the_tanh_model() -> None:
+    """Separable exponentials give the correlation of eq. 8 (and math.tanh where they would
+    overflow: a very sharp template)."""
+    from cvs.xcorner_test import htm_correlation
+
+    rng = np.random.default_rng(1)
+    img = rng.integers(0, 256, (40, 40)).astype(np.uint8)
+    yy, xx = np.mgrid[-5:6, -5:6].astype(np.float64)
+    for ea, eb, scale in ((1.6, 0.1, 1.0), (2.0, -0.4, 0.7), (1.2, 0.3, 0.005)):
+        na = 1.0 if np.sin(eb - ea) > 0 else -1.0
+        t = np.tanh(na * (-np.sin(ea) * xx + np.cos(ea) * yy) / scale)
+        t = t * np.tanh(-na * (-np.sin(eb) * xx + np.cos(eb) * yy) / scale)
+        p = img[15:26, 15:26].astype(np.float64)
+        ref = np.corrcoef(p.ravel(), t.ravel())[0, 1]
+        assert abs(htm_correlation(img, 20, 20, 5, ea, eb, scale) - ref) < 1e-12
+
+
+def test_lazy_xcorner_tests_give_the_chain_of_testing_all(frames: list[StereoFrame]) -> None:
+    """The chain search tests candidates only when it reaches them; testing every candidate
+    first changes nothing, and the lazy search tests far fewer."""
+    from cvs.corner_likelihood import find_candidates
+    from cvs.marker_chain import find_chain
+    from cvs.xcorner_test import check_xcorners
+
+    s = DetectorSettings()
+    for f in frames:
+        g = _gray(f.left)
+        lazy = find_candidates(g, s)
+        chain = find_chain(lazy, s)
+        full = find_candidates(g, s)
+        check_xcorners(full, np.arange(full.xs.size), s)
+        assert chain.size >= 3 and np.array_equal(find_chain(full, s), chain)
+        assert lazy.tested.sum() < 0.5 * full.xs.size
+
+
+def test_colour_frames_in_roi_tracking_convert_only_the_box(
+    frames: list[StereoFrame], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """BGR input gives the same chain as grey input; in ROI tracking only the box is converted."""
+    converted: list[tuple[int, ...]] = []
+    real = cv2.cvtColor
+
+    def spy(img: np.ndarray, code: int) -> np.ndarray:
+        converted.append(img.shape)
+        return real(img, code)
+
+    bgr = frames[1].left
+    g = _gray(bgr)
+    monkeypatch.setattr(cv2, "cvtColor", spy)
+    grey = MarkerCornerDetector()
+    colour = MarkerCornerDetector()
+    for step in range(3):
+        a, b = grey.track(g), colour.track(bgr)
+        assert a.roi == b.roi and (a.roi is None) == (step == 0)
+        np.testing.assert_array_equal(a.corners, b.corners)
+        np.testing.assert_array_equal(a.polarity, b.polarity)
+    h, w = bgr.shape[:2]
+    assert converted[0][:2] == (h, w)  # the cold search converts the whole frame ...
+    assert all(s[0] * s[1] < 0.25 * h * w for s in converted[1:])  # ... ROI tracking only boxes
+
+
+def test_detector_rejects_images_it_cannot_read() -> None:
+    from models.errors import InputError
+
+    det = MarkerCornerDetector()
+    for bad in (np.zeros((50, 60), np.float32), np.zeros((50, 60, 2), np.uint8), np.zeros(60, np.uint8)):
+        with pytest.raises(InputError, match="expected a uint8 grayscale or BGR image"):
+            det.detect(bad)
+        with pytest.raises(ValueError):
+            detect_xcorners(bad)
+    with pytest.raises(ValueError, match="leaves the 21x21 image"):
+        quadric_subpixel(np.zeros((21, 21), np.float32), np.array([2]), np.array([10]))

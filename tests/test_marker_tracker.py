@@ -151,3 +151,57 @@ def test_auto_gives_the_second_detector_one_try(frames: list[StereoFrame], kind:
         assert np.linalg.norm(res.tip_left - f.tip_left) < 0.5e-3
     else:
         assert "no marker" in res.reason
+
+
+def test_roi_tracking_starts_from_the_previous_pose_only_when_it_fits(
+    frames: list[StereoFrame], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Start poses are computed lazily: when the previous pair's pose already fits, no
+    homography (nor IPPE, nor triangulation) is computed."""
+    import cvs.marker_tracker as mt
+
+    calls: list[int] = []
+    real = mt.homography_pose
+
+    def counting(*a: object) -> np.ndarray:
+        calls.append(1)
+        return real(*a)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(mt, "homography_pose", counting)
+    trk = MarkerTracker(CAM, MARKER)
+    f = frames[1]
+    cold = trk.track(f.left, f.right)
+    assert cold.ok and len(calls) == 1
+    warm = trk.track(f.left, f.right)
+    assert warm.ok and len(calls) == 1  # the previous pose was good enough
+    assert np.linalg.norm(warm.tip_left - f.tip_left) < 0.2e-3  # type: ignore[operator]
+    assert warm.rms_px <= trk.settings.good_rms_px
+    assert {"detect", "match", "init", "solve"} <= set(warm.timings)
+
+
+def test_colour_and_grey_pairs_track_alike_and_roi_converts_only_boxes(
+    frames: list[StereoFrame], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """BGR and grey input give the same pose, cold and in ROI tracking; in ROI tracking no whole
+    1920x1080 frame is converted to grey."""
+    import cv2
+
+    f = frames[2]
+    grey = [cv2.cvtColor(f.left, cv2.COLOR_BGR2GRAY), cv2.cvtColor(f.right, cv2.COLOR_BGR2GRAY)]
+    converted: list[tuple[int, ...]] = []
+    real = cv2.cvtColor
+
+    def spy(img: np.ndarray, code: int) -> np.ndarray:
+        converted.append(img.shape)
+        return real(img, code)
+
+    monkeypatch.setattr(cv2, "cvtColor", spy)
+    a, b = MarkerTracker(CAM, MARKER), MarkerTracker(CAM, MARKER)
+    for step in range(2):
+        n_before = len(converted)
+        ra, rb = a.track(*grey), b.track(f.left, f.right)
+        assert ra.ok and rb.ok
+        np.testing.assert_array_equal(ra.corners_left, rb.corners_left)
+        np.testing.assert_allclose(ra.T_left_marker, rb.T_left_marker, atol=1e-12)  # type: ignore[arg-type]
+        if step:
+            assert converted[n_before:] and all(s[0] * s[1] < 0.25 * 1920 * 1080 for s in converted[n_before:])

@@ -7,6 +7,13 @@ when a camera sees fewer than 4 corners or the homography start does not converg
 stereo solve (eq. 16) and the tip (eq. 5). It returns ``ok=False`` with a reason rather than a
 doubtful pose: no marker, too few corners, no stereo pairs, or a residual above ``max_rms_px``.
 ``track_corners`` takes corners directly (controller loops, baselines, tests).
+
+The sleeve looks the same after a half turn about x_wm, so which way z_wm (distal) points is
+decided after the solve, in this order: a caller's ``axis_hint_left`` (e.g. the kinematic
+model's marker axis in a servo loop), the previous pair's pose (tracking: when the axis
+moved less than 30 degrees), the image (the arm's
+body continues behind the sleeve, nothing lies beyond the tip: cvs.marker_axis), and last
+``PoseSettings.axis_hint_left``. ``TrackResult.axis_source`` says which one decided.
 """
 
 from __future__ import annotations
@@ -14,7 +21,7 @@ from __future__ import annotations
 import importlib
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
 
 import cv2
@@ -24,6 +31,7 @@ from numpy.typing import NDArray
 from cvs.camera import StereoCamera
 from cvs.gray_image import to_gray
 from cvs.marker import MarkerModel
+from cvs.marker_axis import AxisEvidenceSettings, axis_evidence
 from cvs.stereo_match import StereoMatch, StereoRectifier, match_corners
 from models.errors import InputError
 from solvers.homography_init import homography_pose
@@ -31,6 +39,7 @@ from solvers.stereo_pose import MarkerPose, PoseSettings, StereoPoseSolver
 
 Array = NDArray[np.float64]
 IntArray = NDArray[np.int_]
+_CONTINUITY_COS = float(np.cos(np.radians(30.0)))  # the previous pair fixes z_wm if within 30 deg of it
 
 
 class CornerDetector(Protocol):
@@ -45,12 +54,15 @@ class CornerDetector(Protocol):
 @dataclass(frozen=True)
 class TrackerSettings:
     """min_corners: per camera [-]; min_pairs: stereo pairs needed [-]; max_dy_px: rectified-y
-    tolerance of a pair [px]; max_rms_px: largest accepted reprojection RMS [px]; good_rms_px: an
-    RMS that ends the search over start poses [px] (local minima of eq. 16 sit near 0.8-1 px at
-    0.2 px corner noise, the true pose near the noise level); detector:
+    tolerance of a pair [px]; max_rms_px: largest accepted reprojection RMS [px]; good_rms_px: in
+    ROI tracking, an RMS of the fit from the previous pose that ends the search over start poses
+    [px]; a cold pair tries every start and keeps the best (local minima of eq. 16 sit near
+    0.8-1 px at 0.2 px corner noise, but with 4 nearly collinear corners a wrong pose can fit to
+    0.3 px while the true one fits to the noise level); detector:
     'auto' (the paper's detector if installed, else the saddle fallback; when the paper's
     detector finds no marker in a pair, the saddle detector gets one try on the same pair),
-    'paper' or 'saddle'; pose: solver settings."""
+    'paper' or 'saddle'; pose: solver settings; axis: the image evidence for the direction of
+    z_wm (cvs.marker_axis)."""
 
     min_corners: int = 3
     min_pairs: int = 2
@@ -59,6 +71,7 @@ class TrackerSettings:
     good_rms_px: float = 0.4
     detector: str = "auto"
     pose: PoseSettings = field(default_factory=PoseSettings)
+    axis: AxisEvidenceSettings = field(default_factory=AxisEvidenceSettings)
 
 
 @dataclass(frozen=True)
@@ -68,7 +81,10 @@ class TrackResult:
     ok: a pose was found and passed the checks; reason: why not ('' when ok); tip_left, tip_world
     [m] (tip_world None without world_T_left); T_left_marker: 4x4 pose of {wm} in {ll};
     corners_left/right: detected corners in raw pixels (N, 2); rms_px [px]; time_ms: total [ms];
-    timings: ms per stage (detect, match, init, solve); pose: the solver result when one ran.
+    timings: ms per stage (detect, match, init, solve); pose: the solver result when one ran;
+    axis_source: what fixed the direction of z_wm ('hint', 'previous', 'image', 'default' or
+    'none'; '' when not ok); axis_score: the image evidence in [-1, 1] for the returned
+    direction (NaN when the image was not asked).
     """
 
     ok: bool
@@ -83,6 +99,8 @@ class TrackResult:
     timings: dict[str, float]
     pose: MarkerPose | None = None
     match: StereoMatch | None = None
+    axis_source: str = ""
+    axis_score: float = float("nan")
 
 
 def _make_detector(kind: str) -> CornerDetector:
@@ -143,7 +161,8 @@ class MarkerTracker:
         T_rl[:3, :3], T_rl[:3, 3] = camera.R, camera.T
         self._T_left_right = np.linalg.inv(T_rl)
         self._tracking = False
-        self._last_T: Array | None = None
+        self._continuous = False  # this pair's chains were found in the previous pair's ROIs
+        self._last_pose: MarkerPose | None = None  # the previous pair's good pose
         self._second: tuple[CornerDetector, CornerDetector] | None = None
         self._use_second = self.settings.detector == "auto" and type(self.detector_left).__name__ != (
             "SaddleCornerDetector")
@@ -154,16 +173,20 @@ class MarkerTracker:
             False, reason, None, None, None, cl, cr, float("nan"), 1e3 * (time.perf_counter() - t0), timings, **kw
         )
 
-    def track(self, left_img: Any, right_img: Any) -> TrackResult:
+    def track(self, left_img: Any, right_img: Any, axis_hint_left: Array | None = None) -> TrackResult:
         """Track the marker in one stereo pair (grayscale or BGR uint8 images of the calibrated
         size). In ROI tracking only the boxes around the previous corners are converted to grey
-        and searched; whole frames are converted once, when a whole-frame search is needed."""
+        and searched; whole frames are converted once, when a whole-frame search is needed.
+        ``axis_hint_left``: expected direction of z_wm (distal) in {ll}, if the caller knows it."""
         t0 = time.perf_counter()
+        self._continuous = False
         il = _checked_image(left_img, self.camera.image_size, "left")
         ir = _checked_image(right_img, self.camera.image_size, "right")
         roi = self._tracking
         if roi:
             dl, dr = self.detector_left.track(il), self.detector_right.track(ir)
+            # the previous pose is a start and a prior only if both chains were found in their ROIs
+            self._continuous = getattr(dl, "roi", None) is not None and getattr(dr, "roi", None) is not None
         else:
             il, ir = to_gray(il), to_gray(ir)
             dl, dr = self.detector_left.detect(il), self.detector_right.detect(ir)
@@ -172,6 +195,7 @@ class MarkerTracker:
         res.timings["detect"] = t_det
         if not res.ok and roi:
             # the ROI may have lost the marker: search both whole frames once more
+            self._continuous = False
             t1 = time.perf_counter()
             il, ir = to_gray(il), to_gray(ir)
             dl, dr = self.detector_left.detect(il), self.detector_right.detect(ir)
@@ -190,14 +214,43 @@ class MarkerTracker:
             if res2.ok:
                 res = res2
             res.timings["second_detector"] = t_second
+        if res.ok:
+            res = self._orient(res, (il, ir), axis_hint_left)
         self._tracking = res.ok
-        self._last_T = res.T_left_marker
+        self._last_pose = res.pose if res.ok else None
         return res
+
+    def _orient(self, res: TrackResult, images: tuple[NDArray[np.uint8], NDArray[np.uint8]],
+                hint: Array | None) -> TrackResult:
+        """Fix the direction of z_wm of a good result (module docstring: hint, previous, image,
+        default); the reprojection fit is the same either way."""
+        assert res.pose is not None
+        pose, score = res.pose, float("nan")
+        z = pose.T_left_marker[:3, 2]
+        prev = self._last_pose
+        want: Array | None
+        if hint is not None:
+            want, source = np.asarray(hint, float).reshape(3), "hint"
+        elif (self._continuous and prev is not None
+              and abs(float(pose.T_fit[:3, 2] @ prev.T_fit[:3, 2])) >= _CONTINUITY_COS):
+            want, source = prev.T_left_marker[:3, 2], "previous"
+        else:
+            score = axis_evidence(images, self.camera, self.marker, pose.T_left_marker, self.settings.axis)
+            if abs(score) >= self.settings.axis.decide:
+                want, source = (z if score > 0 else -z), "image"
+            else:
+                fallback = self.settings.pose.axis_hint_left
+                want = None if fallback is None else np.asarray(fallback, float)
+                source = "default" if want is not None else "none"
+        if want is not None and float(np.dot(z, want)) < 0:
+            pose, score = self.solver.half_turned(pose), -score
+        return replace(res, tip_left=pose.tip_left, tip_world=pose.tip_world, T_left_marker=pose.T_left_marker,
+                       pose=pose, axis_source=source, axis_score=score)
 
     def reset(self) -> None:
         """Forget the ROI state: the next pair is searched in the whole frames."""
-        self._tracking = False
-        self._last_T = None
+        self._tracking = self._continuous = False
+        self._last_pose = None
 
     def _start_poses(
         self, idx_l: IntArray, ul: Array, idx_r: IntArray, ur: Array, m: StereoMatch
@@ -206,8 +259,8 @@ class MarkerTracker:
         give a good fit: the previous pair's pose (tracking), the homography of the camera with
         more corners (paper eq. 14-15), both planar solutions of cv2 IPPE (the homography's
         mirror-tilt ambiguity) and triangulation + Kabsch."""
-        if self._tracking and self._last_T is not None:
-            yield self._last_T
+        if self._continuous and self._last_pose is not None:
+            yield self._last_pose.T_fit  # index-consistent, whichever way it was reported
         pts = self.solver.marker_points
         use_left = idx_l.size >= idx_r.size
         idx, uv, cam = (idx_l, ul, self.camera.left) if use_left else (idx_r, ur, self.camera.right)
@@ -277,7 +330,7 @@ class MarkerTracker:
         starts = self._start_poses(idx_l, ul, idx_r, ur, m)
         best: MarkerPose | None = None
         t_init = t_solve = 0.0
-        while True:  # stop at the first good fit, else keep the best of all starts
+        while True:  # tracking: stop at a good fit from the previous pose; else the best of all starts
             t2 = time.perf_counter()
             T0 = next(starts, None)
             t3 = time.perf_counter()
@@ -288,7 +341,7 @@ class MarkerTracker:
             t_solve += time.perf_counter() - t3
             if np.isfinite(pose.rms_px) and (best is None or pose.rms_px < best.rms_px):
                 best = pose
-            if best is not None and best.rms_px <= s.good_rms_px:
+            if self._continuous and best is not None and best.rms_px <= s.good_rms_px:
                 break
         timings["init"], timings["solve"] = 1e3 * t_init, 1e3 * t_solve
         if best is None:

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from models.ik import solve_tip_ik
-from models.kinematics import tip_position
+from models.kinematics import forward_kinematics, tip_position
 from models.robot_params import HOME_PSI
 from rig.metrics import corner_overshoot, error_stats, estimate_errors, tracking_errors
 from rig.run_log import CycleRecord, RunLog, write_json
@@ -157,7 +157,7 @@ def run_accuracy(setup: SimSetup, out_dir: Path, n: int = 40, progress: bool = T
         plant.advance(1.0)
         shape = plant.true_shape()
         p_trk = tracker.measure(shape.tip)
-        m = sensor.measure(shape)
+        m = sensor.measure(shape, axis_hint_world=forward_kinematics(setup.params, psi).T_world_marker[:3, 2])
         err = float(np.linalg.norm(m.p_world - p_trk)) if m.ok and m.p_world is not None else float("nan")
         rows.append({"index": i, "target": p.tolist(), "tracker": p_trk.tolist(), "true": shape.tip.tolist(),
                      "estimate": None if m.p_world is None else m.p_world.tolist(), "ok": m.ok,

@@ -22,7 +22,7 @@ from tqdm import tqdm
 from models.actuation import actuators_from_psi, psi_from_actuators
 from models.errors import WristmarkError
 from models.ik import solve_tip_ik
-from models.kinematics import tip_position
+from models.kinematics import forward_kinematics, tip_position
 from models.limits import clamp_psi, wrap_angle
 from models.plant_interface import ActuatedArm
 from models.robot_params import RobotParams
@@ -177,7 +177,8 @@ class ServoLoop:
             vision_ms = ctrl_us = 0.0
             if closed_loop:
                 assert self.sensor is not None and self.controller is not None
-                meas = self.sensor.measure(shape)
+                hint = forward_kinematics(self.params, self.psi_cmd).T_world_marker[:3, 2]  # model's marker axis
+                meas = self.sensor.measure(shape, axis_hint_world=hint)
                 vision_ms = meas.time_ms
                 p_model = tip_position(self.params, self.psi_cmd)
                 if meas.ok and meas.p_world is not None and np.all(np.isfinite(meas.p_world)):

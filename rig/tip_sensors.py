@@ -35,8 +35,9 @@ class TipMeasurement:
 class TipSensor(Protocol):
     """Anything that measures the tip of the arm from its true shape."""
 
-    def measure(self, shape: ArmShape) -> TipMeasurement:
-        """Measure the tip of ``shape`` (the true arm now)."""
+    def measure(self, shape: ArmShape, axis_hint_world: Array | None = None) -> TipMeasurement:
+        """Measure the tip of ``shape`` (the true arm now); ``axis_hint_world``: the expected
+        direction of the marker's z axis in {w} (e.g. the model's at the commanded configuration)."""
 
 
 class NoisyTruthSensor:
@@ -46,8 +47,8 @@ class NoisyTruthSensor:
         self._sigma = rms / np.sqrt(3.0)
         self._rng = np.random.default_rng(seed)
 
-    def measure(self, shape: ArmShape) -> TipMeasurement:
-        """True tip + noise; never fails."""
+    def measure(self, shape: ArmShape, axis_hint_world: Array | None = None) -> TipMeasurement:
+        """True tip + noise; never fails (the hint is not needed)."""
         p = shape.tip + self._rng.normal(0.0, self._sigma, 3)
         return TipMeasurement(True, p)
 
@@ -67,12 +68,16 @@ class VisionTipSensor:
         self.tracker = MarkerTracker(camera, marker)
         self.last_images: tuple[np.ndarray, np.ndarray] | None = None
 
-    def measure(self, shape: ArmShape) -> TipMeasurement:
-        """Render + track; the time reported is the tracking time only [ms]."""
+    def measure(self, shape: ArmShape, axis_hint_world: Array | None = None) -> TipMeasurement:
+        """Render + track; the time reported is the tracking time only [ms]. The axis hint picks
+        which way the marker points (its pattern is symmetric under a half turn)."""
         frame = self.renderer.render(shape)
         self.last_images = (frame.left, frame.right)
+        hint = None
+        if axis_hint_world is not None and self.camera.T_world_left is not None:
+            hint = np.asarray(self.camera.T_world_left, float)[:3, :3].T @ np.asarray(axis_hint_world, float)
         t0 = time.perf_counter()
-        res = self.tracker.track(frame.left, frame.right)
+        res = self.tracker.track(frame.left, frame.right, axis_hint_left=hint)
         ms = 1000.0 * (time.perf_counter() - t0)
         if not res.ok or res.tip_world is None:
             return TipMeasurement(False, None, res.reason or "marker not found", ms)

@@ -16,13 +16,14 @@ Packed output: R (9), t (3), then per slot the weighted residual (u, v) [px], le
 Symmetries (documented, not bugs): corner indices are relative, so roll about z_wm is only
 known modulo the pattern period beta = 2 pi / columns; and the checkered sleeve is invariant
 under a half turn about x_wm (i -> -i, z -> -z), so the direction of z_wm is fixed by a prior
-(``PoseSettings.axis_hint_left``: the expected direction of z_wm in {ll}).
+(``PoseSettings.axis_hint_left``: the expected direction of z_wm in {ll}); cvs.marker_tracker
+decides it from the previous pair, a caller's hint or the image (cvs.marker_axis) first.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import casadi as ca
 import numpy as np
@@ -36,6 +37,7 @@ Array = NDArray[np.float64]
 _HEAD = 9 + 3 + 10 + 10 + 12  # pose start, two cameras, stereo extrinsics
 _SLOT = 6  # X, Y, Z, u, v, weight
 _MM = 1e-3  # translation increments are solved in millimetres [m/mm]
+HALF_TURN_X = np.diag([1.0, -1.0, -1.0, 1.0])  # the sleeve's symmetry: a half turn about x_wm
 
 
 @dataclass(frozen=True)
@@ -72,7 +74,10 @@ class PoseSettings:
 class MarkerPose:
     """Result of the stereo pose solve (left camera frame {ll}, metres).
 
-    T_left_marker: 4x4 pose of {wm} in {ll}; tip_left: tip (eq. 5) in {ll} [m]; tip_world: tip
+    T_fit: 4x4 pose of {wm} in {ll} as fitted, consistent with the corner indices given (the
+    start for the next pair); T_left_marker: the reported pose, T_fit or T_fit turned half about
+    x_wm to point z_wm as the prior says (the fit then holds with corner i as -i); tip_left: tip
+    (eq. 5) of the reported pose in {ll} [m]; tip_world: tip
     in {w} [m] when the calibration has world_T_left, else None; rms_px: RMS reprojection
     residual of the inliers [px]; n_left, n_right: corners given per camera; inliers_left/right:
     boolean masks of the corners kept; roll_ambiguity_rad = beta: roll about z_wm is only known
@@ -80,6 +85,7 @@ class MarkerPose:
     time of the solve [ms].
     """
 
+    T_fit: Array
     T_left_marker: Array
     tip_left: Array
     tip_world: Array | None
@@ -280,27 +286,39 @@ class StereoPoseSolver:
             T, e_l, e_r = self._run(T, P_l, ul, w_l, P_r, ur, w_r)
         e = np.concatenate([e_l[w_l > 0], e_r[w_r > 0]])
         rms = float(np.sqrt(np.mean(e**2))) if e.size else float("nan")
-        T = self.orient(T)
         return self._result(T, rms, w_l > 0, w_r > 0, t_start)
 
-    def orient(self, T_left_marker: Array) -> Array:
-        """Apply the z_wm prior: a half turn about x_wm if z_wm points against axis_hint_left.
+    def orient(self, T_left_marker: Array, hint: Array | tuple[float, float, float] | None = None) -> Array:
+        """Apply a z_wm prior: a half turn about x_wm if z_wm points against ``hint`` (a
+        direction in {ll}; default ``settings.axis_hint_left``, None in both: unchanged).
 
         Exact symmetry of the sleeve (i -> -i), so the reprojection cost is unchanged.
         """
-        hint = self.settings.axis_hint_left
-        if hint is not None and float(np.dot(T_left_marker[:3, 2], hint)) < 0:
-            return T_left_marker @ np.diag([1.0, -1.0, -1.0, 1.0])
+        hint = self.settings.axis_hint_left if hint is None else hint
+        if hint is not None and float(np.dot(T_left_marker[:3, 2], np.asarray(hint, float))) < 0:
+            return T_left_marker @ HALF_TURN_X
         return T_left_marker
 
-    def _result(
-        self, T: Array, rms: float, in_l: NDArray[np.bool_], in_r: NDArray[np.bool_], t_start: float
-    ) -> MarkerPose:
+    def half_turned(self, pose: MarkerPose) -> MarkerPose:
+        """The same fit reported with the other direction of z_wm (the sleeve's half-turn
+        symmetry, under which corner i takes the place of corner -i; ``T_fit`` is unchanged)."""
+        T = pose.T_left_marker @ HALF_TURN_X
+        tip_left, tip_world = self._tips(T)
+        return replace(pose, T_left_marker=T, tip_left=tip_left, tip_world=tip_world)
+
+    def _tips(self, T: Array) -> tuple[Array, Array | None]:
+        """Tip (eq. 5) in {ll} and, with world_T_left, in {w} [m] for the pose T of {wm} in {ll}."""
         tip_left = T[:3, :3] @ self.marker.tip() + T[:3, 3]
-        tip_world = None
-        if self.camera.T_world_left is not None:
-            tip_world = self.camera.world_from_left(tip_left)[0]
+        tip_world = None if self.camera.T_world_left is None else self.camera.world_from_left(tip_left)[0]
+        return tip_left, tip_world
+
+    def _result(
+        self, T_fit: Array, rms: float, in_l: NDArray[np.bool_], in_r: NDArray[np.bool_], t_start: float
+    ) -> MarkerPose:
+        T = self.orient(T_fit)
+        tip_left, tip_world = self._tips(T)
         return MarkerPose(
+            T_fit=T_fit,
             T_left_marker=T,
             tip_left=tip_left,
             tip_world=tip_world,

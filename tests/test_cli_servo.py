@@ -188,7 +188,7 @@ class LosesMarker:
         self.after, self.n = after, 0
         self.rng = np.random.default_rng(0)
 
-    def measure(self, shape: Any) -> TipMeasurement:
+    def measure(self, shape: Any, axis_hint_world: Any = None) -> TipMeasurement:
         self.n += 1
         if self.n > self.after:
             return TipMeasurement(False, None, "marker not found")

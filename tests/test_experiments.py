@@ -22,7 +22,7 @@ class BlindAfter:
         self.n = n
         self.inner = NoisyTruthSensor(1e-4, seed=1)
 
-    def measure(self, shape: ArmShape) -> TipMeasurement:
+    def measure(self, shape: ArmShape, axis_hint_world: object = None) -> TipMeasurement:
         self.n -= 1
         return self.inner.measure(shape) if self.n >= 0 else TipMeasurement(False, None, "marker not found")
 

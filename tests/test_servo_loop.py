@@ -70,7 +70,7 @@ class _Blinking:
         self.n = 0
         self.lose_at = lose_at
 
-    def measure(self, shape: object) -> TipMeasurement:
+    def measure(self, shape: object, axis_hint_world: object = None) -> TipMeasurement:
         self.n += 1
         if self.n > self.lose_at:
             return TipMeasurement(False, None, "marker not found")
@@ -96,7 +96,7 @@ class _Jumpy:
         self.inner = NoisyTruthSensor(1e-5, seed=4)
         self.n = 0
 
-    def measure(self, shape: object) -> TipMeasurement:
+    def measure(self, shape: object, axis_hint_world: object = None) -> TipMeasurement:
         self.n += 1
         m = self.inner.measure(shape)  # type: ignore[arg-type]
         if self.n == 10:

@@ -2,7 +2,8 @@
 
 Pairs are processed in order as one sequence (ROI tracking from pair to pair). With ``--json``
 one object per pair and line: left, right, ok, tip, R, t (pose of {wm} in {ll}, metres),
-corners_left, corners_right (raw pixels), rms_px, time_ms; ``"ok": false`` with a ``reason``
+corners_left, corners_right (raw pixels), rms_px, time_ms, and axis_source (what decided the
+direction of z_wm: cvs.marker_tracker); ``"ok": false`` with a ``reason``
 when the marker is not found (exit status stays 0: that is a result, not an error).
 Errors are for the whole command (one line on stderr, exit 2): an odd number of paths, a
 missing file (all paths are checked before any pair is tracked), and an unreadable (corrupt)
@@ -40,6 +41,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=None,
         metavar="PX",
         help="largest accepted reprojection RMS [px] (default 0.75)",
+    )
+    p.add_argument(
+        "--axis-hint",
+        type=float,
+        nargs=3,
+        metavar=("X", "Y", "Z"),
+        help="expected direction of the marker's z axis (towards the tip) in the left camera frame; "
+        "default: decided from the images (the arm's side of the sleeve), else +x (tip to the right)",
     )
     p.add_argument("--json", action="store_true", help="one JSON object per pair and line on stdout")
 
@@ -82,13 +91,18 @@ def run(args: argparse.Namespace) -> int:
         if not (math.isfinite(args.max_rms) and args.max_rms > 0):
             raise InputError(f"--max-rms must be > 0 px, got {args.max_rms}")
         settings = replace(settings, max_rms_px=args.max_rms, good_rms_px=min(settings.good_rms_px, args.max_rms))
+    hint = None
+    if args.axis_hint is not None:
+        hint = np.asarray(args.axis_hint, float)
+        if not (np.all(np.isfinite(hint)) and np.linalg.norm(hint) > 0):
+            raise InputError(f"--axis-hint must be a finite non-zero direction, got {args.axis_hint}")
     camera = load_calibration(args.calib)
     marker = MarkerModel.load(args.marker) if args.marker else MarkerModel()
     tracker = MarkerTracker(camera, marker, settings)
     for lp, rp in zip(paths[0::2], paths[1::2]):
         left, right = read_image(lp), read_image(rp)
         try:
-            res = tracker.track(left, right)
+            res = tracker.track(left, right, axis_hint_left=hint)
         except InputError as e:
             raise InputError(f"{lp} / {rp}: {e}") from e
         out: dict[str, Any] = {"left": str(lp), "right": str(rp), "ok": res.ok}
@@ -106,6 +120,8 @@ def run(args: argparse.Namespace) -> int:
             "rms_px": round(res.rms_px, 5) if res.ok else None,
             "time_ms": round(res.time_ms, 3),
         }
+        if res.ok:
+            out["axis_source"] = res.axis_source
         if args.json:
             print(json.dumps(out), flush=True)
         elif res.ok and res.tip_left is not None:

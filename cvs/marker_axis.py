@@ -1,0 +1,137 @@
+"""Which way the wrist marker points: image evidence for the direction of z_wm (distal).
+
+The checkered sleeve is invariant under a half turn about x_wm (corner i -> -i, z -> -z, and the
+two rows swap colours), so the corners alone cannot tell the tip's side of the marker from the
+arm's side: both poses reproject the corners exactly. The image can: the arm's body continues
+on the proximal side (-z) right behind the sleeve and far beyond it, while on the distal side
+only the (narrower) tool reaches the tip at ``tip_offset`` and nothing of the arm lies beyond.
+
+``axis_evidence`` measures, in both images, how much "object" there is on each side of the
+sleeve along the marker's axis: the grey-level contrast between points on the axis's flanks
+(inside the silhouette of an arm about as wide as the sleeve, outside that of a thin tool) and
+points well outside the silhouette, in two bands: just behind the sleeve's ends and beyond
+the tip's distance. It returns a score in [-1, 1]: > 0 supports the pose's z_wm as distal,
+< 0 the half-turned pose, ~0 no evidence (the caller then falls back to a prior).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from cvs.camera import Camera, StereoCamera
+from cvs.marker import MarkerModel
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class AxisEvidenceSettings:
+    """Where the evidence is sampled, in marker radii r along and across the axis [-].
+
+    near: distances beyond the sleeve's ends (in r); far: distances beyond the tip's distance
+    (in r); offsets: lateral offsets searched for a silhouette edge (in r: an arm about as wide
+    as the sleeve, not a thin tool); step: half the width of the grey-level step (in r);
+    max_reach: a band is skipped when an end face turned towards the camera hides it beyond this
+    (in r); min_samples: least valid samples per offset; decide: least |score| that decides.
+    """
+
+    near: tuple[float, ...] = (0.2, 0.35, 0.5, 0.65, 0.8)
+    far: tuple[float, ...] = (1.0, 1.3, 1.6, 1.9, 2.2)
+    max_reach: float = 2.5
+    offsets: tuple[float, ...] = (0.55, 0.6, 0.65, 0.7, 0.75, 0.8, 0.85, 0.9, 0.95, 1.0, 1.05, 1.1)
+    step: float = 0.06
+    min_samples: int = 4
+    decide: float = 0.1
+
+
+def _luminance(img: NDArray[np.uint8], uv: Array) -> Array:
+    """Bilinear grey level at raw pixels uv (N, 2) of a grey or BGR image; NaN outside."""
+    h, w = img.shape[:2]
+    u, v = uv[:, 0], uv[:, 1]
+    ok = (u >= 0) & (v >= 0) & (u <= w - 1.001) & (v <= h - 1.001)
+    out = np.full(len(uv), np.nan)
+    if not ok.any():
+        return out
+    u0, v0 = np.floor(u[ok]).astype(np.intp), np.floor(v[ok]).astype(np.intp)
+    fu, fv = u[ok] - u0, v[ok] - v0
+    a: Any = img.astype(np.float64) if img.ndim == 2 else None
+    px = [img[v0, u0], img[v0, u0 + 1], img[v0 + 1, u0], img[v0 + 1, u0 + 1]]
+    if a is None:  # BGR -> luminance at the four neighbours only
+        wts = np.array([0.114, 0.587, 0.299])
+        px = [p.astype(np.float64) @ wts for p in px]
+    else:
+        px = [p.astype(np.float64) for p in px]
+    out[ok] = (px[0] * (1 - fu) + px[1] * fu) * (1 - fv) + (px[2] * (1 - fu) + px[3] * fu) * fv
+    return out
+
+
+def _side_edges(img: NDArray[np.uint8], cam: Camera, T_cam_marker: Array, zs: Array, r: float,
+                s: AxisEvidenceSettings) -> float:
+    """Strength of silhouette edges running along the axis at axis positions zs [m]: for each
+    flank and lateral offset in ``s.offsets`` (in r), the mean over zs of the grey-level step
+    across the axis (signed, so only an edge parallel to the axis adds up); the strongest
+    offset per flank, summed over both flanks [grey levels]. NaN: too few samples in view."""
+    R, t = T_cam_marker[:3, :3], T_cam_marker[:3, 3]
+    ez = R[:, 2]
+    P = t[None, :] + zs[:, None] * ez[None, :]  # axis points in the camera frame
+    lat = np.cross(ez[None, :], P)  # across the axis, perpendicular to the line of sight
+    n = np.linalg.norm(lat, axis=1, keepdims=True)
+    if np.any(n < 1e-12) or np.any(P[:, 2] <= 0):
+        return float("nan")
+    lat = lat / n
+    offs = np.asarray(s.offsets, float)
+    total = 0.0
+    for side in (1.0, -1.0):
+        o = side * offs[:, None, None] * r  # (n_off, 1, 1)
+        X_out = P[None] + (o + side * s.step * r) * lat[None]
+        X_in = P[None] + (o - side * s.step * r) * lat[None]
+        shape = X_out.shape[:2]
+        d = (_luminance(img, cam.project(X_out.reshape(-1, 3))) - _luminance(img, cam.project(X_in.reshape(-1, 3))))
+        d = d.reshape(shape)
+        valid = np.isfinite(d).sum(axis=1)
+        if valid.min() < s.min_samples:
+            return float("nan")
+        total += float(np.max(np.abs(np.nanmean(d, axis=1))))
+    return total
+
+
+def axis_evidence(images: tuple[NDArray[np.uint8], NDArray[np.uint8]], camera: StereoCamera, marker: MarkerModel,
+                  T_left_marker: Array, settings: AxisEvidenceSettings | None = None) -> float:
+    """Score in [-1, 1] that z_wm of ``T_left_marker`` (pose of {wm} in {ll}) points distally:
+    > 0 the arm's body lies on its -z side, < 0 on its +z side (the half-turned pose is the
+    right one), 0 when the images say nothing (marker seen end-on, out of view, no contrast)."""
+    s = settings or AxisEvidenceSettings()
+    r, h, tip = marker.radius, marker.row_height, float(marker.tip()[2])
+    T_rl = np.eye(4)
+    T_rl[:3, :3], T_rl[:3, 3] = camera.R, camera.T
+    poses = (np.asarray(T_left_marker, float), T_rl @ np.asarray(T_left_marker, float))
+    scores = []
+    for img, cam, T in zip(images, (camera.left, camera.right), poses):
+        for base, steps in ((h, s.near), (max(tip, h), s.far)):
+            sides = []
+            for side in (1.0, -1.0):  # distal, proximal (as posed)
+                k = np.asarray(steps, float) + _face_reach(T, side, base, s)
+                sides.append(_side_edges(img, cam, T, side * (base + r * k), r, s) if k[0] <= s.max_reach else np.nan)
+            distal, proximal = sides
+            if np.isfinite(distal) and np.isfinite(proximal) and proximal + distal > 1e-9:
+                scores.append((proximal - distal) / (proximal + distal))
+    return float(np.mean(scores)) if scores else 0.0
+
+
+def _face_reach(T_cam_marker: Array, side: float, z_face: float, s: AxisEvidenceSettings) -> float:
+    """How far (in marker radii, along the axis) the end face at z = side * z_face, if it faces
+    the camera, covers the flank samples beyond it in the image: sqrt(1 - o^2) / tan(alpha) for
+    the innermost flank offset o and the angle alpha between the line of sight and the axis."""
+    ez, t = T_cam_marker[:3, 2], T_cam_marker[:3, 3]
+    centre = t + side * z_face * ez
+    to_cam = -centre / np.linalg.norm(centre)
+    c = float(side * ez @ to_cam)  # > 0: the face is turned towards the camera
+    if c <= 1e-6:
+        return 0.0
+    tan_a = np.sqrt(max(1.0 - c * c, 0.0)) / c
+    o = min(s.offsets)
+    return float(np.sqrt(1.0 - o * o) / max(tan_a, 1e-6))

@@ -30,7 +30,8 @@ class ControllerConfig:
     kind: "paper" (eq. 17-21) or "qp" (velocity-bounded QP). dt: servo cycle [s].
     paper: v_xlim constant tip speed [m/s]; gamma [m^2/s^2-free, eq. 20 damping]; xi threshold on
     the smallest singular value; saturate_near_target: use min(v_xlim, |dp|/dt) instead of the
-    paper's constant speed. qp: kp feedback gain [1/s]; max_correction_speed [m/s];
+    paper's constant speed; lock_saturated_joints: re-solve eq. 19-20 without a joint the step
+    would push through its limit (not in the paper). qp: kp feedback gain [1/s]; max_correction_speed [m/s];
     feed_forward: add the desired velocity; damping: weight of ||S psi_dot||^2 relative to the
     tip-velocity error (S converts rad to tip metres, ``lever`` [m/rad]); orientation_weight:
     weight [m^2/rad^2] on keeping the tip frame's orientation (0 = position only).
@@ -42,6 +43,7 @@ class ControllerConfig:
     gamma: float = 1e-6
     xi: float = 1e-3
     saturate_near_target: bool = False
+    lock_saturated_joints: bool = True
     kp: float = 8.0
     max_correction_speed: float = 0.02
     feed_forward: bool = True

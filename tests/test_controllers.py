@@ -80,6 +80,33 @@ def test_error_decreases_on_a_static_target(kind: str) -> None:
     assert errs[-1] < 1e-4
 
 
+def test_paper_locks_a_joint_at_its_limit_and_moves_the_others() -> None:
+    """At the stem feed's lower end stop, a target that eq. 19 would reach by retracting the stem:
+    with locking, d stays at its stop, the other joints follow J^+ with d's column removed and the
+    tip moves along v; without locking, the clipped step loses that part of the motion."""
+    q = HOME.copy()
+    q[1] = P.d_range[0]  # d at its lower stop
+    J = tip_jacobian(P, q)
+    dp = -0.003 * J[:3, 1] / np.linalg.norm(J[:3, 1])  # straight back along the stem
+    p_c = tip_position(P, q)
+    locked = make_controller(P, ControllerConfig(kind="paper", v_xlim=0.01))
+    clipped = make_controller(P, ControllerConfig(kind="paper", v_xlim=0.01, lock_saturated_joints=False))
+    dt = 0.06
+    a, b = locked.step(q, p_c, p_c + dp, None, dt), clipped.step(q, p_c, p_c + dp, None, dt)
+    assert a.psi_next[1] == P.d_range[0] and b.psi_next[1] == P.d_range[0]
+    free = np.ones(6)
+    free[1] = 0.0
+    expected = sr_pseudo_inverse(J * free, 1e-6, 1e-3) @ np.r_[a.v_tip_cmd, 0, 0, 0]
+    np.testing.assert_allclose(a.psi_dot, expected, atol=1e-12)
+    # the clipped step leaves the tip where it was (all of v was d's); the locked one gets closer
+    # (not by the full v dt: eq. 19 also asks the tip frame not to rotate, which 5 joints cannot
+    # quite do while translating along the stem)
+    err_locked = np.linalg.norm(tip_position(P, a.psi_next) - (p_c + dp))
+    err_clipped = np.linalg.norm(tip_position(P, b.psi_next) - (p_c + dp))
+    assert err_clipped == pytest.approx(np.linalg.norm(dp), abs=1e-9)
+    assert err_locked < err_clipped - 1e-4
+
+
 @settings(max_examples=60, deadline=None, derandomize=True)
 @given(st.sampled_from(["paper", "qp"]), st.lists(st.floats(-1, 1), min_size=6, max_size=6),
        st.lists(st.floats(-0.05, 0.05), min_size=3, max_size=3), st.floats(0.005, 0.2))

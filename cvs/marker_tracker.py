@@ -260,7 +260,7 @@ class MarkerTracker:
         more corners (paper eq. 14-15), both planar solutions of cv2 IPPE (the homography's
         mirror-tilt ambiguity) and triangulation + Kabsch."""
         if self._continuous and self._last_pose is not None:
-            yield self._last_pose.T_fit  # index-consistent, whichever way it was reported
+            yield self._previous_start(idx_l, ul)
         pts = self.solver.marker_points
         use_left = idx_l.size >= idx_r.size
         idx, uv, cam = (idx_l, ul, self.camera.left) if use_left else (idx_r, ur, self.camera.right)
@@ -291,6 +291,22 @@ class MarkerTracker:
             )
             X = (X[:3] / X[3]).T @ np.asarray(self.rectifier.R1)  # rectified-left -> {ll}
             yield kabsch(pts(m.index_left[m.pairs[:, 0]]), X)
+
+    def _previous_start(self, idx: IntArray, uv: Array) -> Array:
+        """The previous pair's fitted pose in this pair's relative indices. The chain's first
+        corner can change from pair to pair (a corner appears or leaves at its end), which
+        shifts the indices by an even k (polarity fixes the parity): the start is the previous
+        pose rolled by the k beta that best puts its corners on this pair's left detections."""
+        assert self._last_pose is not None
+        T = self._last_pose.T_fit
+        n, beta = self.marker.columns, self.marker.beta
+        ks = np.arange(0, n, 2)
+        P = np.concatenate([self.solver.marker_points(idx + k) for k in ks])  # {wm}, model index i + k
+        proj = self.camera.project_left(P @ T[:3, :3].T + T[:3, 3]).reshape(ks.size, -1, 2)
+        k = int(ks[np.argmin(((proj - uv[None]) ** 2).sum(axis=(1, 2)))])
+        c, sn = np.cos(k * beta), np.sin(k * beta)
+        roll = np.array([[c, -sn, 0, 0], [sn, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+        return T @ roll  # maps model point i to where the previous pose had i + k
 
     def track_corners(
         self,

@@ -2,10 +2,13 @@
 
 The corner points (not the images) are rectified with ``cv2.stereoRectify`` (computed once per
 calibration) and ``cv2.undistortPoints`` with R1/P1, R2/P2. The marker axis is roughly
-horizontal, so the corner circle runs vertically: each image's corners are sorted by rectified
-y, consecutive corners get consecutive relative indices (a step of 2 where the polarity does not
-alternate, i.e. one corner was missed), and the two chains are aligned by the index offset that
-pairs the most corners within ``max_dy_px`` of rectified y with equal polarity. Indices are
+horizontal, so the corner circle runs vertically. With polarities (the detectors give them),
+left and right corners within ``max_dy_px`` of rectified y and of equal polarity are paired and
+both chains are indexed at once along their merged chain (``merged_chain_indices``: a corner
+one image missed is bridged by the other, even two in a row). Without polarities each image's
+corners are sorted by rectified y, consecutive corners get consecutive relative indices, and
+the two chains are aligned by the index offset that pairs the most corners. In both, a step of
+2 where the polarity does not alternate (a corner missed in both images). Indices are
 relative: the absolute roll about z_wm is unknown (module doc of solvers.stereo_pose); the
 polarity fixes their parity (even index <=> polarity +1 in the left chain).
 """
@@ -108,6 +111,42 @@ def chain_indices(y: Array, polarity: IntArray | None) -> IntArray:
     return idx
 
 
+def merged_chain_indices(yl: Array, pl: IntArray, yr: Array, pr: IntArray, max_dy_px: float
+                         ) -> tuple[IntArray, IntArray]:
+    """Relative indices of both chains at once, along the merged chain on the rectified y axis.
+
+    A left and a right corner that are each other's nearest within ``max_dy_px`` and of equal
+    polarity are one marker corner (a stereo pair); a corner seen in one image only joins the
+    merged chain at its own y, unless another corner of the same polarity lies within
+    3 max_dy_px (a pair that failed the y test: rejected, -1). A corner missed in one image is
+    then bridged by the other image; where both miss it the repeated polarity steps by 2
+    (chain_indices). With no pair at all every index is -1."""
+    il, ir = -np.ones(yl.size, int), -np.ones(yr.size, int)
+    d = np.abs(yr[None, :] - yl[:, None])
+    dd = np.where((d <= max_dy_px) & (pl[:, None] == pr[None, :]), d, np.inf)
+    pairs = [(a, int(np.argmin(dd[a]))) for a in range(yl.size) if yr.size and np.isfinite(dd[a].min())]
+    pairs = [(a, b) for a, b in pairs if int(np.argmin(dd[:, b])) == a]  # mutual nearest
+    if not pairs:
+        return il, ir
+    # entries of the merged chain: (y, polarity, left row or -1, right row or -1)
+    merged = [(0.5 * (yl[a] + yr[b]), int(pl[a]), a, b) for a, b in pairs]
+    in_l, in_r = {a for a, _ in pairs}, {b for _, b in pairs}
+    singles = [(float(yl[a]), int(pl[a]), a, -1) for a in range(yl.size) if a not in in_l]
+    singles += [(float(yr[b]), int(pr[b]), -1, b) for b in range(yr.size) if b not in in_r]
+    for k, e in enumerate(singles):
+        rivals = merged[: len(pairs)] + singles[:k] + singles[k + 1 :]
+        if not any(abs(e[0] - o[0]) < 3.0 * max_dy_px and e[1] == o[1] for o in rivals):
+            merged.append(e)
+    merged.sort(key=lambda e: e[0])
+    idx = chain_indices(np.array([e[0] for e in merged]), np.array([e[1] for e in merged], int))
+    for k, (_, _, a, b) in enumerate(merged):
+        if a >= 0:
+            il[a] = idx[k]
+        if b >= 0:
+            ir[b] = idx[k]
+    return il, ir
+
+
 def _check(uv: Array, pol: IntArray | None, name: str) -> tuple[Array, IntArray | None]:
     a = np.asarray(uv, float)
     if a.size == 0:
@@ -132,15 +171,21 @@ def match_corners(
 ) -> StereoMatch:
     """Pair left/right raw corner pixels by rectified y and give them consistent relative indices.
 
-    Corners seen in one image only keep the index their chain gives them; a corner whose chain
-    index meets a partner more than ``max_dy_px`` away in rectified y (or of the other
-    polarity) is rejected (-1). With no pair at all every index is -1.
+    Corners seen in one image only keep the index the (merged) chain gives them; a corner whose
+    partner is more than ``max_dy_px`` away in rectified y (or of the other polarity) is
+    rejected (-1). With no pair at all every index is -1.
     """
     ul, pl = _check(corners_left, polarity_left, "left")
     ur, pr = _check(corners_right, polarity_right, "right")
     if not max_dy_px > 0:
         raise InputError(f"max_dy_px must be > 0, got {max_dy_px}")
     rl, rr = rectifier.left(ul), rectifier.right(ur)
+    if pl is not None and pr is not None:
+        il, ir = merged_chain_indices(rl[:, 1], pl, rr[:, 1], pr, max_dy_px)
+        P = np.array([(a, int(np.flatnonzero(ir == il[a])[0])) for a in range(il.size)
+                      if il[a] >= 0 and np.any(ir == il[a])], int).reshape(-1, 2)
+        dy = rr[P[:, 1], 1] - rl[P[:, 0], 1] if P.size else np.zeros(0)
+        return StereoMatch(il, ir, P, np.asarray(dy, float), rl, rr)
     il, ir = chain_indices(rl[:, 1], pl), chain_indices(rr[:, 1], pr)
     best: tuple[int, float, int] | None = None  # (-count, sum |dy|, offset)
     for off in range(

@@ -12,6 +12,7 @@ from cvs.marker import MarkerModel
 from cvs.marker_tracker import MarkerTracker, kabsch
 from cvs.render import StereoFrame, StereoRenderer
 from cvs.render_settings import RenderSettings
+from cvs.stereo_match import match_corners
 from cvs.visibility import random_visible_psi
 from models.arm_shape import arm_shape
 from models.errors import InputError
@@ -205,3 +206,40 @@ def test_colour_and_grey_pairs_track_alike_and_roi_converts_only_boxes(
         np.testing.assert_allclose(ra.T_left_marker, rb.T_left_marker, atol=1e-12)  # type: ignore[arg-type]
         if step:
             assert converted[n_before:] and all(s[0] * s[1] < 0.25 * 1920 * 1080 for s in converted[n_before:])
+
+
+def test_previous_pose_start_follows_a_shifted_chain(frames: list[StereoFrame]) -> None:
+    """In ROI tracking the chain can lose (or gain) corners at its first end, which shifts the
+    relative indices by 2; the previous pose must be re-indexed before it is used as the start,
+    else the fit can settle in a wrong minimum below good_rms_px (seen in a servo run: 7 mm)."""
+    trk = MarkerTracker(CAM, MARKER)
+    checked = 0
+    for f in frames:
+        trk.reset()
+        first = trk.track(f.left, f.right)
+        assert first.ok and first.match is not None
+        # the next pair as ROI tracking sees it when the chain's first corners (relative index
+        # 0 and 1) left the view: the new first corner has index 2 in the old numbering, 0 now
+        cl, cr = first.corners_left, first.corners_right
+        keep_l, keep_r = first.match.index_left >= 2, first.match.index_right >= 2
+        if min(keep_l.sum(), keep_r.sum()) < 3:
+            continue
+        pol_l = np.where(first.match.index_left % 2 == 0, 1, -1)
+        pol_r = np.where(first.match.index_right % 2 == 0, 1, -1)
+        trk._continuous = True  # as track() sets it when both chains were found in their ROIs
+        m = match_corners(trk.rectifier, cl[keep_l], cr[keep_r], pol_l[keep_l], pol_r[keep_r])
+        kl = m.index_left >= 0
+        idx, uv = m.index_left[kl], cl[keep_l][kl]
+        start = trk._previous_start(idx, uv)  # the previous pose in this pair's indices
+        P = trk.solver.marker_points(idx) @ start[:3, :3].T + start[:3, 3]
+        assert np.abs(CAM.project_left(P) - uv).max() < 0.5
+        T = first.pose.T_fit  # as it was: 2 beta of roll away in these indices
+        P0 = trk.solver.marker_points(idx) @ T[:3, :3].T + T[:3, 3]
+        assert np.abs(CAM.project_left(P0) - uv).max() > 5.0
+        res = trk.track_corners(cl[keep_l], cr[keep_r], pol_l[keep_l], pol_r[keep_r])
+        assert res.ok and res.tip_left is not None and res.pose is not None
+        tip = res.pose.T_fit[:3, :3] @ MARKER.tip() + res.pose.T_fit[:3, 3]
+        assert np.linalg.norm(tip - first.pose.T_fit[:3, :3] @ MARKER.tip() - first.pose.T_fit[:3, 3]) < 0.3e-3
+        assert res.rms_px < 0.3
+        checked += 1
+    assert checked >= 1

@@ -5,8 +5,12 @@ Prints JSON. Medians of many calls; ratio of qp to paper measured in the same ru
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
+import sys
 import time
+from collections.abc import Iterator
 
 import numpy as np
 
@@ -14,6 +18,19 @@ from models.kinematics import tip_position
 from models.robot_params import HOME_PSI, RobotParams
 from solvers.controller import ControllerConfig, make_controller
 from solvers.qp_controller import BoxQp
+
+
+@contextlib.contextmanager
+def _stdout_to_stderr() -> Iterator[None]:
+    """Send C-level stdout to stderr (qpOASES prints its licence banner there): stdout stays JSON."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    os.dup2(2, 1)
+    try:
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
 
 
 def _median_us(fn, n: int = 2000) -> float:  # type: ignore[no-untyped-def]
@@ -47,7 +64,9 @@ def main() -> None:
     H, g = 2 * A.T @ A, -2 * A.T @ b
     lo, hi = -np.ones(6), np.ones(6)
     out["qp_raw_solve_us_median_daqp"] = _median_us(lambda: qp.solve(H, g, lo, hi))
-    qpo = BoxQp("qpoases")  # prints qpOASES's licence banner once
+    with _stdout_to_stderr():  # qpOASES's licence banner
+        qpo = BoxQp("qpoases")
+        qpo.solve(H, g, lo, hi)
     out["qp_raw_solve_us_median_qpoases"] = _median_us(lambda: qpo.solve(H, g, lo, hi))
     out["qp_over_paper_step_ratio"] = out["qp_step_us_median"] / out["paper_step_us_median"]  # type: ignore[operator]
     print(json.dumps(out, indent=2))

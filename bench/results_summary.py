@@ -57,7 +57,11 @@ def main() -> int:
                 f"{t['mean_mm']:.3f} / {t['max_mm']:.3f} |"]
     load = root / "load" / "results.md"
     if load.is_file():
-        out += ["", "## Tip load sweep (qp, 60 ms, first 12 s of the cube)", ""]
+        info = json.loads((root / "load" / "result.json").read_text())
+        what = f"{info.get('controller', '?')}, {1000 * info.get('control_dt_s', float('nan')):.0f} ms"
+        dur = info.get("duration_s")
+        what += f", {dur:.0f} s of the cube" if dur else ""
+        out += ["", f"## Tip load sweep ({what})", ""]
         out += load.read_text().splitlines()[2:]
     print("\n".join(out))
     return 0

@@ -180,6 +180,7 @@ def run_load(setup: SimSetup, out_dir: Path, forces: list[float], progress: bool
     """Tip force swept (magnitude [N], direction -z_w, gravity-like): cube open vs closed loop."""
     out_dir.mkdir(parents=True, exist_ok=True)
     rows = []
+    res: dict[str, Any] = {}
     for f in forces:
         plant = dataclasses.replace(setup.plant, tip_force=(0.0, 0.0, -float(f)))
         res = run_cube(setup.with_changes(plant=plant), out_dir / f"force_{f:.2f}N", progress=progress,
@@ -187,7 +188,8 @@ def run_load(setup: SimSetup, out_dir: Path, forces: list[float], progress: bool
         rows.append({"force_N": f, "open_loop": {k: res["open_loop"][k] for k in ("mean_mm", "max_mm")},
                      "closed_loop": {k: res["closed_loop"][k] for k in ("mean_mm", "max_mm", "stopped")},
                      "ratio": res["ratio"]})
-    out = {"experiment": "load", "rows": rows, "run_dir": str(out_dir)}
+    out = {"experiment": "load", "controller": setup.controller.kind, "control_dt_s": setup.rig.control_dt,
+           "duration_s": res.get("trajectory", {}).get("duration_s"), "rows": rows, "run_dir": str(out_dir)}
     write_json(out_dir / "result.json", out)
     md = ["# Tip load sweep: cube trajectory open vs closed loop", "",
           "| tip force [N] | open mean [mm] | open max [mm] | closed mean [mm] | closed max [mm] | ratio |",

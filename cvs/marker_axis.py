@@ -17,7 +17,6 @@ the tip's distance. It returns a score in [-1, 1]: > 0 supports the pose's z_wm 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -58,11 +57,10 @@ def _luminance(img: NDArray[np.uint8], uv: Array) -> Array:
         return out
     u0, v0 = np.floor(u[ok]).astype(np.intp), np.floor(v[ok]).astype(np.intp)
     fu, fv = u[ok] - u0, v[ok] - v0
-    a: Any = img.astype(np.float64) if img.ndim == 2 else None
     px = [img[v0, u0], img[v0, u0 + 1], img[v0 + 1, u0], img[v0 + 1, u0 + 1]]
-    if a is None:  # BGR -> luminance at the four neighbours only
+    if img.ndim == 3:  # BGR -> luminance at the four neighbours only
         wts = np.array([0.114, 0.587, 0.299])
-        px = [p.astype(np.float64) @ wts for p in px]
+        px = [p[:, :3].astype(np.float64) @ wts for p in px]
     else:
         px = [p.astype(np.float64) for p in px]
     out[ok] = (px[0] * (1 - fu) + px[1] * fu) * (1 - fv) + (px[2] * (1 - fu) + px[3] * fu) * fv

@@ -215,7 +215,10 @@ class MarkerTracker:
                 res = res2
             res.timings["second_detector"] = t_second
         if res.ok:
+            t3 = time.perf_counter()
             res = self._orient(res, (il, ir), axis_hint_left)
+            res.timings["axis"] = 1e3 * (time.perf_counter() - t3)
+            res = replace(res, time_ms=1e3 * (time.perf_counter() - t0))
         self._tracking = res.ok
         self._last_pose = res.pose if res.ok else None
         return res

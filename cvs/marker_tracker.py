@@ -11,8 +11,8 @@ doubtful pose: no marker, too few corners, no stereo pairs, or a residual above 
 The sleeve looks the same after a half turn about x_wm, so which way z_wm (distal) points is
 decided after the solve, in this order: a caller's ``axis_hint_left`` (e.g. the kinematic
 model's marker axis in a servo loop), the previous pair's pose (tracking: when the axis
-moved less than 30 degrees), the image (the arm's
-body continues behind the sleeve, nothing lies beyond the tip: cvs.marker_axis), and last
+moved less than 30 degrees), the image (the arm's body continues behind the sleeve, nothing
+lies beyond the tip: cvs.marker_axis), and last
 ``PoseSettings.axis_hint_left``. ``TrackResult.axis_source`` says which one decided.
 """
 

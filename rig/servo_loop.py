@@ -177,10 +177,11 @@ class ServoLoop:
             vision_ms = ctrl_us = 0.0
             if closed_loop:
                 assert self.sensor is not None and self.controller is not None
-                hint = forward_kinematics(self.params, self.psi_cmd).T_world_marker[:3, 2]  # model's marker axis
+                model = forward_kinematics(self.params, self.psi_cmd)  # the commanded arm, nominal model
+                hint = model.T_world_marker[:3, 2]  # which way the marker points
                 meas = self.sensor.measure(shape, axis_hint_world=hint)
                 vision_ms = meas.time_ms
-                p_model = tip_position(self.params, self.psi_cmd)
+                p_model = model.tip
                 if meas.ok and meas.p_world is not None and np.all(np.isfinite(meas.p_world)):
                     p_est = meas.p_world
                     jump_ok = last_ok is None or (

@@ -288,13 +288,10 @@ class StereoPoseSolver:
         rms = float(np.sqrt(np.mean(e**2))) if e.size else float("nan")
         return self._result(T, rms, w_l > 0, w_r > 0, t_start)
 
-    def orient(self, T_left_marker: Array, hint: Array | tuple[float, float, float] | None = None) -> Array:
-        """Apply a z_wm prior: a half turn about x_wm if z_wm points against ``hint`` (a
-        direction in {ll}; default ``settings.axis_hint_left``, None in both: unchanged).
-
-        Exact symmetry of the sleeve (i -> -i), so the reprojection cost is unchanged.
-        """
-        hint = self.settings.axis_hint_left if hint is None else hint
+    def orient(self, T_left_marker: Array) -> Array:
+        """Apply the z_wm prior ``settings.axis_hint_left``: a half turn about x_wm if z_wm points
+        against it (the fit then holds with corner i as -i; None: unchanged)."""
+        hint = self.settings.axis_hint_left
         if hint is not None and float(np.dot(T_left_marker[:3, 2], np.asarray(hint, float))) < 0:
             return T_left_marker @ HALF_TURN_X
         return T_left_marker

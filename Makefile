@@ -23,10 +23,10 @@ browser:
 	bash scripts/ensure-chromium.sh
 
 lint: setup
-	$(VENV)/bin/ruff check models cvs solvers viz rig tests bench
+	$(VENV)/bin/ruff check models cvs solvers viz rig sim tests bench
 
 typecheck: setup
-	$(VENV)/bin/mypy models cvs solvers viz rig
+	$(VENV)/bin/mypy models cvs solvers viz rig sim
 
 pytest: setup browser
 	$(PY) -m pytest

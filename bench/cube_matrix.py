@@ -1,6 +1,6 @@
 """The cube experiment (paper IV.C) for several controllers, cycle times and plants, side by side.
 
-Runs ``rig.experiments.run_cube`` (open loop and closed loop on fresh simulated plants, the
+Runs ``sim.experiments.run_cube`` (open loop and closed loop on fresh simulated plants, the
 vision pipeline in the loop unless ``--sensor truth-noise``) for every combination asked for,
 writes each run folder under ``--out`` and prints one JSON document; a markdown table of all
 runs beside the paper's numbers goes to ``OUT/table.md``.
@@ -23,8 +23,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from rig.experiments import PAPER_CUBE, run_cube  # noqa: E402
-from rig.sim_setup import default_config, load_setup  # noqa: E402
+from sim.experiments import PAPER_CUBE, run_cube  # noqa: E402
+from sim.setup import default_config, load_setup  # noqa: E402
 
 
 def _row(name: str, res: dict) -> str:

@@ -21,10 +21,10 @@ from models.actuation import actuators_from_psi  # noqa: E402
 from models.ik import solve_tip_ik  # noqa: E402
 from models.kinematics import tip_position  # noqa: E402
 from models.limits import within_limits  # noqa: E402
-from models.plant import TruePlant  # noqa: E402
-from models.plant_params import PlantParams  # noqa: E402
 from models.robot_params import HOME_PSI, RobotParams  # noqa: E402
 from rig.trajectories import cube_trajectory  # noqa: E402
+from sim.plant import TruePlant  # noqa: E402
+from sim.plant_params import PlantParams  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 

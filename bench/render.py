@@ -21,16 +21,16 @@ from typing import Any
 import cv2
 import numpy as np
 
-import cvs.render as render_module
+import sim.render as render_module
 from cvs.calibration_io import load_calibration
 from cvs.camera import scaled_stereo_camera
 from cvs.marker import MarkerModel
-from cvs.render import StereoRenderer
-from cvs.render_settings import noise_preset
-from cvs.visibility import random_visible_psi
 from models.arm_shape import arm_shape
 from models.robot_params import RobotParams
 from rig.commands.render import PSI_SPREAD
+from sim.render import StereoRenderer
+from sim.render_settings import noise_preset
+from sim.visibility import random_visible_psi
 
 STAGES = ("plan_arm", "render_arm", "optics_signal_box", "optics_signal", "sensor_image")
 

@@ -20,11 +20,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from models.actuation import actuators_from_psi  # noqa: E402
-from models.plant import TruePlant  # noqa: E402
-from models.plant_params import PlantParams  # noqa: E402
 from models.robot_params import HOME_PSI, RobotParams  # noqa: E402
 from rig.actuator_driver import ActuatorDriver  # noqa: E402
-from rig.actuator_emulator import ActuatorEmulator  # noqa: E402
+from sim.actuator_emulator import ActuatorEmulator  # noqa: E402
+from sim.plant import TruePlant  # noqa: E402
+from sim.plant_params import PlantParams  # noqa: E402
 
 
 def _stats(samples: list[float]) -> dict[str, float]:

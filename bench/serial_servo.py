@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from rig import protocol as P  # noqa: E402
 from rig.actuator_link import DirectLink  # noqa: E402
 from rig.commands import servo as S  # noqa: E402
-from rig.sim_setup import load_setup  # noqa: E402
+from sim.setup import load_setup  # noqa: E402
 
 
 class RoundingDirectLink(DirectLink):

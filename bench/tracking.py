@@ -36,9 +36,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from cvs.corner_detector import MarkerCornerDetector  # noqa: E402
-from cvs.dataset import StereoDataset, load_dataset  # noqa: E402
 from cvs.marker_tracker import MarkerTracker, TrackerSettings  # noqa: E402
 from rig.cli import main as cli_main  # noqa: E402
+from sim.dataset import StereoDataset, load_dataset  # noqa: E402
 from solvers.homography_init import homography_pose  # noqa: E402
 
 

@@ -1,7 +1,7 @@
 """What drives and what is driven: the interface between an actuator source and an arm.
 
 The actuator-box emulator, the in-process servo loop and the tests talk to any object with
-this interface; :class:`models.plant.TruePlant` is the simulated true arm that implements it.
+this interface; :class:`sim.plant.TruePlant` is the simulated true arm that implements it.
 Actuator coordinates a = [phi, d, s1a, s1b, s2a, s2b] in [rad, m, m, m, m, m].
 """
 

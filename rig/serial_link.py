@@ -34,9 +34,7 @@ from numpy.typing import NDArray
 from models.actuation import psi_from_actuators
 from models.arm_shape import ArmShape
 from models.limits import actuator_bounds
-from models.plant import TruePlant
 from models.plant_interface import ActuatedArm
-from models.plant_params import PlantParams
 from models.robot_params import RobotParams
 from rig.actuator_driver import (
     ActuatorDriver,
@@ -46,6 +44,8 @@ from rig.actuator_driver import (
     ActuatorProtocolError,
     DeviceState,
 )
+from sim.plant import TruePlant
+from sim.plant_params import PlantParams
 
 Array = NDArray[np.float64]
 

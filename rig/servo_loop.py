@@ -26,12 +26,12 @@ from models.kinematics import forward_kinematics, tip_position
 from models.limits import clamp_psi, wrap_angle
 from models.plant_interface import ActuatedArm
 from models.robot_params import RobotParams
-from models.tracker import OpticalTracker
 from rig.actuator_link import ActuatorLink
 from rig.rig_config import RigConfig
 from rig.run_log import CycleRecord, RunLog
 from rig.tip_sensors import TipSensor
 from rig.trajectories import Trajectory, feedforward_velocity
+from sim.optical_tracker import OpticalTracker
 from solvers.controller import Controller
 
 Array = NDArray[np.float64]

@@ -24,8 +24,8 @@ from rig.tip_sensors import TipSensor
 from rig.trajectories import Trajectory
 
 if TYPE_CHECKING:
-    from rig.actuator_emulator import ActuatorEmulator
-    from rig.sim_setup import SimSetup
+    from sim.actuator_emulator import ActuatorEmulator
+    from sim.setup import SimSetup
 
 Array = NDArray[np.float64]
 LINK_KINDS = ("emulator", "serial", "direct")
@@ -119,10 +119,10 @@ def open_session(setup: SimSetup, psi0: Array, options: LinkOptions,
     emulator_factory: ``(arm, params, clock=...) -> ActuatorEmulator`` (tests record packets).
     """
     from rig.actuator_driver import ActuatorDriver
-    from rig.actuator_emulator import ActuatorEmulator
     from rig.actuator_link import DirectLink
     from rig.serial_link import EncoderArm, LockedArm, SerialLink, SimClock
-    from rig.sim_setup import make_plant
+    from sim.actuator_emulator import ActuatorEmulator
+    from sim.setup import make_plant
 
     if options.kind not in LINK_KINDS:
         raise ConfigError(f"link kind must be one of {', '.join(LINK_KINDS)}, got {options.kind!r}")
@@ -181,10 +181,10 @@ def run_servo(setup: SimSetup, traj: Trajectory, session: ServoSession, psi0: Ar
 
     Safe stops and Ctrl-C are reported in the outcome, never raised; ``sensor`` replaces the
     rig's tip sensor (tests)."""
-    from models.tracker import OpticalTracker
     from rig.actuator_driver import ActuatorError, ActuatorEStopped, ActuatorNotEnabled
     from rig.servo_loop import MarkerLostError, ServoLoop
-    from rig.sim_setup import make_sensor
+    from sim.optical_tracker import OpticalTracker
+    from sim.setup import make_sensor
     from solvers.controller import make_controller
 
     opts = session.options

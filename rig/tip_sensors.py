@@ -60,8 +60,8 @@ class VisionTipSensor:
         self, camera: StereoCamera, marker: MarkerModel, noise: str = "default", seed: int = 0
     ) -> None:
         from cvs.marker_tracker import MarkerTracker
-        from cvs.render import StereoRenderer
-        from cvs.render_settings import noise_preset
+        from sim.render import StereoRenderer
+        from sim.render_settings import noise_preset
 
         self.camera = camera
         self.renderer = StereoRenderer(camera, marker, noise_preset(noise), seed=seed)

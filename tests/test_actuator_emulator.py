@@ -29,7 +29,7 @@ from rig.actuator_driver import (
     ActuatorRejected,
     ActuatorTimeout,
 )
-from rig.actuator_emulator import ActuatorEmulator
+from sim.actuator_emulator import ActuatorEmulator
 
 PARAMS = RobotParams()
 A_HOME = actuators_from_psi(PARAMS, HOME_PSI)

@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cvs.dataset import load_dataset
 from models.robot_params import HOME_PSI
 from rig.cli import main
+from sim.dataset import load_dataset
 
 
 def test_render_one_pair_end_to_end(tmp_path: Path, capsys) -> None:

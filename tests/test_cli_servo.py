@@ -18,14 +18,14 @@ import pytest
 from test_serial_link import PARAMS, PLANT, RecordingEmulator
 
 from models.errors import InputError
-from models.plant import TruePlant
 from models.robot_params import HOME_PSI
 from rig import protocol as P
 from rig.actuator_link import DirectLink
 from rig.commands import servo as S
 from rig.serial_link import LockedArm
-from rig.sim_setup import SimSetup, load_setup
 from rig.tip_sensors import TipMeasurement
+from sim.plant import TruePlant
+from sim.setup import SimSetup, load_setup
 
 ROOT = Path(__file__).resolve().parent.parent
 HOME = np.asarray(HOME_PSI, float)

@@ -9,8 +9,8 @@ import cv2
 import numpy as np
 import pytest
 
-from cvs.dataset import load_dataset
 from rig.cli import main
+from sim.dataset import load_dataset
 
 
 @pytest.fixture(scope="module")

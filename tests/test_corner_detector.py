@@ -26,11 +26,11 @@ from cvs.corner_detector import (
 )
 from cvs.marker import MarkerModel
 from cvs.marker_tracker import MarkerTracker, TrackerSettings
-from cvs.render import StereoFrame, StereoRenderer
-from cvs.render_settings import noise_preset
-from cvs.visibility import random_visible_psi
 from models.arm_shape import arm_shape
 from models.robot_params import RobotParams
+from sim.render import RenderedPair, StereoRenderer
+from sim.render_settings import noise_preset
+from sim.visibility import random_visible_psi
 
 CAM = scaled_stereo_camera(load_calibration(Path(__file__).resolve().parents[1] / "configs" / "camera.yaml"), 0.5)
 MARKER = MarkerModel()
@@ -131,7 +131,7 @@ def test_xcorner_test_polarity_and_edges() -> None:
 
 
 @pytest.fixture(scope="module")
-def frames() -> list[StereoFrame]:
+def frames() -> list[RenderedPair]:
     """Three rendered half-resolution pairs at the default render noise."""
     params = RobotParams()
     rng = np.random.default_rng(8)
@@ -146,7 +146,7 @@ def _truth_index(chain: CornerChain, truth: tuple) -> tuple[np.ndarray, np.ndarr
     return idx, d[np.arange(idx.size), idx]
 
 
-def test_chain_accuracy_order_and_polarity(frames: list[StereoFrame]) -> None:
+def test_chain_accuracy_order_and_polarity(frames: list[RenderedPair]) -> None:
     det = MarkerCornerDetector()
     errs = []
     for f in frames:
@@ -169,7 +169,7 @@ def test_chain_accuracy_order_and_polarity(frames: list[StereoFrame]) -> None:
     assert max(errs) < 0.5
 
 
-def test_roi_tracking_used_on_second_frame_and_faster(frames: list[StereoFrame]) -> None:
+def test_roi_tracking_used_on_second_frame_and_faster(frames: list[RenderedPair]) -> None:
     det = MarkerCornerDetector()
     g = _gray(frames[0].left)
     cold = det.track(g)  # first frame: whole frame
@@ -191,7 +191,7 @@ def _timed(fn) -> float:  # type: ignore[no-untyped-def]
     return time.perf_counter() - t
 
 
-def test_lost_marker_falls_back_to_whole_frame(frames: list[StereoFrame]) -> None:
+def test_lost_marker_falls_back_to_whole_frame(frames: list[RenderedPair]) -> None:
     det = MarkerCornerDetector()
     g = _gray(frames[1].left)
     assert det.track(g).corners.shape[0] >= 3
@@ -204,7 +204,7 @@ def test_lost_marker_falls_back_to_whole_frame(frames: list[StereoFrame]) -> Non
     assert det.track(g).roi is None
 
 
-def test_no_marker_gives_an_empty_chain(frames: list[StereoFrame]) -> None:
+def test_no_marker_gives_an_empty_chain(frames: list[RenderedPair]) -> None:
     det = MarkerCornerDetector()
     noise = np.random.default_rng(0).normal(120, 2, (540, 960)).clip(0, 255).astype(np.uint8)
     assert det.detect(noise).corners.shape == (0, 2)
@@ -218,7 +218,7 @@ def test_no_marker_gives_an_empty_chain(frames: list[StereoFrame]) -> None:
         assert res.corners.shape == (0, 2) and res.polarity.shape == (0,)
 
 
-def test_marker_tracker_with_the_paper_detector(frames: list[StereoFrame]) -> None:
+def test_marker_tracker_with_the_paper_detector(frames: list[RenderedPair]) -> None:
     tracker = MarkerTracker(CAM, MARKER, TrackerSettings(detector="paper"))
     assert isinstance(tracker.detector_left, MarkerCornerDetector)
     for f in frames[:2]:
@@ -230,7 +230,7 @@ def test_marker_tracker_with_the_paper_detector(frames: list[StereoFrame]) -> No
         assert again.ok and np.linalg.norm(again.tip_left - f.tip_left) < 0.5e-3  # type: ignore[operator]
 
 
-def test_settings_change_behaviour(frames: list[StereoFrame]) -> None:
+def test_settings_change_behaviour(frames: list[RenderedPair]) -> None:
     g = _gray(frames[0].right)
     strict = MarkerCornerDetector(DetectorSettings(cc_min=0.9999)).detect(g)
     assert strict.corners.shape == (0, 2)
@@ -294,7 +294,7 @@ def _cl_opencv(f: np.ndarray, epsilon: float = 2.0, gs: float = 1 / 255) -> tupl
     return np.maximum(c_xy, c_45), ix, iy
 
 
-def test_corner_likelihood_kernel_matches_the_opencv_filters(frames: list[StereoFrame]) -> None:
+def test_corner_likelihood_kernel_matches_the_opencv_filters(frames: list[RenderedPair]) -> None:
     """Whole image, odd-width crops (OpenCV's row-filter tail) and a 1-row strip (reflected
     borders): the same values (bit for bit on the machine it was written on; a few float32 ulp
     allowed elsewhere)."""
@@ -346,7 +346,7 @@ def test_htm_correlation_matches_the_tanh_model() -> None:
         assert abs(htm_correlation(img, 20, 20, 5, ea, eb, scale) - ref) < 1e-12
 
 
-def test_lazy_xcorner_tests_give_the_chain_of_testing_all(frames: list[StereoFrame]) -> None:
+def test_lazy_xcorner_tests_give_the_chain_of_testing_all(frames: list[RenderedPair]) -> None:
     """The chain search tests candidates only when it reaches them; testing every candidate
     first changes nothing, and the lazy search tests far fewer."""
     from cvs.corner_likelihood import find_candidates
@@ -365,7 +365,7 @@ def test_lazy_xcorner_tests_give_the_chain_of_testing_all(frames: list[StereoFra
 
 
 def test_colour_frames_in_roi_tracking_convert_only_the_box(
-    frames: list[StereoFrame], monkeypatch: pytest.MonkeyPatch
+    frames: list[RenderedPair], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """BGR input gives the same chain as grey input; in ROI tracking only the box is converted."""
     converted: list[tuple[int, ...]] = []

@@ -11,13 +11,13 @@ import pytest
 
 from cvs.calibration_io import load_calibration
 from cvs.camera import scaled_stereo_camera
-from cvs.dataset import DatasetWriter, load_dataset
 from cvs.marker import MarkerModel
-from cvs.render import StereoRenderer
-from cvs.render_settings import RenderSettings
 from models.arm_shape import arm_shape
 from models.errors import InputError
 from models.robot_params import HOME_PSI, RobotParams
+from sim.dataset import DatasetWriter, load_dataset
+from sim.render import StereoRenderer
+from sim.render_settings import RenderSettings
 
 DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "camera.yaml"
 

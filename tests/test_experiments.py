@@ -8,11 +8,11 @@ from pathlib import Path
 
 import pytest
 
-import rig.sim_setup as sim_setup
+import sim.setup as sim_setup
 from models.arm_shape import ArmShape
-from rig.experiments import cube_table, run_cube
-from rig.sim_setup import load_setup
 from rig.tip_sensors import NoisyTruthSensor, TipMeasurement
+from sim.experiments import cube_table, run_cube
+from sim.setup import load_setup
 
 
 class BlindAfter:

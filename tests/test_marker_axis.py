@@ -18,11 +18,11 @@ from cvs.camera import StereoCamera, scaled_stereo_camera
 from cvs.marker import MarkerModel
 from cvs.marker_axis import AxisEvidenceSettings, axis_evidence
 from cvs.marker_tracker import MarkerTracker
-from cvs.render import StereoFrame, StereoRenderer
-from cvs.render_settings import RenderSettings
-from cvs.visibility import random_visible_psi
 from models.arm_shape import arm_shape
 from models.robot_params import RobotParams
+from sim.render import RenderedPair, StereoRenderer
+from sim.render_settings import RenderSettings
+from sim.visibility import random_visible_psi
 from solvers.stereo_pose import HALF_TURN_X
 
 CAM = scaled_stereo_camera(load_calibration(Path(__file__).resolve().parents[1] / "configs" / "camera.yaml"), 0.5)
@@ -36,7 +36,7 @@ def _rolled(cam: StereoCamera) -> StereoCamera:
     return dataclasses.replace(cam, T_world_left=W)
 
 
-def _frames(cam: StereoCamera, n: int, seed: int) -> list[StereoFrame]:
+def _frames(cam: StereoCamera, n: int, seed: int) -> list[RenderedPair]:
     params = RobotParams()
     rng = np.random.default_rng(seed)
     r = StereoRenderer(cam, MARKER, RenderSettings(), seed=seed)
@@ -44,23 +44,23 @@ def _frames(cam: StereoCamera, n: int, seed: int) -> list[StereoFrame]:
 
 
 @pytest.fixture(scope="module")
-def upright() -> list[StereoFrame]:
+def upright() -> list[RenderedPair]:
     return _frames(CAM, 3, 31)
 
 
 @pytest.fixture(scope="module")
-def rolled() -> list[StereoFrame]:
+def rolled() -> list[RenderedPair]:
     return _frames(_rolled(CAM), 3, 32)
 
 
-def test_rolled_camera_sees_the_tip_pointing_left(rolled: list[StereoFrame]) -> None:
+def test_rolled_camera_sees_the_tip_pointing_left(rolled: list[RenderedPair]) -> None:
     for f in rolled:
         assert f.T_left_marker[0, 2] < -0.5  # z_wm towards -x of the image: the default prior is wrong
 
 
 @pytest.mark.parametrize("which", ["upright", "rolled"])
 def test_evidence_favours_the_true_direction_and_is_odd(which: str, request: pytest.FixtureRequest) -> None:
-    frames: list[StereoFrame] = request.getfixturevalue(which)
+    frames: list[RenderedPair] = request.getfixturevalue(which)
     cam = CAM if which == "upright" else _rolled(CAM)
     for f in frames:
         e = axis_evidence((f.left, f.right), cam, MARKER, f.T_left_marker)
@@ -69,14 +69,14 @@ def test_evidence_favours_the_true_direction_and_is_odd(which: str, request: pyt
         assert flipped == pytest.approx(-e, abs=1e-12)
 
 
-def test_no_arm_no_evidence(upright: list[StereoFrame]) -> None:
+def test_no_arm_no_evidence(upright: list[RenderedPair]) -> None:
     """A flat grey image: nothing on either side of the sleeve, so no decision."""
     f = upright[0]
     grey = np.full_like(f.left, 120)
     assert axis_evidence((grey, grey), CAM, MARKER, f.T_left_marker) == 0.0
 
 
-def test_tracker_finds_the_tip_pointing_left_from_the_image(rolled: list[StereoFrame]) -> None:
+def test_tracker_finds_the_tip_pointing_left_from_the_image(rolled: list[RenderedPair]) -> None:
     tracker = MarkerTracker(_rolled(CAM), MARKER)
     for f in rolled:
         tracker.reset()
@@ -85,7 +85,7 @@ def test_tracker_finds_the_tip_pointing_left_from_the_image(rolled: list[StereoF
         assert res.tip_left is not None and np.linalg.norm(res.tip_left - f.tip_left) < 0.2e-3
 
 
-def test_a_callers_hint_comes_first(rolled: list[StereoFrame]) -> None:
+def test_a_callers_hint_comes_first(rolled: list[RenderedPair]) -> None:
     """A (wrong) hint from the caller is obeyed: the same fit, z_wm reversed, tip 30 mm away."""
     tracker = MarkerTracker(_rolled(CAM), MARKER)
     f = rolled[0]
@@ -96,7 +96,7 @@ def test_a_callers_hint_comes_first(rolled: list[StereoFrame]) -> None:
     assert np.linalg.norm(res.tip_left - f.tip_left) == pytest.approx(2 * MARKER.tip_offset, abs=0.3e-3)
 
 
-def test_tracking_keeps_the_direction_from_pair_to_pair(rolled: list[StereoFrame]) -> None:
+def test_tracking_keeps_the_direction_from_pair_to_pair(rolled: list[RenderedPair]) -> None:
     """The same pair again is found in the ROI: the previous pose fixes the direction."""
     tracker = MarkerTracker(_rolled(CAM), MARKER)
     f = rolled[1]

@@ -10,13 +10,13 @@ import pytest
 from cvs.calibration_io import load_calibration
 from cvs.marker import MarkerModel
 from cvs.marker_tracker import MarkerTracker, kabsch
-from cvs.render import StereoFrame, StereoRenderer
-from cvs.render_settings import RenderSettings
 from cvs.stereo_match import match_corners
-from cvs.visibility import random_visible_psi
 from models.arm_shape import arm_shape
 from models.errors import InputError
 from models.robot_params import RobotParams
+from sim.render import RenderedPair, StereoRenderer
+from sim.render_settings import RenderSettings
+from sim.visibility import random_visible_psi
 
 CAM = load_calibration(Path(__file__).resolve().parents[1] / "configs" / "camera.yaml")
 MARKER = MarkerModel()
@@ -24,7 +24,7 @@ SPREAD = (0.25, 0.012, 0.2, 0.6, 0.3, 0.6)  # as `wristmark render`
 
 
 @pytest.fixture(scope="module")
-def frames() -> list[StereoFrame]:
+def frames() -> list[RenderedPair]:
     """Three rendered pairs at the default render noise."""
     params = RobotParams()
     rng = np.random.default_rng(21)
@@ -37,7 +37,7 @@ def tracker() -> MarkerTracker:
     return MarkerTracker(CAM, MARKER)
 
 
-def test_rendered_pairs_tip_accuracy_or_honest_failure(tracker: MarkerTracker, frames: list[StereoFrame]) -> None:
+def test_rendered_pairs_tip_accuracy_or_honest_failure(tracker: MarkerTracker, frames: list[RenderedPair]) -> None:
     tracker.reset()
     n_ok = 0
     for f in frames:
@@ -55,7 +55,7 @@ def test_rendered_pairs_tip_accuracy_or_honest_failure(tracker: MarkerTracker, f
     assert n_ok >= 2
 
 
-def test_roi_tracking_on_the_same_pair_again(tracker: MarkerTracker, frames: list[StereoFrame]) -> None:
+def test_roi_tracking_on_the_same_pair_again(tracker: MarkerTracker, frames: list[RenderedPair]) -> None:
     tracker.reset()
     f = frames[1]
     cold = tracker.track(f.left, f.right)
@@ -65,7 +65,7 @@ def test_roi_tracking_on_the_same_pair_again(tracker: MarkerTracker, frames: lis
     assert warm.timings["detect"] < cold.timings["detect"]
 
 
-def test_grayscale_images_accepted(tracker: MarkerTracker, frames: list[StereoFrame]) -> None:
+def test_grayscale_images_accepted(tracker: MarkerTracker, frames: list[RenderedPair]) -> None:
     import cv2
 
     tracker.reset()
@@ -74,7 +74,7 @@ def test_grayscale_images_accepted(tracker: MarkerTracker, frames: list[StereoFr
     assert res.ok and np.linalg.norm(res.tip_left - f.tip_left) < 0.2e-3  # type: ignore[operator]
 
 
-def test_no_marker_gives_ok_false(tracker: MarkerTracker, frames: list[StereoFrame]) -> None:
+def test_no_marker_gives_ok_false(tracker: MarkerTracker, frames: list[RenderedPair]) -> None:
     tracker.reset()
     w, h = CAM.image_size
     flat = np.random.default_rng(0).normal(120, 2, (h, w)).clip(0, 255).astype(np.uint8)
@@ -102,7 +102,7 @@ def test_wrong_image_input(tracker: MarkerTracker) -> None:
         tracker.track(np.zeros((1080, 1920, 2), np.uint8), np.zeros((1080, 1920, 2), np.uint8))
 
 
-def test_track_corners_from_truth(tracker: MarkerTracker, frames: list[StereoFrame]) -> None:
+def test_track_corners_from_truth(tracker: MarkerTracker, frames: list[RenderedPair]) -> None:
     """Visible truth corners + 0.1 px noise fed directly: tip well under 0.1 mm."""
     rng = np.random.default_rng(2)
     for f in frames:
@@ -139,7 +139,7 @@ class _Blind:
 
 
 @pytest.mark.parametrize(("kind", "recovers"), [("auto", True), ("paper", False)])
-def test_auto_gives_the_second_detector_one_try(frames: list[StereoFrame], kind: str, recovers: bool) -> None:
+def test_auto_gives_the_second_detector_one_try(frames: list[RenderedPair], kind: str, recovers: bool) -> None:
     from cvs.marker_tracker import TrackerSettings
 
     trk = MarkerTracker(CAM, MARKER, TrackerSettings(detector=kind))
@@ -155,7 +155,7 @@ def test_auto_gives_the_second_detector_one_try(frames: list[StereoFrame], kind:
 
 
 def test_roi_tracking_starts_from_the_previous_pose_only_when_it_fits(
-    frames: list[StereoFrame], monkeypatch: pytest.MonkeyPatch
+    frames: list[RenderedPair], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Start poses are computed lazily: when the previous pair's pose already fits, no
     homography (nor IPPE, nor triangulation) is computed."""
@@ -181,7 +181,7 @@ def test_roi_tracking_starts_from_the_previous_pose_only_when_it_fits(
 
 
 def test_colour_and_grey_pairs_track_alike_and_roi_converts_only_boxes(
-    frames: list[StereoFrame], monkeypatch: pytest.MonkeyPatch
+    frames: list[RenderedPair], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """BGR and grey input give the same pose, cold and in ROI tracking; in ROI tracking no whole
     1920x1080 frame is converted to grey."""
@@ -208,7 +208,7 @@ def test_colour_and_grey_pairs_track_alike_and_roi_converts_only_boxes(
             assert converted[n_before:] and all(s[0] * s[1] < 0.25 * 1920 * 1080 for s in converted[n_before:])
 
 
-def test_previous_pose_start_follows_a_shifted_chain(frames: list[StereoFrame]) -> None:
+def test_previous_pose_start_follows_a_shifted_chain(frames: list[RenderedPair]) -> None:
     """In ROI tracking the chain can lose (or gain) corners at its first end, which shifts the
     relative indices by 2; the previous pose must be re-indexed before it is used as the start,
     else the fit can settle in a wrong minimum below good_rms_px (seen in a servo run: 7 mm)."""

@@ -9,10 +9,10 @@ import pytest
 
 from models.actuation import actuators_from_psi
 from models.kinematics import forward_kinematics
-from models.plant import TruePlant
 from models.plant_interface import ActuatedArm
-from models.plant_params import PlantParams
 from models.robot_params import HOME_PSI, RobotParams
+from sim.plant import TruePlant
+from sim.plant_params import PlantParams
 
 PARAMS = RobotParams()
 HOME = np.array(HOME_PSI)

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from models.errors import ConfigError
-from models.plant_params import PlantParams
+from sim.plant_params import PlantParams
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 

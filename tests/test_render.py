@@ -11,12 +11,12 @@ import pytest
 from cvs.calibration_io import load_calibration
 from cvs.camera import scaled_stereo_camera
 from cvs.marker import MarkerModel
-from cvs.render import StereoFrame, StereoRenderer
-from cvs.render_settings import RenderSettings, noise_preset
-from cvs.visibility import marker_visible
 from models.arm_shape import arm_shape
 from models.errors import ConfigError, InputError
 from models.robot_params import HOME_PSI, RobotParams
+from sim.render import RenderedPair, StereoRenderer
+from sim.render_settings import RenderSettings, noise_preset
+from sim.visibility import marker_visible
 
 DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "camera.yaml"
 PSI = np.array(HOME_PSI) + [0.2, 0.0, 0.1, 0.3, 0.0, 0.2]
@@ -28,7 +28,7 @@ def half_camera():
 
 
 @pytest.fixture(scope="module")
-def frame(half_camera) -> StereoFrame:
+def frame(half_camera) -> RenderedPair:
     r = StereoRenderer(half_camera, MarkerModel(), noise_preset("default"), seed=5)
     return r.render(arm_shape(RobotParams(), PSI))
 
@@ -63,7 +63,7 @@ def test_geometry_exact_with_flat_shading(half_camera) -> None:
         assert err.max() < 0.1, err
 
 
-def test_patch_colours_follow_the_pattern(half_camera, frame: StereoFrame) -> None:
+def test_patch_colours_follow_the_pattern(half_camera, frame: RenderedPair) -> None:
     m = MarkerModel()
     T_lm = frame.T_left_marker
     T_rl = np.eye(4)
@@ -87,13 +87,13 @@ def test_patch_colours_follow_the_pattern(half_camera, frame: StereoFrame) -> No
     assert checked >= 4
 
 
-def test_tip_truth(frame: StereoFrame) -> None:
+def test_tip_truth(frame: RenderedPair) -> None:
     R, t = frame.T_left_marker[:3, :3], frame.T_left_marker[:3, 3]
     np.testing.assert_allclose(frame.tip_left, t + R @ [0, 0, MarkerModel().tip_offset], atol=1e-12)
     assert 0.05 < frame.tip_left[2] < 0.12  # tens of mm in front of the endoscope
 
 
-def test_images_shape_and_type(half_camera, frame: StereoFrame) -> None:
+def test_images_shape_and_type(half_camera, frame: RenderedPair) -> None:
     w, h = half_camera.image_size
     for img in (frame.left, frame.right):
         assert img.shape == (h, w, 3) and img.dtype == np.uint8
@@ -167,8 +167,8 @@ def test_incremental_optics_equal_full_frame(half_camera, settings) -> None:
 def test_adaptive_supersampling_matches_full(half_camera) -> None:
     # Supersampling only where a pixel's neighbourhood changes surface or curves its shading
     # leaves the radiance within 0.1 grey levels of supersampling every pixel, with far fewer rays.
-    from cvs.render import EXPOSURE, arm_primitives
-    from cvs.render_arm import plan_arm, render_arm
+    from sim.render import EXPOSURE, arm_primitives
+    from sim.render_arm import plan_arm, render_arm
 
     raw = dict(read_noise=0.0, shot_gain=0.0, blur_sigma=0.0, vignetting=0.0)
     a = StereoRenderer(half_camera, MarkerModel(), RenderSettings(**raw), seed=0)
@@ -205,7 +205,7 @@ def test_noise_fresh_every_frame_with_the_sensor_statistics(half_camera) -> None
 def test_sensor_noise_does_not_depend_on_the_patch() -> None:
     # The noise of a pixel depends on (key, pixel, channel) only: replacing a region by a patch
     # gives the bytes of rendering the pasted frame whole.
-    from cvs.render_sensor import normal_table, sensor_image
+    from sim.render_sensor import normal_table, sensor_image
 
     rng = np.random.default_rng(0)
     st = noise_preset("default")
@@ -229,8 +229,8 @@ def test_shading_setting_validated() -> None:
 
 
 def test_render_stage_inputs_validated() -> None:
-    from cvs.render_optics import optics_signal_box
-    from cvs.render_sensor import sensor_image
+    from sim.render_optics import optics_signal_box
+    from sim.render_sensor import sensor_image
 
     cam = scaled_stereo_camera(load_calibration(DEFAULT), 0.25)
     r = StereoRenderer(cam, MarkerModel(), RenderSettings(), seed=0)

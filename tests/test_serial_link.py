@@ -13,8 +13,6 @@ import pytest
 
 from models.actuation import actuators_from_psi
 from models.limits import actuator_bounds
-from models.plant import TruePlant
-from models.plant_params import PlantParams
 from models.robot_params import HOME_PSI, RobotParams
 from rig import protocol as P
 from rig.actuator_driver import (
@@ -23,9 +21,11 @@ from rig.actuator_driver import (
     ActuatorNotEnabled,
     ActuatorRejected,
 )
-from rig.actuator_emulator import ActuatorEmulator
 from rig.actuator_link import DirectLink
 from rig.serial_link import EncoderArm, LockedArm, SerialLink, SimClock
+from sim.actuator_emulator import ActuatorEmulator
+from sim.plant import TruePlant
+from sim.plant_params import PlantParams
 
 ROOT = Path(__file__).resolve().parent.parent
 PARAMS = RobotParams()

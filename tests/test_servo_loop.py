@@ -11,17 +11,17 @@ import pytest
 from models.ik import solve_tip_ik
 from models.kinematics import tip_position
 from models.limits import within_limits
-from models.plant import TruePlant
-from models.plant_params import PlantParams
 from models.robot_params import HOME_PSI, RobotParams
-from models.tracker import OpticalTracker
 from rig.actuator_link import DirectLink
 from rig.rig_config import RigConfig
 from rig.run_log import RunLog
 from rig.servo_loop import MarkerLostError, ServoLoop
-from rig.sim_setup import load_setup, make_direct_loop
 from rig.tip_sensors import NoisyTruthSensor, TipMeasurement
 from rig.trajectories import Trajectory
+from sim.optical_tracker import OpticalTracker
+from sim.plant import TruePlant
+from sim.plant_params import PlantParams
+from sim.setup import load_setup, make_direct_loop
 from solvers.controller import ControllerConfig, make_controller
 
 P = RobotParams()

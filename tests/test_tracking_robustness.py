@@ -14,12 +14,12 @@ import pytest
 from cvs.calibration_io import load_calibration
 from cvs.marker import MarkerModel
 from cvs.marker_tracker import MarkerTracker, TrackResult
-from cvs.render import StereoFrame, StereoRenderer
-from cvs.render_settings import RenderSettings, noise_preset
 from models.arm_shape import arm_shape
 from models.ik import solve_tip_ik
 from models.kinematics import tip_position
 from models.robot_params import HOME_PSI, RobotParams
+from sim.render import RenderedPair, StereoRenderer
+from sim.render_settings import RenderSettings, noise_preset
 
 CAM = load_calibration(Path(__file__).resolve().parents[1] / "configs" / "camera.yaml")
 MARKER = MarkerModel()
@@ -28,11 +28,11 @@ HOME = np.asarray(HOME_PSI, float)
 WRONG_POSE_MM = 0.5  # an accepted estimate farther than this from the truth is a wrong pose
 
 
-def _render(settings: RenderSettings, psi: np.ndarray, seed: int = 5) -> StereoFrame:
+def _render(settings: RenderSettings, psi: np.ndarray, seed: int = 5) -> RenderedPair:
     return StereoRenderer(CAM, MARKER, settings, seed=seed).render(arm_shape(PARAMS, psi))
 
 
-def _never_wrong(res: TrackResult, f: StereoFrame) -> float:
+def _never_wrong(res: TrackResult, f: RenderedPair) -> float:
     """Tip error [mm] when tracked; inf with a reason when not; fails on a wrong pose."""
     if not res.ok:
         assert res.reason and res.tip_left is None
@@ -43,11 +43,11 @@ def _never_wrong(res: TrackResult, f: StereoFrame) -> float:
 
 
 @pytest.fixture(scope="module")
-def home_frame() -> StereoFrame:
+def home_frame() -> RenderedPair:
     return _render(noise_preset("default"), HOME)
 
 
-def _marker_box(f: StereoFrame, left: bool = True) -> tuple[np.ndarray, np.ndarray]:
+def _marker_box(f: RenderedPair, left: bool = True) -> tuple[np.ndarray, np.ndarray]:
     uv = np.array([c.uv for c in (f.corners_left if left else f.corners_right)])
     return uv.min(axis=0), uv.max(axis=0)
 
@@ -58,7 +58,7 @@ def test_motion_blur_and_jpeg_are_tracked() -> None:
     assert err < 0.3
 
 
-def test_partly_occluded_marker(home_frame: StereoFrame) -> None:
+def test_partly_occluded_marker(home_frame: RenderedPair) -> None:
     f = home_frame
     left = f.left.copy()
     lo, hi = _marker_box(f)
@@ -68,7 +68,7 @@ def test_partly_occluded_marker(home_frame: StereoFrame) -> None:
     _never_wrong(res, f)
 
 
-def _glints(f: StereoFrame, n: int, seed: int) -> list[np.ndarray]:
+def _glints(f: RenderedPair, n: int, seed: int) -> list[np.ndarray]:
     """Both images with ``n`` saturated highlights (7x3 px ellipses) on the marker each."""
     imgs = []
     rng = np.random.default_rng(seed)
@@ -83,17 +83,17 @@ def _glints(f: StereoFrame, n: int, seed: int) -> list[np.ndarray]:
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_a_specular_glint_on_the_marker_is_tolerated(home_frame: StereoFrame, seed: int) -> None:
+def test_a_specular_glint_on_the_marker_is_tolerated(home_frame: RenderedPair, seed: int) -> None:
     err = _never_wrong(MarkerTracker(CAM, MARKER).track(*_glints(home_frame, 1, seed)), home_frame)
     assert err < 0.3
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_many_glints_never_give_a_wrong_pose(home_frame: StereoFrame, seed: int) -> None:
+def test_many_glints_never_give_a_wrong_pose(home_frame: RenderedPair, seed: int) -> None:
     _never_wrong(MarkerTracker(CAM, MARKER).track(*_glints(home_frame, 4, seed)), home_frame)
 
 
-def test_marker_cut_by_the_image_border(home_frame: StereoFrame) -> None:
+def test_marker_cut_by_the_image_border(home_frame: RenderedPair) -> None:
     f = home_frame
     imgs = []
     for img, is_left in ((f.left, True), (f.right, False)):

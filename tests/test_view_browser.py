@@ -27,7 +27,7 @@ from PIL import Image
 from test_viz_scene import fake_records, make_fake_run
 
 from rig.cli import main
-from rig.sim_setup import load_setup
+from sim.setup import load_setup
 from viz.framing import CameraView
 from viz.replay import load_run
 from viz.scene import ROOT, ArmScene, SceneConfig, SceneState

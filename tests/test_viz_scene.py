@@ -18,11 +18,11 @@ from meshcat.path import Path as MeshcatPath
 
 from models.actuation import actuators_from_psi
 from models.kinematics import forward_kinematics
-from models.plant import TruePlant
 from models.robot_params import HOME_PSI
 from rig.cli import main
 from rig.run_log import CycleRecord, RunLog, write_json
-from rig.sim_setup import load_setup
+from sim.plant import TruePlant
+from sim.setup import load_setup
 from viz import command_tree, record_wire
 from viz.framing import DEFAULT_DIRECTION, frame_points
 from viz.replay import _animation, _frame_indices, build_replay, load_run

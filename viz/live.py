@@ -35,7 +35,7 @@ from viz.viewer_client import MeshcatServer, ViewerError
 
 if TYPE_CHECKING:
     from rig.run_log import CycleRecord
-    from rig.sim_setup import SimSetup
+    from sim.setup import SimSetup
 
 DEFAULT_RATE_HZ = 30.0  # [Hz] frames sent to the browser at most
 DEFAULT_TRAIL_SECONDS = 6.0  # [s] of recent tip paths drawn
@@ -181,7 +181,7 @@ def start_live_view(setup: SimSetup | None = None, *, config: SceneConfig | None
         raise WristmarkError(f"trail length must be >= 0 s, got {trail_seconds}")
     if config is None:
         if setup is None:
-            from rig.sim_setup import load_setup
+            from sim.setup import load_setup
 
             setup = load_setup()
         config = SceneConfig.from_setup(setup)

@@ -74,7 +74,7 @@ def scene_config_from_run(run_dir: Path) -> SceneConfig:
     """The scene of the configuration recorded in ``run_dir/config.json`` (missing parts: the
     project's configs/)."""
     from cvs.calibration_io import load_calibration
-    from rig.sim_setup import default_config
+    from sim.setup import default_config
 
     path = run_dir / "config.json"
     data: dict[str, Any] = {}

@@ -50,7 +50,7 @@ from viz.style import (
 )
 
 if TYPE_CHECKING:
-    from rig.sim_setup import SimSetup
+    from sim.setup import SimSetup
 
 Array = NDArray[np.float64]
 
@@ -85,7 +85,7 @@ class SceneConfig:
 
     @classmethod
     def from_setup(cls, setup: SimSetup) -> SceneConfig:
-        """The scene of a simulated-bench setup (rig.sim_setup.load_setup)."""
+        """The scene of a simulated-bench setup (sim.setup.load_setup)."""
         return cls(setup.params, setup.marker, setup.camera, float(setup.plant.stem_coupling))
 
 

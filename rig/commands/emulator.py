@@ -14,10 +14,10 @@ from types import FrameType
 import numpy as np
 
 from models.errors import InputError
-from models.plant import TruePlant
-from models.plant_params import PlantParams
 from models.robot_params import HOME_PSI, RobotParams
-from rig.actuator_emulator import ActuatorEmulator
+from sim.actuator_emulator import ActuatorEmulator
+from sim.plant import TruePlant
+from sim.plant_params import PlantParams
 
 DEFAULT_PLANT = Path(__file__).resolve().parents[2] / "configs" / "plant.yaml"
 

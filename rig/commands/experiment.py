@@ -15,7 +15,7 @@ from rig.run_log import write_json
 
 if TYPE_CHECKING:
     from rig.run_log import CycleRecord
-    from rig.sim_setup import SimSetup
+    from sim.setup import SimSetup
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -67,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace, setup: SimSetup, out: Path, progress: bool,
          on_cycle: Callable[[CycleRecord], None] | None) -> dict[str, Any]:
     """Run the experiment ``args.name``, print its summary, return its result."""
-    from rig import experiments
+    from sim import experiments
 
     if args.name == "cube":
         res = experiments.run_cube(setup, out, progress=progress, duration=args.duration, on_cycle=on_cycle)

@@ -67,14 +67,14 @@ def read_psi_file(path: str | Path) -> list[Array]:
 def run(args: argparse.Namespace) -> int:
     from cvs.calibration_io import load_calibration
     from cvs.camera import scaled_stereo_camera
-    from cvs.dataset import DatasetWriter
     from cvs.marker import MarkerModel
-    from cvs.render import StereoRenderer
-    from cvs.render_settings import RenderSettings, noise_preset
-    from cvs.visibility import marker_visible, random_visible_psi
     from models.arm_shape import arm_shape
     from models.limits import check_limits
     from models.robot_params import RobotParams
+    from sim.dataset import DatasetWriter
+    from sim.render import StereoRenderer
+    from sim.render_settings import RenderSettings, noise_preset
+    from sim.visibility import marker_visible, random_visible_psi
 
     if args.pairs is not None and args.pairs < 1:
         raise InputError(f"--pairs must be >= 1, got {args.pairs}")

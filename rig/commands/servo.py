@@ -43,7 +43,7 @@ from rig.servo_session import (
 from rig.trajectories import Trajectory
 
 if TYPE_CHECKING:
-    from rig.sim_setup import SimSetup
+    from sim.setup import SimSetup
 
 Array = NDArray[np.float64]
 
@@ -88,8 +88,8 @@ def build_setup(args: argparse.Namespace) -> SimSetup:
 
 def build_trajectory(setup: SimSetup, kind: str, point: list[float] | None, duration: float | None) -> Trajectory:
     """The cube walk around the workspace centre, or a held point; cut to ``duration`` [s]."""
-    from rig.experiments import CUBE_SIZE, CUBE_SPEED, workspace_centre
     from rig.trajectories import cube_trajectory
+    from sim.experiments import CUBE_SIZE, CUBE_SPEED, workspace_centre
 
     if duration is not None and not (np.isfinite(duration) and duration > 0):
         raise InputError(f"--duration must be > 0 s, got {duration}")

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 from models.errors import ConfigError
 
 if TYPE_CHECKING:
-    from rig.sim_setup import SimSetup
+    from sim.setup import SimSetup
 
 
 def add_setup_arguments(p: argparse.ArgumentParser) -> None:
@@ -34,7 +34,7 @@ def add_setup_arguments(p: argparse.ArgumentParser) -> None:
 def setup_from_args(args: argparse.Namespace, **rig_overrides: Any) -> SimSetup:
     """Load the configuration files and apply the command-line overrides (plus ``rig_overrides``
     that are not None), validated; an unknown controller kind lists the valid ones."""
-    from rig.sim_setup import load_setup
+    from sim.setup import load_setup
     from solvers.controller import make_controller
 
     setup = load_setup(robot=args.robot, marker=args.marker, camera=args.camera, plant=args.plant,

@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     replay: RunReplay | None = load_run(args.run_dir) if args.run_dir else None
     config: SceneConfig | None = None
     if replay is None:
-        from rig.sim_setup import load_setup
+        from sim.setup import load_setup
 
         config = SceneConfig.from_setup(load_setup(robot=args.robot, marker=args.marker, camera=args.camera))
     title = f"wristmark replay: {replay.run_dir.name}" if replay else "wristmark: arm at home"

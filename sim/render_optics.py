@@ -18,8 +18,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from cvs.render_settings import RenderSettings
 from models.errors import InputError
+from sim.render_settings import RenderSettings
 
 F32 = NDArray[np.float32]
 Box = tuple[int, int, int, int]  # pixel rectangle (u0, v0, u1, v1), u1 and v1 exclusive

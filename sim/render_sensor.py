@@ -24,8 +24,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import ndtri
 
-from cvs.render_settings import RenderSettings
 from models.errors import InputError
+from sim.render_settings import RenderSettings
 
 F32 = NDArray[np.float32]
 U8 = NDArray[np.uint8]

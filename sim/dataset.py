@@ -16,9 +16,9 @@ from numpy.typing import NDArray
 from cvs.calibration_io import load_calibration, save_calibration
 from cvs.camera import StereoCamera
 from cvs.marker import MarkerModel
-from cvs.render import CornerTruth, StereoFrame
 from models.config_io import save_yaml, to_mapping
 from models.errors import InputError
+from sim.render import CornerTruth, RenderedPair
 
 Array = NDArray[np.float64]
 
@@ -56,7 +56,7 @@ def _corners_json(cs: tuple[CornerTruth, ...]) -> list[dict[str, Any]]:
     return [{"index": c.index, "uv": [c.uv[0], c.uv[1]], "cos_view": c.cos_view} for c in cs]
 
 
-def truth_entry(n: int, frame: StereoFrame) -> dict[str, Any]:
+def truth_entry(n: int, frame: RenderedPair) -> dict[str, Any]:
     """The truth.json object of pair ``n`` (DESIGN.md)."""
     return {
         "pair": n,
@@ -81,7 +81,7 @@ class DatasetWriter:
         save_yaml(self.root / "marker.yaml", to_mapping(marker))
         self.entries: list[dict[str, Any]] = []
 
-    def add(self, frame: StereoFrame) -> int:
+    def add(self, frame: RenderedPair) -> int:
         """Write the next pair's images and truth; returns its index NN."""
         n = len(self.entries)
         for path, img in zip(pair_paths(self.root, n), (frame.left, frame.right)):

@@ -7,7 +7,7 @@ interpolated at the supersample positions, so the checker corners appear where
 link, gripper) and the marker sleeve (a finite cylinder with the exact checker pattern of
 :meth:`MarkerModel.is_black`). Shading: coaxial light (light at the camera), Lambert plus a
 specular lobe, inverse-square falloff. The per-ray work runs in the numba kernels of
-:mod:`cvs.render_culling` and :mod:`cvs.render_raycast`; this module builds the primitives,
+:mod:`sim.render_culling` and :mod:`sim.render_raycast`; this module builds the primitives,
 the ray map and the tile plan.
 """
 
@@ -20,9 +20,9 @@ from numpy.typing import NDArray
 
 from cvs.camera import Camera
 from cvs.marker import MarkerModel
-from cvs.render_culling import NEAR, cull_tiles
-from cvs.render_raycast import CAPSULE_COLS, SLEEVE_COLS, TILE, raycast_tiles
 from models.errors import InputError
+from sim.render_culling import NEAR, cull_tiles
+from sim.render_raycast import CAPSULE_COLS, SLEEVE_COLS, TILE, raycast_tiles
 
 Array = NDArray[np.float64]
 Box = tuple[int, int, int, int]  # pixel rectangle (u0, v0, u1, v1), u1 and v1 exclusive
@@ -92,7 +92,7 @@ class RayMap:
 
 
 def pack_capsules(capsules: list[Capsule]) -> Array:
-    """Capsules as the kernels' float64 rows (n, CAPSULE_COLS); see :mod:`cvs.render_raycast`."""
+    """Capsules as the kernels' float64 rows (n, CAPSULE_COLS); see :mod:`sim.render_raycast`."""
     out = np.zeros((len(capsules), CAPSULE_COLS))
     for i, c in enumerate(capsules):
         a, b = np.asarray(c.a, float), np.asarray(c.b, float)
@@ -185,7 +185,7 @@ def render_arm(
     (float32 BGR [grey levels]; ``out[0, 0]`` is pixel ``origin`` = (u, v)). Each pixel becomes
     the mean of its samples (background where a sample misses). ``gain``: grey levels for unit
     radiance; ``flat``: albedo only, no lighting; ``adaptive``: supersample only pixels whose
-    neighbourhood changes surface (see :func:`cvs.render_raycast.raycast_tiles`). Returns the
+    neighbourhood changes surface (see :func:`sim.render_raycast.raycast_tiles`). Returns the
     number of rays cast."""
     if out.dtype != np.float32 or out.ndim != 3 or out.shape[2] != 3:
         raise InputError(f"out must be a float32 (h, w, 3) image, got {out.dtype} {out.shape}")

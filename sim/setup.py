@@ -14,14 +14,14 @@ from cvs.camera import StereoCamera, scaled_stereo_camera
 from cvs.marker import MarkerModel
 from models.config_io import to_mapping
 from models.errors import ConfigError
-from models.plant import TruePlant
-from models.plant_params import PlantParams
 from models.robot_params import RobotParams
-from models.tracker import OpticalTracker
 from rig.actuator_link import DirectLink
 from rig.rig_config import RigConfig
 from rig.servo_loop import ServoLoop
 from rig.tip_sensors import NoisyTruthSensor, TipSensor, VisionTipSensor
+from sim.optical_tracker import OpticalTracker
+from sim.plant import TruePlant
+from sim.plant_params import PlantParams
 from solvers.controller import ControllerConfig, make_controller
 
 Array = NDArray[np.float64]

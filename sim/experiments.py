@@ -17,8 +17,8 @@ from models.robot_params import HOME_PSI
 from rig.metrics import corner_overshoot, error_stats, estimate_errors, tracking_errors
 from rig.run_log import CycleRecord, RunLog, write_json
 from rig.servo_loop import MarkerLostError, PhaseStats, ServoLoop
-from rig.sim_setup import SimSetup, make_direct_loop, make_plant, make_sensor
 from rig.trajectories import Trajectory, accuracy_targets, cube_trajectory
+from sim.setup import SimSetup, make_direct_loop, make_plant, make_sensor
 
 PAPER_CUBE = {"open_loop": {"mean_mm": 3.25, "max_mm": 8.40},
               "closed_loop": {"mean_mm": 0.82, "max_mm": 2.59}, "ratio": 0.2523}
@@ -139,7 +139,7 @@ def run_accuracy(setup: SimSetup, out_dir: Path, n: int = 40, progress: bool = T
     from tqdm import tqdm
 
     from models.actuation import actuators_from_psi
-    from models.tracker import OpticalTracker
+    from sim.optical_tracker import OpticalTracker
     from viz.plots import plot_accuracy
 
     seed = setup.rig.seed if seed is None else seed

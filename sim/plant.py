@@ -23,8 +23,8 @@ from models.arm_shape import ArmShape, shape_from_frames
 from models.constant_curvature import rot_z, segment_point, segment_transform
 from models.errors import InputError
 from models.kinematics import ArmFrames, check_psi
-from models.plant_params import PlantParams
 from models.robot_params import RobotParams
+from sim.plant_params import PlantParams
 
 Array = NDArray[np.float64]
 

@@ -2,7 +2,7 @@
 
 Tiles are squares of raw pixels described in normalized image coordinates (x/z, y/z): a disc
 (centre, radius) and a box holding the rays of their pixels. Capsules are the packed rows of
-:mod:`cvs.render_raycast`; the sleeve comes as a normalized-plane box. The kernel uses only
+:mod:`sim.render_raycast`; the sleeve comes as a normalized-plane box. The kernel uses only
 names of this file (numba's on-disk cache does not notice changes in other files).
 """
 

@@ -1,9 +1,9 @@
-"""Stereo image synthesis of the marked arm: :class:`StereoRenderer` -> :class:`StereoFrame`.
+"""Stereo image synthesis of the marked arm: :class:`StereoRenderer` -> :class:`RenderedPair`.
 
 Each camera sees the same world: the distal arm (tube along the true centreline, rigid link,
 checkered marker sleeve, gripper) ray-cast through the camera's exact distortion at
 ``settings.supersampling`` samples per pixel axis over a cached tissue background, then the
-optics of :mod:`cvs.render_optics` and the sensor of :mod:`cvs.render_sensor`. Ground truth
+optics of :mod:`sim.render_optics` and the sensor of :mod:`sim.render_sensor`. Ground truth
 (pose of {wm} in {ll}, tip in {ll}, raw pixel corners with their cos_view per camera) follows
 DESIGN.md's truth.json.
 
@@ -24,13 +24,13 @@ from numpy.typing import NDArray
 
 from cvs.camera import Camera, StereoCamera
 from cvs.marker import MarkerModel
-from cvs.render_arm import METAL, TUBE, Capsule, RayMap, Sleeve, plan_arm, render_arm
-from cvs.render_background import stereo_backgrounds
-from cvs.render_optics import blur_radius, grow_box, optics_signal, optics_signal_box, vignetting_map
-from cvs.render_sensor import sensor_image
-from cvs.render_settings import RenderSettings
 from models.arm_shape import ArmShape
 from models.errors import InputError
+from sim.render_arm import METAL, TUBE, Capsule, RayMap, Sleeve, plan_arm, render_arm
+from sim.render_background import stereo_backgrounds
+from sim.render_optics import blur_radius, grow_box, optics_signal, optics_signal_box, vignetting_map
+from sim.render_sensor import sensor_image
+from sim.render_settings import RenderSettings
 
 Array = NDArray[np.float64]
 EXPOSURE = 200.0  # grey levels for unit radiance (white patch facing the light at D0)
@@ -48,7 +48,7 @@ class CornerTruth:
 
 
 @dataclass(frozen=True)
-class StereoFrame:
+class RenderedPair:
     """A rendered stereo pair and its ground truth (left camera frame {ll}, metres).
 
     left, right: uint8 images (BGR (h, w, 3), or (h, w) if grayscale), as cv2.imread reads them.
@@ -177,7 +177,7 @@ class StereoRenderer:
         sig, patch, origin = self._arm_signal(cam, shape, angle, incremental=True)
         return sensor_image(sig, self.settings, key, patch, origin)
 
-    def render(self, shape: ArmShape) -> StereoFrame:
+    def render(self, shape: ArmShape) -> RenderedPair:
         """Render both cameras for an arm shape in {w}; returns images and ground truth.
 
         The two cameras render in two threads (the numba kernels and OpenCV release the GIL)."""
@@ -188,7 +188,7 @@ class StereoRenderer:
         T_lm = self.T_left_world @ shape.T_world_marker
         T_rm = self.T_right_world @ shape.T_world_marker
         tip = shape.tip @ self.T_left_world[:3, :3].T + self.T_left_world[:3, 3]
-        return StereoFrame(
+        return RenderedPair(
             images[0],
             images[1],
             T_lm,

@@ -8,7 +8,7 @@ pixel p along each axis lies at ``p - 1/2 + (j + 1/2) / ss``. Rays are traced in
 as three arrays (structure of arrays), each primitive against a whole batch in one
 branch-free loop that the compiler vectorizes (SIMD).
 
-Packed primitives (float64 rows, built by :mod:`cvs.render_arm`):
+Packed primitives (float64 rows, built by :mod:`sim.render_arm`):
 
 - capsule (CAPSULE_COLS): ``a(3) b(3) r cap_a cap_b material ba(3) |ba|^2 -ba.a a.a``, the
   cylinder from a to b of radius r with spherical ends where cap_a / cap_b are non-zero;

@@ -7,11 +7,11 @@ from numpy.typing import NDArray
 
 from cvs.camera import StereoCamera
 from cvs.marker import MarkerModel
-from cvs.render import corner_truth
 from models.arm_shape import ArmShape, arm_shape
 from models.errors import InputError
 from models.limits import clamp_psi
 from models.robot_params import HOME_PSI, RobotParams
+from sim.render import corner_truth
 
 Array = NDArray[np.float64]
 

@@ -28,6 +28,18 @@ COMMANDS: dict[str, str] = {
 }
 
 
+EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE: what a shell reports for a writer whose reader closed the pipe
+
+
+def _discard_stdout() -> None:
+    """Point stdout at /dev/null so that flushing it at exit raises nothing more."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+
+
 class OneLineParser(argparse.ArgumentParser):
     """argparse with usage errors reported as one line on stderr (exit status 2)."""
 
@@ -63,7 +75,12 @@ def main(argv: list[str] | None = None) -> int:
             parser.print_help()
             return 2
         module = importlib.import_module(f"rig.commands.{args.command}")
-        return int(module.run(args) or 0)
+        status = int(module.run(args) or 0)
+        sys.stdout.flush()  # a closed pipe shows here, not at interpreter exit
+        return status
+    except BrokenPipeError:  # the reader went away (``wristmark fk --json | head -c 10``): end quietly
+        _discard_stdout()
+        return EXIT_BROKEN_PIPE
     except WristmarkError as e:
         print(f"wristmark {command or ''}: error: {e}".replace("  ", " "), file=sys.stderr)
         return 2

@@ -251,9 +251,9 @@ def test_ctrl_c_holds_and_disables_the_device(wall_emulator: tuple) -> None:
 @pytest.mark.parametrize(
     ("args", "words"),
     [
-        (["--duration", "-1"], ["--duration", "> 0"]),
+        (["--duration", "-1"], ["--duration", "(0, 3600]"]),
         (["--controller", "nope"], ["nope"]),
-        (["--dt", "0"], ["control_dt"]),
+        (["--dt", "0"], ["--dt", "[0.001, 1]"]),
         (["--trajectory", "point", "--point", "1", "1", "1"], ["out of reach"]),
         (["--point", "0", "0", "0.15"], ["--trajectory point"]),
         (["--timeout", "0"], ["--timeout"]),

@@ -15,6 +15,7 @@ import numpy as np
 
 from models.errors import InputError
 from models.robot_params import HOME_PSI, RobotParams
+from rig.commands.option_types import MAX_TIMEOUT_S, PSI_ABS_MAX, float_in, positive_float
 from sim.actuator_emulator import ActuatorEmulator
 from sim.plant import TruePlant
 from sim.plant_params import PlantParams
@@ -26,9 +27,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--pty", action="store_true", help="serve on a new pseudo-terminal (the only transport)")
     p.add_argument("--plant", help="plant file of the simulated true arm (default configs/plant.yaml)")
     p.add_argument("--robot", help="robot YAML (default: the reference robot)")
-    p.add_argument("--watchdog", type=float, default=0.25, metavar="S",
+    p.add_argument("--watchdog", type=positive_float(MAX_TIMEOUT_S), default=0.25, metavar="S",
                    help="watchdog timeout [s] (default 0.25, as protocol v1 specifies)")
-    p.add_argument("--psi0", nargs=6, type=float, metavar="X", help="initial configuration (default: home)")
+    p.add_argument("--psi0", nargs=6, type=float_in(-PSI_ABS_MAX, PSI_ABS_MAX), metavar="X",
+                   help="initial configuration (default: home)")
 
 
 def run(args: argparse.Namespace) -> int:

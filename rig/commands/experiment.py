@@ -10,6 +10,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from models.errors import ConfigError
+from rig.commands.option_types import (
+    MAX_DURATION_S,
+    MAX_POSITIONS,
+    MAX_TIP_FORCE_N,
+    int_in,
+    nonnegative_float,
+    positive_float,
+)
 from rig.commands.setup_args import add_setup_arguments, setup_from_args
 from rig.run_log import write_json
 
@@ -23,10 +31,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", metavar="OUT", help="write the result JSON to OUT")
     p.add_argument("--out", metavar="DIR", help="run folder (default: runs/<name>-<time>)")
     add_setup_arguments(p)
-    p.add_argument("--duration", type=float, metavar="S",
+    p.add_argument("--duration", type=positive_float(MAX_DURATION_S), metavar="S",
                    help="cube/load: run only the first S seconds of the cube walk (quick checks)")
-    p.add_argument("--positions", type=int, default=40, help="accuracy: number of positions")
-    p.add_argument("--forces", type=float, nargs="+", default=[0.0, 0.1, 0.2, 0.3],
+    p.add_argument("--positions", type=int_in(1, MAX_POSITIONS), default=40, help="accuracy: number of positions")
+    p.add_argument("--forces", type=nonnegative_float(MAX_TIP_FORCE_N), nargs="+", default=[0.0, 0.1, 0.2, 0.3],
                    help="load: tip forces [N] to sweep")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.add_argument("--view", action="store_true",
@@ -36,6 +44,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.duration is not None and not args.duration > 0:
         raise ConfigError(f"--duration must be > 0 s, got {args.duration}")
+    if len({f"{f:.2f}" for f in args.forces}) != len(args.forces):
+        raise ConfigError(f"--forces must differ by 0.01 N at least (each writes force_X.XXN/), got {args.forces}")
     setup = setup_from_args(args)
     out = Path(args.out) if args.out else Path("runs") / f"{args.name}-{time.strftime('%Y%m%d-%H%M%S')}"
     progress = not args.no_progress

@@ -7,10 +7,11 @@ import json
 
 from models.kinematics import check_psi, forward_kinematics, tip_jacobian
 from models.robot_params import RobotParams
+from rig.commands.option_types import PSI_ABS_MAX, float_in
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--psi", nargs=6, type=float, required=True,
+    p.add_argument("--psi", nargs=6, type=float_in(-PSI_ABS_MAX, PSI_ABS_MAX), required=True,
                    metavar=("PHI", "D", "THETA1", "DELTA1", "THETA2", "DELTA2"),
                    help="configuration [rad, m, rad, rad, rad, rad]")
     p.add_argument("--robot", help="robot YAML (default: the reference robot)")

@@ -11,6 +11,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from models.errors import InputError
+from rig.commands.option_types import (
+    MAX_BLUR_PX,
+    MAX_IMAGE_SCALE,
+    MAX_PAIRS,
+    MIN_IMAGE_SCALE,
+    PSI_ABS_MAX,
+    float_in,
+    int_in,
+    nonnegative_float,
+    seed_int,
+)
 
 Array = NDArray[np.float64]
 # Half-widths of the random psi draw around HOME_PSI: phi [rad], d [m], theta1, delta1, theta2, delta2 [rad].
@@ -20,15 +31,15 @@ MAX_TRIES = 400  # random draws per pair before giving up
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, help="dataset folder to write (created if missing)")
-    p.add_argument("--pairs", type=int, default=None, help="number of random pairs (default 10)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (configurations, background, noise)")
+    p.add_argument("--pairs", type=int_in(1, MAX_PAIRS), default=None, help="number of random pairs (default 10)")
+    p.add_argument("--seed", type=seed_int(), default=0, help="random seed (configurations, background, noise)")
     p.add_argument("--calib", help="stereo calibration YAML or OpenCV file (default: configs/camera.yaml)")
     p.add_argument("--marker", help="marker YAML (default: the reference marker)")
     p.add_argument("--robot", help="robot YAML (default: the reference robot)")
     p.add_argument(
         "--psi",
         nargs=6,
-        type=float,
+        type=float_in(-PSI_ABS_MAX, PSI_ABS_MAX),
         action="append",
         metavar=("PHI", "D", "THETA1", "DELTA1", "THETA2", "DELTA2"),
         help="render this configuration [rad, m, rad, rad, rad, rad]; repeatable",
@@ -36,9 +47,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--psi-file", help="text file with one configuration (6 numbers) per line")
     p.add_argument("--noise", choices=("none", "default", "strong"), default="default", help="noise preset")
     p.add_argument("--settings", help="render settings YAML (overrides --noise)")
-    p.add_argument("--jpeg", type=int, default=None, metavar="Q", help="JPEG round trip at quality Q (1-100)")
-    p.add_argument("--motion-blur", type=float, default=None, metavar="PX", help="linear motion blur length [px]")
-    p.add_argument("--scale", type=float, default=1.0, help="image scale factor of the camera (e.g. 0.5)")
+    p.add_argument("--jpeg", type=int_in(1, 100), default=None, metavar="Q",
+                   help="JPEG round trip at quality Q (1-100)")
+    p.add_argument("--motion-blur", type=nonnegative_float(MAX_BLUR_PX), default=None, metavar="PX",
+                   help="linear motion blur length [px]")
+    p.add_argument("--scale", type=float_in(MIN_IMAGE_SCALE, MAX_IMAGE_SCALE), default=1.0,
+                   help="image scale factor of the camera (e.g. 0.5)")
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
 
 

@@ -28,6 +28,19 @@ import numpy as np
 from numpy.typing import NDArray
 
 from models.errors import InputError
+from rig.commands.option_types import (
+    MAX_BAUD,
+    MAX_DURATION_S,
+    MAX_HOLD_S,
+    MAX_POINT_M,
+    MAX_SETTLE_S,
+    MAX_TIMEOUT_S,
+    MIN_BAUD,
+    float_in,
+    int_in,
+    nonnegative_float,
+    positive_float,
+)
 from rig.commands.setup_args import add_setup_arguments, setup_from_args
 from rig.run_log import write_json
 from rig.servo_session import (
@@ -60,22 +73,23 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "(implied by --serial)")
     p.add_argument("--pace", action="store_true",
                    help="simulated time, but never faster than the wall clock (implied by --view)")
-    p.add_argument("--baud", type=int, default=115200, help="serial baud rate (default 115200)")
-    p.add_argument("--timeout", type=float, metavar="S",
+    p.add_argument("--baud", type=int_in(MIN_BAUD, MAX_BAUD), default=115200, help="serial baud rate (default 115200)")
+    p.add_argument("--timeout", type=positive_float(MAX_TIMEOUT_S), metavar="S",
                    help=f"reply timeout per attempt [s] (default {HW_TIMEOUT_S} real time, "
                         f"{SIM_TIMEOUT_S} simulated)")
     p.add_argument("--trajectory", choices=("cube", "point"), default="cube",
                    help="cube: the paper's cube walk (default); point: hold --point")
-    p.add_argument("--point", type=float, nargs=3, metavar=("X", "Y", "Z"),
+    p.add_argument("--point", type=float_in(-MAX_POINT_M, MAX_POINT_M), nargs=3, metavar=("X", "Y", "Z"),
                    help="point to hold in {w} [m] (default: the workspace centre)")
-    p.add_argument("--duration", type=float, metavar="S",
+    p.add_argument("--duration", type=positive_float(MAX_DURATION_S), metavar="S",
                    help=f"run only the first S seconds of the trajectory (point: default {POINT_HOLD_S:g})")
-    p.add_argument("--settle", type=float, metavar="S", help="closed-loop approach to the start [s] (rig file)")
+    p.add_argument("--settle", type=nonnegative_float(MAX_SETTLE_S), metavar="S",
+                   help="closed-loop approach to the start [s] (rig file)")
     p.add_argument("--json", metavar="OUT", help="write the result JSON to OUT")
     p.add_argument("--out", metavar="DIR", help="write config.json, log.csv, result.json to DIR")
     add_setup_arguments(p)
     p.add_argument("--view", action="store_true", help="show the run live in the Meshcat view (paced)")
-    p.add_argument("--view-hold", type=float, default=0.0, metavar="S",
+    p.add_argument("--view-hold", type=nonnegative_float(MAX_HOLD_S), default=0.0, metavar="S",
                    help="with --view: keep serving the view S seconds after the run (Ctrl-C ends it)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 

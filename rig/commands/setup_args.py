@@ -9,6 +9,15 @@ import dataclasses
 from typing import TYPE_CHECKING, Any
 
 from models.errors import ConfigError
+from rig.commands.option_types import (
+    MAX_CONTROL_DT,
+    MAX_IMAGE_SCALE,
+    MIN_CONTROL_DT,
+    MIN_IMAGE_SCALE,
+    float_in,
+    nonnegative_float,
+    seed_int,
+)
 
 if TYPE_CHECKING:
     from sim.setup import SimSetup
@@ -23,12 +32,15 @@ def add_setup_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--robot", metavar="YAML", help="robot file (default configs/robot.yaml)")
     p.add_argument("--camera", "--calib", dest="camera", metavar="YAML", help="stereo calibration")
     p.add_argument("--marker", metavar="YAML", help="marker file (default configs/marker.yaml)")
-    p.add_argument("--dt", type=float, metavar="S", help="control cycle [s] (paper: 0.060)")
-    p.add_argument("--latency", type=float, metavar="S", help="capture -> command latency [s]")
+    p.add_argument("--dt", type=float_in(MIN_CONTROL_DT, MAX_CONTROL_DT), metavar="S",
+                   help="control cycle [s] (paper: 0.060)")
+    p.add_argument("--latency", type=nonnegative_float(MAX_CONTROL_DT), metavar="S",
+                   help="capture -> command latency [s]")
     p.add_argument("--sensor", choices=("vision", "truth-noise"),
                    help="tip measurement: rendered images + tracker (default) or truth+noise (fast)")
-    p.add_argument("--image-scale", type=float, metavar="F", help="render at F x the calibrated size")
-    p.add_argument("--seed", type=int)
+    p.add_argument("--image-scale", type=float_in(MIN_IMAGE_SCALE, MAX_IMAGE_SCALE), metavar="F",
+                   help="render at F x the calibrated size")
+    p.add_argument("--seed", type=seed_int(), help="random seed (noise, rendering, tracker)")
 
 
 def setup_from_args(args: argparse.Namespace, **rig_overrides: Any) -> SimSetup:

@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from models.errors import InputError
+from rig.commands.option_types import MAX_RMS_PX, float_in, positive_float
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -37,14 +38,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--max-rms",
-        type=float,
+        type=positive_float(MAX_RMS_PX),
         default=None,
         metavar="PX",
         help="largest accepted reprojection RMS [px] (default 0.75)",
     )
     p.add_argument(
         "--axis-hint",
-        type=float,
+        type=float_in(-1e6, 1e6),
         nargs=3,
         metavar=("X", "Y", "Z"),
         help="expected direction of the marker's z axis (towards the tip) in the left camera frame; "

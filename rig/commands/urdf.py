@@ -6,13 +6,14 @@ import argparse
 import json
 
 from models.errors import InputError
+from rig.commands.option_types import MAX_LINKS, int_in
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, metavar="FILE", help="URDF file to write")
     p.add_argument(
         "--links",
-        type=int,
+        type=int_in(1, MAX_LINKS),
         default=8,
         metavar="N",
         help="pseudo-rigid links per segment (default 8; exact for every N)",

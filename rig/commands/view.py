@@ -18,15 +18,16 @@ import time
 from types import FrameType
 
 from models.errors import InputError
+from rig.commands.option_types import MAX_FRAMES, MAX_HOLD_S, int_in, nonnegative_float
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("run_dir", nargs="?", metavar="RUN_DIR",
                    help="experiment run folder to replay (log.csv + config.json); none: the arm at home")
     p.add_argument("--snapshot", metavar="OUT.html", help="write a self-contained static HTML page and exit")
-    p.add_argument("--serve-seconds", type=float, metavar="S",
+    p.add_argument("--serve-seconds", type=nonnegative_float(MAX_HOLD_S), metavar="S",
                    help="serve for S seconds, then exit (default: until Ctrl-C / SIGTERM)")
-    p.add_argument("--max-frames", type=int, default=None, metavar="N",
+    p.add_argument("--max-frames", type=int_in(2, MAX_FRAMES), default=None, metavar="N",
                    help="key frames of a replay at most (longer runs are decimated; default 1000)")
     p.add_argument("--no-play", action="store_true", help="served replay: do not start playing")
     p.add_argument("--robot", metavar="YAML", help="home view: robot file (default configs/robot.yaml)")

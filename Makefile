@@ -15,9 +15,10 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
-# Main job: the paper's cube experiment, open vs closed loop, on the simulated rig.
+# Main job: the paper's cube experiment, open vs closed loop, on the simulated rig. Each run
+# writes a new folder runs/cube-YYYYmmdd-HHMMSS (result.json, log.csv, plots); runs/latest links it.
 run: setup
-	$(VENV)/bin/wristmark experiment cube --view --out runs/cube --json runs/cube/result.json
+	$(VENV)/bin/wristmark experiment cube --view
 
 browser:
 	bash scripts/ensure-chromium.sh

@@ -19,6 +19,7 @@ from rig.commands.option_types import (
     positive_float,
 )
 from rig.commands.setup_args import add_setup_arguments, setup_from_args
+from rig.output_dir import add_force_argument, claim_outputs, link_latest, new_run_dir
 from rig.run_log import write_json
 
 if TYPE_CHECKING:
@@ -29,7 +30,9 @@ if TYPE_CHECKING:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("name", choices=("cube", "accuracy", "load"), help="which experiment")
     p.add_argument("--json", metavar="OUT", help="write the result JSON to OUT")
-    p.add_argument("--out", metavar="DIR", help="run folder (default: runs/<name>-<time>)")
+    p.add_argument("--out", metavar="DIR",
+                   help="run folder, empty unless --force (default: a new runs/<name>-<time>, linked as runs/latest)")
+    add_force_argument(p)
     add_setup_arguments(p)
     p.add_argument("--duration", type=positive_float(MAX_DURATION_S), metavar="S",
                    help="cube/load: run only the first S seconds of the cube walk (quick checks)")
@@ -47,7 +50,8 @@ def run(args: argparse.Namespace) -> int:
     if len({f"{f:.2f}" for f in args.forces}) != len(args.forces):
         raise ConfigError(f"--forces must differ by 0.01 N at least (each writes force_X.XXN/), got {args.forces}")
     setup = setup_from_args(args)
-    out = Path(args.out) if args.out else Path("runs") / f"{args.name}-{time.strftime('%Y%m%d-%H%M%S')}"
+    out = Path(args.out) if args.out else new_run_dir("runs", args.name)
+    claim_outputs(dirs=[out], files=[args.json], force=args.force)
     progress = not args.no_progress
     t0 = time.perf_counter()
     view = None
@@ -67,6 +71,8 @@ def run(args: argparse.Namespace) -> int:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
         write_json(args.json, res)
     print(f"run folder: {out}")
+    if not args.out:
+        link_latest(out)
     stopped = [r for r in _phases(res) if r.get("stopped")]
     if stopped:
         print(f"wristmark experiment: error: closed loop stopped safely: {stopped[0]['stopped']}", file=sys.stderr)

@@ -22,6 +22,7 @@ from rig.commands.option_types import (
     nonnegative_float,
     seed_int,
 )
+from rig.output_dir import add_force_argument, claim_outputs
 
 Array = NDArray[np.float64]
 # Half-widths of the random psi draw around HOME_PSI: phi [rad], d [m], theta1, delta1, theta2, delta2 [rad].
@@ -30,7 +31,7 @@ MAX_TRIES = 400  # random draws per pair before giving up
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", required=True, help="dataset folder to write (created if missing)")
+    p.add_argument("--out", required=True, help="dataset folder to write (created; must be empty unless --force)")
     p.add_argument("--pairs", type=int_in(1, MAX_PAIRS), default=None, help="number of random pairs (default 10)")
     p.add_argument("--seed", type=seed_int(), default=0, help="random seed (configurations, background, noise)")
     p.add_argument("--calib", help="stereo calibration YAML or OpenCV file (default: configs/camera.yaml)")
@@ -54,6 +55,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scale", type=float_in(MIN_IMAGE_SCALE, MAX_IMAGE_SCALE), default=1.0,
                    help="image scale factor of the camera (e.g. 0.5)")
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
+    add_force_argument(p)
 
 
 def read_psi_file(path: str | Path) -> list[Array]:
@@ -134,6 +136,7 @@ def run(args: argparse.Namespace) -> int:
             random_visible_psi(params, camera, marker, rng, PSI_SPREAD, MAX_TRIES) for _ in range(args.pairs or 10)
         ]
 
+    claim_outputs(dirs=[args.out], force=args.force)
     renderer = StereoRenderer(camera, marker, settings, seed=args.seed)
     writer = DatasetWriter(args.out, camera, marker)
     for q in configs:

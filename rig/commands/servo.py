@@ -42,6 +42,7 @@ from rig.commands.option_types import (
     positive_float,
 )
 from rig.commands.setup_args import add_setup_arguments, setup_from_args
+from rig.output_dir import add_force_argument, claim_outputs
 from rig.run_log import write_json
 from rig.servo_session import (
     HW_TIMEOUT_S,
@@ -86,7 +87,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--settle", type=nonnegative_float(MAX_SETTLE_S), metavar="S",
                    help="closed-loop approach to the start [s] (rig file)")
     p.add_argument("--json", metavar="OUT", help="write the result JSON to OUT")
-    p.add_argument("--out", metavar="DIR", help="write config.json, log.csv, result.json to DIR")
+    p.add_argument("--out", metavar="DIR", help="write config.json, log.csv, result.json to DIR (empty unless --force)")
+    add_force_argument(p)
     add_setup_arguments(p)
     p.add_argument("--view", action="store_true", help="show the run live in the Meshcat view (paced)")
     p.add_argument("--view-hold", type=nonnegative_float(MAX_HOLD_S), default=0.0, metavar="S",
@@ -170,6 +172,7 @@ def run(args: argparse.Namespace) -> int:
     kind = "serial" if args.serial else "direct" if args.direct else "emulator"
     if not (np.isfinite(args.view_hold) and args.view_hold >= 0):
         raise InputError(f"--view-hold must be >= 0 s, got {args.view_hold}")
+    claim_outputs(dirs=[args.out], files=[args.json], force=args.force)
     options = LinkOptions(kind=kind, port=args.serial, baudrate=args.baud, timeout=args.timeout,
                           realtime=bool(args.realtime), pace=bool(args.pace or args.view))
     with _sigterm_as_interrupt():

@@ -7,6 +7,7 @@ import json
 
 from models.errors import InputError
 from rig.commands.option_types import MAX_LINKS, int_in
+from rig.output_dir import add_force_argument, claim_outputs
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -21,6 +22,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--robot", metavar="ROBOT.yaml", help="robot YAML (default: reference robot)")
     p.add_argument("--marker", metavar="MARKER.yaml", help="marker YAML (default: reference)")
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
+    add_force_argument(p)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -32,6 +34,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--links must be >= 1, got {args.links}")
     params = RobotParams.load(args.robot) if args.robot else RobotParams()
     marker = MarkerModel.load(args.marker) if args.marker else None
+    claim_outputs(files=[args.out], force=args.force)
     path = write_urdf(args.out, params, args.links, marker)
     if args.json:
         print(json.dumps({"urdf": str(path), "links_per_segment": args.links}))

@@ -19,6 +19,7 @@ from types import FrameType
 
 from models.errors import InputError
 from rig.commands.option_types import MAX_FRAMES, MAX_HOLD_S, int_in, nonnegative_float
+from rig.output_dir import add_force_argument, claim_outputs
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -34,6 +35,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--marker", metavar="YAML", help="home view: marker file")
     p.add_argument("--camera", "--calib", dest="camera", metavar="YAML", help="home view: stereo calibration")
     p.add_argument("--json", action="store_true", help="print the URL or the written file as JSON")
+    add_force_argument(p)
 
 
 def _stop_on_sigterm(signum: int, frame: FrameType | None) -> None:
@@ -63,6 +65,7 @@ def run(args: argparse.Namespace) -> int:
     if args.snapshot:
         from viz.snapshot import recording_visualizer, write_html
 
+        claim_outputs(files=[args.snapshot], force=args.force)
         vis, window = recording_visualizer()
         if replay:
             build_replay(vis, replay, max_frames, play=False)

@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 
 from cvs.camera import Camera, StereoCamera
-from models.config_io import load_yaml, save_yaml
+from models.config_io import check_file_size, load_yaml, save_yaml
 from models.errors import ConfigError
 
 _YAML_KEYS = {"image_size", "left", "right", "R", "T", "world_T_left"}
@@ -157,9 +157,7 @@ def _from_opencv(path: Path) -> StereoCamera:
 
 def load_calibration(path: str | Path) -> StereoCamera:
     """Load and validate a stereo calibration (DESIGN.md YAML or OpenCV FileStorage)."""
-    p = Path(path)
-    if not p.is_file():
-        raise ConfigError(f"{p}: calibration file not found")
+    p = check_file_size(path, what="calibration file")  # before YAML or cv2.FileStorage reads it
     try:
         text = p.read_text(errors="replace")
     except OSError as e:

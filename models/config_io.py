@@ -22,16 +22,57 @@ from models.errors import ConfigError
 T = TypeVar("T")
 
 
-def load_yaml(path: str | Path) -> dict[str, Any]:
-    """Read a YAML mapping from ``path``; raise :class:`ConfigError` if missing or malformed."""
+MAX_CONFIG_BYTES = 1 << 20  # [B] largest configuration or calibration file read (1 MiB)
+
+
+class YamlAliasError(yaml.YAMLError):
+    """An anchor or alias in a wristmark YAML file (line: 1-based)."""
+
+    def __init__(self, message: str, line: int) -> None:
+        super().__init__(message)
+        self.message = message
+        self.line = line
+
+
+class NoAliasSafeLoader(yaml.SafeLoader):
+    """yaml.SafeLoader that refuses anchors and aliases (configuration files never need them,
+    and nested aliases let a 1 KB file expand to gigabytes: the "billion laughs")."""
+
+    def compose_node(self, parent: Any, index: Any) -> Any:
+        event = self.peek_event()
+        if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None) is not None:
+            sign = "*" if isinstance(event, yaml.AliasEvent) else "&"
+            raise YamlAliasError(f"YAML anchors and aliases are not allowed ('{sign}{event.anchor}'): "
+                                 "write the values out", event.start_mark.line + 1)
+        return super().compose_node(parent, index)
+
+
+def check_file_size(path: str | Path, limit: int = MAX_CONFIG_BYTES, what: str = "configuration file") -> Path:
+    """Raise ConfigError if ``path`` is missing or larger than ``limit`` bytes (checked before
+    anything reads it); return it as a Path."""
     p = Path(path)
     if not p.is_file():
-        raise ConfigError(f"{p}: file not found")
+        raise ConfigError(f"{p}: {what} not found")
+    size = p.stat().st_size
+    if size > limit:
+        raise ConfigError(f"{p}: {what} of {size / 1e6:.1f} MB, over the {limit / 1e6:.1f} MB limit "
+                          "(not read; is it the right file?)")
+    return p
+
+
+def load_yaml(path: str | Path) -> dict[str, Any]:
+    """Read a YAML mapping from ``path``; raise :class:`ConfigError` if missing, malformed,
+    larger than MAX_CONFIG_BYTES, or using anchors/aliases (:class:`NoAliasSafeLoader`)."""
+    p = check_file_size(path)
     try:
-        data = yaml.safe_load(p.read_text())
+        data = yaml.load(p.read_bytes(), Loader=NoAliasSafeLoader)  # noqa: S506 - a SafeLoader
+    except YamlAliasError as e:
+        raise ConfigError(f"{p}:{e.line}: {e.message}") from None
     except yaml.YAMLError as e:
         first = str(e).splitlines()[0] if str(e) else "parse error"
         raise ConfigError(f"{p}: not valid YAML ({first})") from e
+    except RecursionError:
+        raise ConfigError(f"{p}: not valid YAML (nested too deeply)") from None
     if data is None:
         return {}
     if not isinstance(data, dict):

@@ -171,10 +171,12 @@ def _start_worker(server: MeshcatServer, config: SceneConfig, rate_hz: float,
 
 def start_live_view(setup: SimSetup | None = None, *, config: SceneConfig | None = None,
                     title: str = "wristmark live view", rate_hz: float = DEFAULT_RATE_HZ,
-                    trail_seconds: float = DEFAULT_TRAIL_SECONDS, stream: TextIO | None = sys.stderr) -> LiveView:
+                    trail_seconds: float = DEFAULT_TRAIL_SECONDS, stream: TextIO | None = sys.stderr,
+                    host: str | None = None) -> LiveView:
     """Start the Meshcat server and the drawing process for the scene of ``setup`` (or
     ``config``; default: configs/) and return a :class:`LiveView`: pass its ``on_cycle`` to
-    the ServoLoop, call ``close()`` at the end. Prints the URL to open on ``stream``."""
+    the ServoLoop, call ``close()`` at the end. Prints the URL to open on ``stream``. The page
+    is served on loopback only unless ``host`` adds an address (viz.web_hosts)."""
     if not rate_hz > 0:
         raise WristmarkError(f"live view rate must be > 0 Hz, got {rate_hz}")
     if not trail_seconds >= 0:
@@ -185,7 +187,7 @@ def start_live_view(setup: SimSetup | None = None, *, config: SceneConfig | None
 
             setup = load_setup()
         config = SceneConfig.from_setup(setup)
-    server = MeshcatServer.start(title=title)
+    server = MeshcatServer.start(title=title, host=host, stream=stream)
     try:
         worker = _start_worker(server, config, rate_hz, trail_seconds)
     except BaseException:

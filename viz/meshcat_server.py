@@ -6,23 +6,30 @@ bridge plus what the wristmark view needs.
 - ZMQ command ``wm_batch`` carries many scene commands in one round trip (frames: b"wm_batch",
   then type, path, data per command): a live frame costs one request, not ~50.
 - ZMQ command ``wm_status`` stores the status JSON.
-- It prints ``zmq_url=...`` and ``web_url=...`` on stdout, then silences stdout and stderr
-  (nobody drains them: a full pipe would hang the server), and exits when its parent dies.
+- The web server listens on loopback only (127.0.0.1 and ::1) unless ``--host ADDRESS`` adds
+  one (viz.web_hosts); ZMQ is on 127.0.0.1.
+- It prints ``zmq_url=...`` and ``web_url=...`` on stdout (or ``error=...`` and exits 2), then
+  silences stdout and stderr (nobody drains them: a full pipe would hang the server), and exits
+  when its parent dies.
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import os
 import sys
 from typing import Any
 
+import tornado.httpserver
 import tornado.ioloop
+import tornado.netutil
 import tornado.web
 from meshcat.servers.zmqserver import ZMQWebSocketBridge
 
 from viz import command_tree
 from viz.page import served_page
+from viz.web_hosts import listen_addresses
 
 PAGE_PATH = "/wristmark"
 VIEW_NICENESS = 5  # added to the nice value of the view's processes
@@ -48,13 +55,44 @@ class _StatusHandler(tornado.web.RequestHandler):
         self.write(self.bridge.status)
 
 
-class WristmarkBridge(ZMQWebSocketBridge):  # type: ignore[misc]
-    """Meshcat's bridge with our page, batched commands and a status line."""
+class AddressError(Exception):
+    """A --host address this machine cannot listen on (not an OSError: meshcat's port search
+    would take it for a busy port and try the next thousand)."""
 
-    def __init__(self, page: str, **kwargs: Any) -> None:
+
+def listen_on(app: tornado.web.Application, port: int, required: list[str], optional: list[str],
+              **kwargs: Any) -> tornado.httpserver.HTTPServer:
+    """Serve ``app`` on ``port`` at each address (tornado's own ``listen`` binds every interface).
+    OSError (port busy) on a required address; optional ones are skipped where they fail."""
+    sockets: list[Any] = []
+    try:
+        for host in required + optional:
+            try:
+                sockets += tornado.netutil.bind_sockets(port, host)
+            except OSError as e:
+                if host in optional and e.errno != errno.EADDRINUSE:  # e.g. no IPv6 here
+                    continue
+                if e.errno == errno.EADDRINUSE:  # meshcat tries the next port
+                    raise
+                raise AddressError(f"cannot listen on {host}: {e.strerror or e}") from e
+    except BaseException:
+        for sock in sockets:
+            sock.close()
+        raise
+    server = tornado.httpserver.HTTPServer(app, **kwargs)
+    server.add_sockets(sockets)
+    return server
+
+
+class WristmarkBridge(ZMQWebSocketBridge):  # type: ignore[misc]
+    """Meshcat's bridge with our page, batched commands and a status line, served on the
+    addresses of ``viz.web_hosts.listen_addresses(host)`` (loopback only by default)."""
+
+    def __init__(self, page: str, web_host: str | None = None, **kwargs: Any) -> None:
         self.page = page
         self.status = b"{}"
         self.tree: Any = None  # set by the base class
+        self.web_addresses = listen_addresses(web_host)
         super().__init__(**kwargs)
 
     def make_app(self) -> tornado.web.Application:
@@ -63,6 +101,8 @@ class WristmarkBridge(ZMQWebSocketBridge):  # type: ignore[misc]
             (PAGE_PATH + r"/?", _PageHandler, {"bridge": self}),
             (PAGE_PATH + r"/status", _StatusHandler, {"bridge": self}),
         ])
+        required, optional = self.web_addresses
+        app.listen = lambda port, **kw: listen_on(app, port, required, optional, **kw)  # type: ignore[method-assign]
         return app
 
     def handle_zmq(self, frames: list[bytes]) -> None:
@@ -110,9 +150,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--controls", action="store_true", help="open the control panel (animation slider)")
     ap.add_argument("--no-status", action="store_true", help="do not poll the status line")
     ap.add_argument("--parent", type=int, default=os.getppid(), help="exit when this pid is gone")
+    ap.add_argument("--host", default=None, help="web server: also listen on this address (default: loopback only)")
     args = ap.parse_args(argv)
     _lower_priority()
-    bridge = WristmarkBridge(served_page(args.title, args.controls, not args.no_status), host="127.0.0.1")
+    try:
+        bridge = WristmarkBridge(served_page(args.title, args.controls, not args.no_status), web_host=args.host,
+                                 host="127.0.0.1")
+    except AddressError as e:
+        print(f"error={e}", flush=True)
+        return 2
     base = bridge.web_url.rsplit("/static/", 1)[0]
     print(f"zmq_url={bridge.zmq_url}", flush=True)
     print(f"web_url={base}{PAGE_PATH}", flush=True)

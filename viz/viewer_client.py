@@ -18,15 +18,17 @@ import subprocess
 import sys
 import threading
 import time
+import urllib.parse
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 import meshcat
 import zmq
 
 from models.errors import WristmarkError
 from viz import command_tree
+from viz.web_hosts import exposure_notice
 
 STARTUP_TIMEOUT = 30.0  # [s] for the server to print its URLs (imports on a loaded machine)
 REPLY_TIMEOUT_MS = 10000  # [ms] a command without a reply means the server is gone
@@ -112,13 +114,19 @@ class MeshcatServer:
         atexit.register(self.close)
 
     @classmethod
-    def start(cls, title: str = "wristmark", controls: bool = False, status: bool = True) -> MeshcatServer:
-        """Start the server process; return once it listens (raises ViewerError otherwise)."""
+    def start(cls, title: str = "wristmark", controls: bool = False, status: bool = True,
+              host: str | None = None, stream: TextIO | None = sys.stderr) -> MeshcatServer:
+        """Start the server process; return once it listens (raises ViewerError otherwise).
+
+        The page is served on loopback only unless ``host`` adds an address (viz.web_hosts);
+        then a line on ``stream`` says who else can reach it."""
         args = [sys.executable, "-u", "-m", "viz.meshcat_server", "--title", title, "--parent", str(os.getpid())]
         if controls:
             args.append("--controls")
         if not status:
             args.append("--no-status")
+        if host is not None:
+            args += ["--host", host]
         env = dict(os.environ)
         root = str(Path(__file__).resolve().parent.parent)
         env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
@@ -132,26 +140,38 @@ class MeshcatServer:
         buf = b""
         fd = proc.stdout.fileno()
         deadline = time.monotonic() + STARTUP_TIMEOUT
-        while len(lines) < 2:
+        while not {"zmq_url", "web_url"} <= lines.keys():
             left = deadline - time.monotonic()
-            if left <= 0 or proc.poll() is not None:
+            if "error" in lines or left <= 0 or proc.poll() is not None:
                 proc.kill()
                 proc.wait()
+                if "error" in lines:
+                    raise ViewerError(f"the 3D view cannot start: {lines['error']} (--host {host})")
                 raise ViewerError("the Meshcat server did not start (is port 7000+ free? is meshcat installed?)")
             ready, _, _ = select.select([fd], [], [], min(left, 0.5))
             if not ready:
                 continue
             chunk = os.read(fd, 4096)
             if not chunk:
+                time.sleep(0.05)  # the server is exiting: poll() sees it next round
                 continue
             buf += chunk
             *complete, buf = buf.split(b"\n")
             for line in complete:
                 key, _, value = line.decode(errors="replace").strip().partition("=")
-                if key in ("zmq_url", "web_url"):
+                if key in ("zmq_url", "web_url", "error"):
                     lines[key] = value
         proc.stdout.close()
-        return cls(proc, lines["zmq_url"], lines["web_url"])
+        server = cls(proc, lines["zmq_url"], lines["web_url"])
+        notice = exposure_notice(host, server.port)
+        if notice and stream is not None:
+            print(notice, file=stream, flush=True)
+        return server
+
+    @property
+    def port(self) -> int:
+        """The web server's port."""
+        return int(urllib.parse.urlsplit(self.url).port or 80)
 
     def visualizer(self) -> meshcat.Visualizer:
         """A Meshcat visualizer bound to this server (its window is a :class:`ZmqWindow`)."""

@@ -21,6 +21,7 @@ from rig.commands.option_types import (
 from rig.commands.setup_args import add_setup_arguments, setup_from_args
 from rig.output_dir import add_force_argument, claim_outputs, link_latest, new_run_dir
 from rig.run_log import write_json
+from viz.web_hosts import add_host_argument
 
 if TYPE_CHECKING:
     from rig.run_log import CycleRecord
@@ -42,6 +43,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.add_argument("--view", action="store_true",
                    help="live 3D view in the browser (Meshcat; prints the URL to open)")
+    add_host_argument(p)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -58,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     if args.view:
         from viz.live import start_live_view
 
-        view = start_live_view(setup)
+        view = start_live_view(setup, host=args.host)
     on_cycle = view.on_cycle if view is not None else None
     try:
         res = _run(args, setup, out, progress, on_cycle)

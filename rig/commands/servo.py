@@ -55,6 +55,7 @@ from rig.servo_session import (
     summarize,
 )
 from rig.trajectories import Trajectory
+from viz.web_hosts import add_host_argument
 
 if TYPE_CHECKING:
     from sim.setup import SimSetup
@@ -91,6 +92,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_force_argument(p)
     add_setup_arguments(p)
     p.add_argument("--view", action="store_true", help="show the run live in the Meshcat view (paced)")
+    add_host_argument(p)
     p.add_argument("--view-hold", type=nonnegative_float(MAX_HOLD_S), default=0.0, metavar="S",
                    help="with --view: keep serving the view S seconds after the run (Ctrl-C ends it)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -134,13 +136,13 @@ def start_configuration(setup: SimSetup, traj: Trajectory) -> Array:
     return np.asarray(ik.psi, float)
 
 
-def live_view(setup: SimSetup) -> Any:
+def live_view(setup: SimSetup, host: str | None = None) -> Any:
     """The Meshcat live view (viz.live.start_live_view), or a one-line error when it is missing."""
     try:
         from viz.live import start_live_view  # type: ignore[import-not-found, unused-ignore]
     except ImportError as e:
         raise InputError(f"--view needs the Meshcat live view (viz/live.py), which is not available: {e}") from None
-    return start_live_view(setup)
+    return start_live_view(setup, host=host)
 
 
 @contextmanager
@@ -176,7 +178,7 @@ def run(args: argparse.Namespace) -> int:
     options = LinkOptions(kind=kind, port=args.serial, baudrate=args.baud, timeout=args.timeout,
                           realtime=bool(args.realtime), pace=bool(args.pace or args.view))
     with _sigterm_as_interrupt():
-        view = live_view(setup) if args.view else None
+        view = live_view(setup, args.host) if args.view else None
         try:
             session = open_session(setup, psi0, options)
             out = run_servo(setup, traj, session, psi0, settle=setup.rig.settle_time, seed=setup.rig.seed,

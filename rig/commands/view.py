@@ -20,6 +20,7 @@ from types import FrameType
 from models.errors import InputError
 from rig.commands.option_types import MAX_FRAMES, MAX_HOLD_S, int_in, nonnegative_float
 from rig.output_dir import add_force_argument, claim_outputs
+from viz.web_hosts import add_host_argument
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -36,6 +37,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--camera", "--calib", dest="camera", metavar="YAML", help="home view: stereo calibration")
     p.add_argument("--json", action="store_true", help="print the URL or the written file as JSON")
     add_force_argument(p)
+    add_host_argument(p)
 
 
 def _stop_on_sigterm(signum: int, frame: FrameType | None) -> None:
@@ -81,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
 
     from viz.viewer_client import MeshcatServer
 
-    server = MeshcatServer.start(title=title, controls=replay is not None)
+    server = MeshcatServer.start(title=title, controls=replay is not None, host=args.host)
     previous = signal.signal(signal.SIGTERM, _stop_on_sigterm)
     try:
         vis = server.visualizer()

@@ -58,13 +58,15 @@ def read_image(path: Path) -> NDArray[np.uint8]:
     """Read an image as cv2.imread does (BGR or grayscale uint8); InputError if unreadable."""
     import cv2
 
+    from cvs.image_decode import decode_image
+
     try:
         data = np.fromfile(str(path), dtype=np.uint8)
-        img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+        img, said = decode_image(data) if data.size else (None, "empty file")
     except (OSError, cv2.error) as e:
         raise InputError(f"{path}: cannot read the image ({e})") from e
     if img is None:
-        raise InputError(f"{path}: not a readable image (corrupt or unsupported format)")
+        raise InputError(f"{path}: not a readable image (corrupt or unsupported format{': ' + said if said else ''})")
     if img.dtype != np.uint8:
         raise InputError(f"{path}: expected an 8-bit image, got {img.dtype}")
     return np.asarray(img)

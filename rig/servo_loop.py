@@ -17,7 +17,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from tqdm import tqdm
 
 from models.actuation import actuators_from_psi, psi_from_actuators
 from models.errors import WristmarkError
@@ -27,6 +26,7 @@ from models.limits import clamp_psi, wrap_angle
 from models.plant_interface import ActuatedArm
 from models.robot_params import RobotParams
 from rig.actuator_link import ActuatorLink
+from rig.progress import PhaseProgress
 from rig.rig_config import RigConfig
 from rig.run_log import CycleRecord, RunLog
 from rig.tip_sensors import TipSensor
@@ -155,9 +155,8 @@ class ServoLoop:
         t0 = self.t
         last_ok: Array | None = None
         lost_run = 0
-        it = range(n_settle + n_traj)
-        bar = tqdm(it, desc=phase, unit="cyc", leave=False, disable=not progress)
-        for k in bar:
+        bar = PhaseProgress(phase, n_settle, n_traj, progress)
+        for k in range(n_settle + n_traj):
             t_k = t0 + k * dt
             self._advance(t_k)
             tau_raw = (k - n_settle) * dt  # trajectory time; negative while settling
@@ -220,6 +219,7 @@ class ServoLoop:
             log.add(rec)
             if callable(self.on_cycle):
                 self.on_cycle(rec)
+            bar.step()
         bar.close()
         return stats
 

@@ -125,7 +125,9 @@ def cube_table(res: dict[str, Any]) -> str:
         f"{c['max_mm']:.2f} | {100 * res['ratio']:.2f} % |",
         "",
         f"Corner overshoot (closed loop): max {c['corner_overshoot_mm']['max']:.2f} mm over "
-        f"{c['corner_overshoot_mm']['corners']} corners. Errors: optical-tracker tip vs desired tip.",
+        f"{c['corner_overshoot_mm']['corners']} corners. Errors: optical-tracker tip vs desired tip over "
+        f"{o['cycles']} open-loop and {c['cycles']} closed-loop cycles of the trajectory (the settling "
+        "cycles before each are not counted).",
         "",
     ]
     if c.get("stopped"):
@@ -178,16 +180,21 @@ def run_accuracy(setup: SimSetup, out_dir: Path, n: int = 40, progress: bool = T
 def run_load(setup: SimSetup, out_dir: Path, forces: list[float], progress: bool = True,
              duration: float | None = None, on_cycle: Callable[[CycleRecord], None] | None = None) -> dict[str, Any]:
     """Tip force swept (magnitude [N], direction -z_w, gravity-like): cube open vs closed loop."""
+    from tqdm import tqdm
+
     out_dir.mkdir(parents=True, exist_ok=True)
     rows = []
     res: dict[str, Any] = {}
-    for f in forces:
+    sweep = tqdm(forces, unit="force", disable=not progress)  # the phases' bars run below it
+    for i, f in enumerate(sweep):
+        sweep.set_description(f"load: force {i + 1} of {len(forces)} ({f:.2f} N)")
         plant = dataclasses.replace(setup.plant, tip_force=(0.0, 0.0, -float(f)))
         res = run_cube(setup.with_changes(plant=plant), out_dir / f"force_{f:.2f}N", progress=progress,
                        duration=duration, on_cycle=on_cycle)
         rows.append({"force_N": f, "open_loop": {k: res["open_loop"][k] for k in ("mean_mm", "max_mm")},
                      "closed_loop": {k: res["closed_loop"][k] for k in ("mean_mm", "max_mm", "stopped")},
                      "ratio": res["ratio"]})
+    sweep.close()
     out = {"experiment": "load", "controller": setup.controller.kind, "control_dt_s": setup.rig.control_dt,
            "duration_s": res.get("trajectory", {}).get("duration_s"), "rows": rows, "run_dir": str(out_dir)}
     write_json(out_dir / "result.json", out)

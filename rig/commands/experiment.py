@@ -61,6 +61,8 @@ def run(args: argparse.Namespace) -> int:
         from viz.live import start_live_view
 
         view = start_live_view(setup, host=args.host)
+        print(f"the live view closes when the run ends; then replay the run: wristmark view {out}",
+              file=sys.stderr, flush=True)
     on_cycle = view.on_cycle if view is not None else None
     try:
         res = _run(args, setup, out, progress, on_cycle)
@@ -68,6 +70,7 @@ def run(args: argparse.Namespace) -> int:
         if view is not None:
             view.close()
             print(f"replay in the browser: wristmark view {out}", file=sys.stderr)
+            print(f"(the live view at {view.url} has closed with the run)", file=sys.stderr)
     res["wall_time_s"] = time.perf_counter() - t0
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)

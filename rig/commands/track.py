@@ -27,7 +27,7 @@ from rig.commands.option_types import MAX_RMS_PX, float_in, positive_float
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--calib", required=True, help="stereo calibration (YAML of DESIGN.md or OpenCV FileStorage)")
+    p.add_argument("--calib", required=True, help="stereo calibration (YAML of docs/formats.md or OpenCV FileStorage)")
     p.add_argument("--marker", help="marker YAML (default: the reference marker)")
     p.add_argument("images", nargs="+", metavar="LEFT RIGHT", help="stereo pairs: left and right image paths")
     p.add_argument(

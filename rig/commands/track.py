@@ -20,8 +20,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from cvs.frame_source_images import read_image
 from models.errors import InputError
 
 
@@ -51,22 +51,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "default: decided from the images (the arm's side of the sleeve), else +x (tip to the right)",
     )
     p.add_argument("--json", action="store_true", help="one JSON object per pair and line on stdout")
-
-
-def read_image(path: Path) -> NDArray[np.uint8]:
-    """Read an image as cv2.imread does (BGR or grayscale uint8); InputError if unreadable."""
-    import cv2
-
-    try:
-        data = np.fromfile(str(path), dtype=np.uint8)
-        img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
-    except (OSError, cv2.error) as e:
-        raise InputError(f"{path}: cannot read the image ({e})") from e
-    if img is None:
-        raise InputError(f"{path}: not a readable image (corrupt or unsupported format)")
-    if img.dtype != np.uint8:
-        raise InputError(f"{path}: expected an 8-bit image, got {img.dtype}")
-    return np.asarray(img)
 
 
 def _round(a: Any, nd: int) -> Any:

@@ -80,7 +80,8 @@ class VideoStream:
             return packet
         img = cv2.imdecode(packet, cv2.IMREAD_COLOR)
         if img is None:
-            raise FrameSourceError(f"{self.path}: frame {self.packets - 1} cannot be decoded (corrupt file)")
+            raise FrameSourceError(
+                f"{self.path}: frame {self.packets - 1} cannot be decoded (truncated or corrupt file)")
         return np.asarray(img)
 
     def close(self) -> None:

@@ -122,7 +122,9 @@ def _open(spec: str | Sequence[str | Path], o: SourceOptions) -> StereoSource:
 
         return open_image_folder(path)
     if path.is_dir() or path.suffix.lower() in BAG_SUFFIXES:
-        raise FrameSourceError(f"{spec}: ROS 2 bags are not readable yet")
+        from cvs.frame_source_bag import BagSource
+
+        return BagSource(path, o.topics, paced=o.paced)
     from cvs.frame_source_video import VideoFileSource
 
     if not path.exists() and "," in spec:

@@ -157,3 +157,17 @@ def test_errors_exit_2_one_line(material: dict, tmp_path: Path, capsys: pytest.C
     assert rc == 2 and len(err.strip().splitlines()) == 1 and expected in err and "Traceback" not in err
     if case == "truncated":
         assert 0 < len(lines) < N and all(o["ok"] for o in lines)  # the frames before the cut were tracked
+
+
+def test_grayscale_and_paced(material: dict, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rc, colour, _ = _track(["--source", material["avi"], "--calib", material["calib"], "--json"], capsys)
+    rc2, grey, err = _track(["--source", material["avi"], "--calib", material["calib"], "--grayscale", "--paced",
+                             "--json"], capsys)
+    assert rc == rc2 == 0 and len(grey) + int(err.split("dropped ")[1]) == N
+    for g in grey:  # the luma plane tracks to the same tip within a few micrometres
+        c = colour[g["frame"]]
+        assert g["ok"] and np.linalg.norm(np.array(g["tip"]) - np.array(c["tip"])) < 20e-6
+    ann = tmp_path / "grey"
+    assert main(["track", "--source", material["avi"], "--calib", material["calib"], "--grayscale", "--frames", "1",
+                 "--annotate", str(ann)]) == 0
+    assert cv2.imread(str(ann / "frame_000000.png")).shape == (540, 1920, 3)  # drawn in colour on grey

@@ -74,7 +74,6 @@ def test_slow_consumer_gets_the_newest_frame(server: MjpegServer, frame_ids: tup
     assert max(ages) < 1.0 / FPS + processing + 0.03, ages
     assert all(b > a for a, b in zip(ids, ids[1:]))
     assert dropped >= 12  # ~1.4 frames dropped per processed one
-    assert min(np.diff(ids)) >= 2
 
 
 def test_stall_mid_run_is_one_line_error_within_timeout(server: MjpegServer, frame_ids: tuple) -> None:

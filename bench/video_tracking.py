@@ -38,6 +38,7 @@ from cvs.camera import StereoCamera, scaled_stereo_camera  # noqa: E402
 from cvs.marker import MarkerModel  # noqa: E402
 from cvs.marker_tracker import MarkerTracker  # noqa: E402
 from cvs.open_source import SourceOptions, open_stereo_source  # noqa: E402
+from rig.commands.option_types import int_in, positive_float  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -136,10 +137,10 @@ def run(frames: int = 120, fps: float = 60.0, scale: float = 1.0, repeat: int = 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--frames", type=int, default=120, help="rendered frames (default 120)")
-    ap.add_argument("--fps", type=float, default=60.0, help="the video's frame rate (default 60)")
-    ap.add_argument("--scale", type=float, default=1.0, help="camera scale (1: 1920x1080 per eye)")
-    ap.add_argument("--repeat", type=int, default=3, help="paced runs (default 3)")
+    ap.add_argument("--frames", type=int_in(2, 100000), default=120, help="rendered frames (default 120)")
+    ap.add_argument("--fps", type=positive_float(1000.0), default=60.0, help="the video's frame rate (default 60)")
+    ap.add_argument("--scale", type=positive_float(2.0), default=1.0, help="camera scale (1: 1920x1080 per eye)")
+    ap.add_argument("--repeat", type=int_in(1, 100), default=3, help="paced runs (default 3)")
     ap.add_argument("--bgr", action="store_true", help="track BGR frames (default: grey, as track --grayscale)")
     ap.add_argument("--video", help="play this side-by-side video instead of rendering one (calibration: "
                     "configs/camera.yaml at --scale)")

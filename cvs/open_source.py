@@ -120,7 +120,7 @@ def _open(spec: str | Sequence[str | Path], o: SourceOptions) -> StereoSource:
     if is_stream_url(spec):
         from cvs.frame_source_stream import open_network_stream
 
-        return open_network_stream(spec, o.layout, o.timeout)
+        return open_network_stream(spec, o.layout, o.timeout, o.grayscale)
     if is_device_spec(spec):
         from cvs.frame_source_v4l2 import open_v4l2_device
 

@@ -128,3 +128,34 @@ def test_server_closing_ends_the_stream_with_an_error(server: MjpegServer, frame
     finally:
         src.close()
     assert server.url in str(e.value) and "\n" not in str(e.value)
+
+
+def test_sender_capture_time_and_grey_decoding(server: MjpegServer, frame_ids: tuple) -> None:
+    """Frames published with their capture time (as the virtual lab's camera does) carry it to
+    t_capture; grey decoding reads only the luma plane."""
+    id_view, read_id = frame_ids
+    stamps: dict[int, float] = {}
+    stop = threading.Event()
+
+    def publish() -> None:
+        k = 0
+        while not stop.is_set():
+            t_cap = time.monotonic() - 0.02  # "exposed" 20 ms before it is sent
+            stamps[k] = t_cap
+            server.publish_image(join_stereo(id_view(k, 0), id_view(k, 1)), 85, t_capture=t_cap)
+            k += 1
+            stop.wait(1 / FPS)
+
+    th = threading.Thread(target=publish, daemon=True)
+    th.start()
+    src = open_stereo_source(server.url, SourceOptions(timeout=5.0, grayscale=True, image_size=(320, 180)))
+    try:
+        got = [src.read() for _ in range(5)]
+    finally:
+        src.close()
+        stop.set()
+        th.join()
+    for f in got:
+        assert f is not None and f.left.ndim == 2 and f.left.shape == (180, 320)
+        k = read_id(f.left) // 2
+        assert f.t_capture == pytest.approx(stamps[k], abs=2e-6)

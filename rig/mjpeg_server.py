@@ -1,15 +1,13 @@
 """An MJPEG-over-HTTP server: JPEG frames as one ``multipart/x-mixed-replace`` stream.
 
 ``MjpegServer(host, port)`` listens (loopback by default; ``port=0`` lets the OS choose) in a
-daemon thread of :class:`http.server.ThreadingHTTPServer`; every GET receives the stream from
-the next published frame on: each part is ``--BOUNDARY``, ``Content-Type: image/jpeg``,
-``Content-Length`` and the JPEG bytes, which OpenCV's FFmpeg backend (the ``mpjpeg`` demuxer),
-browsers and ``curl`` read. ``publish(jpeg, t_capture=None)`` hands a new frame to every client (with
-``t_capture``, the frame's ``time.monotonic()`` capture time travels inside the JPEG:
-cvs.jpeg_stamp); a client that
-is slower than the publisher skips to the newest frame (nothing queues up). ``close()`` stops
-the server and ends every client's stream. A new client gets the current frame at once,
-then every newer one.
+daemon thread of :class:`http.server.ThreadingHTTPServer`. Every GET gets the stream: the
+current frame at once, then every newer one, each part ``--BOUNDARY``, ``Content-Type:
+image/jpeg``, ``Content-Length`` and the JPEG bytes, which OpenCV's FFmpeg backend (the
+``mpjpeg`` demuxer), browsers and ``curl`` read. ``publish(jpeg, t_capture=None)`` hands a new
+frame to every client; with ``t_capture`` the frame's ``time.monotonic()`` capture time travels
+inside the JPEG (cvs.jpeg_stamp). A client slower than the publisher skips to the newest frame
+(nothing queues up). ``close()`` stops the server and ends every client's stream.
 
 Used by the tests of the network frame source and by the virtual lab's camera.
 """

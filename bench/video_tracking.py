@@ -85,8 +85,7 @@ def _track_all(video: Path, camera: StereoCamera, marker: MarkerModel, paced: bo
         n += 1
     wall, cpu = time.monotonic() - t0, time.process_time() - cpu0
     src.close()
-    inner: Any = getattr(src, "source", src)  # the size-checked wrapper holds the video source
-    skipped = int(getattr(inner, "decode_skipped", 0))
+    skipped = int(getattr(src, "decode_skipped", 0))
     out: dict[str, Any] = {"processed": n, "found": found, "wall_s": round(wall, 3),
                            "rate_fps": round(n / wall, 2) if wall > 0 else 0.0, "tracking_ms": _ms(track_s),
                            "latency_ms": _ms(latency_s),

@@ -101,11 +101,12 @@ class LiveCaptureSource:
         return frame
 
     def close(self) -> None:
-        """Stop the grabbing thread and release the capture (idempotent). A capture blocked in
-        a read is released once its own read timeout expires."""
+        """Stop the grabbing thread and release the capture (idempotent). A thread blocked in
+        a read of a stalled stream is waited for up to the capture's read timeout (2 x
+        ``timeout`` for network streams); after that it is left to end on its own."""
         if self._stop.is_set():
             return
         self._stop.set()
-        self._thread.join(timeout=self.timeout + 1.0)
+        self._thread.join(timeout=2.0 * self.timeout + 1.0)
         if not self._thread.is_alive():
             self._cap.release()

@@ -4,8 +4,9 @@ backend, read by a grabbing thread that keeps the newest frame (cvs.frame_source
 Low delay: unless the user set ``OPENCV_FFMPEG_CAPTURE_OPTIONS`` themselves, FFmpeg is asked
 not to buffer (``fflags;nobuffer|flags;low_delay``), to probe little before the first frame
 (``probesize``, ``analyzeduration``) and to carry RTSP over TCP. The open and read timeouts
-(``CAP_PROP_OPEN_TIMEOUT_MSEC``, ``CAP_PROP_READ_TIMEOUT_MSEC``) make a stream that never
-starts fail within ``timeout`` s and end a blocked read of a stalled one.
+(``CAP_PROP_OPEN_TIMEOUT_MSEC`` = ``timeout``, ``CAP_PROP_READ_TIMEOUT_MSEC`` = twice that)
+make a stream that never starts fail within ``timeout`` s and end a blocked read of a stalled
+one after the live source has reported the stall.
 
 MJPEG streams are read as JPEG packets (``CAP_PROP_FORMAT = -1``) and decoded here: grey
 decoding then reads only the luma plane, and a capture time the sender put in the JPEG
@@ -55,7 +56,9 @@ def open_network_stream(url: str, layout: str = "sbs", timeout: float = 5.0, gra
     """Open ``url`` (fails within about ``timeout`` s [s] when nothing arrives) as a live source;
     grayscale: decode MJPEG frames to grey (only the luma plane)."""
     ms = max(int(1e3 * timeout), 1)
-    params = [cv2.CAP_PROP_OPEN_TIMEOUT_MSEC, ms, cv2.CAP_PROP_READ_TIMEOUT_MSEC, ms]
+    # FFmpeg's read timeout is twice ours, so that a stall is reported as one (by the live
+    # source's wait), not as the end of the stream (a read that FFmpeg gave up)
+    params = [cv2.CAP_PROP_OPEN_TIMEOUT_MSEC, ms, cv2.CAP_PROP_READ_TIMEOUT_MSEC, 2 * ms]
     with _ENV_LOCK:
         user_set = _ENV in os.environ
         if not user_set:

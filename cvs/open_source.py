@@ -91,6 +91,12 @@ class CheckedSource:
     def close(self) -> None:
         self.source.close()
 
+    def __getattr__(self, name: str) -> object:
+        """Everything else is the wrapped source's (fps, decode_skipped, captured, ...)."""
+        if name == "source":  # not set yet (e.g. during unpickling): no recursion
+            raise AttributeError(name)
+        return getattr(self.source, name)
+
 
 def source_length(source: StereoSource) -> int | None:
     """Frames a finite source will hand out (None for live or unknown)."""

@@ -42,6 +42,7 @@ class _Handler(BaseHTTPRequestHandler):
         self.send_header("Connection", "close")
         self.end_headers()
         seen = max(owner.frame_count - 1, 0)  # start with the current frame, if there is one
+        owner.count_client(+1)
         try:
             while True:
                 jpeg, seen = owner.wait_frame(seen)
@@ -52,6 +53,8 @@ class _Handler(BaseHTTPRequestHandler):
                 self.wfile.flush()
         except (BrokenPipeError, ConnectionResetError, OSError):
             return  # the client went away
+        finally:
+            owner.count_client(-1)
 
 
 class _Server(ThreadingHTTPServer):
@@ -70,6 +73,7 @@ class MjpegServer:
         self._cond = threading.Condition()
         self._jpeg: bytes | None = None
         self._count = 0
+        self._clients = 0
         self._closed = False
         try:
             self._httpd = _Server((host, int(port)), _Handler)
@@ -91,6 +95,16 @@ class MjpegServer:
     def frame_count(self) -> int:
         """Frames published so far."""
         return self._count
+
+    @property
+    def clients(self) -> int:
+        """Clients receiving the stream now."""
+        return self._clients
+
+    def count_client(self, change: int) -> None:
+        """A client connected (+1) or left (-1)."""
+        with self._cond:
+            self._clients += change
 
     def publish(self, jpeg: bytes, t_capture: float | None = None) -> None:
         """Hand one JPEG-encoded frame to every connected client (they skip to the newest);

@@ -203,11 +203,12 @@ def run(args: argparse.Namespace) -> int:
         else:
             print(_text_line(frame, res), flush=True)
 
-    outputs = TrackOutputs.open(args.annotate, args.record, args.record_jpeg, camera, marker)
+    source = open_stereo_source(args.source, options)
     try:
-        source = open_stereo_source(args.source, options)
+        fps = float(getattr(source, "fps", 0.0) or 30.0)  # a video's own rate for an annotated video
+        outputs = TrackOutputs.open(args.annotate, args.record, args.record_jpeg, camera, marker, fps)
     except BaseException:
-        outputs.close()
+        source.close()
         raise
     try:
         summary = track_source(source, tracker, emit, outputs, args.frames, hint)

@@ -71,7 +71,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--timeout", type=positive_float(3600.0), default=DEFAULT_TIMEOUT_S, metavar="S",
                    help=f"live source: open and stall timeout [s] (default {DEFAULT_TIMEOUT_S:g})")
     p.add_argument("--paced", action="store_true",
-                   help="play a video or bag at its recorded rate in wall-clock time (newest frame, drops counted)")
+                   help="play a video or bag at its recorded rate in wall-clock time "
+                   "(video: newest frame, drops counted)")
     p.add_argument("--grayscale", action="store_true",
                    help="hand the tracker grey views (an MJPG video then decodes only its luma: ~4x faster)")
     p.add_argument("--annotate", metavar="DIR|FILE.mp4", help="write annotated frames to a folder or a video "

@@ -39,7 +39,7 @@ class SourceOptions:
     open and stall timeout [s]; paced: play files and bags at their recorded rate in wall-clock
     time (video: newest-frame semantics, dropped frames counted); image_size: (width, height) of
     each view the calibration expects [px] (None: no check); grayscale: hand out 8-bit grey
-    views (videos: MJPG decodes only its luma plane, ~4x faster; other sources convert)."""
+    views (videos: MJPG decodes only its luma plane, 2-5x faster here; other sources convert)."""
 
     layout: str = "sbs"
     size: tuple[int, int] | None = None

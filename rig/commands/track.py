@@ -74,7 +74,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="play a video or bag at its recorded rate in wall-clock time "
                    "(video: newest frame, drops counted)")
     p.add_argument("--grayscale", action="store_true",
-                   help="hand the tracker grey views (an MJPG video then decodes only its luma: ~4x faster)")
+                   help="hand the tracker grey views (an MJPG video then decodes only its luma: 2-5x faster)")
     p.add_argument("--annotate", metavar="DIR|FILE.mp4", help="write annotated frames to a folder or a video "
                    "(.mp4, .avi, .mkv)")
     p.add_argument("--record", metavar="FILE.mcap", help="record frames and poses as a ROS 2 bag (MCAP)")

@@ -1,4 +1,4 @@
-"""``wristmark experiment {cube,accuracy,load}``: the paper's experiments on the simulated bench."""
+"""``wristmark experiment {cube,point,accuracy,load}``: the paper's experiments on the simulated bench."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from models.errors import ConfigError
+from rig.commands.option_types import finite_float
 from rig.commands.setup_args import add_setup_arguments, setup_from_args
 from rig.run_log import write_json
 
@@ -19,12 +20,15 @@ if TYPE_CHECKING:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("name", choices=("cube", "accuracy", "load"), help="which experiment")
+    p.add_argument("name", choices=("cube", "point", "accuracy", "load"), help="which experiment")
     p.add_argument("--json", metavar="OUT", help="write the result JSON to OUT")
     p.add_argument("--out", metavar="DIR", help="run folder (default: runs/<name>-<time>)")
     add_setup_arguments(p)
     p.add_argument("--duration", type=float, metavar="S",
-                   help="cube/load: run only the first S seconds of the cube walk (quick checks)")
+                   help="cube/load: run only the first S seconds of the cube walk (quick checks); "
+                        "point: hold for S seconds (default 5)")
+    p.add_argument("--point", type=finite_float(), nargs=3, metavar=("X", "Y", "Z"),
+                   help="point: the point to hold in {w} [m] (default: the workspace centre)")
     p.add_argument("--positions", type=int, default=40, help="accuracy: number of positions")
     p.add_argument("--forces", type=float, nargs="+", default=[0.0, 0.1, 0.2, 0.3],
                    help="load: tip forces [N] to sweep")
@@ -33,10 +37,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="live 3D view in the browser (Meshcat; prints the URL to open)")
 
 
-def run(args: argparse.Namespace) -> int:
+def check_args(args: argparse.Namespace) -> SimSetup:
+    """Validate the options (ConfigError naming the bad one) and load the setup they ask for."""
     if args.duration is not None and not args.duration > 0:
         raise ConfigError(f"--duration must be > 0 s, got {args.duration}")
-    setup = setup_from_args(args)
+    if args.point is not None and args.name != "point":
+        raise ConfigError("--point needs the point experiment")
+    return setup_from_args(args)
+
+
+def run(args: argparse.Namespace) -> int:
+    setup = check_args(args)
     out = Path(args.out) if args.out else Path("runs") / f"{args.name}-{time.strftime('%Y%m%d-%H%M%S')}"
     progress = not args.no_progress
     t0 = time.perf_counter()
@@ -71,6 +82,10 @@ def _run(args: argparse.Namespace, setup: SimSetup, out: Path, progress: bool,
 
     if args.name == "cube":
         res = experiments.run_cube(setup, out, progress=progress, duration=args.duration, on_cycle=on_cycle)
+        print(experiments.cube_table(res))
+    elif args.name == "point":
+        res = experiments.run_point(setup, out, point=args.point, progress=progress, duration=args.duration,
+                                    on_cycle=on_cycle)
         print(experiments.cube_table(res))
     elif args.name == "accuracy":
         res = experiments.run_accuracy(setup, out, n=args.positions, progress=progress)

@@ -74,8 +74,9 @@ def write_plots(spec: SweepSpec, out: Path, rows: Sequence[Row]) -> list[Path]:
     return paths
 
 
-def write_summary(spec: SweepSpec, out: Path, rows: Sequence[Row]) -> str:
-    """Write ``out/summary.md`` (and the plots); return the table."""
+def write_summary(spec: SweepSpec, out: Path, rows: Sequence[Row], shown_out: Path | None = None) -> str:
+    """Write ``out/summary.md`` (and the plots); return the table. ``shown_out``: the folder as
+    the command line named it."""
     table = summary_table(spec, rows)
     plots = write_plots(spec, out, rows)
     failed = [r for r in rows if r["status"] != "ok"]
@@ -84,7 +85,7 @@ def write_summary(spec: SweepSpec, out: Path, rows: Sequence[Row]) -> str:
     md = [
         f"# Sweep: {spec.experiment}, {len(rows)} of {len(spec.trials)} trials",
         "",
-        f"Command: `wristmark sweep {spec.path} --out {out}`",
+        f"Command: `wristmark sweep {spec.path} --out {shown_out or out}`",
         "",
         f"Fixed options: {fixed}. Swept: {', '.join(spec.swept_keys) or 'seeds only'}; "
         f"seeds: {', '.join(map(str, spec.seeds))}"

@@ -39,13 +39,15 @@ FINAL = ("status", "wall_s", "worker")
 
 @dataclass(frozen=True)
 class SweepOutcome:
-    """What a sweep did: trials found done in DIR, trials run now, failed trials, wall time [s]."""
+    """What a sweep did: trials found done in DIR, trials run now, failed trials, wall time [s]
+    (all of it; ``trials_s``: from the first trial submitted to the last one finished)."""
 
     total: int
     resumed: int
     ran: int
     failed: int
     wall_s: float
+    trials_s: float
 
 
 def columns(spec: SweepSpec) -> list[str]:
@@ -132,7 +134,7 @@ def dask_client(workers: int | None = None, scheduler: str | None = None) -> Ite
 
     if scheduler:
         try:
-            client = Client(scheduler, timeout="10s")
+            client = Client(scheduler, timeout="5s")
         except (OSError, TimeoutError, ValueError) as e:
             raise InputError(f"cannot reach the dask scheduler at {scheduler}: {one_line(str(e))}") from None
         try:
@@ -158,7 +160,7 @@ def run_sweep(spec: SweepSpec, out: Path, workers: int | None = None, scheduler:
     from sim.sweep_report import write_summary
 
     t0 = time.perf_counter()
-    out = out.resolve()
+    shown, out = out, out.resolve()
     done = prepare_folder(spec, out)
     header = columns(spec)
     todo = [t for t in spec.trials if t.index not in done]
@@ -166,6 +168,7 @@ def run_sweep(spec: SweepSpec, out: Path, workers: int | None = None, scheduler:
         print(f"resuming: {len(done)} of {len(spec.trials)} trials already in {out / RESULTS}, "
               f"running the other {len(todo)}", file=sys.stderr)
     failed = sum(r["status"] != "ok" for r in done.values())
+    trials_s = 0.0
     if todo:
         with dask_client(workers, scheduler) as client, (out / RESULTS).open("a", newline="") as f, \
                 tqdm(total=len(spec.trials), initial=len(done), unit="trial", desc="sweep", disable=not progress,
@@ -176,6 +179,7 @@ def run_sweep(spec: SweepSpec, out: Path, workers: int | None = None, scheduler:
                 raise InputError(f"the dask workers cannot prepare a trial: {one_line(f'{type(e).__name__}: {e}')}"
                                  ) from None
             writer = csv.writer(f)
+            t_submit = time.perf_counter()
             tag = spec.fingerprint()[:10]
             futures = {client.submit(run_trial, TrialJob(spec.experiment, t, str(out / "trials" / f"{t.index:04d}")),
                                      key=f"wristmark-trial-{tag}-{t.index:05d}", pure=False): t for t in todo}
@@ -194,8 +198,9 @@ def run_sweep(spec: SweepSpec, out: Path, workers: int | None = None, scheduler:
                 bar.update(1)
                 bar.set_postfix(failed=failed, refresh=False)
                 fut.release()
+            trials_s = time.perf_counter() - t_submit
     rows = read_rows(out / RESULTS, header)
     ordered = [rows[i] for i in sorted(rows)]
     write_rows(out / RESULTS, header, ordered)
-    write_summary(spec, out, ordered)
-    return SweepOutcome(len(spec.trials), len(done), len(todo), failed, time.perf_counter() - t0)
+    write_summary(spec, out, ordered, shown)
+    return SweepOutcome(len(spec.trials), len(done), len(todo), failed, time.perf_counter() - t0, trials_s)

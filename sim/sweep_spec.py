@@ -52,13 +52,15 @@ class Trial:
 
     values: the swept keys as written in the SPEC -> this trial's value. args: its
     ``wristmark experiment`` option words (without seed, output and changed configuration files).
-    configs: namespace -> complete mapping of each configuration file a dotted key changes."""
+    configs: namespace -> complete mapping of each configuration file a dotted key changes.
+    inputs: namespace -> SHA-256 of each other configuration file the experiment reads."""
 
     index: int
     seed: int
     values: dict[str, Any]
     args: tuple[str, ...]
     configs: dict[str, dict[str, Any]]
+    inputs: dict[str, str]
 
     def argv(self, experiment: str, config_words: list[str]) -> list[str]:
         """``wristmark experiment`` words of this trial (output options not included)."""
@@ -86,7 +88,7 @@ class SweepSpec:
 
     def fingerprint(self) -> str:
         """Hash of everything that decides the trials' results (SPEC and configuration contents)."""
-        data = [self.experiment, [[t.index, t.seed, list(t.args), t.configs] for t in self.trials]]
+        data = [self.experiment, [[t.index, t.seed, list(t.args), t.configs, t.inputs] for t in self.trials]]
         return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()
 
     def describe(self) -> dict[str, Any]:
@@ -200,10 +202,16 @@ def _samples(ranges: dict[str, tuple[float, float]], n: int, seed: int) -> list[
 
 
 class _BaseConfigs:
-    """Base configuration mappings, loaded once per file."""
+    """Base configuration mappings and file digests, read once per file."""
 
     def __init__(self) -> None:
         self.cache: dict[tuple[str, str], dict[str, Any]] = {}
+        self.digests: dict[Path, str] = {}
+
+    def digest(self, path: Path) -> str:
+        if path not in self.digests:
+            self.digests[path] = hashlib.sha256(path.read_bytes()).hexdigest() if path.is_file() else "missing"
+        return self.digests[path]
 
     def get(self, ns: str, path: Path, key: str) -> dict[str, Any]:
         ck = (ns, str(path))
@@ -245,9 +253,14 @@ def _expand(options: ExperimentOptions, fixed: dict[str, Any], points: list[dict
                 configs[ns] = bases.get(ns, base, k)
             configs[ns] = set_dotted(configs[ns], k, parts, v)
         replaced = {NAMESPACES[ns].option for ns in configs}
+        inputs = {}
+        for ns, where in NAMESPACES.items():
+            if ns not in configs:
+                file = plain.get(where.option)
+                inputs[ns] = bases.digest(Path(file[1]) if file else default_config(where.default))
         args = [w for dest, (k, v) in plain.items() if dest not in replaced for w in options.tokens(k, v)]
         for seed in seeds:
-            trials.append(Trial(len(trials), seed, values, tuple(args), configs))
+            trials.append(Trial(len(trials), seed, values, tuple(args), configs, inputs))
     return trials
 
 

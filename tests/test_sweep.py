@@ -283,3 +283,59 @@ def test_trials_expand_grid_random_and_seeds_in_order(tmp_path: Path) -> None:
     assert t.configs["controller"]["kp"] == 6.0 and t.configs["plant"]["bend_gain"][0] == gains[0]
     assert "--controller" in t.args and "--dt" in t.args and "--plant" not in t.args
     assert s.fingerprint() == again.fingerprint()
+
+
+def test_the_same_sweep_runs_on_an_existing_cluster(two_workers: Path, tmp_path: Path) -> None:
+    """`dask scheduler` + `dask worker` started here (127.0.0.1, OS-chosen port), then --scheduler."""
+    dask = str(Path(sys.executable).with_name("dask"))
+    info = tmp_path / "scheduler.json"
+    procs = [subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                               "--scheduler-file", str(info)], cwd=tmp_path, start_new_session=True,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        procs.append(subprocess.Popen([dask, "worker", "--scheduler-file", str(info), "--host", "127.0.0.1",
+                                       "--nworkers", "1", "--nthreads", "1", "--no-dashboard"], cwd=tmp_path,
+                                      start_new_session=True, stdout=subprocess.DEVNULL,
+                                      stderr=subprocess.DEVNULL))
+        deadline = time.monotonic() + 60
+        while not info.is_file() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        address = json.loads(info.read_text())["address"]
+        spec = tmp_path / "part.yaml"
+        write_yaml(spec, {**SPEC, "grid": {"latency": [LATENCY[0]], "plant.backlash.0": list(BACKLASH)}})
+        r = wristmark("sweep", str(spec), "--out", str(tmp_path / "out"), "--scheduler", address, "--no-progress")
+        assert r.returncode == 0, r.stderr
+    finally:
+        for p in reversed(procs):
+            os.killpg(p.pid, signal.SIGTERM)
+            p.wait(timeout=30)
+    got = metric_rows(tmp_path / "out" / "results.csv")
+    assert got == metric_rows(two_workers / "results.csv")[:2]  # trials 0, 1 of the full sweep
+    workers = {row["worker"] for row in rows(tmp_path / "out" / "results.csv")}
+    assert len(workers) == 1 and workers != {"local"}
+
+
+def test_an_unreachable_scheduler_is_one_line(tmp_path: Path, spec_file: Path) -> None:
+    import socket
+
+    with socket.socket() as s:  # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    r = wristmark("sweep", str(spec_file), "--out", str(tmp_path / "out"), "--scheduler",
+                  f"tcp://127.0.0.1:{port}", "--no-progress", timeout=120)
+    assert r.returncode == 2
+    assert r.stderr.count("\n") == 1 and "cannot reach the dask scheduler" in r.stderr, r.stderr
+
+
+def test_the_fingerprint_follows_the_configuration_files_a_trial_reads(tmp_path: Path) -> None:
+    from sim.sweep_spec import load_spec
+
+    plant = tmp_path / "plant.yaml"
+    plant.write_text((ROOT / "configs" / "plant.yaml").read_text())
+    spec = tmp_path / "s.yaml"
+    write_yaml(spec, {"experiment": "cube", "set": {"sensor": "truth-noise", "plant": str(plant)},
+                      "grid": {"latency": [0.03, 0.04]}})
+    first = load_spec(spec).fingerprint()
+    assert load_spec(spec).fingerprint() == first
+    plant.write_text(plant.read_text().replace("actuator_tau: 0.04", "actuator_tau: 0.05"))
+    assert load_spec(spec).fingerprint() != first  # a resumed sweep would otherwise mix two plants

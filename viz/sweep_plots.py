@@ -77,10 +77,13 @@ def plot_heatmap(rows: Sequence[Row], kx: str, ky: str, metrics: Sequence[tuple[
                 if cell:
                     grid[i, j] = np.mean(cell)
         im = ax.imshow(grid, origin="lower", aspect="auto", cmap="viridis")
+        lo, hi = (np.nanmin(grid), np.nanmax(grid)) if np.isfinite(grid).any() else (0.0, 1.0)
         for i in range(len(ys)):
             for j in range(len(xs)):
                 if np.isfinite(grid[i, j]):
-                    ax.text(j, i, f"{grid[i, j]:.3g}", ha="center", va="center", fontsize=8, color="white")
+                    light = hi > lo and (grid[i, j] - lo) / (hi - lo) > 0.6  # viridis turns yellow
+                    ax.text(j, i, f"{grid[i, j]:.3g}", ha="center", va="center", fontsize=8,
+                            color="black" if light else "white")
         ax.set_xticks(range(len(xs)), xs, rotation=30, fontsize=8)
         ax.set_yticks(range(len(ys)), ys, fontsize=8)
         ax.set_xlabel(kx)

@@ -5,7 +5,8 @@ contents). A folder holding the same sweep resumes: the rows already in ``DIR/re
 kept and only the missing trials run; a folder holding anything else is refused. Rows are
 appended (and flushed) as trials finish, in whatever order; the complete file is rewritten in
 trial order at the end. A trial's failure is a row; an interrupted sweep loses only the trials
-that were running.
+that were running. A finished trial, ok or not, is never run again: delete its row from
+results.csv to run it again.
 """
 
 from __future__ import annotations

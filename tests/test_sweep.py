@@ -339,3 +339,28 @@ def test_the_fingerprint_follows_the_configuration_files_a_trial_reads(tmp_path:
     assert load_spec(spec).fingerprint() == first
     plant.write_text(plant.read_text().replace("actuator_tau: 0.04", "actuator_tau: 0.05"))
     assert load_spec(spec).fingerprint() != first  # a resumed sweep would otherwise mix two plants
+
+
+@pytest.mark.parametrize(("experiment", "options", "filled"), [
+    ("accuracy", {"positions": 3}, ("accuracy_mean_mm", "accuracy_max_mm", "tracked")),
+    ("load", {"forces": [0.0, 0.2], "duration": 0.6, "rig.settle_time": 0.3},
+     ("open_mean_mm", "open_max_mm", "closed_mean_mm", "closed_max_mm", "ratio")),
+])
+def test_accuracy_and_load_trials_fill_their_metrics(experiment: str, options: dict, filled: tuple[str, ...],
+                                                     tmp_path: Path) -> None:
+    from sim.sweep_spec import load_spec
+    from sim.sweep_trial import TrialJob, metric_columns, run_trial
+
+    spec = tmp_path / "s.yaml"
+    write_yaml(spec, {"experiment": experiment, "set": {"sensor": "truth-noise", **options}})
+    s = load_spec(spec)
+    row = run_trial(TrialJob(s.experiment, s.trials[0], str(tmp_path / "t0")))
+    assert row["status"] == "ok", row
+    assert set(filled) <= set(metric_columns(experiment))
+    assert all(row[k] >= 0 for k in filled)
+    res = json.loads((tmp_path / "t0" / "result.json").read_text())
+    if experiment == "accuracy":
+        assert row["accuracy_mean_mm"] == res["mean_mm"] and row["tracked"] == 3
+    else:  # the mean over the forces of the means, the largest max
+        assert row["closed_mean_mm"] == sum(r["closed_loop"]["mean_mm"] for r in res["rows"]) / 2
+        assert row["open_max_mm"] == max(r["open_loop"]["max_mm"] for r in res["rows"])

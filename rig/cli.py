@@ -23,6 +23,7 @@ COMMANDS: dict[str, str] = {
     "track": "track the wrist marker in stereo image pairs",
     "servo": "run the closed loop (simulated rig, or --serial PORT for hardware)",
     "experiment": "run the paper's experiments: cube, accuracy, load",
+    "sweep": "run many seeded experiments over a grid or random samples (dask.distributed)",
     "emulator": "serve the actuator-box emulator on a pseudo-terminal",
     "view": "serve or snapshot the Meshcat 3D view (live, replay or home pose)",
 }

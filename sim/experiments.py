@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from models.errors import ConfigError
 from models.ik import solve_tip_ik
 from models.kinematics import forward_kinematics, tip_position
 from models.robot_params import HOME_PSI
@@ -63,15 +64,38 @@ def run_cube(setup: SimSetup, out_dir: Path, progress: bool = True, seed: int | 
 
     ``duration`` [s] cuts the walk short (quick checks); None runs all 12 edges. ``on_cycle`` is
     called with every cycle's record (e.g. a live 3D view)."""
+    traj = cube_trajectory(workspace_centre(setup), CUBE_SIZE, CUBE_SPEED)
+    if duration is not None:
+        traj = traj.truncated(duration)
+    return run_open_closed(setup, traj, "cube", out_dir, progress, seed, on_cycle)
+
+
+def run_point(setup: SimSetup, out_dir: Path, point: np.ndarray | None = None, progress: bool = True,
+              seed: int | None = None, duration: float | None = None,
+              on_cycle: Callable[[CycleRecord], None] | None = None) -> dict[str, Any]:
+    """Hold ``point`` in {w} [m] (default: the workspace centre) for ``duration`` [s] (default
+    POINT_HOLD_S), open loop then closed loop on fresh plants; writes the run folder."""
+    from rig.servo_session import POINT_HOLD_S, PointHold
+
+    p = workspace_centre(setup) if point is None else np.asarray(point, float)
+    miss = solve_tip_ik(setup.params, p, np.asarray(HOME_PSI)).error
+    if not miss <= 1e-4:
+        raise ConfigError(f"the point {np.round(1000 * p, 2).tolist()} mm is out of reach of the arm "
+                          f"(IK misses it by {1000 * miss:.2f} mm)")
+    traj = PointHold(np.array([p]), 1.0, hold=POINT_HOLD_S if duration is None else duration)
+    return run_open_closed(setup, traj, "point", out_dir, progress, seed, on_cycle)
+
+
+def run_open_closed(setup: SimSetup, traj: Trajectory, experiment: str, out_dir: Path, progress: bool = True,
+                    seed: int | None = None,
+                    on_cycle: Callable[[CycleRecord], None] | None = None) -> dict[str, Any]:
+    """Follow ``traj`` open loop then closed loop on fresh plants; writes the run folder."""
     from viz.plots import plot_cube
 
     seed = setup.rig.seed if seed is None else seed
     out_dir.mkdir(parents=True, exist_ok=True)
-    write_json(out_dir / "config.json", {"experiment": "cube", **setup.describe()})
+    write_json(out_dir / "config.json", {"experiment": experiment, **setup.describe()})
     centre = workspace_centre(setup)
-    traj = cube_trajectory(centre, CUBE_SIZE, CUBE_SPEED)
-    if duration is not None:
-        traj = traj.truncated(duration)
     psi0 = solve_tip_ik(setup.params, traj.sample(0.0)[0], np.asarray(HOME_PSI)).psi
     log = RunLog()
     stats = {}
@@ -88,7 +112,7 @@ def run_cube(setup: SimSetup, out_dir: Path, progress: bool = True, seed: int | 
         stats["closed_loop"] = e.stats if e.stats is not None else PhaseStats(stopped=str(e))
     log.write_csv(out_dir / "log.csv")
     res: dict[str, Any] = {
-        "experiment": "cube",
+        "experiment": experiment,
         "controller": setup.controller.kind,
         "control_dt_s": setup.rig.control_dt,
         "sensor": setup.rig.sensor,
@@ -96,7 +120,8 @@ def run_cube(setup: SimSetup, out_dir: Path, progress: bool = True, seed: int | 
         "closed_loop": _phase_summary(log, "closed_loop", traj),
         "paper": PAPER_CUBE,
         "trajectory": {"size_m": list(CUBE_SIZE), "speed_m_s": CUBE_SPEED, "duration_s": traj.duration,
-                       "centre_world_m": centre.tolist()},
+                       "centre_world_m": centre.tolist()} if experiment == "cube" else
+                      {"point_world_m": traj.waypoints[0].tolist(), "duration_s": traj.duration},
         "run_dir": str(out_dir),
     }
     res["ratio"] = res["closed_loop"]["mean_mm"] / res["open_loop"]["mean_mm"]
@@ -113,8 +138,9 @@ def run_cube(setup: SimSetup, out_dir: Path, progress: bool = True, seed: int | 
 def cube_table(res: dict[str, Any]) -> str:
     """Markdown table of a cube result beside the paper's numbers."""
     o, c, p = res["open_loop"], res["closed_loop"], res["paper"]
+    title = "Point hold" if res.get("experiment") == "point" else "Cube trajectory"
     lines = [
-        f"# Cube trajectory: open vs closed loop (controller `{res['controller']}`, "
+        f"# {title}: open vs closed loop (controller `{res['controller']}`, "
         f"cycle {1000 * res['control_dt_s']:.0f} ms, sensor {res['sensor']})",
         "",
         "| | open-loop mean [mm] | open-loop max [mm] | closed-loop mean [mm] | closed-loop max [mm] | closed/open |",
@@ -208,4 +234,4 @@ def run_load(setup: SimSetup, out_dir: Path, forces: list[float], progress: bool
     return out
 
 
-__all__ = ["run_cube", "run_accuracy", "run_load", "ServoLoop"]
+__all__ = ["run_cube", "run_point", "run_open_closed", "run_accuracy", "run_load", "ServoLoop"]

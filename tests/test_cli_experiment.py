@@ -64,6 +64,7 @@ def test_run_folder_holds_config_log_results_and_plots(short_cube: tuple) -> Non
         (["--controller", "bogus"], ["bogus", "paper", "qp"]),
         (["--plant", "no/such/plant.yaml"], ["plant.yaml"]),
         (["--dt", "0"], ["--dt", "[0.001, 1]"]),
+        (["--point", "0", "0", "0.1"], ["--point", "point experiment"]),
     ],
 )
 def test_bad_options_give_one_line_errors(tmp_path: Path, args: list[str], words: list[str]) -> None:

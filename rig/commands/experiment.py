@@ -1,4 +1,4 @@
-"""``wristmark experiment {cube,accuracy,load}``: the paper's experiments on the simulated bench."""
+"""``wristmark experiment {cube,point,accuracy,load}``: the paper's experiments on the simulated bench."""
 
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ from rig.commands.option_types import (
     MAX_DURATION_S,
     MAX_POSITIONS,
     MAX_TIP_FORCE_N,
+    finite_float,
     int_in,
     nonnegative_float,
     positive_float,
@@ -29,14 +30,17 @@ if TYPE_CHECKING:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("name", choices=("cube", "accuracy", "load"), help="which experiment")
+    p.add_argument("name", choices=("cube", "point", "accuracy", "load"), help="which experiment")
     p.add_argument("--json", metavar="OUT", help="write the result JSON to OUT")
     p.add_argument("--out", metavar="DIR",
                    help="run folder, empty unless --force (default: a new runs/<name>-<time>, linked as runs/latest)")
     add_force_argument(p)
     add_setup_arguments(p)
     p.add_argument("--duration", type=positive_float(MAX_DURATION_S), metavar="S",
-                   help="cube/load: run only the first S seconds of the cube walk (quick checks)")
+                   help="cube/load: run only the first S seconds of the cube walk (quick checks); "
+                        "point: hold for S seconds (default 5)")
+    p.add_argument("--point", type=finite_float(), nargs=3, metavar=("X", "Y", "Z"),
+                   help="point: the point to hold in {w} [m] (default: the workspace centre)")
     p.add_argument("--positions", type=int_in(1, MAX_POSITIONS), default=40, help="accuracy: number of positions")
     p.add_argument("--forces", type=nonnegative_float(MAX_TIP_FORCE_N), nargs="+", default=[0.0, 0.1, 0.2, 0.3],
                    help="load: tip forces [N] to sweep")
@@ -46,12 +50,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_host_argument(p)
 
 
-def run(args: argparse.Namespace) -> int:
+def check_args(args: argparse.Namespace) -> SimSetup:
+    """Validate the options (ConfigError naming the bad one) and load the setup they ask for."""
     if args.duration is not None and not args.duration > 0:
         raise ConfigError(f"--duration must be > 0 s, got {args.duration}")
     if len({f"{f:.2f}" for f in args.forces}) != len(args.forces):
         raise ConfigError(f"--forces must differ by 0.01 N at least (each writes force_X.XXN/), got {args.forces}")
-    setup = setup_from_args(args)
+    if args.point is not None and args.name != "point":
+        raise ConfigError("--point needs the point experiment")
+    return setup_from_args(args)
+
+
+def run(args: argparse.Namespace) -> int:
+    setup = check_args(args)
     out = Path(args.out) if args.out else new_run_dir("runs", args.name)
     claim_outputs(dirs=[out], files=[args.json], force=args.force)
     progress = not args.no_progress
@@ -92,6 +103,10 @@ def _run(args: argparse.Namespace, setup: SimSetup, out: Path, progress: bool,
 
     if args.name == "cube":
         res = experiments.run_cube(setup, out, progress=progress, duration=args.duration, on_cycle=on_cycle)
+        print(experiments.cube_table(res))
+    elif args.name == "point":
+        res = experiments.run_point(setup, out, point=args.point, progress=progress, duration=args.duration,
+                                    on_cycle=on_cycle)
         print(experiments.cube_table(res))
     elif args.name == "accuracy":
         res = experiments.run_accuracy(setup, out, n=args.positions, progress=progress)

@@ -35,7 +35,9 @@ class AxisEvidenceSettings:
     (in r); offsets: lateral offsets searched for a silhouette edge (in r: an arm about as wide
     as the sleeve, not a thin tool); step: half the width of the grey-level step (in r);
     max_reach: a band is skipped when an end face turned towards the camera hides it beyond this
-    (in r); min_samples: least valid samples per offset; decide: least |score| that decides.
+    (in r); min_samples: least valid samples per offset; decide: least |score| that decides;
+    min_edge: least edge strength of the stronger side for a band to count [grey levels];
+    decide_strict: least |score| of each band in axis_evidence_strict.
     """
 
     near: tuple[float, ...] = (0.2, 0.35, 0.5, 0.65, 0.8)
@@ -45,9 +47,11 @@ class AxisEvidenceSettings:
     step: float = 0.06
     min_samples: int = 4
     decide: float = 0.1
+    decide_strict: float = 0.3
+    min_edge: float = 30.0
 
 
-def _luminance(img: NDArray[np.uint8], uv: Array) -> Array:
+def sample_luminance(img: NDArray[np.uint8], uv: Array) -> Array:
     """Bilinear grey level at raw pixels uv (N, 2) of a grey or BGR image; NaN outside."""
     h, w = img.shape[:2]
     u, v = uv[:, 0], uv[:, 1]
@@ -88,7 +92,8 @@ def _side_edges(img: NDArray[np.uint8], cam: Camera, T_cam_marker: Array, zs: Ar
         X_out = P[None] + (o + side * s.step * r) * lat[None]
         X_in = P[None] + (o - side * s.step * r) * lat[None]
         shape = X_out.shape[:2]
-        d = (_luminance(img, cam.project(X_out.reshape(-1, 3))) - _luminance(img, cam.project(X_in.reshape(-1, 3))))
+        d = (sample_luminance(img, cam.project(X_out.reshape(-1, 3)))
+             - sample_luminance(img, cam.project(X_in.reshape(-1, 3))))
         d = d.reshape(shape)
         valid = np.isfinite(d).sum(axis=1)
         if valid.min() < s.min_samples:
@@ -97,27 +102,69 @@ def _side_edges(img: NDArray[np.uint8], cam: Camera, T_cam_marker: Array, zs: Ar
     return total
 
 
+def axis_bands(images: tuple[NDArray[np.uint8], NDArray[np.uint8]], camera: StereoCamera, marker: MarkerModel,
+               T_left_marker: Array, settings: AxisEvidenceSettings | None = None) -> Array:
+    """Edge strengths [grey levels] (camera, band, side): cameras left, right; bands near (just
+    beyond the sleeve's ends) and far (beyond the tip's distance); sides distal, proximal (as
+    posed). NaN where a band is hidden or out of view."""
+    s = settings or AxisEvidenceSettings()
+    z_lo, z_hi = marker.z_extent
+    r, h, tip = marker.radius, max(-z_lo, z_hi), float(marker.tip()[2])
+    T_rl = np.eye(4)
+    T_rl[:3, :3], T_rl[:3, 3] = camera.R, camera.T
+    poses = (np.asarray(T_left_marker, float), T_rl @ np.asarray(T_left_marker, float))
+    out = np.full((2, 2, 2), np.nan)
+    for c, (img, cam, T) in enumerate(zip(images, (camera.left, camera.right), poses)):
+        for b, (base, steps) in enumerate(((h, s.near), (max(tip, h), s.far))):
+            for i, side in enumerate((1.0, -1.0)):  # distal, proximal (as posed)
+                k = np.asarray(steps, float) + _face_reach(T, side, base, s)
+                if k[0] <= s.max_reach:
+                    out[c, b, i] = _side_edges(img, cam, T, side * (base + r * k), r, s)
+    return out
+
+
 def axis_evidence(images: tuple[NDArray[np.uint8], NDArray[np.uint8]], camera: StereoCamera, marker: MarkerModel,
                   T_left_marker: Array, settings: AxisEvidenceSettings | None = None) -> float:
     """Score in [-1, 1] that z_wm of ``T_left_marker`` (pose of {wm} in {ll}) points distally:
     > 0 the arm's body lies on its -z side, < 0 on its +z side (the half-turned pose is the
-    right one), 0 when the images say nothing (marker seen end-on, out of view, no contrast)."""
+    right one), 0 when the images say nothing (marker seen end-on, out of view, no contrast):
+    the mean over cameras and both bands of (proximal - distal) / (proximal + distal). A distal
+    tool as wide as the arm, with no body behind the sleeve, fools it (axis_evidence_strict)."""
+    e = axis_bands(images, camera, marker, T_left_marker, settings)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        score = (e[:, :, 1] - e[:, :, 0]) / (e[:, :, 1] + e[:, :, 0])
+    ok = np.isfinite(score) & (e[:, :, 1] + e[:, :, 0] > 1e-9)
+    return float(np.mean(score[ok])) if ok.any() else 0.0
+
+
+def axis_evidence_strict(images: tuple[NDArray[np.uint8], NDArray[np.uint8]], camera: StereoCamera, marker: MarkerModel,
+                  T_left_marker: Array, settings: AxisEvidenceSettings | None = None) -> float:
+    """Score in [-1, 1] that z_wm of ``T_left_marker`` (pose of {wm} in {ll}) points distally:
+    > 0 the arm's body lies on its -z side, < 0 on its +z side (the half-turned pose is the
+    right one), 0 when the images say nothing (marker seen end-on, out of view, no contrast).
+
+    Both bands must say the same: just beyond the sleeve's ends (a thin tool distally, the body
+    proximally; but a distal tool as wide as the arm looks like a body there) and beyond the
+    tip's distance (nothing distally, the body proximally; but texture can fake it, and a bent
+    arm leaves the axis line). Per band the mean score (proximal - distal) / (proximal + distal)
+    over the cameras whose stronger side shows at least ``min_edge`` grey levels (the cameras
+    must agree); the result is the mean of the two bands if both reach ``decide_strict`` with the same
+    sign, else 0 (no decision: the tracker then reports the direction as ambiguous)."""
     s = settings or AxisEvidenceSettings()
-    r, h, tip = marker.radius, marker.row_height, float(marker.tip()[2])
-    T_rl = np.eye(4)
-    T_rl[:3, :3], T_rl[:3, 3] = camera.R, camera.T
-    poses = (np.asarray(T_left_marker, float), T_rl @ np.asarray(T_left_marker, float))
-    scores = []
-    for img, cam, T in zip(images, (camera.left, camera.right), poses):
-        for base, steps in ((h, s.near), (max(tip, h), s.far)):
-            sides = []
-            for side in (1.0, -1.0):  # distal, proximal (as posed)
-                k = np.asarray(steps, float) + _face_reach(T, side, base, s)
-                sides.append(_side_edges(img, cam, T, side * (base + r * k), r, s) if k[0] <= s.max_reach else np.nan)
-            distal, proximal = sides
-            if np.isfinite(distal) and np.isfinite(proximal) and proximal + distal > 1e-9:
-                scores.append((proximal - distal) / (proximal + distal))
-    return float(np.mean(scores)) if scores else 0.0
+    e = axis_bands(images, camera, marker, T_left_marker, s)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        score = (e[:, :, 1] - e[:, :, 0]) / (e[:, :, 1] + e[:, :, 0])  # (camera, band)
+    strong = np.fmax(e[:, :, 0], e[:, :, 1]) >= s.min_edge
+    bands = []
+    for b in range(2):
+        v = score[:, b][np.isfinite(score[:, b]) & strong[:, b]]
+        if v.size == 0 or (v.size == 2 and v[0] * v[1] <= 0):
+            return 0.0
+        bands.append(float(np.mean(v)))
+    near, far = bands
+    if near * far <= 0 or min(abs(near), abs(far)) < s.decide_strict:
+        return 0.0
+    return 0.5 * (near + far)
 
 
 def _face_reach(T_cam_marker: Array, side: float, z_face: float, s: AxisEvidenceSettings) -> float:

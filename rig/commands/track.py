@@ -2,8 +2,10 @@
 
 Pairs are processed in order as one sequence (ROI tracking from pair to pair). With ``--json``
 one object per pair and line: left, right, ok, tip, R, t (pose of {wm} in {ll}, metres),
-corners_left, corners_right (raw pixels), rms_px, time_ms, and axis_source (what decided the
-direction of z_wm: cvs.marker_tracker); ``"ok": false`` with a ``reason``
+corners_left, corners_right (raw pixels), rms_px, time_ms, axis_source (what decided the
+direction of z_wm: cvs.marker_tracker), roll_known (a coded sleeve's code was read: R includes
+the roll) and ids ({"left": [...], "right": [...]}: absolute column ids of the corners, null when
+the roll is unknown); ``"ok": false`` with a ``reason``
 when the marker is not found (exit status stays 0: that is a result, not an error).
 Errors are for the whole command (one line on stderr, exit 2): an odd number of paths, a
 missing file (all paths are checked before any pair is tracked), and an unreadable (corrupt)
@@ -50,6 +52,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="expected direction of the marker's z axis (towards the tip) in the left camera frame; "
         "default: decided from the images (the arm's side of the sleeve), else +x (tip to the right)",
     )
+    p.add_argument(
+        "--strict-direction",
+        action="store_true",
+        help="never guess which way the marker points: 'direction ambiguous' unless the code, a hint, a consistent "
+        "previous pair or two-band image evidence decides",
+    )
     p.add_argument("--json", action="store_true", help="one JSON object per pair and line on stdout")
 
 
@@ -73,6 +81,15 @@ def _round(a: Any, nd: int) -> Any:
     return np.round(np.asarray(a, float), nd).tolist()
 
 
+def _ids(res: Any) -> dict[str, list[int | None]] | None:
+    """Absolute column ids of corners_left / corners_right (None: corner not used), or None when
+    the roll is unknown (reference sleeve, or a code that could not be read)."""
+    if not res.roll_known or res.ids_left is None or res.ids_right is None:
+        return None
+    pairs = (("left", res.ids_left), ("right", res.ids_right))
+    return {k: [int(i) if i >= 0 else None for i in ids] for k, ids in pairs}
+
+
 def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
@@ -86,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
     for p in paths:
         if not p.is_file():
             raise InputError(f"{p}: image file not found")
-    settings = TrackerSettings(detector=args.detector)
+    settings = TrackerSettings(detector=args.detector, strict_direction=args.strict_direction)
     if args.max_rms is not None:
         if not (math.isfinite(args.max_rms) and args.max_rms > 0):
             raise InputError(f"--max-rms must be > 0 px, got {args.max_rms}")
@@ -122,6 +139,8 @@ def run(args: argparse.Namespace) -> int:
         }
         if res.ok:
             out["axis_source"] = res.axis_source
+            out["roll_known"] = res.roll_known
+            out["ids"] = _ids(res)
         if args.json:
             print(json.dumps(out), flush=True)
         elif res.ok and res.tip_left is not None:

@@ -143,28 +143,31 @@ def axis_evidence_strict(images: tuple[NDArray[np.uint8], NDArray[np.uint8]], ca
     > 0 the arm's body lies on its -z side, < 0 on its +z side (the half-turned pose is the
     right one), 0 when the images say nothing (marker seen end-on, out of view, no contrast).
 
-    Both bands must say the same: just beyond the sleeve's ends (a thin tool distally, the body
-    proximally; but a distal tool as wide as the arm looks like a body there) and beyond the
-    tip's distance (nothing distally, the body proximally; but texture can fake it, and a bent
-    arm leaves the axis line). Per band the mean score (proximal - distal) / (proximal + distal)
-    over the cameras whose stronger side shows at least ``min_edge`` grey levels (the cameras
-    must agree); the result is the mean of the two bands if both reach ``decide_strict`` with the same
-    sign, else 0 (no decision: the tracker then reports the direction as ambiguous)."""
+    The far band decides, the near band may only veto: beyond the tip's distance there is
+    nothing distally and the body proximally (if it is in view), while just beyond the sleeve's
+    ends a distal tool as wide as the arm looks like a body (so without a body behind the sleeve
+    the near band alone points the wrong way). Per band the mean score (proximal - distal) /
+    (proximal + distal) over the cameras whose stronger side shows at least ``min_edge`` grey
+    levels (the cameras must agree). The result is the far score if it reaches
+    ``decide_strict`` and the near score (if any) is not beyond ``decide_strict`` the other way,
+    else 0 (no decision: a strict tracker then reports the direction as ambiguous)."""
     s = settings or AxisEvidenceSettings()
     e = axis_bands(images, camera, marker, T_left_marker, s)
     with np.errstate(invalid="ignore", divide="ignore"):
         score = (e[:, :, 1] - e[:, :, 0]) / (e[:, :, 1] + e[:, :, 0])  # (camera, band)
     strong = np.fmax(e[:, :, 0], e[:, :, 1]) >= s.min_edge
-    bands = []
+    bands: list[float | None] = []
     for b in range(2):
         v = score[:, b][np.isfinite(score[:, b]) & strong[:, b]]
-        if v.size == 0 or (v.size == 2 and v[0] * v[1] <= 0):
+        if v.size == 2 and v[0] * v[1] <= 0:
             return 0.0
-        bands.append(float(np.mean(v)))
+        bands.append(float(np.mean(v)) if v.size else None)
     near, far = bands
-    if near * far <= 0 or min(abs(near), abs(far)) < s.decide_strict:
+    if far is None or abs(far) < s.decide_strict:
         return 0.0
-    return 0.5 * (near + far)
+    if near is not None and near * np.sign(far) <= -s.decide_strict:
+        return 0.0
+    return far
 
 
 def _face_reach(T_cam_marker: Array, side: float, z_face: float, s: AxisEvidenceSettings) -> float:

@@ -135,7 +135,7 @@ def test_blur_and_jpeg_never_give_a_wrong_id(roll_frames: list[tuple[RenderedPai
         blur = [cv2.GaussianBlur(im, (0, 0), 1.2) for im in (f.left, f.right)]
         jpeg = [cv2.imdecode(cv2.imencode(".jpg", im, [cv2.IMWRITE_JPEG_QUALITY, 40])[1], cv2.IMREAD_COLOR)
                 for im in blur]
-        _assert_right_or_unknown(_tracker(cam).track(*jpeg), f)
+        _assert_right_or_unknown(_tracker(cam).track(jpeg[0], jpeg[1]), f)
 
 
 def _cell_pixels(f: RenderedPair, cam: StereoCamera, column: int, band: int) -> tuple[np.ndarray, np.ndarray]:
@@ -175,6 +175,6 @@ def test_one_spoiled_code_cell_never_gives_a_wrong_id(roll_frames: list[tuple[Re
                     cv2.circle(im, centre, 3, (255, 255, 255), -1, cv2.LINE_AA)
                 else:
                     cv2.circle(im, centre, 4, (90, 90, 90), -1, cv2.LINE_AA)
-            known += _assert_right_or_unknown(_tracker(cam).track(*imgs), f)
+            known += _assert_right_or_unknown(_tracker(cam).track(imgs[0], imgs[1]), f)
             tried += 1
     assert tried >= 6 and known >= tried // 2

@@ -23,7 +23,6 @@ reading is not ok and the caller keeps the modulo-column pose (``roll_known`` fa
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,7 +30,7 @@ from numpy.typing import NDArray
 
 from cvs.camera import StereoCamera
 from cvs.marker import MarkerModel
-from cvs.marker_axis import sample_luminance
+from cvs.marker_cells import cell_darkness, sample_sleeve
 from cvs.marker_code import hypotheses
 from models.errors import ConfigError
 from solvers.stereo_pose import HALF_TURN_X
@@ -125,51 +124,22 @@ class CodeDecoder:
         self._white_ref = np.where(own_dark[:, None], nb_idx, own)
         pred, self._shift, self._dir = hypotheses(code.bits(), code.mirror())
         self._pred = pred.reshape(pred.shape[0], -1).astype(bool)  # (2 n, cells)
+        self._hyp = [np.flatnonzero(self._shift % 2 == ph) for ph in (0, 1)]
+        self._pred_phase = [self._pred[h] for h in self._hyp]
         T_rl = np.eye(4)
         T_rl[:3, :3], T_rl[:3, 3] = camera.R, camera.T
         self._T_rl = T_rl
+        self._cams = [(np.asarray(c.K, float), np.asarray(c.dist, float).reshape(5))
+                      for c in (camera.left, camera.right)]
 
     def _darkness(self, images: tuple[NDArray[np.uint8], NDArray[np.uint8]], T_fit: Array) -> tuple[Array, int]:
         """Per cell: darkness (NaN when not read); and the checker's phase in T_fit's relative
         columns (0: upper-row patch j dark for even j, 1: for odd j; -1: unclear). The phase is
         measured, not assumed: a detector's corner polarity need not match the model's."""
         s = self.settings
-        sampled = []
-        for img, cam, T in zip(images, (self.camera.left, self.camera.right), (T_fit, self._T_rl @ T_fit)):
-            R, t = T[:3, :3], T[:3, 3]
-            P = self._points @ R.T + t
-            if P[:, 2].min() <= 0:
-                continue
-            cos = -np.einsum("ij,ij->i", self._normals @ R.T, P) / np.linalg.norm(P, axis=1)
-            v = sample_luminance(img, cam.project(P))
-            v[cos < s.min_cos_view] = np.nan
-            refs = v[self._n_cells :]
-            with np.errstate(invalid="ignore"), warnings.catch_warnings():
-                warnings.simplefilter("ignore", RuntimeWarning)  # a cell without references: NaN
-                B = np.nanmean(refs[self._dark_ref], axis=1)
-                W = np.nanmean(refs[self._white_ref], axis=1)
-            sampled.append((v[: self._n_cells], B, W))
-        if not sampled:
-            return np.full(self._n_cells, np.nan), -1
-        c = np.concatenate([W - B for _, B, W in sampled])
-        c = c[np.isfinite(c)]
-        pos, neg = int((c > 0).sum()), int((c < 0).sum())
-        if pos + neg == 0 or min(pos, neg) > 0.1 * (pos + neg):
-            return np.full(self._n_cells, np.nan), -1
-        phase = 0 if pos > neg else 1
-        num = np.zeros(self._n_cells)
-        den = np.zeros(self._n_cells)
-        for cells, B, W in sampled:
-            if phase:
-                B, W = W, B
-            contrast = W - B
-            with np.errstate(invalid="ignore"):
-                ok = np.isfinite(cells) & np.isfinite(contrast) & (contrast >= s.min_contrast)
-            d = np.where(ok, (W - cells) / np.where(ok, contrast, 1.0), 0.0)
-            num += np.where(ok, d * contrast, 0.0)
-            den += np.where(ok, contrast, 0.0)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return np.where(den > 0, num / den, np.nan), phase
+        vs = np.array([sample_sleeve(img, self._points, self._normals, T, K, dist, s.min_cos_view)
+                       for img, (K, dist), T in zip(images, self._cams, (T_fit, self._T_rl @ T_fit))])
+        return cell_darkness(vs, self._n_cells, self._dark_ref, self._white_ref, s.min_contrast)
 
     def read(self, images: tuple[NDArray[np.uint8], NDArray[np.uint8]], T_fit: Array) -> CodeReading:
         """Decide the identity along the fitted pose ``T_fit`` of {wm} in {ll} (module doc)."""
@@ -183,13 +153,14 @@ class CodeDecoder:
         if n_conf < s.min_cells:
             return CodeReading(False, f"code not readable ({n_conf} cells read, need {s.min_cells})", cells=n_conf)
         p = np.clip(d[seen], 0.02, 0.98)
-        hyp = np.flatnonzero(self._shift % 2 == phase)  # the checker's phase fixes the shift's parity
-        P = self._pred[np.ix_(hyp, seen)]
+        hyp = self._hyp[phase]  # the checker's phase fixes the shift's parity
+        pred = self._pred_phase[phase]
+        P = pred[:, seen]
         ll = np.where(P, np.log(p), np.log1p(-p)).sum(axis=1)
         order = np.argsort(-ll)
         best = int(order[0])
         read = d[conf] > s.dark
-        Pc = self._pred[np.ix_(hyp, conf)]
+        Pc = pred[:, conf]
         dist = (Pc != read).sum(axis=1)
         others = (Pc != Pc[best]).sum(axis=1)
         others[best] = 10**9

@@ -25,6 +25,7 @@ COMMANDS: dict[str, str] = {
     "experiment": "run the paper's experiments: cube, accuracy, load",
     "emulator": "serve the actuator-box emulator on a pseudo-terminal",
     "view": "serve or snapshot the Meshcat 3D view (live, replay or home pose)",
+    "marker": "print a marker file's sleeve at 1:1 (SVG or PDF) to wrap around the arm",
 }
 
 

@@ -37,7 +37,8 @@ class AxisEvidenceSettings:
     max_reach: a band is skipped when an end face turned towards the camera hides it beyond this
     (in r); min_samples: least valid samples per offset; decide: least |score| that decides;
     min_edge: least edge strength of the stronger side for a band to count [grey levels];
-    decide_strict: least |score| of each band in axis_evidence_strict.
+    decide_strict: least |far score| that decides in axis_evidence_strict; veto_strict: a near
+    score this far the other way vetoes it.
     """
 
     near: tuple[float, ...] = (0.2, 0.35, 0.5, 0.65, 0.8)
@@ -48,6 +49,7 @@ class AxisEvidenceSettings:
     min_samples: int = 4
     decide: float = 0.1
     decide_strict: float = 0.3
+    veto_strict: float = 0.5
     min_edge: float = 30.0
 
 
@@ -148,24 +150,20 @@ def axis_evidence_strict(images: tuple[NDArray[np.uint8], NDArray[np.uint8]], ca
     ends a distal tool as wide as the arm looks like a body (so without a body behind the sleeve
     the near band alone points the wrong way). Per band the mean score (proximal - distal) /
     (proximal + distal) over the cameras whose stronger side shows at least ``min_edge`` grey
-    levels (the cameras must agree). The result is the far score if it reaches
-    ``decide_strict`` and the near score (if any) is not beyond ``decide_strict`` the other way,
+    levels (the cameras must agree on the far band). The result is the far score if it reaches
+    ``decide_strict`` and the near score (if any) is not beyond ``veto_strict`` the other way,
     else 0 (no decision: a strict tracker then reports the direction as ambiguous)."""
     s = settings or AxisEvidenceSettings()
     e = axis_bands(images, camera, marker, T_left_marker, s)
     with np.errstate(invalid="ignore", divide="ignore"):
         score = (e[:, :, 1] - e[:, :, 0]) / (e[:, :, 1] + e[:, :, 0])  # (camera, band)
     strong = np.fmax(e[:, :, 0], e[:, :, 1]) >= s.min_edge
-    bands: list[float | None] = []
-    for b in range(2):
-        v = score[:, b][np.isfinite(score[:, b]) & strong[:, b]]
-        if v.size == 2 and v[0] * v[1] <= 0:
-            return 0.0
-        bands.append(float(np.mean(v)) if v.size else None)
-    near, far = bands
-    if far is None or abs(far) < s.decide_strict:
+    v = score[:, 1][np.isfinite(score[:, 1]) & strong[:, 1]]
+    if v.size == 0 or (v.size == 2 and v[0] * v[1] <= 0):
         return 0.0
-    if near is not None and near * np.sign(far) <= -s.decide_strict:
+    far = float(np.mean(v))
+    u = score[:, 0][np.isfinite(score[:, 0]) & strong[:, 0]]
+    if abs(far) < s.decide_strict or (u.size and float(np.mean(u)) * np.sign(far) <= -s.veto_strict):
         return 0.0
     return far
 

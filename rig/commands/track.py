@@ -6,7 +6,9 @@ corners_left, corners_right (raw pixels), rms_px, time_ms, axis_source (what dec
 direction of z_wm: cvs.marker_tracker), roll_known (a coded sleeve's code was read: R includes
 the roll) and ids ({"left": [...], "right": [...]}: absolute column ids of the corners, null when
 the roll is unknown); ``"ok": false`` with a ``reason``
-when the marker is not found (exit status stays 0: that is a result, not an error).
+when the marker is not found, or "direction ambiguous" when nothing tells which way the marker
+points (the direction is never guessed unless --lenient-direction; docs/conventions.md); the
+exit status stays 0 (that is a result, not an error).
 Errors are for the whole command (one line on stderr, exit 2): an odd number of paths, a
 missing file (all paths are checked before any pair is tracked), and an unreadable (corrupt)
 or wrong-size image — that one is found when its pair is reached, after the earlier pairs'
@@ -53,10 +55,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "default: decided from the images (the arm's side of the sleeve), else +x (tip to the right)",
     )
     p.add_argument(
-        "--strict-direction",
+        "--lenient-direction",
         action="store_true",
-        help="never guess which way the marker points: 'direction ambiguous' unless the code, a hint, a consistent "
-        "previous pair or two-band image evidence decides",
+        help="guess which way the marker points when nothing decides it (one-band image evidence, else +x: the "
+        "arm entering from the left); default: 'direction ambiguous' unless the code, --axis-hint, a consistent "
+        "previous pair or the image beyond the tip decides",
     )
     p.add_argument("--json", action="store_true", help="one JSON object per pair and line on stdout")
 
@@ -103,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
     for p in paths:
         if not p.is_file():
             raise InputError(f"{p}: image file not found")
-    settings = TrackerSettings(detector=args.detector, strict_direction=args.strict_direction)
+    settings = TrackerSettings(detector=args.detector, strict_direction=not args.lenient_direction)
     if args.max_rms is not None:
         if not (math.isfinite(args.max_rms) and args.max_rms > 0):
             raise InputError(f"--max-rms must be > 0 px, got {args.max_rms}")

@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from cvs.camera import Camera, StereoCamera
 from cvs.marker import MarkerModel
+from cvs.marker_cells import sample_camera_points
 
 Array = NDArray[np.float64]
 
@@ -53,26 +54,6 @@ class AxisEvidenceSettings:
     min_edge: float = 30.0
 
 
-def sample_luminance(img: NDArray[np.uint8], uv: Array) -> Array:
-    """Bilinear grey level at raw pixels uv (N, 2) of a grey or BGR image; NaN outside."""
-    h, w = img.shape[:2]
-    u, v = uv[:, 0], uv[:, 1]
-    ok = (u >= 0) & (v >= 0) & (u <= w - 1.001) & (v <= h - 1.001)
-    out = np.full(len(uv), np.nan)
-    if not ok.any():
-        return out
-    u0, v0 = np.floor(u[ok]).astype(np.intp), np.floor(v[ok]).astype(np.intp)
-    fu, fv = u[ok] - u0, v[ok] - v0
-    px = [img[v0, u0], img[v0, u0 + 1], img[v0 + 1, u0], img[v0 + 1, u0 + 1]]
-    if img.ndim == 3:  # BGR -> luminance at the four neighbours only
-        wts = np.array([0.114, 0.587, 0.299])
-        px = [p[:, :3].astype(np.float64) @ wts for p in px]
-    else:
-        px = [p.astype(np.float64) for p in px]
-    out[ok] = (px[0] * (1 - fu) + px[1] * fu) * (1 - fv) + (px[2] * (1 - fu) + px[3] * fu) * fv
-    return out
-
-
 def _side_edges(img: NDArray[np.uint8], cam: Camera, T_cam_marker: Array, zs: Array, r: float,
                 s: AxisEvidenceSettings) -> float:
     """Strength of silhouette edges running along the axis at axis positions zs [m]: for each
@@ -89,14 +70,14 @@ def _side_edges(img: NDArray[np.uint8], cam: Camera, T_cam_marker: Array, zs: Ar
     lat = lat / n
     offs = np.asarray(s.offsets, float)
     total = 0.0
-    for side in (1.0, -1.0):
-        o = side * offs[:, None, None] * r  # (n_off, 1, 1)
-        X_out = P[None] + (o + side * s.step * r) * lat[None]
-        X_in = P[None] + (o - side * s.step * r) * lat[None]
-        shape = X_out.shape[:2]
-        d = (sample_luminance(img, cam.project(X_out.reshape(-1, 3)))
-             - sample_luminance(img, cam.project(X_in.reshape(-1, 3))))
-        d = d.reshape(shape)
+    # all samples at once: (flank, out/in, offset, z) -> one projection and sampling pass
+    sides = np.array([1.0, -1.0])[:, None, None, None]
+    io = np.array([1.0, -1.0])[None, :, None, None]
+    k = sides * (offs[None, None, :, None] + io * s.step) * r  # lateral distance (signed by flank)
+    X = P[None, None, None] + k[..., None] * lat[None, None, None]
+    g = sample_camera_points(img, X.reshape(-1, 3), cam.K, cam.dist).reshape(2, 2, offs.size, zs.size)
+    for f in range(2):
+        d = g[f, 0] - g[f, 1]
         valid = np.isfinite(d).sum(axis=1)
         if valid.min() < s.min_samples:
             return float("nan")

@@ -28,10 +28,31 @@ def _grey(img: Any, v: int, u: int) -> float:  # pragma: no cover
 
 
 @numba.njit(cache=True, nogil=True)
-def _sample(img: Any, pts: Any, nrm: Any, T: Any, K: Any, dist: Any, min_cos: float,
-            out: Any) -> None:  # pragma: no cover
+def _pixel(img: Any, X: float, Y: float, Z: float, K: Any, dist: Any) -> float:  # pragma: no cover
+    """Bilinear grey level at the projection of camera-frame point (X, Y, Z); NaN outside."""
+    if Z <= 0.0:
+        return np.nan
     h, w = img.shape[0], img.shape[1]
     k1, k2, p1, p2, k3 = dist[0], dist[1], dist[2], dist[3], dist[4]
+    x, y = X / Z, Y / Z
+    r2 = x * x + y * y
+    rad = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    xd = x * rad + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)
+    yd = y * rad + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y
+    u = K[0, 0] * xd + K[0, 1] * yd + K[0, 2]
+    v = K[1, 1] * yd + K[1, 2]
+    if not (u >= 0.0 and v >= 0.0 and u <= w - 1.001 and v <= h - 1.001):
+        return np.nan
+    u0, v0 = int(u), int(v)
+    fu, fv = u - u0, v - v0
+    a = _grey(img, v0, u0) * (1 - fu) + _grey(img, v0, u0 + 1) * fu
+    b = _grey(img, v0 + 1, u0) * (1 - fu) + _grey(img, v0 + 1, u0 + 1) * fu
+    return a * (1 - fv) + b * fv
+
+
+@numba.njit(cache=True, nogil=True)
+def _sample(img: Any, pts: Any, nrm: Any, T: Any, K: Any, dist: Any, min_cos: float,
+            out: Any) -> None:  # pragma: no cover
     for i in range(pts.shape[0]):
         out[i] = np.nan
         X = T[0, 0] * pts[i, 0] + T[0, 1] * pts[i, 1] + T[0, 2] * pts[i, 2] + T[0, 3]
@@ -44,20 +65,7 @@ def _sample(img: Any, pts: Any, nrm: Any, T: Any, K: Any, dist: Any, min_cos: fl
         nz = T[2, 0] * nrm[i, 0] + T[2, 1] * nrm[i, 1] + T[2, 2] * nrm[i, 2]
         if -(nx * X + ny * Y + nz * Z) / math.sqrt(X * X + Y * Y + Z * Z) < min_cos:
             continue
-        x, y = X / Z, Y / Z
-        r2 = x * x + y * y
-        rad = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-        xd = x * rad + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)
-        yd = y * rad + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y
-        u = K[0, 0] * xd + K[0, 1] * yd + K[0, 2]
-        v = K[1, 1] * yd + K[1, 2]
-        if not (u >= 0.0 and v >= 0.0 and u <= w - 1.001 and v <= h - 1.001):
-            continue
-        u0, v0 = int(u), int(v)
-        fu, fv = u - u0, v - v0
-        a = _grey(img, v0, u0) * (1 - fu) + _grey(img, v0, u0 + 1) * fu
-        b = _grey(img, v0 + 1, u0) * (1 - fu) + _grey(img, v0 + 1, u0 + 1) * fu
-        out[i] = a * (1 - fv) + b * fv
+        out[i] = _pixel(img, X, Y, Z, K, dist)
 
 
 def sample_sleeve(img: NDArray[np.uint8], points: Array, normals: Array, T_cam_marker: Array, K: Array, dist: Array,
@@ -123,3 +131,18 @@ def cell_darkness(samples: Array, n_cells: int, dark_ref: NDArray[np.int_], whit
     out = np.empty(n_cells)
     phase = int(_darkness(samples, int(n_cells), dark_ref, white_ref, float(min_contrast), out))
     return out, phase
+
+
+@numba.njit(cache=True, nogil=True)
+def _sample_cam(img: Any, P: Any, K: Any, dist: Any, out: Any) -> None:  # pragma: no cover
+    for i in range(P.shape[0]):
+        out[i] = _pixel(img, P[i, 0], P[i, 1], P[i, 2], K, dist)
+
+
+def sample_camera_points(img: NDArray[np.uint8], points_cam: Array, K: Array, dist: Array) -> Array:
+    """Grey levels (n,) at camera-frame points (n, 3) [m] projected with K and distortion
+    [k1, k2, p1, p2, k3] (bilinear, BGR as luminance); NaN behind the camera or out of the image."""
+    P = np.ascontiguousarray(points_cam, np.float64).reshape(-1, 3)
+    out = np.empty(P.shape[0])
+    _sample_cam(img, P, np.asarray(K, np.float64), np.asarray(dist, np.float64).reshape(5), out)
+    return out

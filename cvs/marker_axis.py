@@ -86,10 +86,10 @@ def _side_edges(img: NDArray[np.uint8], cam: Camera, T_cam_marker: Array, zs: Ar
 
 
 def axis_bands(images: tuple[NDArray[np.uint8], NDArray[np.uint8]], camera: StereoCamera, marker: MarkerModel,
-               T_left_marker: Array, settings: AxisEvidenceSettings | None = None) -> Array:
+               T_left_marker: Array, settings: AxisEvidenceSettings | None = None, left_only: bool = False) -> Array:
     """Edge strengths [grey levels] (camera, band, side): cameras left, right; bands near (just
     beyond the sleeve's ends) and far (beyond the tip's distance); sides distal, proximal (as
-    posed). NaN where a band is hidden or out of view."""
+    posed). NaN where a band is hidden or out of view (and for the right camera if left_only)."""
     s = settings or AxisEvidenceSettings()
     z_lo, z_hi = marker.z_extent
     r, h, tip = marker.radius, max(-z_lo, z_hi), float(marker.tip()[2])
@@ -97,7 +97,7 @@ def axis_bands(images: tuple[NDArray[np.uint8], NDArray[np.uint8]], camera: Ster
     T_rl[:3, :3], T_rl[:3, 3] = camera.R, camera.T
     poses = (np.asarray(T_left_marker, float), T_rl @ np.asarray(T_left_marker, float))
     out = np.full((2, 2, 2), np.nan)
-    for c, (img, cam, T) in enumerate(zip(images, (camera.left, camera.right), poses)):
+    for c, (img, cam, T) in enumerate(zip(images[: 1 if left_only else 2], (camera.left, camera.right), poses)):
         for b, (base, steps) in enumerate(((h, s.near), (max(tip, h), s.far))):
             for i, side in enumerate((1.0, -1.0)):  # distal, proximal (as posed)
                 k = np.asarray(steps, float) + _face_reach(T, side, base, s)
@@ -107,21 +107,23 @@ def axis_bands(images: tuple[NDArray[np.uint8], NDArray[np.uint8]], camera: Ster
 
 
 def axis_evidence(images: tuple[NDArray[np.uint8], NDArray[np.uint8]], camera: StereoCamera, marker: MarkerModel,
-                  T_left_marker: Array, settings: AxisEvidenceSettings | None = None) -> float:
+                  T_left_marker: Array, settings: AxisEvidenceSettings | None = None, left_only: bool = False) -> float:
     """Score in [-1, 1] that z_wm of ``T_left_marker`` (pose of {wm} in {ll}) points distally:
     > 0 the arm's body lies on its -z side, < 0 on its +z side (the half-turned pose is the
     right one), 0 when the images say nothing (marker seen end-on, out of view, no contrast):
-    the mean over cameras and both bands of (proximal - distal) / (proximal + distal). A distal
+    the mean over cameras (``left_only``: the left one) and both bands of (proximal - distal) /
+    (proximal + distal). A distal
     tool as wide as the arm, with no body behind the sleeve, fools it (axis_evidence_strict)."""
-    e = axis_bands(images, camera, marker, T_left_marker, settings)
+    e = axis_bands(images, camera, marker, T_left_marker, settings, left_only)
     with np.errstate(invalid="ignore", divide="ignore"):
         score = (e[:, :, 1] - e[:, :, 0]) / (e[:, :, 1] + e[:, :, 0])
     ok = np.isfinite(score) & (e[:, :, 1] + e[:, :, 0] > 1e-9)
     return float(np.mean(score[ok])) if ok.any() else 0.0
 
 
-def axis_evidence_strict(images: tuple[NDArray[np.uint8], NDArray[np.uint8]], camera: StereoCamera, marker: MarkerModel,
-                  T_left_marker: Array, settings: AxisEvidenceSettings | None = None) -> float:
+def axis_evidence_strict(images: tuple[NDArray[np.uint8], NDArray[np.uint8]], camera: StereoCamera,
+                         marker: MarkerModel, T_left_marker: Array, settings: AxisEvidenceSettings | None = None,
+                         left_only: bool = False) -> float:
     """Score in [-1, 1] that z_wm of ``T_left_marker`` (pose of {wm} in {ll}) points distally:
     > 0 the arm's body lies on its -z side, < 0 on its +z side (the half-turned pose is the
     right one), 0 when the images say nothing (marker seen end-on, out of view, no contrast).
@@ -135,7 +137,7 @@ def axis_evidence_strict(images: tuple[NDArray[np.uint8], NDArray[np.uint8]], ca
     ``decide_strict`` and the near score (if any) is not beyond ``veto_strict`` the other way,
     else 0 (no decision: a strict tracker then reports the direction as ambiguous)."""
     s = settings or AxisEvidenceSettings()
-    e = axis_bands(images, camera, marker, T_left_marker, s)
+    e = axis_bands(images, camera, marker, T_left_marker, s, left_only)
     with np.errstate(invalid="ignore", divide="ignore"):
         score = (e[:, :, 1] - e[:, :, 0]) / (e[:, :, 1] + e[:, :, 0])  # (camera, band)
     strong = np.fmax(e[:, :, 0], e[:, :, 1]) >= s.min_edge

@@ -292,9 +292,10 @@ class MarkerTracker:
         else:
             strict, ax = self.settings.strict_direction, self.settings.axis
             evidence = axis_evidence_strict if strict else axis_evidence
-            score = evidence(images, self.camera, self.marker, pose.T_left_marker, ax)
-            decided = abs(score) >= (ax.decide_strict if strict else ax.decide)
             prior = self._consistent_prior(pose)
+            # with a consistent prior the image need only not contradict it: the left image suffices
+            score = evidence(images, self.camera, self.marker, pose.T_left_marker, ax, left_only=prior is not None)
+            decided = abs(score) >= (ax.decide_strict if strict else ax.decide)
             if prior is not None:
                 if not decided or (score > 0) == (float(z @ prior) > 0):
                     want, source = prior, "previous"

@@ -18,6 +18,13 @@ folder. Per pair, measured in the same run:
   (those of the first detector listed).
 Corner RMS [px] is against the true corners (detections within 2 px of a corner with
 cos_view > 0), tip error [mm] against truth.json.
+- coded: the same poses rendered with the coded sleeve (``--coded``, default
+  configs/marker_coded.yaml; DESIGN.md "The coded marker"), tracked by the first detector
+  listed, side by side with the reference sleeve ("reference": that detector's tracker on the
+  reference pairs, measured again in the same loop): success rate, roll_known rate, roll error
+  [deg] (rotation about z_wm of R_true^T R), rotation error [deg] (the whole rotation, roll
+  included; the reference sleeve's only modulo its symmetries, so not given), tip error [mm],
+  cold and ROI time per pair and the time the code reading adds per pair [ms] (median).
 """
 
 from __future__ import annotations
@@ -175,6 +182,67 @@ def _detector_only(ds: StereoDataset) -> dict:
     }
 
 
+def _rotation_errors_deg(R_est: np.ndarray, R_true: np.ndarray) -> tuple[float, float]:
+    """(whole rotation angle, roll about z_wm) of R_true^T R_est [deg]."""
+    E = R_true.T @ R_est
+    whole = float(np.degrees(np.arccos(np.clip((np.trace(E) - 1.0) / 2.0, -1.0, 1.0))))
+    return whole, float(np.degrees(abs(np.arctan2(E[1, 0] - E[0, 1], E[0, 0] + E[1, 1]))))
+
+
+def _sleeve(ds: StereoDataset, detector: str) -> dict:
+    """One sleeve's tracking (cold, then ROI on the same pair): success, roll and rotation errors
+    when the roll is known, tip error, times and the code reading's time."""
+    tracker = MarkerTracker(ds.camera, ds.marker, TrackerSettings(detector=detector))
+    ok = known = 0
+    tip: list[float] = []
+    roll: list[float] = []
+    rot: list[float] = []
+    cold: list[float] = []
+    roi: list[float] = []
+    code: list[float] = []
+    for (lp, rp), t in zip(ds.pairs, ds.truth):
+        L, R = cv2.imread(str(lp)), cv2.imread(str(rp))
+        tracker.reset()
+        r = tracker.track(L, R)
+        cold.append(r.time_ms)
+        r2 = tracker.track(L, R)
+        roi.append(r2.time_ms)
+        for x in (r, r2):
+            if "code" in x.timings:
+                code.append(x.timings["code"])
+        if not (r.ok and r.tip_left is not None and r.T_left_marker is not None):
+            continue
+        ok += 1
+        tip.append(1e3 * float(np.linalg.norm(r.tip_left - t.tip)))
+        if r.roll_known:
+            known += 1
+            whole, about_z = _rotation_errors_deg(r.T_left_marker[:3, :3], np.asarray(t.R, float))
+            rot.append(whole)
+            roll.append(about_z)
+    n = len(ds.pairs)
+
+    def stats(v: list[float]) -> dict:
+        return {"mean": float(np.mean(v)), "max": float(np.max(v))} if v else {"mean": None, "max": None}
+
+    return {
+        "success_rate": ok / n,
+        "roll_known_rate": known / n,
+        "roll_error_deg": stats(roll),
+        "rotation_error_deg": stats(rot),
+        "tip_error_mm": stats(tip),
+        "time_ms_cold_median": float(np.median(cold)),
+        "time_ms_roi_median": float(np.median(roi)),
+        "code_ms_median": float(np.median(code)) if code else None,
+    }
+
+
+def run_coded(reference: Path, coded: Path, detector: str) -> dict:
+    """The coded sleeve beside the reference sleeve on the same poses, in one loop."""
+    ds_ref, ds_code = load_dataset(reference), load_dataset(coded)
+    return {"reference": _sleeve(ds_ref, detector), "coded": _sleeve(ds_code, detector),
+            "targets": {"code_ms": 0.3, "roll_error_mean_deg": 0.5}}
+
+
 def run(root: Path, detectors: tuple[str, ...] = ("paper", "saddle")) -> dict:
     ds = load_dataset(root)
     cam, marker = ds.camera, ds.marker
@@ -248,6 +316,8 @@ def main() -> int:
     ap.add_argument("--pairs", type=int, default=20)
     ap.add_argument("--seed", type=int, default=11)
     ap.add_argument("--detectors", default="paper,saddle", help="comma-separated: paper, saddle, auto")
+    ap.add_argument("--coded", default=str(Path(__file__).resolve().parents[1] / "configs" / "marker_coded.yaml"),
+                    help="coded marker file rendered at the same poses ('' to skip)")
     a = ap.parse_args()
     cv2.setNumThreads(1)
     dets = tuple(d.strip() for d in a.detectors.split(",") if d.strip())
@@ -258,9 +328,15 @@ def main() -> int:
         root = Path(tmp) / "ds"
         with contextlib.redirect_stdout(sys.stderr):  # keep stdout pure JSON
             rc = cli_main(["render", "--out", str(root), "--pairs", str(a.pairs), "--seed", str(a.seed)])
+            if not rc and a.coded:
+                rc = cli_main(["render", "--out", str(Path(tmp) / "coded"), "--pairs", str(a.pairs), "--seed",
+                               str(a.seed), "--marker", a.coded])
         if rc:
             return rc
-        print(json.dumps(run(root, dets), indent=1))
+        out = run(root, dets)
+        if a.coded:
+            out["coded_sleeve"] = run_coded(root, Path(tmp) / "coded", dets[0])
+        print(json.dumps(out, indent=1))
     return 0
 
 

@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from cvs.camera import Camera, StereoCamera
 from cvs.marker import MarkerModel
+from cvs.marker_cells import sample_camera_points
 
 Array = NDArray[np.float64]
 
@@ -35,7 +36,10 @@ class AxisEvidenceSettings:
     (in r); offsets: lateral offsets searched for a silhouette edge (in r: an arm about as wide
     as the sleeve, not a thin tool); step: half the width of the grey-level step (in r);
     max_reach: a band is skipped when an end face turned towards the camera hides it beyond this
-    (in r); min_samples: least valid samples per offset; decide: least |score| that decides.
+    (in r); min_samples: least valid samples per offset; decide: least |score| that decides;
+    min_edge: least edge strength of the stronger side for a band to count [grey levels];
+    decide_strict: least |far score| that decides in axis_evidence_strict; veto_strict: a near
+    score this far the other way vetoes it.
     """
 
     near: tuple[float, ...] = (0.2, 0.35, 0.5, 0.65, 0.8)
@@ -45,26 +49,9 @@ class AxisEvidenceSettings:
     step: float = 0.06
     min_samples: int = 4
     decide: float = 0.1
-
-
-def _luminance(img: NDArray[np.uint8], uv: Array) -> Array:
-    """Bilinear grey level at raw pixels uv (N, 2) of a grey or BGR image; NaN outside."""
-    h, w = img.shape[:2]
-    u, v = uv[:, 0], uv[:, 1]
-    ok = (u >= 0) & (v >= 0) & (u <= w - 1.001) & (v <= h - 1.001)
-    out = np.full(len(uv), np.nan)
-    if not ok.any():
-        return out
-    u0, v0 = np.floor(u[ok]).astype(np.intp), np.floor(v[ok]).astype(np.intp)
-    fu, fv = u[ok] - u0, v[ok] - v0
-    px = [img[v0, u0], img[v0, u0 + 1], img[v0 + 1, u0], img[v0 + 1, u0 + 1]]
-    if img.ndim == 3:  # BGR -> luminance at the four neighbours only
-        wts = np.array([0.114, 0.587, 0.299])
-        px = [p[:, :3].astype(np.float64) @ wts for p in px]
-    else:
-        px = [p.astype(np.float64) for p in px]
-    out[ok] = (px[0] * (1 - fu) + px[1] * fu) * (1 - fv) + (px[2] * (1 - fu) + px[3] * fu) * fv
-    return out
+    decide_strict: float = 0.3
+    veto_strict: float = 0.5
+    min_edge: float = 30.0
 
 
 def _side_edges(img: NDArray[np.uint8], cam: Camera, T_cam_marker: Array, zs: Array, r: float,
@@ -83,13 +70,14 @@ def _side_edges(img: NDArray[np.uint8], cam: Camera, T_cam_marker: Array, zs: Ar
     lat = lat / n
     offs = np.asarray(s.offsets, float)
     total = 0.0
-    for side in (1.0, -1.0):
-        o = side * offs[:, None, None] * r  # (n_off, 1, 1)
-        X_out = P[None] + (o + side * s.step * r) * lat[None]
-        X_in = P[None] + (o - side * s.step * r) * lat[None]
-        shape = X_out.shape[:2]
-        d = (_luminance(img, cam.project(X_out.reshape(-1, 3))) - _luminance(img, cam.project(X_in.reshape(-1, 3))))
-        d = d.reshape(shape)
+    # all samples at once: (flank, out/in, offset, z) -> one projection and sampling pass
+    sides = np.array([1.0, -1.0])[:, None, None, None]
+    io = np.array([1.0, -1.0])[None, :, None, None]
+    k = sides * (offs[None, None, :, None] + io * s.step) * r  # lateral distance (signed by flank)
+    X = P[None, None, None] + k[..., None] * lat[None, None, None]
+    g = sample_camera_points(img, X.reshape(-1, 3), cam.K, cam.dist).reshape(2, 2, offs.size, zs.size)
+    for f in range(2):
+        d = g[f, 0] - g[f, 1]
         valid = np.isfinite(d).sum(axis=1)
         if valid.min() < s.min_samples:
             return float("nan")
@@ -97,27 +85,70 @@ def _side_edges(img: NDArray[np.uint8], cam: Camera, T_cam_marker: Array, zs: Ar
     return total
 
 
-def axis_evidence(images: tuple[NDArray[np.uint8], NDArray[np.uint8]], camera: StereoCamera, marker: MarkerModel,
-                  T_left_marker: Array, settings: AxisEvidenceSettings | None = None) -> float:
-    """Score in [-1, 1] that z_wm of ``T_left_marker`` (pose of {wm} in {ll}) points distally:
-    > 0 the arm's body lies on its -z side, < 0 on its +z side (the half-turned pose is the
-    right one), 0 when the images say nothing (marker seen end-on, out of view, no contrast)."""
+def axis_bands(images: tuple[NDArray[np.uint8], NDArray[np.uint8]], camera: StereoCamera, marker: MarkerModel,
+               T_left_marker: Array, settings: AxisEvidenceSettings | None = None, left_only: bool = False) -> Array:
+    """Edge strengths [grey levels] (camera, band, side): cameras left, right; bands near (just
+    beyond the sleeve's ends) and far (beyond the tip's distance); sides distal, proximal (as
+    posed). NaN where a band is hidden or out of view (and for the right camera if left_only)."""
     s = settings or AxisEvidenceSettings()
-    r, h, tip = marker.radius, marker.row_height, float(marker.tip()[2])
+    z_lo, z_hi = marker.z_extent
+    r, h, tip = marker.radius, max(-z_lo, z_hi), float(marker.tip()[2])
     T_rl = np.eye(4)
     T_rl[:3, :3], T_rl[:3, 3] = camera.R, camera.T
     poses = (np.asarray(T_left_marker, float), T_rl @ np.asarray(T_left_marker, float))
-    scores = []
-    for img, cam, T in zip(images, (camera.left, camera.right), poses):
-        for base, steps in ((h, s.near), (max(tip, h), s.far)):
-            sides = []
-            for side in (1.0, -1.0):  # distal, proximal (as posed)
+    out = np.full((2, 2, 2), np.nan)
+    for c, (img, cam, T) in enumerate(zip(images[: 1 if left_only else 2], (camera.left, camera.right), poses)):
+        for b, (base, steps) in enumerate(((h, s.near), (max(tip, h), s.far))):
+            for i, side in enumerate((1.0, -1.0)):  # distal, proximal (as posed)
                 k = np.asarray(steps, float) + _face_reach(T, side, base, s)
-                sides.append(_side_edges(img, cam, T, side * (base + r * k), r, s) if k[0] <= s.max_reach else np.nan)
-            distal, proximal = sides
-            if np.isfinite(distal) and np.isfinite(proximal) and proximal + distal > 1e-9:
-                scores.append((proximal - distal) / (proximal + distal))
-    return float(np.mean(scores)) if scores else 0.0
+                if k[0] <= s.max_reach:
+                    out[c, b, i] = _side_edges(img, cam, T, side * (base + r * k), r, s)
+    return out
+
+
+def axis_evidence(images: tuple[NDArray[np.uint8], NDArray[np.uint8]], camera: StereoCamera, marker: MarkerModel,
+                  T_left_marker: Array, settings: AxisEvidenceSettings | None = None, left_only: bool = False) -> float:
+    """Score in [-1, 1] that z_wm of ``T_left_marker`` (pose of {wm} in {ll}) points distally:
+    > 0 the arm's body lies on its -z side, < 0 on its +z side (the half-turned pose is the
+    right one), 0 when the images say nothing (marker seen end-on, out of view, no contrast):
+    the mean over cameras (``left_only``: the left one) and both bands of (proximal - distal) /
+    (proximal + distal). A distal
+    tool as wide as the arm, with no body behind the sleeve, fools it (axis_evidence_strict)."""
+    e = axis_bands(images, camera, marker, T_left_marker, settings, left_only)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        score = (e[:, :, 1] - e[:, :, 0]) / (e[:, :, 1] + e[:, :, 0])
+    ok = np.isfinite(score) & (e[:, :, 1] + e[:, :, 0] > 1e-9)
+    return float(np.mean(score[ok])) if ok.any() else 0.0
+
+
+def axis_evidence_strict(images: tuple[NDArray[np.uint8], NDArray[np.uint8]], camera: StereoCamera,
+                         marker: MarkerModel, T_left_marker: Array, settings: AxisEvidenceSettings | None = None,
+                         left_only: bool = False) -> float:
+    """Score in [-1, 1] that z_wm of ``T_left_marker`` (pose of {wm} in {ll}) points distally:
+    > 0 the arm's body lies on its -z side, < 0 on its +z side (the half-turned pose is the
+    right one), 0 when the images say nothing (marker seen end-on, out of view, no contrast).
+
+    The far band decides, the near band may only veto: beyond the tip's distance there is
+    nothing distally and the body proximally (if it is in view), while just beyond the sleeve's
+    ends a distal tool as wide as the arm looks like a body (so without a body behind the sleeve
+    the near band alone points the wrong way). Per band the mean score (proximal - distal) /
+    (proximal + distal) over the cameras whose stronger side shows at least ``min_edge`` grey
+    levels (the cameras must agree on the far band). The result is the far score if it reaches
+    ``decide_strict`` and the near score (if any) is not beyond ``veto_strict`` the other way,
+    else 0 (no decision: a strict tracker then reports the direction as ambiguous)."""
+    s = settings or AxisEvidenceSettings()
+    e = axis_bands(images, camera, marker, T_left_marker, s, left_only)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        score = (e[:, :, 1] - e[:, :, 0]) / (e[:, :, 1] + e[:, :, 0])  # (camera, band)
+    strong = np.fmax(e[:, :, 0], e[:, :, 1]) >= s.min_edge
+    v = score[:, 1][np.isfinite(score[:, 1]) & strong[:, 1]]
+    if v.size == 0 or (v.size == 2 and v[0] * v[1] <= 0):
+        return 0.0
+    far = float(np.mean(v))
+    u = score[:, 0][np.isfinite(score[:, 0]) & strong[:, 0]]
+    if abs(far) < s.decide_strict or (u.size and float(np.mean(u)) * np.sign(far) <= -s.veto_strict):
+        return 0.0
+    return far
 
 
 def _face_reach(T_cam_marker: Array, side: float, z_face: float, s: AxisEvidenceSettings) -> float:

@@ -9,11 +9,19 @@ doubtful pose: no marker, too few corners, no stereo pairs, or a residual above 
 ``track_corners`` takes corners directly (controller loops, baselines, tests).
 
 The sleeve looks the same after a half turn about x_wm, so which way z_wm (distal) points is
-decided after the solve, in this order: a caller's ``axis_hint_left`` (e.g. the kinematic
-model's marker axis in a servo loop), the previous pair's pose (tracking: when the axis
-moved less than 30 degrees), the image (the arm's body continues behind the sleeve, nothing
-lies beyond the tip: cvs.marker_axis), and last
-``PoseSettings.axis_hint_left``. ``TrackResult.axis_source`` says which one decided.
+decided after the solve, and never guessed: a coded sleeve's code (cvs.marker_decode: the
+absolute pose, roll included, ``roll_known``); else a caller's ``axis_hint_left`` (e.g. the
+kinematic model's marker axis in a servo loop); else the previous pair's pose, but only when
+this fit is consistent with it (chains found in the previous ROIs, small motion: within
+``prior_max_move_m``, ``prior_max_turn_deg`` and ``prior_max_px``) and the image
+(cvs.marker_axis) does not contradict it; else decisive image evidence (the arm's body
+continues behind the sleeve, nothing lies beyond the tip), and last the default prior
+``PoseSettings.axis_hint_left`` (+x: the arm enters from the left). With
+``TrackerSettings.strict_direction`` the image evidence must hold in both of its bands
+(cvs.marker_axis.axis_evidence_strict) and there is no default: otherwise the result is
+``ok=False`` with reason "direction ambiguous" (never a guess; a distal tool as wide as the arm
+with no body behind the sleeve fools the lenient evidence). ``TrackResult.axis_source`` says which one
+decided.
 """
 
 from __future__ import annotations
@@ -31,7 +39,8 @@ from numpy.typing import NDArray
 from cvs.camera import StereoCamera
 from cvs.gray_image import to_gray
 from cvs.marker import MarkerModel
-from cvs.marker_axis import AxisEvidenceSettings, axis_evidence
+from cvs.marker_axis import AxisEvidenceSettings, axis_evidence, axis_evidence_strict
+from cvs.marker_decode import CodeDecoder, CodeReading, CodeReadSettings
 from cvs.stereo_match import StereoMatch, StereoRectifier, match_corners
 from models.errors import InputError
 from solvers.homography_init import homography_pose
@@ -39,7 +48,6 @@ from solvers.stereo_pose import MarkerPose, PoseSettings, StereoPoseSolver
 
 Array = NDArray[np.float64]
 IntArray = NDArray[np.int_]
-_CONTINUITY_COS = float(np.cos(np.radians(30.0)))  # the previous pair fixes z_wm if within 30 deg of it
 
 
 class CornerDetector(Protocol):
@@ -62,7 +70,13 @@ class TrackerSettings:
     'auto' (the paper's detector if installed, else the saddle fallback; when the paper's
     detector finds no marker in a pair, the saddle detector gets one try on the same pair),
     'paper' or 'saddle'; pose: solver settings; axis: the image evidence for the direction of
-    z_wm (cvs.marker_axis)."""
+    z_wm (cvs.marker_axis); code: reading a coded sleeve's cells (cvs.marker_decode);
+    prior_max_move_m [m], prior_max_turn_deg [deg], prior_max_px [px]: the previous pair's pose
+    is a prior for the direction only if this pair's fit is within these of it (translation,
+    rotation modulo the corner symmetry, the previous pose's corners on this pair's left
+    detections: small motion, same corners); strict_direction: never a direction that only the
+    default prior (+x) or one-band image evidence gave (cvs.marker_axis.axis_evidence_strict):
+    'direction ambiguous' instead (``wristmark track --strict-direction``)."""
 
     min_corners: int = 3
     min_pairs: int = 2
@@ -72,6 +86,11 @@ class TrackerSettings:
     detector: str = "auto"
     pose: PoseSettings = field(default_factory=PoseSettings)
     axis: AxisEvidenceSettings = field(default_factory=AxisEvidenceSettings)
+    code: CodeReadSettings = field(default_factory=CodeReadSettings)
+    prior_max_move_m: float = 0.003
+    prior_max_turn_deg: float = 15.0
+    prior_max_px: float = 6.0
+    strict_direction: bool = False
 
 
 @dataclass(frozen=True)
@@ -83,8 +102,11 @@ class TrackResult:
     corners_left/right: detected corners in raw pixels (N, 2); rms_px [px]; time_ms: total [ms];
     timings: ms per stage (detect, match, init, solve); pose: the solver result when one ran;
     axis_source: what fixed the direction of z_wm ('hint', 'previous', 'image', 'default' or
-    'none'; '' when not ok); axis_score: the image evidence in [-1, 1] for the returned
-    direction (NaN when the image was not asked).
+    'code' or 'none'; '' when not ok); axis_score: the image evidence in [-1, 1] for the
+    returned direction (NaN when the image was not asked); roll_known: a coded sleeve's code
+    was read, T_left_marker is the absolute pose (roll included) and ids_left / ids_right the
+    absolute corner ids of corners_left / right (-1: not used); otherwise roll is known modulo
+    one column and ids are None; code: the code reading (coded sleeves).
     """
 
     ok: bool
@@ -101,6 +123,10 @@ class TrackResult:
     match: StereoMatch | None = None
     axis_source: str = ""
     axis_score: float = float("nan")
+    roll_known: bool = False
+    ids_left: IntArray | None = None
+    ids_right: IntArray | None = None
+    code: CodeReading | None = None
 
 
 def _make_detector(kind: str) -> CornerDetector:
@@ -133,6 +159,12 @@ def _checked_image(img: Any, size: tuple[int, int], name: str) -> NDArray[np.uin
     return a
 
 
+def _roll(a: float) -> Array:
+    """4x4 rotation by a [rad] about z."""
+    c, sn = np.cos(a), np.sin(a)
+    return np.array([[c, -sn, 0, 0], [sn, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+
+
 def kabsch(P_model: Array, P_obs: Array) -> Array:
     """4x4 rigid transform T with P_obs ~ R P_model + t (least squares, proper rotation)."""
     cm, co = P_model.mean(axis=0), P_obs.mean(axis=0)
@@ -163,6 +195,10 @@ class MarkerTracker:
         self._tracking = False
         self._continuous = False  # this pair's chains were found in the previous pair's ROIs
         self._last_pose: MarkerPose | None = None  # the previous pair's good pose
+        self._last_fit_px = float("inf")  # RMS of the previous pose's corners on this pair's [px]
+        self._last_shift = 0  # even index shift from the previous pair's fit to this pair's (tracking)
+        self._last_oriented = False  # the previous pose's direction was decided
+        self.decoder = None if marker.code is None else CodeDecoder(camera, marker, self.settings.code)
         self._second: tuple[CornerDetector, CornerDetector] | None = None
         self._use_second = self.settings.detector == "auto" and type(self.detector_left).__name__ != (
             "SaddleCornerDetector")
@@ -214,45 +250,88 @@ class MarkerTracker:
             if res2.ok:
                 res = res2
             res.timings["second_detector"] = t_second
+        found = res.ok
         if res.ok:
             t3 = time.perf_counter()
             res = self._orient(res, (il, ir), axis_hint_left)
             res.timings["axis"] = 1e3 * (time.perf_counter() - t3)
             res = replace(res, time_ms=1e3 * (time.perf_counter() - t0))
-        self._tracking = res.ok
-        self._last_pose = res.pose if res.ok else None
+        self._tracking = found  # an ambiguous direction keeps the corners' ROIs
+        self._last_pose = res.pose if found else None
+        self._last_oriented = res.ok
         return res
 
     def _orient(self, res: TrackResult, images: tuple[NDArray[np.uint8], NDArray[np.uint8]],
                 hint: Array | None) -> TrackResult:
-        """Fix the direction of z_wm of a good result (module docstring: hint, previous, image,
-        default); the reprojection fit is the same either way."""
+        """Fix the direction of z_wm (and, with a readable code, the roll) of a good fit: the
+        code (coded sleeves), a caller's hint, else the previous pair's pose where this fit is
+        consistent with it and the image does not contradict it, else decisive image evidence,
+        else (not strict_direction) the default prior; otherwise ok false, 'direction ambiguous'."""
         assert res.pose is not None
         pose, score = res.pose, float("nan")
+        if self.decoder is not None:
+            t = time.perf_counter()
+            reading = self.decoder.read(images, pose.T_fit)
+            res.timings["code"] = 1e3 * (time.perf_counter() - t)
+            res = replace(res, code=reading)
+            if reading.ok and reading.T_fit_abs is not None:
+                T = pose.T_fit @ reading.T_fit_abs
+                tip_left, tip_world = self.solver._tips(T)
+                pose = replace(pose, T_left_marker=T, tip_left=tip_left, tip_world=tip_world)
+                m = res.match
+                n = self.marker.columns
+                ids_l = None if m is None else reading.absolute_ids(m.index_left, n)
+                ids_r = None if m is None else reading.absolute_ids(m.index_right, n)
+                return replace(res, tip_left=tip_left, tip_world=tip_world, T_left_marker=T, pose=pose,
+                               axis_source="code", roll_known=True, ids_left=ids_l, ids_right=ids_r)
         z = pose.T_left_marker[:3, 2]
-        prev = self._last_pose
-        want: Array | None
+        want: Array | None = None
+        source = "none"
         if hint is not None:
             want, source = np.asarray(hint, float).reshape(3), "hint"
-        elif (self._continuous and prev is not None
-              and abs(float(pose.T_fit[:3, 2] @ prev.T_fit[:3, 2])) >= _CONTINUITY_COS):
-            want, source = prev.T_left_marker[:3, 2], "previous"
         else:
-            score = axis_evidence(images, self.camera, self.marker, pose.T_left_marker, self.settings.axis)
-            if abs(score) >= self.settings.axis.decide:
+            strict, ax = self.settings.strict_direction, self.settings.axis
+            evidence = axis_evidence_strict if strict else axis_evidence
+            prior = self._consistent_prior(pose)
+            # with a consistent prior the image need only not contradict it: the left image suffices
+            score = evidence(images, self.camera, self.marker, pose.T_left_marker, ax, left_only=prior is not None)
+            decided = abs(score) >= (ax.decide_strict if strict else ax.decide)
+            if prior is not None:
+                if not decided or (score > 0) == (float(z @ prior) > 0):
+                    want, source = prior, "previous"
+            elif decided:
                 want, source = (z if score > 0 else -z), "image"
-            else:
-                fallback = self.settings.pose.axis_hint_left
-                want = None if fallback is None else np.asarray(fallback, float)
-                source = "default" if want is not None else "none"
-        if want is not None and float(np.dot(z, want)) < 0:
+            elif not strict and self.settings.pose.axis_hint_left is not None:
+                want, source = np.asarray(self.settings.pose.axis_hint_left, float), "default"
+        if want is None:
+            return replace(res, ok=False, reason="direction ambiguous", tip_left=None, tip_world=None,
+                           T_left_marker=None, axis_source="", axis_score=score)
+        if float(np.dot(z, want)) < 0:
             pose, score = self.solver.half_turned(pose), -score
         return replace(res, tip_left=pose.tip_left, tip_world=pose.tip_world, T_left_marker=pose.T_left_marker,
                        pose=pose, axis_source=source, axis_score=score)
 
+    def _consistent_prior(self, pose: MarkerPose) -> Array | None:
+        """The previous pair's z_wm direction in {ll} if it may serve as a prior for this fit:
+        the chains were found in the previous ROIs, the previous direction was decided, and this
+        fit moved little from the previous one (TrackerSettings.prior_*); else None."""
+        prev = self._last_pose
+        if not (self._continuous and self._last_oriented and prev is not None):
+            return None
+        s = self.settings
+        T_prev = prev.T_fit @ _roll(self._last_shift * self.marker.beta)  # in this pair's indices
+        if np.linalg.norm(pose.T_fit[:3, 3] - T_prev[:3, 3]) > s.prior_max_move_m:
+            return None
+        dR = T_prev[:3, :3].T @ pose.T_fit[:3, :3]
+        if np.degrees(np.arccos(np.clip((np.trace(dR) - 1.0) / 2.0, -1.0, 1.0))) > s.prior_max_turn_deg:
+            return None
+        if self._last_fit_px > s.prior_max_px:
+            return None
+        return np.asarray(prev.T_left_marker[:3, 2], float)
+
     def reset(self) -> None:
         """Forget the ROI state: the next pair is searched in the whole frames."""
-        self._tracking = self._continuous = False
+        self._tracking = self._continuous = self._last_oriented = False
         self._last_pose = None
 
     def _start_poses(
@@ -262,6 +341,7 @@ class MarkerTracker:
         give a good fit: the previous pair's pose (tracking), the homography of the camera with
         more corners (paper eq. 14-15), both planar solutions of cv2 IPPE (the homography's
         mirror-tilt ambiguity) and triangulation + Kabsch."""
+        self._last_shift, self._last_fit_px = 0, float("inf")
         if self._continuous and self._last_pose is not None:
             yield self._previous_start(idx_l, ul)
         pts = self.solver.marker_points
@@ -306,10 +386,11 @@ class MarkerTracker:
         ks = np.arange(0, n, 2)
         P = np.concatenate([self.solver.marker_points(idx + k) for k in ks])  # {wm}, model index i + k
         proj = self.camera.project_left(P @ T[:3, :3].T + T[:3, 3]).reshape(ks.size, -1, 2)
-        k = int(ks[np.argmin(((proj - uv[None]) ** 2).sum(axis=(1, 2)))])
-        c, sn = np.cos(k * beta), np.sin(k * beta)
-        roll = np.array([[c, -sn, 0, 0], [sn, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
-        return T @ roll  # maps model point i to where the previous pose had i + k
+        err = np.sqrt(((proj - uv[None]) ** 2).sum(axis=2).mean(axis=1))
+        j = int(np.argmin(err))
+        k = int(ks[j])
+        self._last_shift, self._last_fit_px = k, float(err[j])
+        return T @ _roll(k * beta)  # maps model point i to where the previous pose had i + k
 
     def track_corners(
         self,

@@ -26,6 +26,7 @@ COMMANDS: dict[str, str] = {
     "sweep": "run many seeded experiments over a grid or random samples (dask.distributed)",
     "emulator": "serve the actuator-box emulator on a pseudo-terminal",
     "view": "serve or snapshot the Meshcat 3D view (live, replay or home pose)",
+    "marker": "print a marker file's sleeve at 1:1 (SVG or PDF) to wrap around the arm",
 }
 
 

@@ -78,7 +78,8 @@ class DatasetWriter:
         except OSError as e:
             raise InputError(f"{self.root}: cannot create the dataset folder ({e.strerror})") from e
         save_calibration(self.root / "calib.yaml", camera)
-        save_yaml(self.root / "marker.yaml", to_mapping(marker))
+        mk = {k: v for k, v in to_mapping(marker).items() if v not in (None, [], ())}  # a plain sleeve: 4 keys
+        save_yaml(self.root / "marker.yaml", mk)
         self.entries: list[dict[str, Any]] = []
 
     def add(self, frame: RenderedPair) -> int:

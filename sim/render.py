@@ -85,12 +85,12 @@ def arm_primitives(shape: ArmShape, marker: MarkerModel, T_cam_world: Array) -> 
     caps = [Capsule(C[i], C[i + 1], shape.radius, TUBE, (True, i == last)) for i in range(len(C) - 1)]
     T_cm = T_cam_world @ shape.T_world_marker
     z, x, o = T_cm[:3, 2], T_cm[:3, 0], T_cm[:3, 3]
-    h = marker.row_height
+    z_lo, z_hi = marker.z_extent
     end = cam(shape.frames.T_world_2e[:3, 3])
-    caps.append(Capsule(end, o - 0.5 * h * z, shape.radius, METAL))  # rigid link into the sleeve
+    caps.append(Capsule(end, o + 0.5 * z_lo * z, shape.radius, METAL))  # rigid link into the sleeve
     tip = cam(shape.tip)
     base = tip - 0.0045 * z
-    caps.append(Capsule(o + h * z, base, GRIPPER_RADIUS, METAL))
+    caps.append(Capsule(o + z_hi * z, base, GRIPPER_RADIUS, METAL))
     for sgn in (1.0, -1.0):  # two jaws, slightly open
         caps.append(Capsule(base + sgn * 0.0008 * x, tip + sgn * 0.0012 * x, JAW_RADIUS, METAL))
     return caps, Sleeve(T_cm, marker)

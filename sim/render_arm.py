@@ -4,9 +4,10 @@ Rays leave the camera centre through raw (distorted) pixel positions: a per-came
 normalized image coordinates, computed once with the camera's exact inverse distortion, is
 interpolated at the supersample positions, so the checker corners appear where
 ``Camera.project`` puts them. Primitives live in the camera frame [m]: capsules (tube pieces,
-link, gripper) and the marker sleeve (a finite cylinder with the exact checker pattern of
-:meth:`MarkerModel.is_black`). Shading: coaxial light (light at the camera), Lambert plus a
-specular lobe, inverse-square falloff. The per-ray work runs in the numba kernels of
+link, gripper) and the marker sleeve (a finite cylinder over the marker's z extent with the
+exact pattern of :meth:`MarkerModel.is_black`: checker rows and any coded marker's patches).
+Shading: coaxial light (light at the camera), Lambert plus a specular lobe, inverse-square
+falloff. The per-ray work runs in the numba kernels of
 :mod:`sim.render_culling` and :mod:`sim.render_raycast`; this module builds the primitives,
 the ray map and the tile plan.
 """
@@ -104,19 +105,19 @@ def pack_capsules(capsules: list[Capsule]) -> Array:
 
 
 def pack_sleeve(s: Sleeve) -> Array:
-    """The sleeve as the kernels' float64 row (SLEEVE_COLS,): R, camera centre in {wm}, sizes."""
+    """The sleeve as the kernels' float64 row (SLEEVE_COLS,): R, camera centre in {wm}, sizes,
+    z extent."""
     R, p = s.T_cam_marker[:3, :3], s.T_cam_marker[:3, 3]
     m = s.marker
-    return np.array([*R.ravel(), *(-(R.T @ p)), m.radius, m.row_height, m.columns, m.beta], np.float64).reshape(
-        SLEEVE_COLS
-    )
+    row = [*R.ravel(), *(-(R.T @ p)), m.radius, m.row_height, m.columns, m.beta, *m.z_extent]
+    return np.array(row, np.float64).reshape(SLEEVE_COLS)
 
 
 def _sleeve_bounds(s: Sleeve) -> tuple[Array, Array] | None:
     ang = np.linspace(0, 2 * np.pi, 33)
-    h = s.marker.row_height
+    z_lo, z_hi = s.marker.z_extent
     ring = np.column_stack([np.cos(ang), np.sin(ang), np.zeros_like(ang)]) * s.marker.radius
-    pts = np.vstack([ring + [0, 0, h], ring - [0, 0, h]]) @ s.T_cam_marker[:3, :3].T + s.T_cam_marker[:3, 3]
+    pts = np.vstack([ring + [0, 0, z_hi], ring + [0, 0, z_lo]]) @ s.T_cam_marker[:3, :3].T + s.T_cam_marker[:3, 3]
     if np.any(pts[:, 2] < NEAR):
         return None
     P = pts[:, :2] / pts[:, 2:3]
@@ -134,13 +135,15 @@ def sleeve_box(ray_map: RayMap, sleeve: Sleeve) -> Box | None:
 class ArmPlan:
     """What one camera ray-casts: tiles (tile row, tile column, supersampling), each tile's
     primitives ``prim[ptr[t]:ptr[t + 1]]`` (capsule rows, then n_caps = the sleeve), the packed
-    primitives and ``box``, the pixel rectangle (u0, v0, u1, v1) of the tiles within the image."""
+    primitives, the sleeve's patches (n, 4) and ``box``, the pixel rectangle (u0, v0, u1, v1) of
+    the tiles within the image."""
 
     tiles: NDArray[np.int64]
     ptr: NDArray[np.int64]
     prim: NDArray[np.int64]
     caps: Array
     sleeve: Array
+    patches: Array
     box: Box
 
 
@@ -169,7 +172,7 @@ def plan_arm(ray_map: RayMap, capsules: list[Capsule], sleeve: Sleeve, ss: int, 
     u1, v1 = min(w, (int(is_.max()) + 1) * TILE), min(h, (int(js.max()) + 1) * TILE)
     box = (int(is_.min()) * TILE, int(js.min()) * TILE, u1, v1)
     tiles = np.column_stack([js, is_, tss]).astype(np.int64)
-    return ArmPlan(tiles, ptr, prim, caps, pack_sleeve(sleeve), box)
+    return ArmPlan(tiles, ptr, prim, caps, pack_sleeve(sleeve), sleeve.marker.patch_array(), box)
 
 
 def render_arm(
@@ -191,7 +194,7 @@ def render_arm(
         raise InputError(f"out must be a float32 (h, w, 3) image, got {out.dtype} {out.shape}")
     return int(
         raycast_tiles(
-            ray_map.xy, plan.tiles, plan.ptr, plan.prim, plan.caps, plan.sleeve, _MATS, float(gain), bool(flat),
-            bool(adaptive), out, int(origin[0]), int(origin[1]),
+            ray_map.xy, plan.tiles, plan.ptr, plan.prim, plan.caps, plan.sleeve, plan.patches, _MATS, float(gain),
+            bool(flat), bool(adaptive), out, int(origin[0]), int(origin[1]),
         )
     )

@@ -13,9 +13,10 @@ Packed primitives (float64 rows, built by :mod:`sim.render_arm`):
 - capsule (CAPSULE_COLS): ``a(3) b(3) r cap_a cap_b material ba(3) |ba|^2 -ba.a a.a``, the
   cylinder from a to b of radius r with spherical ends where cap_a / cap_b are non-zero;
 - sleeve (SLEEVE_COLS): ``R(9, row-major: {wm} in the camera) o(3) (camera centre in {wm})
-  radius half_height columns beta``: the side |z| < half_height of the cylinder of ``radius``
-  around z_wm with the checker of :meth:`cvs.marker.MarkerModel.is_black`, and its two flat
-  end rings (black), facing outwards.
+  radius row_height columns beta z_lo z_hi``: the side z_lo < z < z_hi of the cylinder of
+  ``radius`` around z_wm with the colours of :meth:`cvs.marker.MarkerModel.is_black` (the
+  checker rows |z| < row_height, then the dark ``patches`` rows ``a0 a1 z0 z1`` [rad, m], white
+  elsewhere), and its two flat end rings (black), facing outwards.
 
 Materials (rows of ``mats``): albedo B, G, R in [0, 1], specular strength, shininess; ids 0
 tube, 1 metal, 2 marker black, 3 marker white. Shading: coaxial light at the camera, ambient
@@ -38,7 +39,7 @@ from numpy.typing import NDArray
 
 TILE = 32  # tile size of the culling grid [px]
 CAPSULE_COLS = 16
-SLEEVE_COLS = 16
+SLEEVE_COLS = 18
 SIDE, RING_TOP, RING_BOTTOM = 0, 2, 3  # sleeve surfaces hit (the side's colour comes later)
 
 D0 = 0.08  # distance at which the light gives unit irradiance [m]
@@ -94,8 +95,8 @@ def hit_capsule(caps: F64, q: int, dx: F64, dy: F64, dz: F64, n: int, best: F64,
 @jit
 def hit_sleeve(s: F64, q: int, dx: F64, dy: F64, dz: F64, n: int, best: F64, who: I64, surf: I64) -> None:
     """Rays 0..n-1 against the sleeve (index q): where it is hit nearer than ``best`` [m], set
-    ``best``, ``who`` = q and ``surf`` (SIDE, RING_TOP at z = +h or RING_BOTTOM at z = -h)."""
-    o0, o1, o2, rad, hh = s[9], s[10], s[11], s[12], s[13]
+    ``best``, ``who`` = q and ``surf`` (SIDE, RING_TOP at z = z_hi or RING_BOTTOM at z = z_lo)."""
+    o0, o1, o2, rad, zlo, zhi = s[9], s[10], s[11], s[12], s[16], s[17]
     qc = o0 * o0 + o1 * o1 - rad * rad
     for i in range(n):
         d0 = s[0] * dx[i] + s[3] * dy[i] + s[6] * dz[i]  # direction in {wm}: R^T d
@@ -107,17 +108,17 @@ def hit_sleeve(s: F64, q: int, dx: F64, dy: F64, dz: F64, n: int, best: F64, who
         okq = qa > 1e-300
         tc = (-qb - math.sqrt(max(h, 0.0))) / (qa if okq else 1.0)
         z = o2 + tc * d2
-        side = (h >= 0.0) & okq & (tc > 0.0) & (abs(z) < hh)
+        side = (h >= 0.0) & okq & (tc > 0.0) & (z > zlo) & (z < zhi)
         t = tc if side else math.inf
         code = SIDE
         nz0 = d2 != 0.0
         dd = d2 if nz0 else 1.0
-        te = (hh - o2) / dd  # end ring at z = +h, seen from above (d2 < 0)
+        te = (zhi - o2) / dd  # end ring at z = z_hi, seen from above (d2 < 0)
         qx, qy = o0 + te * d0, o1 + te * d1
         ring = nz0 & (te > 0.0) & (te < t) & (qx * qx + qy * qy <= rad * rad) & (d2 < 0.0)
         t = te if ring else t
         code = RING_TOP if ring else code
-        te = (-hh - o2) / dd  # end ring at z = -h, seen from below (d2 > 0)
+        te = (zlo - o2) / dd  # end ring at z = z_lo, seen from below (d2 > 0)
         qx, qy = o0 + te * d0, o1 + te * d1
         ring = nz0 & (te > 0.0) & (te < t) & (qx * qx + qy * qy <= rad * rad) & (d2 > 0.0)
         t = te if ring else t
@@ -164,8 +165,23 @@ def _ray(xy: F64, fu: float, fv: float) -> tuple[float, float, float]:
 
 
 @jit
+def sleeve_dark(s: F64, pat: F64, ang: float, z: float) -> bool:
+    """Is the sleeve dark at angle ``ang`` in [0, 2 pi) [rad] and height z [m]: a checker patch
+    (|z| < row_height) or one of the patches ``pat`` (rows a0 a1 z0 z1)."""
+    if abs(z) < s[13]:
+        col = int(math.floor(ang / s[15])) % int(s[14])
+        if ((col % 2) == 0) == (z > 0.0):
+            return True
+    for k in range(pat.shape[0]):
+        if pat[k, 2] <= z < pat[k, 3] and (ang - pat[k, 0]) % (2.0 * math.pi) < pat[k, 1] - pat[k, 0]:
+            return True
+    return False
+
+
+@jit
 def _shade(
-    dx: float, dy: float, dz: float, t: float, q: int, code: int, caps: F64, s: F64, mats: F64, gain: float, flat: bool
+    dx: float, dy: float, dz: float, t: float, q: int, code: int, caps: F64, s: F64, pat: F64, mats: F64, gain: float,
+    flat: bool,
 ) -> tuple[int, float, float, float]:
     """Surface key and B, G, R radiance [grey levels] of a ray (unit direction) hitting
     primitive q at distance t [m] (sleeve surface ``code``). Keys: 4 q for capsule q, 4 n_caps
@@ -186,8 +202,7 @@ def _shade(
         if code == SIDE:
             q0, q1, z = s[9] + t * d0, s[10] + t * d1, s[11] + t * d2
             m0, m1, m2 = q0 / s[12], q1 / s[12], 0.0
-            col = int(math.floor((math.atan2(q1, q0) % (2.0 * math.pi)) / s[15])) % int(s[14])
-            surf = 1 if ((col % 2) == 0) == (z > 0.0) else 0
+            surf = 1 if sleeve_dark(s, pat, math.atan2(q1, q0) % (2.0 * math.pi), z) else 0
         nx = s[0] * m0 + s[1] * m1 + s[2] * m2  # normal to the camera frame: R m
         ny = s[3] * m0 + s[4] * m1 + s[5] * m2
         nz = s[6] * m0 + s[7] * m1 + s[8] * m2
@@ -204,15 +219,15 @@ def _shade(
 
 @jit
 def _flush(
-    n: int, rays: F64, pix: I64, prim: I64, p0: int, p1: int, caps: F64, sleeve: F64, mats: F64, gain: float,
-    flat: bool, best: F64, who: I64, surf: I64, acc: F64, cnt: I64,
+    n: int, rays: F64, pix: I64, prim: I64, p0: int, p1: int, caps: F64, sleeve: F64, pat: F64, mats: F64,
+    gain: float, flat: bool, best: F64, who: I64, surf: I64, acc: F64, cnt: I64,
 ) -> None:
     """Trace and shade the batch ``rays[:, :n]``; add radiance and hit counts to the pixels ``pix``."""
     trace(prim, p0, p1, caps, sleeve, rays[0], rays[1], rays[2], n, best, who, surf)
     for i in range(n):
         if who[i] >= 0:
-            _, r0, r1, r2 = _shade(rays[0, i], rays[1, i], rays[2, i], best[i], who[i], surf[i], caps, sleeve, mats,
-                                   gain, flat)
+            _, r0, r1, r2 = _shade(rays[0, i], rays[1, i], rays[2, i], best[i], who[i], surf[i], caps, sleeve, pat,
+                                   mats, gain, flat)
             p = pix[i]
             acc[p, 0] += r0
             acc[p, 1] += r1
@@ -222,8 +237,8 @@ def _flush(
 
 @jit
 def raycast_tiles(
-    xy: F64, tiles: I64, ptr: I64, prim: I64, caps: F64, sleeve: F64, mats: F64, gain: float, flat: bool,
-    adaptive: bool, out: NDArray[np.float32], u0: int, v0: int,
+    xy: F64, tiles: I64, ptr: I64, prim: I64, caps: F64, sleeve: F64, pat: F64, mats: F64, gain: float,
+    flat: bool, adaptive: bool, out: NDArray[np.float32], u0: int, v0: int,
 ) -> int:
     """Ray-cast tiles (rows ``tile_row, tile_col, ss``) against their primitives ``prim[ptr[t]:
     ptr[t + 1]]`` (capsule rows, index n_caps = sleeve) and blend into ``out`` (BGR radiance
@@ -265,8 +280,8 @@ def raycast_tiles(
                     keys[a, b] = -1
                     if who[i] >= 0:
                         keys[a, b], crad[a, b, 0], crad[a, b, 1], crad[a, b, 2] = _shade(
-                            rays[0, i], rays[1, i], rays[2, i], best[i], who[i], surf[i], caps, sleeve, mats, gain,
-                            flat)
+                            rays[0, i], rays[1, i], rays[2, i], best[i], who[i], surf[i], caps, sleeve, pat, mats,
+                            gain, flat)
                 count += n
             for p in range(TILE * TILE):
                 if not need[p]:
@@ -302,10 +317,11 @@ def raycast_tiles(
                     pix[n] = p
                     n += 1
                     if n == BATCH:
-                        _flush(n, rays, pix, prim, p0, p1, caps, sleeve, mats, gain, flat, best, who, surf, acc, cnt)
+                        _flush(n, rays, pix, prim, p0, p1, caps, sleeve, pat, mats, gain, flat, best, who, surf, acc,
+                               cnt)
                         count += n
                         n = 0
-        _flush(n, rays, pix, prim, p0, p1, caps, sleeve, mats, gain, flat, best, who, surf, acc, cnt)
+        _flush(n, rays, pix, prim, p0, p1, caps, sleeve, pat, mats, gain, flat, best, who, surf, acc, cnt)
         count += n
         nss = ss * ss
         for p in range(TILE * TILE):

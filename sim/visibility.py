@@ -30,7 +30,8 @@ def marker_visible(
     w, h = camera.image_size
     ang = np.linspace(0, 2 * np.pi, 16, endpoint=False)
     ring = np.column_stack([np.cos(ang), np.sin(ang), np.zeros_like(ang)]) * marker.radius
-    rim = np.vstack([ring + [0, 0, marker.row_height], ring - [0, 0, marker.row_height]])
+    z_lo, z_hi = marker.z_extent
+    rim = np.vstack([ring + [0, 0, z_hi], ring + [0, 0, z_lo]])
     for cam, T in ((camera.left, T_lm), (camera.right, T_rl @ T_lm)):
         P = rim @ T[:3, :3].T + T[:3, 3]
         if np.any(P[:, 2] < 0.02):

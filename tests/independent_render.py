@@ -8,7 +8,9 @@ sensor model. Only numpy, opencv, yaml and json are used: never the project's pa
 Conventions (DESIGN.md): SI units (metres, radians); OpenCV camera frames (x right, y down, z forward);
 {ll} is the left camera frame, ``X_right = R X_left + T``; pixel (0, 0) is the centre of the top-left
 pixel; the marker frame {wm} has z along the arm's distal direction and x through corner 0; corner i is
-``[r cos(i beta), r sin(i beta), 0]``; upper-row (0 < z < row_height) patch k is black for even k.
+``[r cos(i beta), r sin(i beta), 0]``; upper-row (0 < z < row_height) patch k is black for even k. A coded
+marker's ``patches`` [a0, a1, z0, z1] (angle from x_wm towards y_wm [rad], wrapping beyond 2 pi; z [m]) are
+dark too ("The coded marker"); the sleeve is white elsewhere and spans [min z, max z] of rows and patches.
 
 Rendering: per-pixel ray casting. Rays come from raw (distorted) pixel positions through
 ``cv2.undistortPoints`` (iterated to convergence); in the region of the arm every pixel is traced at its
@@ -19,7 +21,8 @@ light at the endoscope tip with inverse-square falloff; then Gaussian optics blu
 shot + read noise, 8-bit quantisation and an optional JPEG round trip.
 
 Command line: ``python tests/independent_render.py --out DIR [--pairs N] [--seed S] [--scale F]
-[--columns C] [--radius M] [--jpeg Q] [--gray] [--direction right|left|random] [--glare]``.
+[--columns C] [--radius M] [--jpeg Q] [--gray] [--direction right|left|random] [--glare] [--no-body]
+[--marker-file YAML]``.
 """
 
 from __future__ import annotations
@@ -81,6 +84,22 @@ class Marker:
     columns: int = 12
     row_height: float = 0.0025
     tip_offset: float = 0.015
+    patches: tuple[tuple[float, float, float, float], ...] = ()
+
+    @property
+    def z_range(self) -> tuple[float, float]:
+        """The sleeve's extent along z [m]: the rows and every patch."""
+        return (min([-self.row_height] + [p[2] for p in self.patches]),
+                max([self.row_height] + [p[3] for p in self.patches]))
+
+    def dark(self, ang: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """True where the sleeve is dark at angles ang [rad] and heights z [m] (DESIGN.md)."""
+        a = np.mod(ang, 2 * math.pi)
+        k = np.minimum((a / self.beta).astype(np.int64), self.columns - 1)
+        out = (np.abs(z) < self.row_height) & ((k % 2 == 0) == (z > 0))
+        for a0, a1, z0, z1 in self.patches:
+            out |= (z >= z0) & (z < z1) & (np.mod(a - a0, 2 * math.pi) < a1 - a0)
+        return out
 
     @property
     def beta(self) -> float:
@@ -119,6 +138,7 @@ class Look:
     jpeg: int | None = None
     gray: bool = False
     direction: str = "right"  # tip direction in the image: right, left or random
+    body: bool = True  # the arm's tube continues behind (proximal to) the sleeve
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -318,21 +338,21 @@ def trace(dirs: np.ndarray, origin: np.ndarray, Rm: np.ndarray, t: np.ndarray, m
           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Cast rays (origin in {ll}, unit dirs (N, 3) in {ll}) at the sleeve, tube and caps.
 
-    Returns per ray: material label (BG, TUBE, CAP, ANNULUS or SLEEVE0 + patch, patch = row * columns + k
-    with row 0 upper, 1 lower), hit point and normal in {ll} [m], and the cosine between the normal and
-    the reversed ray (for grazing detection)."""
+    Returns per ray: material label (BG, TUBE, CAP, ANNULUS or SLEEVE0 + 2 (row * columns + k) + dark, row 0
+    upper, 1 lower, 2 outside the checker rows, dark 1 where the sleeve is dark there), hit point and normal
+    in {ll} [m], and the cosine between the normal and the reversed ray (for grazing detection)."""
     o = Rm.T @ (origin - t)  # ray origin in {wm}
     d = dirs @ Rm  # R^T d, row-wise
     n_rays = len(d)
     best = np.full(n_rays, np.inf)
     label = np.zeros(n_rays, np.int32)
     nrm = np.zeros((n_rays, 3))
-    h, rs, rt = marker.row_height, marker.radius, look.tube_radius
-    z_lo, z_hi = -h - look.tube_proximal, marker.tip_offset
+    (s_lo, s_hi), rs, rt = marker.z_range, marker.radius, look.tube_radius
+    z_lo, z_hi = s_lo - (look.tube_proximal if look.body else 0.0), marker.tip_offset
 
     a = d[:, 0] ** 2 + d[:, 1] ** 2
     b = 2 * (o[0] * d[:, 0] + o[1] * d[:, 1])
-    for radius, zmin, zmax, lab in ((rs, -h, h, SLEEVE0), (rt, z_lo, z_hi, TUBE)):
+    for radius, zmin, zmax, lab in ((rs, s_lo, s_hi, SLEEVE0), (rt, z_lo, z_hi, TUBE)):
         c = o[0] ** 2 + o[1] ** 2 - radius**2
         disc = b * b - 4 * a * c
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -344,7 +364,7 @@ def trace(dirs: np.ndarray, origin: np.ndarray, Rm: np.ndarray, t: np.ndarray, m
         p = o[None, :] + s[hit, None] * d[hit]
         nrm[hit] = np.stack([p[:, 0], p[:, 1], np.zeros(len(p))], axis=1) / radius
     # planar faces: sleeve ends (annuli at z = +-h) and the tube's end caps
-    for zp, rin, rout, nz, lab in ((h, rt, rs, 1.0, ANNULUS), (-h, rt, rs, -1.0, ANNULUS),
+    for zp, rin, rout, nz, lab in ((s_hi, rt, rs, 1.0, ANNULUS), (s_lo, rt, rs, -1.0, ANNULUS),
                                    (z_hi, 0.0, rt, 1.0, CAP), (z_lo, 0.0, rt, -1.0, CAP)):
         with np.errstate(invalid="ignore", divide="ignore"):
             s = (zp - o[2]) / d[:, 2]
@@ -359,8 +379,8 @@ def trace(dirs: np.ndarray, origin: np.ndarray, Rm: np.ndarray, t: np.ndarray, m
         p = o[None, :] + best[sl, None] * d[sl]
         ang = np.mod(np.arctan2(p[:, 1], p[:, 0]), 2 * math.pi)
         k = np.minimum((ang / marker.beta).astype(np.int64), marker.columns - 1)
-        row = (p[:, 2] < 0).astype(np.int64)
-        label[sl] = SLEEVE0 + row * marker.columns + k
+        row = np.where(np.abs(p[:, 2]) < marker.row_height, (p[:, 2] < 0).astype(np.int64), 2)
+        label[sl] = SLEEVE0 + 2 * (row * marker.columns + k) + marker.dark(ang, p[:, 2])
     X = np.where(np.isfinite(best)[:, None], o[None, :] + np.where(np.isfinite(best), best, 0)[:, None] * d, 0)
     cosg = -np.sum(nrm * d, axis=1)
     return label, X @ Rm.T + t, nrm @ Rm.T, cosg
@@ -377,9 +397,7 @@ def materials(label: np.ndarray, marker: Marker, look: Look) -> tuple[np.ndarray
         m = label == lab
         alb[m], ks[m], shin[m] = col, k_s, sh
     sl = label >= SLEEVE0
-    patch = label[sl] - SLEEVE0
-    row, k = patch // marker.columns, patch % marker.columns
-    dark = (k % 2 == 0) == (row == 0)  # upper row (row 0): black for even k; lower row opposite
+    dark = (label[sl] - SLEEVE0) % 2 == 1  # as traced (Marker.dark)
     alb[sl] = np.where(dark[:, None], np.array(look.black)[None, :], np.array(look.white)[None, :])
     ks[sl], shin[sl] = look.spec_sleeve, look.shin_sleeve
     return alb, ks, shin
@@ -389,7 +407,7 @@ def object_roi(rig: Rig, eye: Eye, Rm: np.ndarray, t: np.ndarray, marker: Marker
                ) -> tuple[int, int, int, int] | None:
     """Pixel bounding box (x0, y0, x1, y1), inclusive, of the tube and sleeve in this eye, or None."""
     ang = np.linspace(0, 2 * math.pi, 48, endpoint=False)
-    zs = np.linspace(-marker.row_height - look.tube_proximal, marker.tip_offset, 80)
+    zs = np.linspace(marker.z_range[0] - (look.tube_proximal if look.body else 0.0), marker.tip_offset, 80)
     A, Z = np.meshgrid(ang, zs)
     P = np.stack([marker.radius * np.cos(A), marker.radius * np.sin(A), Z], axis=-1).reshape(-1, 3)
     X = t + P @ Rm.T
@@ -512,9 +530,11 @@ def write_calib(path: Path, rig: Rig) -> None:
 
 
 def read_marker(path: Path) -> Marker:
-    """Marker from a marker.yaml (radius, columns, row_height, tip_offset) [m]."""
+    """Marker from a marker.yaml (radius, columns, row_height, tip_offset [m], optional patches)."""
     d = yaml.safe_load(path.read_text())
-    return Marker(float(d["radius"]), int(d["columns"]), float(d["row_height"]), float(d["tip_offset"]))
+    patches = tuple(tuple(float(v) for v in p) for p in d.get("patches", []))
+    return Marker(float(d["radius"]), int(d["columns"]), float(d["row_height"]), float(d["tip_offset"]),
+                  patches)  # type: ignore[arg-type]
 
 
 def truth_entry(n: int, rig: Rig, marker: Marker, Rm: np.ndarray, t: np.ndarray) -> dict[str, Any]:
@@ -548,27 +568,35 @@ def pixel_rays(rig: Rig, eye: Eye, step: int = 4) -> np.ndarray:
 
 
 def render_dataset(out: str | Path, pairs: int = 5, seed: int = 0, scale: float = 1.0, marker: Marker | None = None,
-                   look: Look | None = None) -> dict[str, Any]:
+                   look: Look | None = None, marker_file: str | Path | None = None,
+                   poses: list[tuple[np.ndarray, np.ndarray]] | None = None) -> dict[str, Any]:
     """Write a dataset (calib.yaml, marker.yaml, pair_NN_left/right.png, truth.json) to ``out``.
 
+    ``marker_file``: a marker.yaml to render (and copy), instead of ``marker``; ``poses``: the poses
+    (R, t) of {wm} in {ll} to render (``pairs`` is then their number), instead of random ones.
     Returns a summary: folder, pairs, seed, image size, render seconds per pair."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    marker = marker or Marker()
+    marker = read_marker(Path(marker_file)) if marker_file is not None else (marker or Marker())
+    pairs = len(poses) if poses is not None else pairs
     look = look or Look()
     rng = np.random.default_rng(seed)
     rig = random_rig(rng, scale)
     write_calib(out / "calib.yaml", rig)
-    (out / "marker.yaml").write_text(yaml.safe_dump({"radius": marker.radius, "columns": marker.columns,
-                                                     "row_height": marker.row_height,
-                                                     "tip_offset": marker.tip_offset}, sort_keys=False))
+    mk: dict[str, Any] = {"radius": marker.radius, "columns": marker.columns, "row_height": marker.row_height,
+                          "tip_offset": marker.tip_offset}
+    if marker.patches:
+        mk["patches"] = [list(p) for p in marker.patches]
+    (out / "marker.yaml").write_text(yaml.safe_dump(mk, sort_keys=False))
+    if marker_file is not None:  # the marker file as given (decoder keys included)
+        (out / "marker.yaml").write_text(Path(marker_file).read_text())
     marker = read_marker(out / "marker.yaml")  # render what the file says
     tex = make_texture(rng)
     dirs = {"left": pixel_rays(rig, rig.left), "right": pixel_rays(rig, rig.right)}
     truth = []
     t0 = time.perf_counter()
     for n in range(pairs):
-        Rm, t = random_pose(rng, rig, marker, look)
+        Rm, t = random_pose(rng, rig, marker, look) if poses is None else poses[n]
         bg = random_background(rng, t, tex.shape[0])
         exposure = rng.uniform(0.8, 1.15)
         if look.auto_exposure:  # the endoscope's exposure control levels the marker's distance fall-off
@@ -604,9 +632,13 @@ def main(argv: list[str] | None = None) -> int:
                    help="direction of the tip in the image")
     p.add_argument("--glare", action="store_true",
                    help="no exposure control and a strong, broad specular lobe (saturated whites up close)")
+    p.add_argument("--no-body", action="store_true", help="no tube behind (proximal to) the sleeve")
+    p.add_argument("--marker-file", default=None, help="render this marker.yaml (patches included)")
     a = p.parse_args(argv)
     look = glare_look(a.jpeg, a.gray, a.direction) if a.glare else Look(jpeg=a.jpeg, gray=a.gray, direction=a.direction)
-    summary = render_dataset(a.out, a.pairs, a.seed, a.scale, Marker(radius=a.radius, columns=a.columns), look)
+    look.body = not a.no_body
+    summary = render_dataset(a.out, a.pairs, a.seed, a.scale, Marker(radius=a.radius, columns=a.columns), look,
+                             a.marker_file)
     print(json.dumps(summary))
     return 0
 

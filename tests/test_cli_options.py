@@ -178,7 +178,8 @@ def test_bad_numbers_are_refused_where_parsed(option: tuple[str, argparse.Action
     assert all(math.isfinite(float(v)) for v in flat), f"{argv}: parsed a non-finite value {value}"
 
 
-NOT_APPLICABLE = {"rms_px", "estimate"}  # null by design: no reprojection with --sensor truth-noise / not tracked
+NOT_APPLICABLE = {"rms_px", "estimate", "code"}  # null by design: no reprojection with --sensor truth-noise /
+# not tracked / the reference sleeve carries no code (config.json marker.code)
 
 
 def _no_nan(obj: Any, where: str) -> None:

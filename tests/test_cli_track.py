@@ -26,8 +26,10 @@ def _pairs(ds: Path) -> list[str]:
 
 
 def test_json_lines_match_truth(dataset: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """--lenient-direction: our scenes have the arm entering from the left (the +x default)."""
     capsys.readouterr()
-    argv = ["track", "--calib", str(dataset / "calib.yaml"), "--marker", str(dataset / "marker.yaml"), "--json"]
+    argv = ["track", "--calib", str(dataset / "calib.yaml"), "--marker", str(dataset / "marker.yaml"), "--json",
+            "--lenient-direction"]
     assert main(argv + _pairs(dataset)) == 0
     lines = capsys.readouterr().out.strip().splitlines()
     truth = load_dataset(dataset).truth
@@ -54,6 +56,22 @@ def test_json_lines_match_truth(dataset: Path, capsys: pytest.CaptureFixture[str
         assert np.allclose(R[:, 2], t.R[:, 2], atol=0.05)  # marker axis; roll is relative
         assert np.linalg.norm(np.array(o["t"]) - t.t) < 0.2e-3
         assert np.array(o["corners_left"]).shape[1] == 2 and o["rms_px"] < 0.75 and o["time_ms"] > 0
+
+
+def test_direction_is_right_or_ambiguous_by_default(dataset: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Without --lenient-direction nothing is guessed: a right pose, or ok false 'direction ambiguous'
+    (the reference sleeve in our scenes: no body in view beyond the tip's distance)."""
+    capsys.readouterr()
+    argv = ["track", "--calib", str(dataset / "calib.yaml"), "--marker", str(dataset / "marker.yaml"), "--json"]
+    assert main(argv + _pairs(dataset)) == 0
+    lines = [json.loads(x) for x in capsys.readouterr().out.strip().splitlines()]
+    truth = load_dataset(dataset).truth
+    assert len(lines) == len(truth)
+    for o, t in zip(lines, truth):
+        if o["ok"]:
+            assert np.linalg.norm(np.array(o["tip"]) - t.tip) < 0.2e-3
+        else:
+            assert o["reason"] == "direction ambiguous" and len(o["corners_left"]) >= 3
 
 
 def test_no_marker_prints_ok_false(dataset: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

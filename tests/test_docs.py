@@ -12,7 +12,7 @@ from pathlib import Path
 from rig import cli
 
 ROOT = Path(__file__).resolve().parents[1]
-USER_FILES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md")), *sorted((ROOT / "configs").glob("*"))]
+USER_FILES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md")), *sorted(p for p in (ROOT / "configs").rglob("*") if p.is_file())]
 WRITES = ("--out", "--json", "--snapshot")  # options whose value is a written path
 
 
@@ -42,7 +42,7 @@ def test_every_link_and_docs_path_exists() -> None:
         for path in re.findall(r"\b(docs/[\w./-]+\.md)\b", text):
             if not (ROOT / path).exists():
                 missing.append(f"{p.relative_to(ROOT)} mentions {path}")
-    for c in sorted((ROOT / "configs").glob("*.yaml")):
+    for c in sorted((ROOT / "configs").rglob("*.yaml")):
         for path in re.findall(r"\b(docs/[\w./-]+\.md)\b", c.read_text()):
             if not (ROOT / path).exists():
                 missing.append(f"{c.relative_to(ROOT)} mentions {path}")

@@ -8,7 +8,11 @@ and line: left, right, ok, tip, R, t (pose of {wm} in {ll}, metres), corners_lef
 corners_right (raw pixels), rms_px, time_ms, and axis_source (what decided the direction of
 z_wm: cvs.marker_tracker); with ``--source`` also ``frame`` (the source's index) and
 ``t_capture`` (host monotonic clock [s]). ``"ok": false`` with a ``reason`` when the marker is
-not found (exit status stays 0: that is a result, not an error).
+not found, or "direction ambiguous" when nothing tells which way the marker points (the
+direction is never guessed unless --lenient-direction; docs/conventions.md); the exit status
+stays 0 (that is a result, not an error). When ok, also ``roll_known`` (a coded sleeve's code was
+read: R includes the roll) and ``ids`` ({"left": [...], "right": [...]}: absolute column ids of
+the corners, null when the roll is unknown).
 
 With ``--source``: a progress bar on stderr for finite sources (on a terminal), and at the end
 one summary line on stderr: frames, rate [fps], tracking latency (result time minus
@@ -98,13 +102,29 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         nargs=3,
         metavar=("X", "Y", "Z"),
         help="expected direction of the marker's z axis (towards the tip) in the left camera frame; "
-        "default: decided from the images (the arm's side of the sleeve), else +x (tip to the right)",
+        "default: a coded sleeve's code, a consistent previous pair or the images decide (else 'direction ambiguous')",
+    )
+    p.add_argument(
+        "--lenient-direction",
+        action="store_true",
+        help="guess which way the marker points when nothing decides it (one-band image evidence, else +x: the "
+        "arm entering from the left); default: 'direction ambiguous' unless the code, --axis-hint, a consistent "
+        "previous pair or the image beyond the tip decides",
     )
     p.add_argument("--json", action="store_true", help="one JSON object per frame and line on stdout")
 
 
 def _round(a: Any, nd: int) -> Any:
     return np.round(np.asarray(a, float), nd).tolist()
+
+
+def _ids(res: Any) -> dict[str, list[int | None]] | None:
+    """Absolute column ids of corners_left / corners_right (None: corner not used), or None when
+    the roll is unknown (reference sleeve, or a code that could not be read)."""
+    if not res.roll_known or res.ids_left is None or res.ids_right is None:
+        return None
+    pairs = (("left", res.ids_left), ("right", res.ids_right))
+    return {k: [int(i) if i >= 0 else None for i in ids] for k, ids in pairs}
 
 
 def result_fields(res: Any) -> dict[str, Any]:
@@ -126,6 +146,8 @@ def result_fields(res: Any) -> dict[str, Any]:
     }
     if res.ok:
         out["axis_source"] = res.axis_source
+        out["roll_known"] = res.roll_known
+        out["ids"] = _ids(res)
     return out
 
 
@@ -142,7 +164,7 @@ def _text_line(frame: StereoFrame, res: Any) -> str:
 def _settings(args: argparse.Namespace) -> Any:
     from cvs.marker_tracker import TrackerSettings
 
-    settings = TrackerSettings(detector=args.detector)
+    settings = TrackerSettings(detector=args.detector, strict_direction=not args.lenient_direction)
     if args.max_rms is not None:
         settings = replace(settings, max_rms_px=args.max_rms, good_rms_px=min(settings.good_rms_px, args.max_rms))
     return settings

@@ -3,10 +3,14 @@
 Runs ``sim.experiments.run_cube`` (open loop and closed loop on fresh simulated plants, the
 vision pipeline in the loop unless ``--sensor truth-noise``) for every combination asked for,
 writes each run folder under ``--out`` and prints one JSON document; a markdown table of all
-runs beside the paper's numbers goes to ``OUT/table.md``.
+runs beside the paper's numbers goes to ``OUT/table.md``. ``--compensation off on`` runs each
+combination without and with the dead-band inversion (solvers/backlash_compensation.py);
+the columns give the closed loop's mean / max and its corner overshoot (max and mean over the
+corners) per controller.
 
     .venv/bin/python bench/cube_matrix.py --controllers qp paper --dts 0.060 0.033 \
-        [--plants configs/plant.yaml configs/plant_unseen.yaml] [--sensor vision] [--duration S]
+        [--plants configs/plant.yaml configs/plant_unseen.yaml tests/data/heldout_plants/*.yaml] \
+        [--compensation off on] [--sensor vision] [--duration S]
 
 Long: with vision a full cube takes ~6-12 min of wall time per closed-loop run on 2 cores.
 """
@@ -20,53 +24,77 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from rig.commands.option_types import positive_float  # noqa: E402
 from sim.experiments import PAPER_CUBE, run_cube  # noqa: E402
-from sim.setup import default_config, load_setup  # noqa: E402
+from sim.plant_params import PlantParams  # noqa: E402
+from sim.setup import SimSetup, default_config, load_setup  # noqa: E402
+
+HEADER = ("| run | open mean [mm] | open max [mm] | closed mean [mm] | closed max [mm] | closed/open "
+          "| corner overshoot max [mm] | corner overshoot mean [mm] | wall [s] |")
+
+
+def cube_setup(kind: str, dt: float, sensor: str, compensation: bool, plant: PlantParams | None = None,
+               plant_file: str | None = None) -> SimSetup:
+    """The default setup with this controller kind, cycle [s], sensor, compensation and plant."""
+    setup = load_setup(plant=plant_file)
+    rig = dataclasses.replace(setup.rig, control_dt=dt, sensor=sensor,
+                              vision_latency=min(setup.rig.vision_latency, 0.75 * dt))
+    rig.validate()
+    ctrl = dataclasses.replace(setup.controller, kind=kind, dt=dt, backlash_compensation=compensation)
+    ctrl.validate()
+    return setup.with_changes(rig=rig, controller=ctrl, **({"plant": plant} if plant is not None else {}))
+
+
+def summary(res: dict[str, Any]) -> dict[str, Any]:
+    """The closed loop's numbers of a cube result [mm]."""
+    c = res["closed_loop"]
+    return {"mean_mm": c["mean_mm"], "max_mm": c["max_mm"], "stopped": c.get("stopped", ""),
+            "corner_overshoot_max_mm": c["corner_overshoot_mm"]["max"],
+            "corner_overshoot_mean_mm": c["corner_overshoot_mm"]["mean"]}
 
 
 def _row(name: str, res: dict) -> str:
     o, c = res["open_loop"], res["closed_loop"]
     return (f"| {name} | {o['mean_mm']:.2f} | {o['max_mm']:.2f} | {c['mean_mm']:.2f} | {c['max_mm']:.2f} | "
-            f"{100 * res['ratio']:.1f} % | {c['corner_overshoot_mm']['max']:.2f} | {res['wall_s']:.0f} |")
+            f"{100 * res['ratio']:.1f} % | {c['corner_overshoot_mm']['max']:.2f} | "
+            f"{c['corner_overshoot_mm']['mean']:.2f} | {res['wall_s']:.0f} |")
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--controllers", nargs="+", default=["qp", "paper"])
-    ap.add_argument("--dts", nargs="+", type=float, default=[0.060, 0.033], help="control cycles [s]")
+    ap.add_argument("--dts", nargs="+", type=positive_float(1.0), default=[0.060, 0.033], help="control cycles [s]")
     ap.add_argument("--plants", nargs="+", default=[str(default_config("plant.yaml"))])
+    ap.add_argument("--compensation", nargs="+", choices=("off", "on"), default=["off"],
+                    help="dead-band inversion off and/or on")
     ap.add_argument("--sensor", choices=("vision", "truth-noise"), default="vision")
-    ap.add_argument("--duration", type=float, help="cut the cube walk to S seconds")
+    ap.add_argument("--duration", type=positive_float(), help="cut the cube walk to S seconds")
     ap.add_argument("--out", default="runs/bench/cube_matrix")
     args = ap.parse_args()
     out = Path(args.out)
     results = []
-    lines = ["| run | open mean [mm] | open max [mm] | closed mean [mm] | closed max [mm] | closed/open "
-             "| corner overshoot max [mm] | wall [s] |", "|---|---|---|---|---|---|---|---|"]
     p = PAPER_CUBE
-    lines.append(f"| paper (Fig. 8), 60 ms | {p['open_loop']['mean_mm']:.2f} | {p['open_loop']['max_mm']:.2f} | "
-                 f"{p['closed_loop']['mean_mm']:.2f} | {p['closed_loop']['max_mm']:.2f} | "
-                 f"{100 * p['ratio']:.1f} % | - | - |")
-    for plant, kind, dt in itertools.product(args.plants, args.controllers, args.dts):
-        setup = load_setup(plant=plant)
-        rig = dataclasses.replace(setup.rig, control_dt=dt, sensor=args.sensor,
-                                  vision_latency=min(setup.rig.vision_latency, 0.75 * dt))
-        rig.validate()
-        ctrl = dataclasses.replace(setup.controller, kind=kind, dt=dt)
-        setup = setup.with_changes(rig=rig, controller=ctrl)
-        name = f"{Path(plant).stem}, {kind}, {1000 * dt:.0f} ms"
+    lines = [HEADER, "|---|---|---|---|---|---|---|---|---|",
+             f"| paper (Fig. 8), 60 ms | {p['open_loop']['mean_mm']:.2f} | {p['open_loop']['max_mm']:.2f} | "
+             f"{p['closed_loop']['mean_mm']:.2f} | {p['closed_loop']['max_mm']:.2f} | "
+             f"{100 * p['ratio']:.1f} % | - | - | - |"]
+    for plant, kind, dt, comp in itertools.product(args.plants, args.controllers, args.dts, args.compensation):
+        setup = cube_setup(kind, dt, args.sensor, comp == "on", plant_file=plant)
+        name = f"{Path(plant).stem}, {kind}, {1000 * dt:.0f} ms, compensation {comp}"
         t0 = time.perf_counter()
-        res = run_cube(setup, out / f"{Path(plant).stem}_{kind}_{1000 * dt:.0f}ms", progress=False,
+        res = run_cube(setup, out / f"{Path(plant).stem}_{kind}_{1000 * dt:.0f}ms_comp_{comp}", progress=False,
                        duration=args.duration)
         res["wall_s"] = time.perf_counter() - t0
         res["name"] = name
         lines.append(_row(name, res))
         print(lines[-1], file=sys.stderr, flush=True)
-        results.append({k: res[k] for k in ("name", "controller", "control_dt_s", "sensor", "open_loop",
-                                            "closed_loop", "ratio", "wall_s", "run_dir")})
+        results.append({"compensation": comp == "on", "plant": plant, **{
+            k: res[k] for k in ("name", "controller", "control_dt_s", "sensor", "open_loop", "closed_loop", "ratio",
+                                "wall_s", "run_dir")}})
     out.mkdir(parents=True, exist_ok=True)
     table = f"# Cube trajectory, sensor {args.sensor}\n\n" + "\n".join(lines) + "\n"
     (out / "table.md").write_text(table)

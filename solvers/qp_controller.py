@@ -3,7 +3,8 @@
     minimise    || Jv psi_dot - v_ref ||^2 + w_o || Jw psi_dot ||^2 + lambda || S psi_dot ||^2
     subject to  lo <= psi_dot <= hi
 
-v_ref = v_des (feed-forward) + sat(kp (p_des - p_meas), max_correction_speed) [m/s]; Jv, Jw the
+v_ref = v_des (feed-forward) + sat(kp (p_des - p_meas), max_correction_speed) + v_i [m/s], v_i the
+clamped integral ki sum(e dt) of solvers/tip_integral.py (ki = 0: none); Jv, Jw the
 linear / angular rows of the 6x6 tip Jacobian in {w}; S = diag(lever, 1, lever, ...) turns
 joint rates into tip-scale metres so one damping weight fits rad and m; the box folds in the
 velocity limits and psi + psi_dot dt inside the joint limits. The QP is built once as a CasADi
@@ -21,6 +22,7 @@ from models.kinematics import tip_jacobian
 from models.limits import psi_bounds
 from models.robot_params import RobotParams
 from solvers.controller import Controller, ControllerConfig
+from solvers.tip_integral import TipErrorIntegral
 
 Array = NDArray[np.float64]
 _N_IN = 36 + 6 + 6 + 6
@@ -62,14 +64,35 @@ class QpController(Controller):
         self._S2 = np.diag([lev, 1.0, lev, lev, lev, lev]) ** 2
         self._vmax = np.asarray(params.max_velocity, float)
         self._lo, self._hi = psi_bounds(params)
+        self.integral = TipErrorIntegral(config.ki, config.integral_speed_limit)
 
-    def reference_velocity(self, p_meas: Array, p_des: Array, v_des: Array | None) -> Array:
-        """v_ref = v_des + sat(kp (p_des - p_meas)) [m/s]."""
+    def reset(self) -> None:
+        """Zero the integral and the backlash state."""
+        super().reset()
+        self.integral.reset()
+
+    def _hessian(self, J: Array) -> Array:
         cfg = self.config
-        fb = cfg.kp * (p_des - p_meas)
+        Jv, Jw = J[:3], J[3:]
+        return 2.0 * (Jv.T @ Jv + cfg.orientation_weight * Jw.T @ Jw + cfg.damping * self._S2)
+
+    def path_rates(self, psi: Array, v_tip: Array) -> Array:
+        """The QP's unconstrained psi_dot [rad/s, m/s] for a tip velocity ``v_tip`` [m/s] in {w}."""
+        J = tip_jacobian(self.params, psi)
+        return np.asarray(np.linalg.solve(self._hessian(J), 2.0 * J[:3].T @ v_tip), float)
+
+    def reference_velocity(self, p_meas: Array, p_des: Array, v_des: Array | None,
+                           dt: float = 0.0) -> Array:
+        """v_ref = v_des + sat(kp (p_des - p_meas)) + v_i [m/s]; ``dt`` [s] advances the integral."""
+        cfg = self.config
+        err = p_des - p_meas
+        fb = cfg.kp * err
         n = float(np.linalg.norm(fb))
-        if n > cfg.max_correction_speed:
+        saturated = n > cfg.max_correction_speed
+        if saturated:
             fb *= cfg.max_correction_speed / n
+        if dt > 0.0:
+            fb = fb + self.integral.update(err, dt, saturated)
         if cfg.feed_forward and v_des is not None:
             fb = fb + v_des
         return fb
@@ -77,12 +100,10 @@ class QpController(Controller):
     def velocity(self, psi: Array, p_meas: Array, p_des: Array, v_des: Array | None,
                  dt: float) -> tuple[Array, Array, str]:
         """Solve the QP for psi_dot."""
-        cfg = self.config
-        v_ref = self.reference_velocity(p_meas, p_des, v_des)
+        v_ref = self.reference_velocity(p_meas, p_des, v_des, dt)
         J = tip_jacobian(self.params, psi)
-        Jv, Jw = J[:3], J[3:]
-        H = 2.0 * (Jv.T @ Jv + cfg.orientation_weight * Jw.T @ Jw + cfg.damping * self._S2)
-        g = -2.0 * Jv.T @ v_ref
+        H = self._hessian(J)
+        g = -2.0 * J[:3].T @ v_ref
         with np.errstate(invalid="ignore"):
             lo = np.maximum(-self._vmax, (self._lo - psi) / dt)
             hi = np.minimum(self._vmax, (self._hi - psi) / dt)

@@ -12,7 +12,7 @@ from pathlib import Path
 from rig import cli
 
 ROOT = Path(__file__).resolve().parents[1]
-USER_FILES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md")), 
+USER_FILES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md")),
               *sorted(p for p in (ROOT / "configs").rglob("*") if p.is_file())]
 WRITES = ("--out", "--json", "--snapshot")  # options whose value is a written path
 

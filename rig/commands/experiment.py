@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from models.errors import ConfigError
-from rig.commands.setup_args import add_setup_arguments, setup_from_args
+from rig.commands.setup_args import add_registration_argument, add_setup_arguments, setup_from_args
 from rig.run_log import write_json
 
 if TYPE_CHECKING:
@@ -23,6 +23,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", metavar="OUT", help="write the result JSON to OUT")
     p.add_argument("--out", metavar="DIR", help="run folder (default: runs/<name>-<time>)")
     add_setup_arguments(p)
+    add_registration_argument(p)
     p.add_argument("--duration", type=float, metavar="S",
                    help="cube/load: run only the first S seconds of the cube walk (quick checks)")
     p.add_argument("--positions", type=int, default=40, help="accuracy: number of positions")

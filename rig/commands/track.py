@@ -28,6 +28,9 @@ from models.errors import InputError
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--calib", required=True, help="stereo calibration (YAML of DESIGN.md or OpenCV FileStorage)")
     p.add_argument("--marker", help="marker YAML (default: the reference marker)")
+    p.add_argument("--registration", metavar="FILE",
+                   help="registration file (wristmark register): overrides the calibration's world_T_left; "
+                   "the JSON then also has tip_world [m] in {w}")
     p.add_argument("images", nargs="+", metavar="LEFT RIGHT", help="stereo pairs: left and right image paths")
     p.add_argument(
         "--detector",
@@ -79,6 +82,7 @@ def run(args: argparse.Namespace) -> int:
     from cvs.calibration_io import load_calibration
     from cvs.marker import MarkerModel
     from cvs.marker_tracker import MarkerTracker, TrackerSettings
+    from cvs.registration_io import apply_registration
 
     paths = [Path(p) for p in args.images]
     if len(paths) % 2:
@@ -96,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
         hint = np.asarray(args.axis_hint, float)
         if not (np.all(np.isfinite(hint)) and np.linalg.norm(hint) > 0):
             raise InputError(f"--axis-hint must be a finite non-zero direction, got {args.axis_hint}")
-    camera = load_calibration(args.calib)
+    camera = apply_registration(load_calibration(args.calib), args.registration)
     marker = MarkerModel.load(args.marker) if args.marker else MarkerModel()
     tracker = MarkerTracker(camera, marker, settings)
     for lp, rp in zip(paths[0::2], paths[1::2]):
@@ -112,6 +116,8 @@ def run(args: argparse.Namespace) -> int:
                 "R": _round(res.T_left_marker[:3, :3], 9),
                 "t": _round(res.T_left_marker[:3, 3], 9),
             }
+            if args.registration and res.tip_world is not None:
+                out["tip_world"] = _round(res.tip_world, 9)
         else:
             out["reason"] = res.reason
         out |= {

@@ -1,0 +1,100 @@
+"""Registration on hardware or the virtual lab: the actuator box over serial (rig/actuator_driver.py,
+protocol v1) and the stereo endoscope through a frame source (cvs.open_source).
+
+Moves are ramped in configuration space at half the robot's velocity limits, one SET_TARGET
+every ``period`` [s] (well inside the box's 250 ms watchdog), then the encoders are polled until
+they settle (every joint within ``settle_tol`` over ``settle_time``). ``grab`` reads frames until
+one was captured after the move settled (a live source hands out the newest frame), feeding the
+watchdog meanwhile. ``close`` holds at the encoders' position and sends DISABLE.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from cvs.frames import FrameSourceError, StereoSource
+from models.limits import check_limits
+from models.robot_params import RobotParams
+from rig.actuator_driver import ActuatorDriver, ActuatorError
+
+Array = NDArray[np.float64]
+SETTLE_TOL = np.array([2e-4, 5e-6, 2e-4, 2e-3, 2e-4, 2e-3])  # [rad, m, rad, rad, rad, rad] per poll
+
+
+class HardwareRegistrationRig:
+    """:class:`rig.registration_run.RegistrationRig` over an :class:`ActuatorDriver` and a source."""
+
+    def __init__(self, driver: ActuatorDriver, source: StereoSource, params: RobotParams, period: float = 0.05,
+                 settle_time: float = 0.3, timeout: float = 20.0, clock: Callable[[], float] = time.monotonic,
+                 sleep: Callable[[float], None] = time.sleep) -> None:
+        self.driver, self.source, self.params = driver, source, params
+        self.period, self.settle_time, self.timeout = float(period), float(settle_time), float(timeout)
+        self.clock, self.sleep = clock, sleep
+        self._settled_at = -np.inf
+        self._enabled = False
+
+    def start(self) -> None:
+        """ENABLE the box (it holds where it is until the first move)."""
+        self.driver.enable()
+        self._enabled = True
+
+    def move_to(self, psi: Array) -> None:
+        """Ramp to ``psi`` within the velocity limits, then wait until the encoders settle."""
+        target = check_limits(self.params, psi)
+        q = self.driver.measured_psi()
+        diff = target - q
+        diff[[3, 5]] = (diff[[3, 5]] + np.pi) % (2 * np.pi) - np.pi  # bending planes: the short way round
+        target = q + diff
+        step = 0.5 * np.asarray(self.params.max_velocity) * self.period
+        while np.any(np.abs(target - q) > 1e-12):
+            q = q + np.clip(target - q, -step, step)
+            self.driver.set_psi(q)
+            self.sleep(self.period)
+        t0 = self.clock()
+        last, since = self.driver.measured_psi(), self.clock()
+        while self.clock() - since < self.settle_time:
+            if self.clock() - t0 > self.timeout:
+                raise ActuatorError(f"the arm did not settle within {self.timeout:.0f} s of reaching its target")
+            self.sleep(self.period)
+            now = self.driver.measured_psi()
+            if np.any(np.abs(now - last) > SETTLE_TOL):
+                since = self.clock()
+            last = now
+        self._settled_at = self.clock()
+
+    def measured_psi(self) -> Array:
+        """Configuration from the encoders (GET_STATE)."""
+        return self.driver.measured_psi()
+
+    def grab(self) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+        """The first frame captured after the last move settled."""
+        t0 = self.clock()
+        while True:
+            frame = self.source.read()
+            if frame is None:
+                raise FrameSourceError(f"{self.source.name}: the camera stream ended during registration")
+            self.driver.get_state()  # feeds the watchdog while frames arrive
+            if frame.t_capture >= self._settled_at:
+                return frame.left, frame.right
+            if self.clock() - t0 > self.timeout:
+                raise FrameSourceError(f"{self.source.name}: no frame newer than the settled arm within "
+                                       f"{self.timeout:.0f} s")
+
+    def close(self) -> None:
+        """Hold at the encoders' position and DISABLE (errors ignored: the box may be gone)."""
+        if not self._enabled:
+            return
+        self._enabled = False
+        try:
+            self.driver.set_psi(self.driver.measured_psi())
+        except ActuatorError:
+            pass
+        finally:
+            try:
+                self.driver.disable()
+            except ActuatorError:
+                pass

@@ -42,6 +42,7 @@ SIGMA_CENTRE = 5e-5  # [m] centre accuracy of the stereo marker pose (NOTES: ~29
 SIGMA_AXIS = np.radians(0.2)  # [rad] axis accuracy (NOTES: ~0.19 deg median)
 MIN_POSES = 4
 MIN_POSES_ARM = 8
+OUTLIER_SIGMAS = 8.0  # an observation this many sigmas off after the first solve is dropped (at most 25 %)
 _PLAY_SCALE = np.array([1e-2, 1e-4, 1e-4, 1e-4, 1e-4, 1e-4])  # [rad, m, ...] typical half plays (scaling)
 
 
@@ -90,8 +91,9 @@ class ArmCorrection:
 @dataclass
 class RegistrationResult:
     """world_T_left (4x4, metres), residual RMS of the centres [m], per-pose residuals (centre [m],
-    axis [rad]), the arm correction estimated alongside, the closed-form start and which poses
-    the robust loss treated as outliers (residual above 3 sigma)."""
+    axis [rad]), the arm correction estimated alongside, the closed-form start and the poses
+    dropped as outliers (more than OUTLIER_SIGMAS off after a first robust solve); rms_m covers
+    the poses kept."""
 
     world_T_left: Array
     rms_m: float
@@ -160,23 +162,34 @@ def solve_registration(params: RobotParams, poses: list[RegistrationPose], estim
             arm = ArmCorrection((1.0 + x[6], 1.0 + x[7]), x[8], x[9], play)
         return Rotation.from_rotvec(x[:3]).as_matrix(), x[3:6], arm
 
+    keep = np.ones(len(poses), bool)
+
     def residuals(x: Array) -> Array:
         R, t, arm = unpack(x)
         mw, ma = _model(params, poses, arm)
         rc = (cl @ R.T + t - mw) / SIGMA_CENTRE
         ra = (al @ R.T - ma) / SIGMA_AXIS
-        return np.concatenate([rc.ravel(), ra.ravel()])
+        return np.concatenate([rc[keep].ravel(), ra[keep].ravel()])
+
+    def errors(x: Array) -> tuple[Array, Array]:
+        R, t, arm = unpack(x)
+        mw, ma = _model(params, poses, arm)
+        return (np.linalg.norm(cl @ R.T + t - mw, axis=1),
+                np.arccos(np.clip(np.sum((al @ R.T) * ma, axis=1), -1.0, 1.0)))
 
     n_arm = (10 if backlash else 4) if estimate_arm else 0
-    x0 = np.concatenate([Rotation.from_matrix(W0[:3, :3]).as_rotvec(), W0[:3, 3], np.zeros(n_arm)])
-    sol = least_squares(residuals, x0, loss=loss, f_scale=3.0, x_scale="jac", method="trf")
-    R, t, arm = unpack(sol.x)
-    mw, ma = _model(params, poses, arm)
-    dc = np.linalg.norm(cl @ R.T + t - mw, axis=1)
-    da = np.arccos(np.clip(np.sum((al @ R.T) * ma, axis=1), -1.0, 1.0))
+    x = np.concatenate([Rotation.from_matrix(W0[:3, :3]).as_rotvec(), W0[:3, 3], np.zeros(n_arm)])
+    x = least_squares(residuals, x, loss=loss, f_scale=3.0, x_scale="jac", method="trf").x
+    dc, da = errors(x)
+    bad = (dc > OUTLIER_SIGMAS * SIGMA_CENTRE) | (da > OUTLIER_SIGMAS * SIGMA_AXIS)
+    if 0 < bad.sum() <= 0.25 * len(poses):  # a few wrong observations: solve again without them
+        keep = ~bad
+        x = least_squares(residuals, x, loss=loss, f_scale=3.0, x_scale="jac", method="trf").x
+        dc, da = errors(x)
+    R, t, arm = unpack(x)
     names = [p.name or str(i) for i, p in enumerate(poses)]
-    out = [n for n, c, a in zip(names, dc, da) if c > 3 * SIGMA_CENTRE * 3 or a > 3 * SIGMA_AXIS * 3]
-    return RegistrationResult(_transform(R, t), float(np.sqrt(np.mean(dc**2))), dc, da, arm, W0, names, out)
+    return RegistrationResult(_transform(R, t), float(np.sqrt(np.mean(dc[keep] ** 2))), dc, da, arm, W0, names,
+                              [n for n, k in zip(names, keep) if not k])
 
 
 def transform_error(A: Array, B: Array) -> tuple[float, float]:

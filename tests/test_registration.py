@@ -33,8 +33,8 @@ def _true_W() -> np.ndarray:
 
 
 def _observations(arm: ArmCorrection, W: np.ndarray, n: int = 10) -> list[Observation]:
-    from cvs.camera import StereoCamera
     from cvs.calibration_io import load_calibration
+    from cvs.camera import StereoCamera
 
     cam: StereoCamera = load_calibration(CONFIGS / "camera.yaml")
     from cvs.marker import MarkerModel

@@ -70,6 +70,22 @@ def test_real_photographs_match_opencv(tmp_path: Path, capsys: pytest.CaptureFix
     assert "--force" in capsys.readouterr().err
 
 
+def test_calibrate_from_a_source_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    folder = tmp_path / "ds"
+    folder.mkdir()
+    for k, n in enumerate(NAMES):
+        for side in ("left", "right"):
+            shutil.copy(PHOTOS / f"{side}{n}.jpg", folder / f"pair_{k:02d}_{side}.jpg")
+    a, b = tmp_path / "a.yaml", tmp_path / "b.yaml"
+    assert main(["calibrate", "--board", f"chessboard:9x6:{SQUARE}", "--source", str(folder), "--out", str(a),
+                 "--no-progress"]) == 0
+    assert main(["calibrate", "--board", f"chessboard:9x6:{SQUARE}", *_photo_args(), "--out", str(b),
+                 "--no-progress"]) == 0
+    ca, cb = load_calibration(a), load_calibration(b)
+    np.testing.assert_allclose(ca.left.K, cb.left.K, rtol=1e-9)
+    np.testing.assert_allclose(ca.T, cb.T, rtol=1e-9, atol=1e-12)
+
+
 def test_mismatched_pair_is_dropped_and_named(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     folder = tmp_path / "photos"
     shutil.copytree(PHOTOS, folder)

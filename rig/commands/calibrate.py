@@ -30,6 +30,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--source", metavar="SPEC", help="read the views from a frame source instead (DESIGN.md)")
     p.add_argument("--frames", type=int_in(1, 100000), default=200, metavar="N",
                    help="--source: read at most N frames (default 200)")
+    p.add_argument("--layout", choices=("sbs", "tb"), default="sbs",
+                   help="--source: how one frame holds both views (side by side, top-bottom)")
     p.add_argument("--every", type=int_in(1, 10000), default=1, metavar="K", help="--source: use every K-th frame")
     p.add_argument("--out", required=True, metavar="C.yaml", help="calibration file to write (project YAML)")
     p.add_argument("--force", action="store_true", help="overwrite an existing --out")
@@ -42,20 +44,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _file_pairs(paths: list[Path]) -> Iterator[Pair]:
-    from rig.commands.track import read_image
+    from cvs.frame_source_images import read_image
 
     for lp, rp in zip(paths[0::2], paths[1::2]):
         yield f"{lp.name} + {rp.name}", read_image(lp), read_image(rp)
 
 
-def _source_pairs(spec: str, limit: int, every: int) -> Iterator[Pair]:
-    try:
-        from cvs.open_source import SourceOptions, open_stereo_source  # type: ignore[import-not-found]
-    except ImportError as e:
-        raise InputError("--source needs the frame sources (cvs/open_source.py), not installed here") from e
+def _source_pairs(spec: str, limit: int, every: int, layout: str) -> Iterator[Pair]:
     from cvs.frames import frames
+    from cvs.open_source import SourceOptions, open_stereo_source
 
-    src = open_stereo_source(spec, SourceOptions())
+    src = open_stereo_source(spec, SourceOptions(layout=layout))
     try:
         for f in frames(src, limit):
             if f.index % every == 0:
@@ -94,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
                 example.append((left, right))
             yield name, left, right
 
-    pairs = _file_pairs(paths) if paths else _source_pairs(args.source, args.frames, args.every)
+    pairs = _file_pairs(paths) if paths else _source_pairs(args.source, args.frames, args.every, args.layout)
     views = detect_views(keep_first(pairs), detector, total=len(paths) // 2 or None, progress=not args.no_progress)
     res = calibrate_stereo(views, outlier_floor_px=args.outlier_floor, flags=cv2.CALIB_FIX_K3 if args.fix_k3 else 0)
     for v in res.dropped:

@@ -85,16 +85,13 @@ def _observe_hardware(args: argparse.Namespace, progress: bool) -> tuple[Any, li
 
     if not args.camera:
         raise InputError("--serial needs --camera SPEC (the stereo endoscope's frame source)")
-    try:
-        from cvs.open_source import SourceOptions, open_stereo_source  # type: ignore[import-not-found]
-    except ImportError as e:
-        raise InputError("--camera needs the frame sources (cvs/open_source.py), not installed here") from e
+    from cvs.open_source import SourceOptions, open_stereo_source
     calib = args.calib or str(Path(__file__).resolve().parents[2] / "configs" / "camera.yaml")
     cam = apply_registration(load_calibration(calib), args.registration)
     params = RobotParams.load(args.robot) if args.robot else RobotParams()
     marker = MarkerModel.load(args.marker) if args.marker else MarkerModel()
     poses = choose_poses(params, args.poses, cam, marker, seed=args.seed)
-    source = open_stereo_source(args.camera, SourceOptions())
+    source = open_stereo_source(args.camera, SourceOptions(image_size=cam.image_size))
     try:
         with ActuatorDriver(args.serial, params=params) as driver:
             rig = HardwareRegistrationRig(driver, source, params)

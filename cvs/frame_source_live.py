@@ -1,0 +1,93 @@
+"""A live stereo source over an opened ``cv2.VideoCapture`` (a V4L2/UVC device or a network
+stream) delivering both views in one frame (``sbs`` or ``tb``).
+
+A grabbing thread reads frames as fast as the device or stream delivers them and keeps only
+the newest (:class:`cvs.newest_frame.NewestFrame`): ``read()`` returns the newest frame not yet
+handed out, and every frame replaced before it was read counts in ``dropped``. ``t_capture``
+comes from ``stamp(capture)`` when given (e.g. the V4L2 buffer's monotonic timestamp), else it
+is ``time.monotonic()`` when the frame arrived. ``index`` counts every frame the thread got
+(delivered and dropped alike). No new frame for ``timeout`` s, or the end of the stream, is a
+FrameSourceError naming the source.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+
+import cv2
+import numpy as np
+
+from cvs.frame_layout import check_layout, split_stereo
+from cvs.frames import FrameSourceError, StereoFrame
+from cvs.newest_frame import NewestFrame
+
+Stamp = Callable[[cv2.VideoCapture, float], float]
+
+
+class LiveCaptureSource:
+    """Newest-frame stereo source over an opened capture (see the module docstring).
+
+    capture: an opened cv2.VideoCapture (owned: released by close); name: the SPEC, used in
+    messages; layout: 'sbs' | 'tb'; timeout: stall timeout [s]; stamp: (capture, t_arrival) ->
+    t_capture on the monotonic clock [s] (default: the arrival time)."""
+
+    def __init__(self, capture: cv2.VideoCapture, name: str, layout: str = "sbs", timeout: float = 5.0,
+                 stamp: Stamp | None = None) -> None:
+        self.name, self.layout, self.timeout = name, check_layout(layout), float(timeout)
+        self._cap, self._stamp = capture, stamp
+        self._slot = NewestFrame()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._grab, daemon=True, name=f"grab {name}")
+        self._thread.start()
+
+    @property
+    def dropped(self) -> int:
+        """Frames captured but replaced by a newer one before ``read()`` took them."""
+        return self._slot.dropped
+
+    @property
+    def captured(self) -> int:
+        """Frames the grabbing thread received."""
+        return self._slot.captured
+
+    def _grab(self) -> None:
+        index = 0
+        try:
+            while not self._stop.is_set():
+                ok, image = self._cap.read()
+                t_arrival = time.monotonic()
+                if self._stop.is_set():
+                    break
+                if not ok or image is None:
+                    self._slot.finish(f"{self.name}: the stream ended (no more frames after {index})")
+                    return
+                left, right = split_stereo(np.asarray(image), self.layout, self.name)
+                t = self._stamp(self._cap, t_arrival) if self._stamp is not None else t_arrival
+                self._slot.put(StereoFrame(left, right, t, index, f"{self.name}#{index}", f"{self.name}#{index}"))
+                index += 1
+        except FrameSourceError as e:
+            self._slot.finish(str(e))
+        except cv2.error as e:
+            self._slot.finish(f"{self.name}: capture failed ({str(e).strip().splitlines()[-1]})")
+        self._slot.finish()
+
+    def read(self) -> StereoFrame | None:
+        """The newest frame not yet handed out (waits up to ``timeout`` s for one)."""
+        if self._stop.is_set():
+            raise FrameSourceError(f"{self.name}: the source is closed")
+        frame = self._slot.take(self.timeout, f"{self.name}: no new frame for {self.timeout:g} s (stream stalled)")
+        if frame is None:  # the thread stopped without an error: a live source must not end
+            raise FrameSourceError(f"{self.name}: the stream ended")
+        return frame
+
+    def close(self) -> None:
+        """Stop the grabbing thread and release the capture (idempotent). A capture blocked in
+        a read is released once its own read timeout expires."""
+        if self._stop.is_set():
+            return
+        self._stop.set()
+        self._thread.join(timeout=self.timeout + 1.0)
+        if not self._thread.is_alive():
+            self._cap.release()

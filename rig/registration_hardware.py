@@ -1,11 +1,13 @@
 """Registration on hardware or the virtual lab: the actuator box over serial (rig/actuator_driver.py,
 protocol v1) and the stereo endoscope through a frame source (cvs.open_source).
 
-Moves are ramped in configuration space at half the robot's velocity limits, one SET_TARGET
-every ``period`` [s] (well inside the box's 250 ms watchdog), then the encoders are polled until
-they settle (every joint within ``settle_tol`` over ``settle_time``). ``grab`` reads frames until
-one was captured after the move settled (a live source hands out the newest frame), feeding the
-watchdog meanwhile. ``close`` holds at the encoders' position and sends DISABLE.
+Each move ENABLEs the box, ramps in configuration space at ``speed`` x the velocity limits,
+one SET_TARGET every ``period`` [s] (well inside the box's 250 ms watchdog), then polls the
+encoders until they settle (every joint within SETTLE_TOL over ``settle_time``) and DISABLEs
+the box: it holds still while the host waits for a frame and tracks the marker, for as long as
+that takes, and the 250 ms watchdog never has to fire. ``grab`` reads frames until one was
+captured after the move settled (a live source hands out the newest frame). ``close`` holds at
+the encoders' position and sends DISABLE.
 """
 
 from __future__ import annotations
@@ -28,28 +30,32 @@ SETTLE_TOL = np.array([2e-4, 5e-6, 2e-4, 2e-3, 2e-4, 2e-3])  # [rad, m, rad, rad
 class HardwareRegistrationRig:
     """:class:`rig.registration_run.RegistrationRig` over an :class:`ActuatorDriver` and a source."""
 
-    def __init__(self, driver: ActuatorDriver, source: StereoSource, params: RobotParams, period: float = 0.05,
+    def __init__(self, driver: ActuatorDriver, source: StereoSource, params: RobotParams, speed: float = 0.5,
+                 period: float = 0.05,
                  settle_time: float = 0.3, timeout: float = 20.0, clock: Callable[[], float] = time.monotonic,
                  sleep: Callable[[float], None] = time.sleep) -> None:
         self.driver, self.source, self.params = driver, source, params
+        self.speed = float(speed)  # fraction of the velocity limits
         self.period, self.settle_time, self.timeout = float(period), float(settle_time), float(timeout)
         self.clock, self.sleep = clock, sleep
         self._settled_at = -np.inf
-        self._enabled = False
+        self._enabled = False  # whether this rig enabled the box (and must disable it)
 
     def start(self) -> None:
-        """ENABLE the box (it holds where it is until the first move)."""
+        """ENABLE the box (it holds where it is until the next SET_TARGET; move_to does this)."""
         self.driver.enable()
         self._enabled = True
 
     def move_to(self, psi: Array) -> None:
         """Ramp to ``psi`` within the velocity limits, then wait until the encoders settle."""
         target = check_limits(self.params, psi)
+        if not self._enabled:
+            self.start()
         q = self.driver.measured_psi()
         diff = target - q
         diff[[3, 5]] = (diff[[3, 5]] + np.pi) % (2 * np.pi) - np.pi  # bending planes: the short way round
         target = q + diff
-        step = 0.5 * np.asarray(self.params.max_velocity) * self.period
+        step = self.speed * np.asarray(self.params.max_velocity) * self.period
         while np.any(np.abs(target - q) > 1e-12):
             q = q + np.clip(target - q, -step, step)
             self.driver.set_psi(q)
@@ -65,6 +71,8 @@ class HardwareRegistrationRig:
                 since = self.clock()
             last = now
         self._settled_at = self.clock()
+        self.driver.disable()  # hold still while the host grabs and tracks
+        self._enabled = False
 
     def measured_psi(self) -> Array:
         """Configuration from the encoders (GET_STATE)."""
@@ -77,7 +85,6 @@ class HardwareRegistrationRig:
             frame = self.source.read()
             if frame is None:
                 raise FrameSourceError(f"{self.source.name}: the camera stream ended during registration")
-            self.driver.get_state()  # feeds the watchdog while frames arrive
             if frame.t_capture >= self._settled_at:
                 return frame.left, frame.right
             if self.clock() - t0 > self.timeout:
@@ -87,6 +94,10 @@ class HardwareRegistrationRig:
     def close(self) -> None:
         """Hold at the encoders' position and DISABLE (errors ignored: the box may be gone)."""
         if not self._enabled:
+            try:
+                self.driver.disable()
+            except ActuatorError:
+                pass
             return
         self._enabled = False
         try:

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from models.errors import InputError
-from rig.commands.option_types import int_in, positive_float, seed_int
+from rig.commands.option_types import float_in, int_in, positive_float, seed_int
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -37,6 +37,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=seed_int(), default=0, help="pose choice and render noise seed")
     p.add_argument("--serial", metavar="PORT", help="hardware / virtual lab: the actuator box's serial port")
     p.add_argument("--camera", metavar="SPEC", help="hardware / virtual lab: the stereo frame source")
+    p.add_argument("--speed", type=float_in(0.05, 1.0), default=0.5, metavar="F",
+                   help="hardware: move at F x the robot's velocity limits (default 0.5)")
     p.add_argument("--from-log", metavar="DIR", help="register offline from DIR/registration_log.csv")
     p.add_argument("--log", metavar="DIR", help="write the observations to DIR/registration_log.csv")
     p.add_argument("--rigid-arm", action="store_true",
@@ -94,10 +96,10 @@ def _observe_hardware(args: argparse.Namespace, progress: bool) -> tuple[Any, li
     source = open_stereo_source(args.camera, SourceOptions(image_size=cam.image_size))
     try:
         with ActuatorDriver(args.serial, params=params) as driver:
-            rig = HardwareRegistrationRig(driver, source, params)
+            rig = HardwareRegistrationRig(driver, source, params, speed=args.speed)
+            tracker = MarkerTracker(cam, marker)  # before the first ENABLE: building it takes a while
             try:
-                rig.start()
-                obs = collect(rig, MarkerTracker(cam, marker), params, poses, cam.T_world_left, progress)
+                obs = collect(rig, tracker, params, poses, cam.T_world_left, progress)
             finally:
                 rig.close()
     finally:

@@ -67,8 +67,8 @@ def test_register_through_serial_and_stream(tmp_path: Path, capsys: pytest.Captu
     try:
         capsys.readouterr()
         rc = main(["register", "--serial", port, "--camera", server.url, "--calib", str(tmp_path / "calib.yaml"),
-                   "--poses", "4", "--rigid-arm", "--speed", "1", "--out", str(tmp_path / "reg.yaml"), "--log", str(tmp_path / "log"),
-                   "--json", "--no-progress"])
+                   "--poses", "4", "--rigid-arm", "--speed", "1", "--out", str(tmp_path / "reg.yaml"),
+                   "--log", str(tmp_path / "log"), "--json", "--no-progress"])
         out = capsys.readouterr()
     finally:
         camera.close()

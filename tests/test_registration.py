@@ -178,7 +178,7 @@ def test_simulated_bench_registration_accuracy(misplaced: dict[str, Path], capsy
 def test_closed_loop_after_registering(misplaced: dict[str, Path], tmp_path: Path) -> None:
     def cube(*extra: str) -> dict:
         out = tmp_path / f"r{len(list(tmp_path.iterdir()))}.json"
-        assert main(["experiment", "cube", "--duration", "3", "--image-scale", "0.5", "--no-progress",
+        assert main(["experiment", "cube", "--duration", "2", "--image-scale", "0.5", "--no-progress",
                      "--json", str(out), "--out", str(tmp_path / "run"), *extra]) == 0
         return json.loads(out.read_text())["closed_loop"]
 
@@ -215,3 +215,28 @@ def test_approach_offset_keeps_limits() -> None:
     spans = np.ptp(np.array([ArmCorrection().marker_frame(PARAMS, q, np.zeros(6))[:3, 3] for q in poses]), axis=0)
     assert np.all(spans > 0.01)  # the poses span > 10 mm along every axis of {w}
     assert all(within_limits(PARAMS, q + s * APPROACH) for q in poses for s in (-1, 1))
+
+
+def test_camera_offset_moves_only_the_true_camera(tmp_path: Path) -> None:
+    from scipy.spatial.transform import Rotation
+
+    from sim.plant_params import PlantParams
+    from sim.setup import load_setup
+
+    (tmp_path / "p.yaml").write_text(yaml.safe_dump({"camera_offset": OFFSET}))
+    setup = load_setup(plant=tmp_path / "p.yaml")
+    W = np.asarray(setup.camera.T_world_left)
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = Rotation.from_rotvec(OFFSET[3:]).as_matrix(), OFFSET[:3]
+    np.testing.assert_allclose(setup.true_camera.T_world_left, W @ T, atol=1e-15)
+    np.testing.assert_allclose(setup.host_camera.T_world_left, W)
+    reg = _true_W()
+    moved = setup.with_changes(registration=reg)
+    np.testing.assert_allclose(moved.host_camera.T_world_left, reg)
+    np.testing.assert_allclose(moved.true_camera.T_world_left, W @ T, atol=1e-15)  # the truth stays
+    np.testing.assert_allclose(moved.render_camera.T_world_left, W @ T, atol=1e-15)
+    for bad, needle in (([5.0, 0, 0, 0, 0, 0], "metres, not mm"), ([0, 0, 0, 1.0, 0, 0], "within 0.5 rad"),
+                        ([0, 0, 0], "camera_offset")):
+        (tmp_path / "bad.yaml").write_text(yaml.safe_dump({"camera_offset": bad}))
+        with pytest.raises(ConfigError, match=needle):
+            PlantParams.load(tmp_path / "bad.yaml")

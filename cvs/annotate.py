@@ -37,17 +37,18 @@ def _draw_view(img: NDArray[np.uint8], corners: Array, indices: NDArray[np.int_]
                axes_uv: Array | None, scale: float) -> None:
     r, th = max(int(4 * scale), 2), max(int(round(scale)), 1)
     font = 0.45 * scale
-    for k, uv in enumerate(np.asarray(corners, float).reshape(-1, 2)):
-        i = -1 if indices is None or k >= len(indices) else int(indices[k])
-        colour = _OK_BGR if i >= 0 else _REJECTED_BGR
-        cv2.circle(img, _pt(uv), r, colour, th, cv2.LINE_AA)
-        label = str(i) if i >= 0 else "x"
-        cv2.putText(img, label, _pt(uv + [r + 2, -r - 2]), cv2.FONT_HERSHEY_SIMPLEX, font, colour, th, cv2.LINE_AA)
-    if axes_uv is not None and np.all(np.isfinite(axes_uv)):
+    if axes_uv is not None and np.all(np.isfinite(axes_uv)):  # axes first: the corners stay on top
         origin = _pt(axes_uv[0])
         for a in range(3):
             cv2.arrowedLine(img, origin, _pt(axes_uv[a + 1]), _AXES_BGR[a], 2 * th, cv2.LINE_AA, tipLength=0.15)
         cv2.drawMarker(img, _pt(axes_uv[4]), _TIP_BGR, cv2.MARKER_CROSS, 4 * r, th, cv2.LINE_AA)
+    for k, uv in enumerate(np.asarray(corners, float).reshape(-1, 2)):
+        i = -1 if indices is None or k >= len(indices) else int(indices[k])
+        colour = _OK_BGR if i >= 0 else _REJECTED_BGR
+        cv2.circle(img, _pt(uv), r, colour, th, cv2.LINE_AA)
+        label, at = (str(i) if i >= 0 else "x"), _pt(uv + [-4 * r - 2, r])  # left of the corner
+        cv2.putText(img, label, at, cv2.FONT_HERSHEY_SIMPLEX, font, (0, 0, 0), 3 * th, cv2.LINE_AA)
+        cv2.putText(img, label, at, cv2.FONT_HERSHEY_SIMPLEX, font, colour, th, cv2.LINE_AA)
 
 
 def marker_axes_left(T_left_marker: Array, marker: MarkerModel, length: float | None = None) -> Array:

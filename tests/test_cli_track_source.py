@@ -4,6 +4,7 @@ JSON lines with frame and t_capture, --frames, --annotate, --record then replay,
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 
 import cv2
@@ -157,3 +158,53 @@ def test_errors_exit_2_one_line(material: dict, tmp_path: Path, capsys: pytest.C
     assert rc == 2 and len(err.strip().splitlines()) == 1 and expected in err and "Traceback" not in err
     if case == "truncated":
         assert 0 < len(lines) < N and all(o["ok"] for o in lines)  # the frames before the cut were tracked
+
+
+def test_grayscale_and_paced(material: dict, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rc, colour, _ = _track(["--source", material["avi"], "--calib", material["calib"], "--json"], capsys)
+    rc2, grey, err = _track(["--source", material["avi"], "--calib", material["calib"], "--grayscale", "--paced",
+                             "--json"], capsys)
+    assert rc == rc2 == 0 and len(grey) + int(err.split("dropped ")[1]) == N
+    assert all(g["ok"] for g in grey) and all(c["ok"] for c in colour)
+    assert max(_tip_errors(grey, material["pairs"])) < 0.4e-3  # the luma plane tracks as well as BGR
+    ann = tmp_path / "grey"
+    assert main(["track", "--source", material["avi"], "--calib", material["calib"], "--grayscale", "--frames", "1",
+                 "--annotate", str(ann)]) == 0
+    assert cv2.imread(str(ann / "frame_000000.png")).shape == (540, 1920, 3)  # drawn in colour on grey
+
+
+def test_live_stream_that_stalls_keeps_the_recording(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                      frame_ids: tuple) -> None:
+    """A live HTTP stream through the CLI: lines while it flows, then one error line when it
+    stalls; the recording holds exactly the frames that were printed."""
+    import threading
+
+    from cvs.frame_layout import join_stereo
+    from cvs.frames import frames
+    from cvs.open_source import SourceOptions, open_stereo_source
+    from rig.mjpeg_server import MjpegServer
+
+    id_view = frame_ids[0]
+    calib = tmp_path / "small.yaml"
+    save_calibration(calib, scaled_stereo_camera(load_calibration(ROOT / "configs" / "camera.yaml"), 1 / 6))
+    bag = tmp_path / "live.mcap"
+    with MjpegServer() as srv:
+        def publish() -> None:
+            while srv.clients == 0:  # until the command has opened the stream
+                time.sleep(0.01)
+            for k in range(15):
+                srv.publish_image(join_stereo(id_view(k, 0), id_view(k, 1)), 85)
+                time.sleep(0.05)
+
+        th = threading.Thread(target=publish, daemon=True)
+        th.start()
+        rc, lines, err = _track(["--source", srv.url, "--calib", str(calib), "--timeout", "1", "--record", str(bag),
+                                 "--json"], capsys)
+        th.join()
+    assert rc == 2 and len(err.strip().splitlines()) == 1 and "stalled" in err and srv.url in err
+    assert len(lines) >= 3 and all(o["ok"] is False for o in lines)  # no marker in these frames
+    idx = [o["frame"] for o in lines]
+    assert idx == sorted(set(idx)) and all(o["t_capture"] > 0 for o in lines)
+    replay = open_stereo_source(str(bag), SourceOptions())
+    assert len(list(frames(replay))) == len(lines)
+    replay.close()

@@ -74,7 +74,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--timeout", type=positive_float(3600.0), default=DEFAULT_TIMEOUT_S, metavar="S",
                    help=f"live source: open and stall timeout [s] (default {DEFAULT_TIMEOUT_S:g})")
     p.add_argument("--paced", action="store_true",
-                   help="play a video or bag at its recorded rate in wall-clock time (newest frame, drops counted)")
+                   help="play a video or bag at its recorded rate in wall-clock time "
+                   "(video: newest frame, drops counted)")
+    p.add_argument("--grayscale", action="store_true",
+                   help="hand the tracker grey views (an MJPG video then decodes only its luma: 2-5x faster)")
     p.add_argument("--annotate", metavar="DIR|FILE.mp4", help="write annotated frames to a folder or a video "
                    "(.mp4, .avi, .mkv)")
     p.add_argument("--record", metavar="FILE.mcap", help="record frames and poses as a ROS 2 bag (MCAP)")
@@ -201,7 +204,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     options = SourceOptions(layout=args.layout, size=args.size, fps=args.fps, fourcc=args.fourcc or None,
                             topics=_topics(args.topics), timeout=args.timeout, paced=args.paced,
-                            image_size=camera.image_size)
+                            image_size=camera.image_size, grayscale=args.grayscale)
     from rig.track_stream import TrackOutputs, track_source
 
     def emit(frame: StereoFrame, res: Any) -> None:
@@ -211,11 +214,12 @@ def run(args: argparse.Namespace) -> int:
         else:
             print(_text_line(frame, res), flush=True)
 
-    outputs = TrackOutputs.open(args.annotate, args.record, args.record_jpeg, camera, marker)
+    source = open_stereo_source(args.source, options)
     try:
-        source = open_stereo_source(args.source, options)
+        fps = float(getattr(source, "fps", 0.0) or 30.0)  # a video's own rate for an annotated video
+        outputs = TrackOutputs.open(args.annotate, args.record, args.record_jpeg, camera, marker, fps)
     except BaseException:
-        outputs.close()
+        source.close()
         raise
     try:
         summary = track_source(source, tracker, emit, outputs, args.frames, hint)

@@ -51,9 +51,9 @@ threading.Thread(target=lambda: (sys.stdin.read(), done.set()), daemon=True).sta
 while not done.is_set():
     with emu._lock:  # the emulator's thread advances the same arm
         emu.poll()
-        flags, shape = emu.flags, emu.arm.true_shape()
+        flags, shape, t = emu.flags, emu.arm.true_shape(), time.monotonic()
     frame = renderer.render(shape)
-    server.publish_image(np.hstack([frame.left, frame.right]), quality=95)
+    server.publish_image(np.hstack([frame.left, frame.right]), quality=95, t_capture=t)
     print(f"flags {flags}", file=sys.stderr, flush=True)
     time.sleep(0.05)
 with emu._lock:

@@ -10,6 +10,11 @@ docs/calibration.md). Then the closed-loop cube (first ``--duration`` s, ``--ima
 with the 12-pose registration beside the same run with the true transform.
 
     .venv/bin/python bench/registration.py [--duration 12] [--image-scale 0.5] [--poses 6 12 24]
+    .venv/bin/python bench/registration.py --ablation   # one model error at a time, rigid vs estimated
+
+``--ablation``: on the ideal plant plus one of configs/plant.yaml's errors at a time (12 poses),
+the registration error when the arm is trusted as modelled (--rigid-arm) beside the one with
+its observable errors estimated.
 """
 
 from __future__ import annotations
@@ -73,14 +78,49 @@ def cube(setup: SimSetup, W: np.ndarray, duration: float) -> dict[str, float]:
     return {"mean_mm": c["mean_mm"], "max_mm": c["max_mm"], "stopped": c.get("stopped") or ""}
 
 
+ABLATION = {
+    "none (ideal plant)": {},
+    "bend gains 0.98 / 0.945, o2 = -0.02 rad": {"bend_gain": (0.98, 0.945), "plane_offset": (0.0, -0.02)},
+    "stem coupling 0.038": {"stem_coupling": 0.038},
+    "backlash (configs/plant.yaml)": {"backlash": (0.008, 0.0001, 0.00003, 0.00003, 0.00003, 0.00003)},
+    "tip load (0, 0, -0.03) N": {"tip_force": (0.0, 0.0, -0.03)},
+}
+
+
+def ablation(image_scale: float) -> list[dict[str, Any]]:
+    """Registration error per model error, rigid arm vs arm errors estimated (12 poses)."""
+    base = load_setup(plant=ROOT / "configs" / "plant_ideal.yaml")
+    rows = []
+    for name, change in ABLATION.items():
+        pl = dataclasses.replace(base.plant, camera_offset=CAMERA_OFFSET, **change)
+        setup = base.with_changes(plant=pl, rig=dataclasses.replace(base.rig, image_scale=image_scale))
+        cam = setup.tracking_camera
+        poses = choose_poses(setup.params, 12, cam, setup.marker)
+        obs = collect(SimRegistrationRig(setup), MarkerTracker(cam, setup.marker), setup.params, poses,
+                      cam.T_world_left, progress=False)
+        row: dict[str, Any] = {"model_error": name}
+        for key, arm in (("rigid_arm", False), ("arm_estimated", True)):
+            res = solve_registration(setup.params, registration_poses(setup.params, obs), estimate_arm=arm)
+            t, r = transform_error(setup.true_camera.T_world_left, res.world_T_left)
+            row[key] = {"translation_mm": 1000 * t, "rotation_deg": float(np.degrees(r)), "rms_mm": 1000 * res.rms_m}
+        rows.append(row)
+        print(json.dumps(row), file=sys.stderr, flush=True)
+    return rows
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--duration", type=float, default=12.0, help="cube: first S seconds of the walk")
     ap.add_argument("--image-scale", type=float, default=0.5)
     ap.add_argument("--poses", type=int, nargs="+", default=[6, 12, 24])
     ap.add_argument("--no-cube", action="store_true", help="registration errors only")
+    ap.add_argument("--ablation", action="store_true", help="one model error at a time, rigid vs estimated arm")
     a = ap.parse_args()
     cv2.setNumThreads(1)
+    if a.ablation:
+        print(json.dumps({"camera_offset": list(CAMERA_OFFSET), "image_scale": a.image_scale, "poses": 12,
+                          "rows": ablation(a.image_scale)}, indent=1))
+        return 0
     rows = []
     for plant in ("plant.yaml", "plant_unseen.yaml"):
         base = load_setup(plant=ROOT / "configs" / plant)

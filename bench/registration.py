@@ -42,7 +42,7 @@ from sim.setup import SimSetup, load_setup  # noqa: E402
 from solvers.registration import solve_registration, transform_error  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-CAMERA_OFFSET = (0.004, 0.003, -0.003, -0.03, 0.035, 0.03)  # [m, m, m, rad, rad, rad]: 5.8 mm, 3.7 deg
+CAMERA_OFFSET = (0.004, 0.003, -0.003, -0.03, 0.035, 0.03)  # [m, m, m, rad, rad, rad]: 5.8 mm, 3.2 deg
 
 
 def _errors(truth: np.ndarray, W: np.ndarray, o1: float) -> dict[str, float]:

@@ -55,7 +55,7 @@ while not done.is_set():
     frame = renderer.render(shape)
     server.publish_image(np.hstack([frame.left, frame.right]), quality=95, t_capture=t)
     print(f"flags {flags}", file=sys.stderr, flush=True)
-    time.sleep(0.05)
+    time.sleep(0.1)
 with emu._lock:
     print(f"flags {emu.flags}", file=sys.stderr, flush=True)
 emu.stop()

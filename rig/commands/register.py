@@ -21,6 +21,8 @@ import numpy as np
 from models.errors import InputError
 from rig.commands.option_types import float_in, int_in, positive_float, seed_int
 
+REPLY_TIMEOUT_S = 0.2  # [s] per attempt at a reply from the actuator box (3 retries)
+
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, metavar="REG.yaml", help="registration file to write")
@@ -95,7 +97,8 @@ def _observe_hardware(args: argparse.Namespace, progress: bool) -> tuple[Any, li
     poses = choose_poses(params, args.poses, cam, marker, seed=args.seed)
     source = open_stereo_source(args.camera, SourceOptions(image_size=cam.image_size))
     try:
-        with ActuatorDriver(args.serial, params=params) as driver:
+        # registration is not real time: allow a slow box (or a busy virtual lab) 0.2 s per reply
+        with ActuatorDriver(args.serial, timeout=REPLY_TIMEOUT_S, retries=3, params=params) as driver:
             rig = HardwareRegistrationRig(driver, source, params, speed=args.speed)
             tracker = MarkerTracker(cam, marker)  # before the first ENABLE: building it takes a while
             try:

@@ -21,9 +21,10 @@ from numpy.typing import NDArray
 from cvs.frames import FrameSourceError, StereoSource
 from models.limits import check_limits
 from models.robot_params import RobotParams
-from rig.actuator_driver import ActuatorDriver, ActuatorError
+from rig.actuator_driver import ActuatorDriver, ActuatorError, ActuatorNotEnabled
 
 Array = NDArray[np.float64]
+MAX_RESUMES = 5  # watchdog trips a run may recover from before it gives up
 SETTLE_TOL = np.array([2e-4, 5e-6, 2e-4, 2e-3, 2e-4, 2e-3])  # [rad, m, rad, rad, rad, rad] per poll
 
 
@@ -40,6 +41,7 @@ class HardwareRegistrationRig:
         self.clock, self.sleep = clock, sleep
         self._settled_at = -np.inf
         self._enabled = False  # whether this rig enabled the box (and must disable it)
+        self.notes: list[str] = []
 
     def start(self) -> None:
         """ENABLE the box (it holds where it is until the next SET_TARGET; move_to does this)."""
@@ -47,10 +49,28 @@ class HardwareRegistrationRig:
         self._enabled = True
 
     def move_to(self, psi: Array) -> None:
-        """Ramp to ``psi`` within the velocity limits, then wait until the encoders settle."""
+        """Ramp to ``psi`` within the velocity limits, then wait until the encoders settle.
+
+        If the box's watchdog fired during the ramp (the host was late: the box then held where
+        it was), it is ENABLEd again and the ramp restarts from the encoders, at most
+        MAX_RESUMES times a run; each time is noted in ``notes``."""
         target = check_limits(self.params, psi)
-        if not self._enabled:
-            self.start()
+        while True:
+            if not self._enabled:
+                self.start()
+            try:
+                self._ramp(target)
+                break
+            except ActuatorNotEnabled:
+                self._enabled = False
+                state = self.driver.get_state()
+                if state.estopped or not state.watchdog_tripped or len(self.notes) >= MAX_RESUMES:
+                    raise
+                self.notes.append("the box's watchdog fired during a move (the host was late); it held, "
+                                  "and the move resumed from the encoders")
+        self._settle()
+
+    def _ramp(self, target: Array) -> None:
         q = self.driver.measured_psi()
         diff = target - q
         diff[[3, 5]] = (diff[[3, 5]] + np.pi) % (2 * np.pi) - np.pi  # bending planes: the short way round
@@ -60,6 +80,8 @@ class HardwareRegistrationRig:
             q = q + np.clip(target - q, -step, step)
             self.driver.set_psi(q)
             self.sleep(self.period)
+
+    def _settle(self) -> None:
         t0 = self.clock()
         last, since = self.driver.measured_psi(), self.clock()
         while self.clock() - since < self.settle_time:

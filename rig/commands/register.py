@@ -105,6 +105,8 @@ def _observe_hardware(args: argparse.Namespace, progress: bool) -> tuple[Any, li
                 obs = collect(rig, tracker, params, poses, cam.T_world_left, progress)
             finally:
                 rig.close()
+                for note in rig.notes:
+                    print(f"wristmark register: note: {note}", file=sys.stderr)
     finally:
         source.close()
     return params, obs, {"simulated": False}

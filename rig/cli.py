@@ -27,6 +27,9 @@ COMMANDS: dict[str, str] = {
     "emulator": "serve the actuator-box emulator on a pseudo-terminal",
     "view": "serve or snapshot the Meshcat 3D view (live, replay or home pose)",
     "marker": "print a marker file's sleeve at 1:1 (SVG or PDF) to wrap around the arm",
+    "calib": "convert a calibration (YAML, OpenCV, ROS pair, Kalibr) to the project's YAML, or summarise it",
+    "calibrate": "stereo calibration from chessboard or ChArUco image pairs or a video source",
+    "register": "find world_T_left (the camera's pose in {w}) by moving the arm and tracking the marker",
 }
 
 

@@ -54,18 +54,22 @@ class NoisyTruthSensor:
 
 
 class VisionTipSensor:
-    """Render the stereo pair of the true arm, track the marker in it, return the tip in {w}."""
+    """Render the stereo pair of the true arm, track the marker in it, return the tip in {w}.
+
+    ``camera`` renders (where the endoscope truly is); ``host_camera`` (default: the same) is what
+    the host believes: its tracker maps {ll} to {w} with the host's world_T_left."""
 
     def __init__(
-        self, camera: StereoCamera, marker: MarkerModel, noise: str = "default", seed: int = 0
+        self, camera: StereoCamera, marker: MarkerModel, noise: str = "default", seed: int = 0,
+        host_camera: StereoCamera | None = None,
     ) -> None:
         from cvs.marker_tracker import MarkerTracker
         from sim.render import StereoRenderer
         from sim.render_settings import noise_preset
 
-        self.camera = camera
+        self.camera = camera if host_camera is None else host_camera
         self.renderer = StereoRenderer(camera, marker, noise_preset(noise), seed=seed)
-        self.tracker = MarkerTracker(camera, marker)
+        self.tracker = MarkerTracker(self.camera, marker)
         self.last_images: tuple[np.ndarray, np.ndarray] | None = None
 
     def measure(self, shape: ArmShape, axis_hint_world: Array | None = None) -> TipMeasurement:

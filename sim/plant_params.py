@@ -5,8 +5,13 @@ Every key is optional; zero (or one, for gains) means ideal.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
 
 from models.config_io import from_mapping, load_yaml
 from models.errors import ConfigError
@@ -21,6 +26,8 @@ class PlantParams:
     segment 1's plane [-]. backlash: dead-band per actuator [rad, m, m, m, m, m].
     actuator_tau: first-order lag of every actuator [s]. tip_force: constant force at the tip
     in {w} [N]. segment_stiffness: bending stiffness turning load moments into bend [N m/rad].
+    camera_offset: [x, y, z, rx, ry, rz] (metres; rotation vector, rad) expressed in {ll}: the
+    simulated camera truly sits at world_T_left @ T(offset) while the host believes world_T_left.
     """
 
     bend_gain: tuple[float, float] = (1.0, 1.0)
@@ -30,6 +37,7 @@ class PlantParams:
     actuator_tau: float = 0.0
     tip_force: tuple[float, float, float] = (0.0, 0.0, 0.0)
     segment_stiffness: tuple[float, float] = (0.40, 0.15)
+    camera_offset: tuple[float, float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     def validate(self) -> None:
         """Raise ConfigError naming the offending key."""
@@ -49,6 +57,20 @@ class PlantParams:
         for i, k in enumerate(self.segment_stiffness):
             if k <= 0:
                 raise ConfigError(f"'segment_stiffness[{i}]' must be > 0 N*m/rad, got {k}")
+
+        if math.hypot(*self.camera_offset[:3]) > 0.05:
+            raise ConfigError(f"'camera_offset' translation must be within 0.05 m (metres, not mm), "
+                              f"got {list(self.camera_offset[:3])}")
+        if math.hypot(*self.camera_offset[3:]) > 0.5:
+            raise ConfigError(f"'camera_offset' rotation vector must be within 0.5 rad, "
+                              f"got {list(self.camera_offset[3:])}")
+
+    def camera_offset_transform(self) -> NDArray[np.float64]:
+        """T(offset): 4x4 pose of the true {ll} in the believed {ll} [m]."""
+        T = np.eye(4)
+        T[:3, :3] = Rotation.from_rotvec(self.camera_offset[3:]).as_matrix()
+        T[:3, 3] = self.camera_offset[:3]
+        return T
 
     @classmethod
     def load(cls, path: str | Path) -> PlantParams:

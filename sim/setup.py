@@ -44,13 +44,35 @@ class SimSetup:
     rig: RigConfig
     controller: ControllerConfig
     sources: dict[str, str] = field(default_factory=dict)
+    registration: Array | None = None
+
+    @property
+    def true_camera(self) -> StereoCamera:
+        """Where the simulated endoscope truly is: the calibration's world_T_left @ T(camera_offset)."""
+        if not any(self.plant.camera_offset) or self.camera.T_world_left is None:
+            return self.camera
+        W = np.asarray(self.camera.T_world_left, float) @ self.plant.camera_offset_transform()
+        return dataclasses.replace(self.camera, T_world_left=W)
+
+    @property
+    def host_camera(self) -> StereoCamera:
+        """What the host believes: the calibration, with world_T_left from the registration if given."""
+        if self.registration is None:
+            return self.camera
+        return dataclasses.replace(self.camera, T_world_left=np.asarray(self.registration, float))
+
+    def _scaled(self, cam: StereoCamera) -> StereoCamera:
+        return cam if self.rig.image_scale == 1.0 else scaled_stereo_camera(cam, self.rig.image_scale)
 
     @property
     def render_camera(self) -> StereoCamera:
-        """The camera at the rig's image scale."""
-        if self.rig.image_scale == 1.0:
-            return self.camera
-        return scaled_stereo_camera(self.camera, self.rig.image_scale)
+        """The true camera (renders the images) at the rig's image scale."""
+        return self._scaled(self.true_camera)
+
+    @property
+    def tracking_camera(self) -> StereoCamera:
+        """The host's camera (tracks the marker, maps {ll} to {w}) at the rig's image scale."""
+        return self._scaled(self.host_camera)
 
     def with_changes(self, **changes: Any) -> SimSetup:
         """Copy with some members replaced (e.g. plant=..., rig=...)."""
@@ -73,6 +95,7 @@ class SimSetup:
                 "R": np.asarray(cam.R).tolist(), "T": np.asarray(cam.T).tolist(),
                 "world_T_left": None if cam.T_world_left is None else np.asarray(cam.T_world_left).tolist(),
             },
+            "registration_world_T_left": None if self.registration is None else np.asarray(self.registration).tolist(),
         }
 
 
@@ -113,7 +136,8 @@ def make_sensor(setup: SimSetup, seed: int) -> TipSensor:
     """The tip sensor the rig config asks for (vision by default)."""
     if setup.rig.sensor == "truth-noise":
         return NoisyTruthSensor(setup.rig.truth_noise_rms, seed)
-    return VisionTipSensor(setup.render_camera, setup.marker, setup.rig.render_noise, seed)
+    return VisionTipSensor(setup.render_camera, setup.marker, setup.rig.render_noise, seed,
+                           host_camera=setup.tracking_camera)
 
 
 def make_plant(setup: SimSetup, psi0: Array) -> TruePlant:

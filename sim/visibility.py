@@ -7,11 +7,11 @@ from numpy.typing import NDArray
 
 from cvs.camera import StereoCamera
 from cvs.marker import MarkerModel
+from cvs.marker_view import marker_in_view
 from models.arm_shape import ArmShape, arm_shape
 from models.errors import InputError
 from models.limits import clamp_psi
 from models.robot_params import HOME_PSI, RobotParams
-from sim.render import corner_truth
 
 Array = NDArray[np.float64]
 
@@ -24,24 +24,7 @@ def marker_visible(
     if camera.T_world_left is None:
         raise InputError("the calibration has no 'world_T_left': cannot place the arm in the images")
     W = np.linalg.inv(np.asarray(camera.T_world_left, float))
-    T_lm = W @ shape.T_world_marker
-    T_rl = np.eye(4)
-    T_rl[:3, :3], T_rl[:3, 3] = camera.R, camera.T
-    w, h = camera.image_size
-    ang = np.linspace(0, 2 * np.pi, 16, endpoint=False)
-    ring = np.column_stack([np.cos(ang), np.sin(ang), np.zeros_like(ang)]) * marker.radius
-    z_lo, z_hi = marker.z_extent
-    rim = np.vstack([ring + [0, 0, z_hi], ring + [0, 0, z_lo]])
-    for cam, T in ((camera.left, T_lm), (camera.right, T_rl @ T_lm)):
-        P = rim @ T[:3, :3].T + T[:3, 3]
-        if np.any(P[:, 2] < 0.02):
-            return False
-        uv = cam.project(P)
-        if np.any(uv < margin_px) or np.any(uv[:, 0] > w - 1 - margin_px) or np.any(uv[:, 1] > h - 1 - margin_px):
-            return False
-        if sum(c.cos_view > 0.3 for c in corner_truth(cam, marker, T)) < min_corners:
-            return False
-    return True
+    return marker_in_view(camera, marker, W @ shape.T_world_marker, min_corners, margin_px)
 
 
 def random_visible_psi(

@@ -19,7 +19,7 @@ from rig.commands.option_types import (
     nonnegative_float,
     positive_float,
 )
-from rig.commands.setup_args import add_setup_arguments, setup_from_args
+from rig.commands.setup_args import add_registration_argument, add_setup_arguments, setup_from_args
 from rig.output_dir import add_force_argument, claim_outputs, link_latest, new_run_dir
 from rig.run_log import write_json
 from viz.web_hosts import add_host_argument
@@ -36,6 +36,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="run folder, empty unless --force (default: a new runs/<name>-<time>, linked as runs/latest)")
     add_force_argument(p)
     add_setup_arguments(p)
+    add_registration_argument(p)
     p.add_argument("--duration", type=positive_float(MAX_DURATION_S), metavar="S",
                    help="cube/load: run only the first S seconds of the cube walk (quick checks); "
                         "point: hold for S seconds (default 5)")

@@ -43,6 +43,12 @@ def add_setup_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=seed_int(), help="random seed (noise, rendering, tracker)")
 
 
+def add_registration_argument(p: argparse.ArgumentParser) -> None:
+    """``--registration FILE``: the host's world_T_left from a registration file (wristmark register)."""
+    p.add_argument("--registration", metavar="FILE",
+                   help="registration file (wristmark register): overrides the calibration's world_T_left")
+
+
 def setup_from_args(args: argparse.Namespace, **rig_overrides: Any) -> SimSetup:
     """Load the configuration files and apply the command-line overrides (plus ``rig_overrides``
     that are not None), validated; an unknown controller kind lists the valid ones."""
@@ -51,6 +57,10 @@ def setup_from_args(args: argparse.Namespace, **rig_overrides: Any) -> SimSetup:
 
     setup = load_setup(robot=args.robot, marker=args.marker, camera=args.camera, plant=args.plant,
                        rig=args.rig, controller=args.controller_config)
+    if getattr(args, "registration", None):
+        from cvs.registration_io import load_registration
+
+        setup = setup.with_changes(registration=load_registration(args.registration).world_T_left)
     changes: dict[str, Any] = {}
     if args.dt is not None:
         changes["control_dt"] = args.dt

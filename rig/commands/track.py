@@ -61,6 +61,9 @@ size_type.__name__ = "size"
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--calib", required=True, help="stereo calibration (YAML of docs/formats.md or OpenCV FileStorage)")
     p.add_argument("--marker", help="marker YAML (default: the reference marker)")
+    p.add_argument("--registration", metavar="FILE",
+                   help="registration file (wristmark register): overrides the calibration's world_T_left; "
+                   "the JSON then also has tip_world, in {w} and metres")
     p.add_argument("images", nargs="*", metavar="LEFT RIGHT", help="stereo pairs: left and right image paths")
     p.add_argument("--source", metavar="SPEC", help="frame source instead of image pairs: DIR, VIDEO, LEFT,RIGHT, "
                    "/dev/videoN, device:N, http://..., rtsp://..., FILE.mcap, BAGDIR")
@@ -186,6 +189,13 @@ def run(args: argparse.Namespace) -> int:
     from cvs.marker import MarkerModel
     from cvs.marker_tracker import MarkerTracker
     from cvs.open_source import SourceOptions, open_stereo_source
+    from cvs.registration_io import apply_registration
+
+    def fields(res: Any) -> dict[str, Any]:
+        out = result_fields(res)
+        if args.registration and res.ok and res.tip_world is not None:
+            out["tip_world"] = _round(res.tip_world, 9)
+        return out
 
     if args.source is not None and args.images:
         raise InputError("give either LEFT RIGHT image pairs or --source SPEC, not both")
@@ -202,7 +212,7 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"--axis-hint must be a non-zero direction, got {args.axis_hint}")
     if args.source is None:
         source = open_stereo_source(args.images)  # paths checked before anything is loaded
-    camera = load_calibration(args.calib)
+    camera = apply_registration(load_calibration(args.calib), args.registration)
     marker = MarkerModel.load(args.marker) if args.marker else MarkerModel()
     tracker = MarkerTracker(camera, marker, _settings(args))
     if args.source is None:
@@ -211,7 +221,7 @@ def run(args: argparse.Namespace) -> int:
                 res = tracker.track(frame.left, frame.right, axis_hint_left=hint)
             except InputError as e:
                 raise InputError(f"{frame.name_left} / {frame.name_right}: {e}") from e
-            out = {"left": frame.name_left, "right": frame.name_right} | result_fields(res)
+            out = {"left": frame.name_left, "right": frame.name_right} | fields(res)
             print(json.dumps(out) if args.json else _text_line(frame, res), flush=True)
         return 0
     options = SourceOptions(layout=args.layout, size=args.size, fps=args.fps, fourcc=args.fourcc or None,
@@ -221,8 +231,8 @@ def run(args: argparse.Namespace) -> int:
 
     def emit(frame: StereoFrame, res: Any) -> None:
         if args.json:
-            fields = {"left": frame.name_left, "right": frame.name_right} | result_fields(res)
-            print(json.dumps(fields | {"frame": frame.index, "t_capture": round(frame.t_capture, 6)}), flush=True)
+            line = {"left": frame.name_left, "right": frame.name_right} | fields(res)
+            print(json.dumps(line | {"frame": frame.index, "t_capture": round(frame.t_capture, 6)}), flush=True)
         else:
             print(_text_line(frame, res), flush=True)
 

@@ -12,24 +12,23 @@ from typing import Any
 import numpy as np
 
 from models.ik import solve_tip_ik
-from models.kinematics import forward_kinematics, tip_position
+from models.kinematics import forward_kinematics
 from models.robot_params import HOME_PSI
+from rig import trajectories
 from rig.metrics import corner_overshoot, error_stats, estimate_errors, tracking_errors
 from rig.run_log import CycleRecord, RunLog, write_json
 from rig.servo_loop import MarkerLostError, PhaseStats, ServoLoop
-from rig.trajectories import Trajectory, accuracy_targets, cube_trajectory
-from sim.setup import SimSetup, make_direct_loop, make_plant, make_sensor
+from rig.trajectories import CUBE_SIZE, CUBE_SPEED, Trajectory, accuracy_targets, cube_trajectory
+from sim.setup import SimSetup, make_direct_loop, make_measurement, make_plant
 
 PAPER_CUBE = {"open_loop": {"mean_mm": 3.25, "max_mm": 8.40},
               "closed_loop": {"mean_mm": 0.82, "max_mm": 2.59}, "ratio": 0.2523}
 PAPER_ACCURACY = {"mean_mm": 0.67, "max_mm": 1.21}
-CUBE_SIZE = (0.040, 0.020, 0.040)  # [m] edges along x_w, y_w (depth from the camera), z_w (paper: 40 x 20 x 40 mm)
-CUBE_SPEED = 0.010  # [m/s] (paper: 10 mm/s)
 
 
 def workspace_centre(setup: SimSetup) -> np.ndarray:
     """The cube's centre in {w}: the tip at the home configuration [m]."""
-    return tip_position(setup.params, HOME_PSI)
+    return trajectories.workspace_centre(setup.params)
 
 
 def _phase_summary(log: RunLog, phase: str, traj: Trajectory) -> dict[str, Any]:
@@ -148,7 +147,7 @@ def run_accuracy(setup: SimSetup, out_dir: Path, n: int = 40, progress: bool = T
     targets = accuracy_targets(workspace_centre(setup), n=n, seed=seed)
     psi = np.asarray(HOME_PSI, float)
     plant = make_plant(setup, psi)
-    sensor = make_sensor(setup, seed)
+    frames, sensor = make_measurement(setup, plant, lambda: plant.time, seed)
     tracker = OpticalTracker(setup.rig.tracker_rms, seed=seed + 7)
     rows = []
     for i, p in enumerate(tqdm(targets, desc="accuracy", disable=not progress, leave=False)):
@@ -157,7 +156,9 @@ def run_accuracy(setup: SimSetup, out_dir: Path, n: int = 40, progress: bool = T
         plant.advance(1.0)
         shape = plant.true_shape()
         p_trk = tracker.measure(shape.tip)
-        m = sensor.measure(shape, axis_hint_world=forward_kinematics(setup.params, psi).T_world_marker[:3, 2])
+        frame = frames.take()
+        assert frame is not None
+        m = sensor.measure(frame, axis_hint_world=forward_kinematics(setup.params, psi).T_world_marker[:3, 2])
         err = float(np.linalg.norm(m.p_world - p_trk)) if m.ok and m.p_world is not None else float("nan")
         rows.append({"index": i, "target": p.tolist(), "tracker": p_trk.tolist(), "true": shape.tip.tolist(),
                      "estimate": None if m.p_world is None else m.p_world.tolist(), "ok": m.ok,
@@ -201,4 +202,4 @@ def run_load(setup: SimSetup, out_dir: Path, forces: list[float], progress: bool
     return out
 
 
-__all__ = ["run_cube", "run_accuracy", "run_load", "ServoLoop"]
+__all__ = ["CUBE_SIZE", "CUBE_SPEED", "run_cube", "run_accuracy", "run_load", "ServoLoop"]

@@ -34,8 +34,8 @@ from viz.scene import SceneConfig
 from viz.viewer_client import MeshcatServer, ViewerError
 
 if TYPE_CHECKING:
+    from rig.loop_setup import LoopSetup
     from rig.run_log import CycleRecord
-    from sim.setup import SimSetup
 
 DEFAULT_RATE_HZ = 30.0  # [Hz] frames sent to the browser at most
 DEFAULT_TRAIL_SECONDS = 6.0  # [s] of recent tip paths drawn
@@ -169,7 +169,7 @@ def _start_worker(server: MeshcatServer, config: SceneConfig, rate_hz: float,
     return proc
 
 
-def start_live_view(setup: SimSetup | None = None, *, config: SceneConfig | None = None,
+def start_live_view(setup: LoopSetup | None = None, *, config: SceneConfig | None = None,
                     title: str = "wristmark live view", rate_hz: float = DEFAULT_RATE_HZ,
                     trail_seconds: float = DEFAULT_TRAIL_SECONDS, stream: TextIO | None = sys.stderr) -> LiveView:
     """Start the Meshcat server and the drawing process for the scene of ``setup`` (or

@@ -1,7 +1,8 @@
 """The servo loop: frames in, tip measured, commands out, one cycle every ``control_dt``.
 
 One cycle k at t_k = t0 + k dt on the loop's clock:
-1. time runs to t_k (the link waits on the wall clock, or steps the simulated world);
+1. time runs to t_k (the link waits on the wall clock, or steps the simulated world); on the wall
+   clock a host that fell a whole period behind skips the cycles it missed (counted);
 2. closed loop: a stereo frame is taken from the frame feed (the simulated bench renders the
    true arm now; a live camera hands out its newest frame, waiting a bounded time for one
    captured after t_k); the tip sensor measures it; the measurement is gated (jump from the
@@ -59,14 +60,16 @@ def ramp_to(params: RobotParams, start: Array, target: Array, dt: float) -> list
 @dataclass
 class PhaseStats:
     """Counters of one phase: cycles run, measurements lost (no frame or no marker) and
-    rejected by the gates, the longest run of lost cycles, frames the camera delivered but the
-    loop never used, and why the phase stopped early ("" when it did not)."""
+    rejected by the gates, cycles without a new frame, the longest run of lost cycles, cycles
+    skipped because the host fell a whole period behind the wall clock (a late cycle runs at
+    once; the ones it missed are not made up), and why the phase stopped early ("" when it did not)."""
 
     cycles: int = 0
     lost: int = 0
     rejected: int = 0
     no_frame: int = 0
     max_consecutive_lost: int = 0
+    skipped: int = 0
     stopped: str = ""
 
 
@@ -221,11 +224,19 @@ class ServoLoop:
         stats = PhaseStats()
         memory = _Tracking()
         t0 = self.t
-        bar = tqdm(range(n_settle + n_traj), desc=phase, unit="cyc", leave=False, disable=not progress)
-        for k in bar:
+        n = n_settle + n_traj
+        bar = tqdm(total=n, desc=phase, unit="cyc", leave=False, disable=not progress)
+        k = 0
+        while k < n:
             target = self._target(traj, k, t0 + k * dt, n_settle)
             self._advance(target.t)
             t_wall = time.monotonic()
+            missed = min(int((t_wall - target.t) // dt), n - 1 - k) if self.wall_clock else 0
+            if missed > 0:  # a whole cycle late on the wall clock: skip to the current cycle
+                stats.skipped += missed
+                k += missed
+                bar.update(missed)
+                continue
             if closed_loop:
                 try:
                     rec = self._closed_cycle(target, t_wall, phase, memory, stats)
@@ -239,6 +250,8 @@ class ServoLoop:
             log.add(rec)
             if callable(self.on_cycle):
                 self.on_cycle(rec)
+            k += 1
+            bar.update(1)
         bar.close()
         return stats
 

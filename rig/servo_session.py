@@ -136,11 +136,18 @@ class ServoOutcome:
     lost: int = 0
     rejected: int = 0
     no_frame: int = 0
+    skipped: int = 0
     stopped: str = ""
     cause: str = ""
     t_stop: float = float("nan")
     close_error: str = ""
     wall_time_s: float = 0.0
+
+
+def _count(out: ServoOutcome, stats: Any) -> None:
+    """Copy a phase's counters (rig.servo_loop.PhaseStats) into the outcome."""
+    for name in ("cycles", "lost", "rejected", "no_frame", "skipped"):
+        setattr(out, name, int(getattr(stats, name)))
 
 
 def run_servo(setup: LoopSetup, traj: Trajectory, session: ServoSession, psi0: Array, settle: float,
@@ -171,12 +178,11 @@ def run_servo(setup: LoopSetup, traj: Trajectory, session: ServoSession, psi0: A
         t_start = loop.t
         loop.start_at(psi0)
         stats = loop.run(traj, "servo", True, out.log, settle=settle, progress=progress)
-        out.cycles, out.lost, out.rejected, out.no_frame = stats.cycles, stats.lost, stats.rejected, stats.no_frame
+        _count(out, stats)
     except MarkerLostError as e:
         out.stopped, out.cause = str(e), "camera" if isinstance(e, CameraStalledError) else "marker-lost"
         if e.stats is not None:
-            out.cycles, out.lost, out.rejected, out.no_frame = (e.stats.cycles, e.stats.lost, e.stats.rejected,
-                                                                e.stats.no_frame)
+            _count(out, e.stats)
     except ActuatorEStopped as e:
         out.stopped, out.cause = f"emergency stop: {e}", "estop"
     except ActuatorNotEnabled as e:

@@ -65,7 +65,8 @@ def closed_loop_errors(records: list[CycleRecord]) -> dict[str, Any]:
 def summarize(setup: LoopSetup, traj: Trajectory, session: ServoSession, out: ServoOutcome) -> dict[str, Any]:
     """The result JSON of a run (see the module docstring)."""
     recs = out.log.phase("servo")
-    closed = {**closed_loop_errors(recs), "lost": out.lost, "rejected": out.rejected, "no_frame": out.no_frame}
+    closed = {**closed_loop_errors(recs), "lost": out.lost, "rejected": out.rejected, "no_frame": out.no_frame,
+              "skipped": out.skipped}
     link: dict[str, Any] = {"kind": session.options.kind, "port": session.port,
                             "realtime": session.options.realtime or session.options.kind == "serial"}
     driver = getattr(session.link, "driver", None)

@@ -31,6 +31,7 @@ from cvs.marker import MarkerModel
 from models.errors import InputError
 from models.robot_params import HOME_PSI, RobotParams
 from rig.mjpeg_server import MjpegServer
+from rig.realtime_priority import check_realtime_priority, request_realtime_priority
 from sim.actuator_emulator import ActuatorEmulator
 from sim.locked_arm import LockedArm
 from sim.plant import TruePlant
@@ -39,6 +40,7 @@ from sim.render import StereoRenderer
 from sim.render_settings import noise_preset
 
 TRUTH_HEADER = "t,tip_x,tip_y,tip_z"
+FIRST_FRAME_TIMEOUT_S = 60.0  # [s] the first render compiles nothing (numba caches) but a loaded host is slow
 
 
 @dataclass(frozen=True)
@@ -87,12 +89,17 @@ class CameraStats:
 class VirtualLab:
     """The actuator box on a pty and the endoscope on an MJPEG stream, around one simulated arm.
 
+    rt_priority: run every thread of the lab (actuator box, camera, renderer, stream server)
+    under ``SCHED_FIFO`` at this priority (:mod:`rig.realtime_priority`), as firmware and a camera
+    are not starved by the host's other work; all of them, since a normal thread holding
+    Python's GIL would stall the real-time ones (priority inversion). The caller's thread keeps
+    its own scheduling.
     emulator_factory: ``(arm, params, watchdog_s=...) -> ActuatorEmulator`` (tests record packets).
     """
 
     def __init__(self, params: RobotParams, plant: PlantParams, calibration: StereoCamera, marker: MarkerModel,
                  camera: LabCamera | None = None, psi0: Any = None, watchdog_s: float = 0.25,
-                 truth_out: str | Path | None = None,
+                 truth_out: str | Path | None = None, rt_priority: int | None = None,
                  emulator_factory: Callable[..., ActuatorEmulator] | None = None) -> None:
         self.options = camera or LabCamera()
         self.options.validate()
@@ -101,6 +108,9 @@ class VirtualLab:
         cam = calibration if self.options.image_scale == 1.0 else scaled_stereo_camera(calibration,
                                                                                      self.options.image_scale)
         self.arm = LockedArm(TruePlant(params, plant, psi0=np.asarray(psi0 if psi0 is not None else HOME_PSI, float)))
+        if rt_priority is not None:
+            check_realtime_priority(rt_priority)
+        self.rt_priority = rt_priority
         factory = emulator_factory or ActuatorEmulator
         self.emulator = factory(self.arm, params, watchdog_s=watchdog_s)
         self.renderer = StereoRenderer(cam, marker, noise_preset(self.options.noise), seed=self.options.seed)
@@ -110,6 +120,9 @@ class VirtualLab:
         self.pty_path = ""
         self._truth: IO[str] | None = None
         self._stop = threading.Event()
+        self._frozen = threading.Event()
+        self._first = threading.Event()
+        self._start_error: Exception | None = None
         self._thread: threading.Thread | None = None
         self.error = ""
 
@@ -125,12 +138,28 @@ class VirtualLab:
             self.truth_path.parent.mkdir(parents=True, exist_ok=True)
             self._truth = open(self.truth_path, "w", buffering=1)
             self._truth.write(TRUTH_HEADER + "\n")
-        self.server = MjpegServer(self.options.host, self.options.port)
-        self.pty_path = self.emulator.serve_pty()
-        self._frame()  # the stream has a frame from its first client on
-        self._thread = threading.Thread(target=self._run_camera, name="virtual-endoscope", daemon=True)
-        self._thread.start()
+        launcher = threading.Thread(target=self._start_threads, name="virtual-lab-start")
+        launcher.start()  # the lab's threads inherit the launcher's scheduling, not the caller's
+        launcher.join()
+        if self._start_error is not None:
+            self.stop()
+            raise self._start_error
+        if not self._first.wait(FIRST_FRAME_TIMEOUT_S) or self.error:  # a frame from the first client on
+            self.stop()
+            raise InputError(self.error or "the virtual endoscope rendered no frame within "
+                             f"{FIRST_FRAME_TIMEOUT_S:g} s")
         return self.pty_path, self.url
+
+    def _start_threads(self) -> None:
+        try:
+            if self.rt_priority is not None:
+                request_realtime_priority(self.rt_priority)
+            self.server = MjpegServer(self.options.host, self.options.port)
+            self.pty_path = self.emulator.serve_pty()
+            self._thread = threading.Thread(target=self._run_camera, name="virtual-endoscope", daemon=True)
+            self._thread.start()
+        except Exception as e:  # noqa: BLE001 - handed to start(), which raises it in the caller's thread
+            self._start_error = e
 
     def _frame(self) -> float:
         """Sample the arm, render, publish, log the truth; returns the capture instant [s]."""
@@ -152,6 +181,10 @@ class VirtualLab:
             self._truth.write(f"{t:.6f},{x:.9g},{y:.9g},{z:.9g}\n")
         return t
 
+    def freeze_camera(self) -> None:
+        """Stop publishing frames while the stream stays open (a stalled camera; fault injection)."""
+        self._frozen.set()
+
     def _run_camera(self) -> None:
         period = 1.0 / self.options.fps
         t_next = time.monotonic()
@@ -159,11 +192,16 @@ class VirtualLab:
             wait = t_next - time.monotonic()
             if wait > 0 and self._stop.wait(wait):
                 return
+            if self._frozen.is_set():
+                t_next = time.monotonic() + period
+                continue
             try:
                 t = self._frame()
             except Exception as e:  # noqa: BLE001 - the camera dies with one line; the stream then stalls
                 self.error = f"virtual endoscope stopped: {type(e).__name__}: {e}"
+                self._first.set()
                 return
+            self._first.set()
             t_next = t + period
 
     def stop(self) -> None:
@@ -196,3 +234,22 @@ def read_truth_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     if data.size == 0:
         return np.zeros(0), np.zeros((0, 3))
     return data[:, 0], data[:, 1:4]
+
+
+def true_tip_errors(log_csv: str | Path, truth_csv: str | Path, phase: str = "servo") -> np.ndarray:
+    """|true tip - desired tip| [m] of each cycle of ``phase`` in a servo run's log.csv, the true
+    tip interpolated from the lab's ``--truth-out`` at the cycle's ``t_wall`` (one machine, one
+    monotonic clock); NaN for cycles outside the truth's time span."""
+    from rig.run_log import read_log_csv
+
+    log = read_log_csv(log_csv)
+    t, tip = read_truth_csv(truth_csv)
+    sel = np.array([p == phase for p in log["phase"]], bool)
+    t_wall = np.asarray(log["t_wall"], float)[sel]
+    p_des = np.stack([np.asarray(log[f"p_des_{a}"], float)[sel] for a in "xyz"], axis=1)
+    if t.size < 2:
+        return np.full(len(t_wall), np.nan)
+    p_true = np.stack([np.interp(t_wall, t, tip[:, i]) for i in range(3)], axis=1)
+    err = np.linalg.norm(p_true - p_des, axis=1)
+    err[(t_wall < t[0]) | (t_wall > t[-1])] = np.nan
+    return err

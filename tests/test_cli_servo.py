@@ -23,6 +23,7 @@ from models.robot_params import HOME_PSI
 from rig import protocol as P
 from rig.actuator_link import DirectLink
 from rig.commands import servo as S
+from rig.realtime_priority import realtime_priority_allowed
 from rig.servo_summary import summarize
 from rig.tip_sensors import TipMeasurement
 from sim.servo_bench import open_sim_session
@@ -52,6 +53,7 @@ def setup() -> SimSetup:
 
 
 LAB_SCALE = 0.25  # the virtual lab's image scale in these tests (fast)
+RT_HOST = ["--rt-priority", "20"] if realtime_priority_allowed(20) else []  # see test_virtual_lab
 
 
 @pytest.fixture
@@ -59,14 +61,14 @@ def lab(setup: SimSetup) -> Iterator[VirtualLab]:
     """A virtual lab (actuator box on a pty, endoscope on an MJPEG stream, wall clock) served
     from this process, for `--serial PTY --camera URL` subprocesses (like hardware)."""
     vl = VirtualLab(PARAMS, PLANT, setup.camera, setup.marker, LabCamera(fps=30.0, image_scale=LAB_SCALE),
-                    emulator_factory=RecordingEmulator)
+                    rt_priority=10 if RT_HOST else None, emulator_factory=RecordingEmulator)
     vl.start()
     yield vl
     vl.stop()
 
 
 def hardware_args(lab: VirtualLab) -> list[str]:
-    return ["--serial", lab.pty_path, "--camera", lab.url, "--image-scale", str(LAB_SCALE), "--no-progress"]
+    return ["--serial", lab.pty_path, "--camera", lab.url, "--image-scale", str(LAB_SCALE), "--no-progress", *RT_HOST]
 
 
 def run_in_process(
@@ -292,6 +294,7 @@ def test_bad_options_fail_before_any_motion(lab: VirtualLab, args: list[str], wo
         (["--serial", "/dev/null"], ["--serial needs --camera SPEC"]),
         (["--camera", "http://127.0.0.1:1/x"], ["--camera SPEC needs --serial PORT"]),
         (["--camera", "configs/camera.yaml"], ["--camera SPEC needs --serial PORT"]),  # the old --camera YAML
+        (["--rt-priority", "5"], ["--rt-priority is for the hardware path"]),
     ],
 )
 def test_serial_and_camera_go_together(args: list[str], words: list[str]) -> None:

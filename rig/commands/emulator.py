@@ -33,6 +33,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--watchdog", type=float, default=0.25, metavar="S",
                    help="watchdog timeout [s] (default 0.25, as protocol v1 specifies)")
     p.add_argument("--psi0", nargs=6, type=float, metavar="X", help="initial configuration (default: home)")
+    p.add_argument("--rt-priority", type=int_in(1, 99), metavar="N",
+                   help="run every thread (serving, and with --camera-port rendering and streaming) under "
+                        "SCHED_FIFO at priority N, as firmware and a camera are not starved by other work "
+                        "(needs root or CAP_SYS_NICE)")
     cam = p.add_argument_group("virtual endoscope (with --camera-port)")
     cam.add_argument("--camera-port", type=int_in(0, 65535), metavar="PORT",
                      help="also play the stereo endoscope: an MJPEG stream on 127.0.0.1:PORT (0: any free port)")
@@ -78,6 +82,10 @@ def run(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGTERM, _stop)
     signal.signal(signal.SIGINT, _stop)
     if args.camera_port is None:
+        if args.rt_priority is not None:
+            from rig.realtime_priority import request_realtime_priority
+
+            request_realtime_priority(args.rt_priority)  # the serving thread inherits it
         emulator = ActuatorEmulator(TruePlant(params, plant, psi0=psi0), params, watchdog_s=args.watchdog)
         path = emulator.serve_pty()
         print(path, flush=True)
@@ -102,7 +110,7 @@ def _serve_lab(args: argparse.Namespace, params: RobotParams, plant: object, psi
     camera = LabCamera(fps=args.fps, image_scale=args.image_scale, seed=args.seed, jpeg_quality=args.jpeg_quality,
                        port=args.camera_port)
     lab = VirtualLab(params, plant, calib, marker, camera, psi0=psi0, watchdog_s=args.watchdog,  # type: ignore[arg-type]
-                     truth_out=args.truth_out)
+                     truth_out=args.truth_out, rt_priority=args.rt_priority)
     try:
         path, url = lab.start()
         print(path, flush=True)

@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from models.errors import InputError
-from rig.commands.option_types import positive_float
+from rig.commands.option_types import int_in, positive_float
 from rig.commands.setup_args import add_setup_arguments, setup_from_args
 from rig.run_log import write_json
 from rig.servo_session import (
@@ -67,6 +67,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "DESIGN.md 'Stereo frame sources'); the calibration is --calib")
     p.add_argument("--camera-timeout", type=positive_float(60.0), default=2.0, metavar="S",
                    help="with --camera: no frame for S seconds ends the camera's stream (default 2)")
+    p.add_argument("--rt-priority", type=int_in(1, 99), metavar="N",
+                   help="with --serial: run the loop (and its camera threads) under SCHED_FIFO at priority N, so a "
+                        "loaded host keeps the control period (needs root or CAP_SYS_NICE)")
     p.add_argument("--realtime", action="store_true",
                    help="run the in-process emulator on the wall clock, its watchdog live, like hardware "
                         "(implied by --serial)")
@@ -165,6 +168,9 @@ def check_link_options(args: argparse.Namespace) -> None:
     if args.camera and args.serial is None:
         raise InputError("--camera SPEC needs --serial PORT (the hardware path); without --serial the "
                          "simulated bench renders its own frames")
+    if args.rt_priority is not None and args.serial is None:
+        raise InputError("--rt-priority is for the hardware path (--serial); the simulated bench runs in "
+                         "simulated time")
     if args.serial is not None and args.realtime:
         raise InputError("--realtime is for the in-process emulator; --serial is always real time")
     if args.timeout is not None and not args.timeout > 0:
@@ -180,6 +186,10 @@ def open_session(setup: LoopSetup, psi0: Array, options: LinkOptions, args: argp
     if options.kind == "serial":
         from rig.hardware_session import open_hardware_session
 
+        if args.rt_priority is not None:  # before any thread starts: the camera's threads inherit it
+            from rig.realtime_priority import request_realtime_priority
+
+            request_realtime_priority(args.rt_priority)
         return open_hardware_session(setup, options, args.camera, camera_timeout=args.camera_timeout)
     from sim.servo_bench import open_sim_session
 

@@ -22,7 +22,6 @@ from cvs.frame_source_live import LiveCaptureSource
 from cvs.frames import FrameSourceError
 
 _DEVICE = re.compile(r"^(?:/dev/video(\d+)|device:(\d+))$")
-_STAMP_WINDOW_S = 1.0  # a device stamp older than this (or in the future) is not trusted [s]
 
 
 def is_device_spec(spec: str) -> bool:
@@ -31,9 +30,9 @@ def is_device_spec(spec: str) -> bool:
 
 
 def device_stamp(cap: cv2.VideoCapture, t_arrival: float) -> float:
-    """The frame's V4L2 buffer time [s] if it is a plausible monotonic stamp, else t_arrival."""
-    t = 1e-3 * float(cap.get(cv2.CAP_PROP_POS_MSEC))
-    return t if t_arrival - _STAMP_WINDOW_S <= t <= t_arrival else t_arrival
+    """The frame's V4L2 buffer time [s] (CAP_PROP_POS_MSEC); the live source keeps it only
+    when it is plausible (cvs.frame_source_live.plausible_stamp)."""
+    return 1e-3 * float(cap.get(cv2.CAP_PROP_POS_MSEC))
 
 
 def open_v4l2_device(spec: str, layout: str = "sbs", size: tuple[int, int] | None = None,

@@ -9,9 +9,12 @@ slow for are dropped (``dropped``), and so is a frame the decoder could not fini
 next one was due (``decode_skipped``, included in ``dropped``).
 
 MJPG files are read as JPEG packets (``CAP_PROP_FORMAT = -1``) and decoded with
-``cv2.imdecode`` only when handed out, so a dropped frame costs no decoding; other codecs
-(FFV1, mp4v, ...) are decoded by FFmpeg. A file that ends before the frame count its header
-announces is reported as truncated (FrameSourceError naming it).
+``cv2.imdecode`` (a frame skipped because the paced decoder is late costs no decoding);
+other codecs (FFV1, mp4v, ...) are decoded by FFmpeg. ``grayscale=True`` hands out 8-bit grey
+views (what the tracker works on): an MJPG frame then decodes only its luma plane, 2-5x faster
+than BGR on this machine (4.6 vs 21 ms for 3840x1080 in one run, 15 vs 24-51 ms under heavy
+load). A file that ends before the frame count its header announces is reported as
+truncated (FrameSourceError naming it).
 """
 
 from __future__ import annotations
@@ -34,10 +37,10 @@ _MJPG = cv2.VideoWriter.fourcc(*"MJPG")
 
 class VideoStream:
     """One video file: ``next_packet()`` (cheap: demux only where possible) then
-    ``decode(packet)`` -> BGR uint8 image."""
+    ``decode(packet)`` -> BGR uint8 image (grey with ``grayscale``)."""
 
-    def __init__(self, path: Path) -> None:
-        self.path = path
+    def __init__(self, path: Path, grayscale: bool = False) -> None:
+        self.path, self.grayscale = path, bool(grayscale)
         if not path.is_file():
             raise FrameSourceError(f"{path}: video file not found")
         self._jpeg_packets = int(self._open().get(cv2.CAP_PROP_FOURCC)) == _MJPG
@@ -75,12 +78,13 @@ class VideoStream:
         return np.asarray(packet)
 
     def decode(self, packet: NDArray[np.uint8]) -> NDArray[np.uint8]:
-        """The BGR image of a packet from :meth:`next_packet`."""
+        """The BGR (or grey) image of a packet from :meth:`next_packet`."""
         if not self._jpeg_packets:
-            return packet
-        img = cv2.imdecode(packet, cv2.IMREAD_COLOR)
+            return np.asarray(cv2.cvtColor(packet, cv2.COLOR_BGR2GRAY)) if self.grayscale else packet
+        img = cv2.imdecode(packet, cv2.IMREAD_GRAYSCALE if self.grayscale else cv2.IMREAD_COLOR)
         if img is None:
-            raise FrameSourceError(f"{self.path}: frame {self.packets - 1} cannot be decoded (corrupt file)")
+            raise FrameSourceError(
+                f"{self.path}: frame {self.packets - 1} cannot be decoded (truncated or corrupt file)")
         return np.asarray(img)
 
     def close(self) -> None:
@@ -91,15 +95,16 @@ class VideoFileSource:
     """A stereo source over one stereo video (``layout`` sbs|tb) or two videos (left, right).
 
     paced: play at the file's frame rate in wall-clock time with newest-frame semantics (see
-    the module docstring); timeout: longest wait for a paced frame [s] beyond one period."""
+    the module docstring); timeout: longest wait for a paced frame [s] beyond one period;
+    grayscale: hand out grey views instead of BGR."""
 
     def __init__(self, paths: Sequence[str | Path], layout: str = "sbs", paced: bool = False,
-                 timeout: float = 5.0) -> None:
+                 timeout: float = 5.0, grayscale: bool = False) -> None:
         if len(paths) not in (1, 2):
             raise FrameSourceError(f"a video source is one file or LEFT,RIGHT, got {len(paths)} files")
         self.layout = check_layout(layout)
         self.name = ",".join(str(p) for p in paths)
-        self.streams = [VideoStream(Path(p)) for p in paths]
+        self.streams = [VideoStream(Path(p), grayscale) for p in paths]
         self.fps = self.streams[0].fps
         if len(self.streams) == 2 and abs(self.streams[1].fps - self.fps) > 1e-3 * max(self.fps, 1.0):
             raise FrameSourceError(

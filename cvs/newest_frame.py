@@ -44,8 +44,10 @@ class NewestFrame:
 
     def finish(self, error: str | None = None) -> None:
         """No more frames: ``error`` (one line) is raised by the next take once the slot is
-        empty, or None for a normal end."""
+        empty, or None for a normal end. The first call decides; later ones are ignored."""
         with self._cond:
+            if self._finished:
+                return
             self._finished, self._error = True, error
             self._cond.notify_all()
 

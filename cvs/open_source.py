@@ -12,18 +12,20 @@
 | any other file | one stereo video, ``layout`` sbs or tb |
 
 With ``SourceOptions.image_size`` set (the calibration's), every frame is checked: a half of
-another size is a one-line FrameSourceError naming both sizes.
+another size is a one-line FrameSourceError naming both sizes. ``SourceOptions.grayscale``
+hands out grey views.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from cvs.frame_layout import check_layout
 from cvs.frames import FrameSourceError, StereoFrame, StereoSource, check_frame_size
+from cvs.gray_image import to_gray
 
 DEFAULT_TOPICS = ("/stereo/left/image_raw", "/stereo/right/image_raw")
 BAG_SUFFIXES = (".mcap", ".db3")
@@ -36,7 +38,8 @@ class SourceOptions:
     camera pixel format; topics: (left, right) image topics of a bag; timeout: a live source's
     open and stall timeout [s]; paced: play files and bags at their recorded rate in wall-clock
     time (video: newest-frame semantics, dropped frames counted); image_size: (width, height) of
-    each view the calibration expects [px] (None: no check)."""
+    each view the calibration expects [px] (None: no check); grayscale: hand out 8-bit grey
+    views (videos: MJPG decodes only its luma plane, 2-5x faster here; other sources convert)."""
 
     layout: str = "sbs"
     size: tuple[int, int] | None = None
@@ -46,6 +49,7 @@ class SourceOptions:
     timeout: float = 5.0
     paced: bool = False
     image_size: tuple[int, int] | None = None
+    grayscale: bool = False
 
     def validate(self) -> None:
         """FrameSourceError naming the first bad option."""
@@ -60,11 +64,12 @@ class SourceOptions:
             raise FrameSourceError(f"topics must be two topic names LEFT,RIGHT starting with '/', got {self.topics}")
 
 
-class SizeCheckedSource:
-    """A source whose every frame is checked against the calibration's image size."""
+class CheckedSource:
+    """A source whose every frame is checked against the calibration's image size (None: no
+    check) and, with ``grayscale``, converted to grey where the source delivered BGR."""
 
-    def __init__(self, source: StereoSource, image_size: tuple[int, int]) -> None:
-        self.source, self.image_size, self.name = source, image_size, source.name
+    def __init__(self, source: StereoSource, image_size: tuple[int, int] | None, grayscale: bool = False) -> None:
+        self.source, self.image_size, self.grayscale, self.name = source, image_size, grayscale, source.name
 
     def __len__(self) -> int:
         return source_length(self.source) or 0
@@ -75,12 +80,22 @@ class SizeCheckedSource:
 
     def read(self) -> StereoFrame | None:
         frame = self.source.read()
-        if frame is not None:
+        if frame is None:
+            return None
+        if self.image_size is not None:
             check_frame_size(frame, self.image_size, self.name)
+        if self.grayscale and frame.left.ndim == 3:
+            frame = replace(frame, left=to_gray(frame.left), right=to_gray(frame.right))
         return frame
 
     def close(self) -> None:
         self.source.close()
+
+    def __getattr__(self, name: str) -> object:
+        """Everything else is the wrapped source's (fps, decode_skipped, captured, ...)."""
+        if name == "source":  # not set yet (e.g. during unpickling): no recursion
+            raise AttributeError(name)
+        return getattr(self.source, name)
 
 
 def source_length(source: StereoSource) -> int | None:
@@ -111,7 +126,7 @@ def _open(spec: str | Sequence[str | Path], o: SourceOptions) -> StereoSource:
     if is_stream_url(spec):
         from cvs.frame_source_stream import open_network_stream
 
-        return open_network_stream(spec, o.layout, o.timeout)
+        return open_network_stream(spec, o.layout, o.timeout, o.grayscale)
     if is_device_spec(spec):
         from cvs.frame_source_v4l2 import open_v4l2_device
 
@@ -122,14 +137,16 @@ def _open(spec: str | Sequence[str | Path], o: SourceOptions) -> StereoSource:
 
         return open_image_folder(path)
     if path.is_dir() or path.suffix.lower() in BAG_SUFFIXES:
-        raise FrameSourceError(f"{spec}: ROS 2 bags are not readable yet")
+        from cvs.frame_source_bag import BagSource
+
+        return BagSource(path, o.topics, paced=o.paced)
     from cvs.frame_source_video import VideoFileSource
 
     if not path.exists() and "," in spec:
-        return VideoFileSource(spec.split(","), o.layout, o.paced, o.timeout)
+        return VideoFileSource(spec.split(","), o.layout, o.paced, o.timeout, o.grayscale)
     if not path.exists():
         raise FrameSourceError(f"{spec}: no such file, folder, camera or stream")
-    return VideoFileSource([path], o.layout, o.paced, o.timeout)
+    return VideoFileSource([path], o.layout, o.paced, o.timeout, o.grayscale)
 
 
 def open_stereo_source(spec: str | Sequence[str | Path], options: SourceOptions | None = None) -> StereoSource:
@@ -139,6 +156,7 @@ def open_stereo_source(spec: str | Sequence[str | Path], options: SourceOptions 
     o.validate()
     quiet_opencv()
     source = _open(spec, o)
-    if o.image_size is not None:
-        return SizeCheckedSource(source, (int(o.image_size[0]), int(o.image_size[1])))
-    return source
+    if o.image_size is None and not o.grayscale:
+        return source
+    size = None if o.image_size is None else (int(o.image_size[0]), int(o.image_size[1]))
+    return CheckedSource(source, size, o.grayscale)

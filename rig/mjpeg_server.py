@@ -1,13 +1,13 @@
 """An MJPEG-over-HTTP server: JPEG frames as one ``multipart/x-mixed-replace`` stream.
 
 ``MjpegServer(host, port)`` listens (loopback by default; ``port=0`` lets the OS choose) in a
-daemon thread of :class:`http.server.ThreadingHTTPServer`; every GET receives the stream from
-the next published frame on: each part is ``--BOUNDARY``, ``Content-Type: image/jpeg``,
-``Content-Length`` and the JPEG bytes, which OpenCV's FFmpeg backend (the ``mpjpeg`` demuxer),
-browsers and ``curl`` read. ``publish(jpeg)`` hands a new frame to every client; a client that
-is slower than the publisher skips to the newest frame (nothing queues up). ``close()`` stops
-the server and ends every client's stream. A new client gets the current frame at once,
-then every newer one.
+daemon thread of :class:`http.server.ThreadingHTTPServer`. Every GET gets the stream: the
+current frame at once, then every newer one, each part ``--BOUNDARY``, ``Content-Type:
+image/jpeg``, ``Content-Length`` and the JPEG bytes, which OpenCV's FFmpeg backend (the
+``mpjpeg`` demuxer), browsers and ``curl`` read. ``publish(jpeg, t_capture=None)`` hands a new
+frame to every client; with ``t_capture`` the frame's ``time.monotonic()`` capture time travels
+inside the JPEG (cvs.jpeg_stamp). A client slower than the publisher skips to the newest frame
+(nothing queues up). ``close()`` stops the server and ends every client's stream.
 
 Used by the tests of the network frame source and by the virtual lab's camera.
 """
@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from cvs.jpeg_stamp import add_capture_stamp
 from models.errors import InputError
 
 BOUNDARY = "wristmarkframe"
@@ -41,6 +42,7 @@ class _Handler(BaseHTTPRequestHandler):
         self.send_header("Connection", "close")
         self.end_headers()
         seen = max(owner.frame_count - 1, 0)  # start with the current frame, if there is one
+        owner.count_client(+1)
         try:
             while True:
                 jpeg, seen = owner.wait_frame(seen)
@@ -51,6 +53,8 @@ class _Handler(BaseHTTPRequestHandler):
                 self.wfile.flush()
         except (BrokenPipeError, ConnectionResetError, OSError):
             return  # the client went away
+        finally:
+            owner.count_client(-1)
 
 
 class _Server(ThreadingHTTPServer):
@@ -69,6 +73,7 @@ class MjpegServer:
         self._cond = threading.Condition()
         self._jpeg: bytes | None = None
         self._count = 0
+        self._clients = 0
         self._closed = False
         try:
             self._httpd = _Server((host, int(port)), _Handler)
@@ -91,16 +96,29 @@ class MjpegServer:
         """Frames published so far."""
         return self._count
 
-    def publish(self, jpeg: bytes) -> None:
-        """Hand one JPEG-encoded frame to every connected client (they skip to the newest)."""
+    @property
+    def clients(self) -> int:
+        """Clients receiving the stream now."""
+        return self._clients
+
+    def count_client(self, change: int) -> None:
+        """A client connected (+1) or left (-1)."""
         with self._cond:
-            self._jpeg = bytes(jpeg)
+            self._clients += change
+
+    def publish(self, jpeg: bytes, t_capture: float | None = None) -> None:
+        """Hand one JPEG-encoded frame to every connected client (they skip to the newest);
+        ``t_capture``: its capture time on this host's ``time.monotonic()`` [s], carried in
+        the JPEG (cvs.jpeg_stamp) for the network frame source to read."""
+        data = bytes(jpeg) if t_capture is None else add_capture_stamp(bytes(jpeg), t_capture)
+        with self._cond:
+            self._jpeg = data
             self._count += 1
             self._cond.notify_all()
 
-    def publish_image(self, image: NDArray[np.uint8], quality: int = 90) -> int:
-        """JPEG-encode an 8-bit image (grey or BGR) at ``quality`` (1-100) and publish it;
-        returns the JPEG's size [bytes]."""
+    def publish_image(self, image: NDArray[np.uint8], quality: int = 90, t_capture: float | None = None) -> int:
+        """JPEG-encode an 8-bit image (grey or BGR) at ``quality`` (1-100) and publish it
+        (``t_capture`` as in :meth:`publish`); returns the JPEG's size [bytes]."""
         import cv2
 
         if not 1 <= int(quality) <= 100:
@@ -109,7 +127,7 @@ class MjpegServer:
         if not ok:
             raise InputError(f"cannot JPEG-encode an image of shape {np.shape(image)}")
         data = buf.tobytes()
-        self.publish(data)
+        self.publish(data, t_capture)
         return len(data)
 
     def wait_frame(self, seen: int) -> tuple[bytes | None, int]:

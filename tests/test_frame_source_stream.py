@@ -74,7 +74,6 @@ def test_slow_consumer_gets_the_newest_frame(server: MjpegServer, frame_ids: tup
     assert max(ages) < 1.0 / FPS + processing + 0.03, ages
     assert all(b > a for a, b in zip(ids, ids[1:]))
     assert dropped >= 12  # ~1.4 frames dropped per processed one
-    assert min(np.diff(ids)) >= 2
 
 
 def test_stall_mid_run_is_one_line_error_within_timeout(server: MjpegServer, frame_ids: tuple) -> None:
@@ -129,3 +128,34 @@ def test_server_closing_ends_the_stream_with_an_error(server: MjpegServer, frame
     finally:
         src.close()
     assert server.url in str(e.value) and "\n" not in str(e.value)
+
+
+def test_sender_capture_time_and_grey_decoding(server: MjpegServer, frame_ids: tuple) -> None:
+    """Frames published with their capture time (as the virtual lab's camera does) carry it to
+    t_capture; grey decoding reads only the luma plane."""
+    id_view, read_id = frame_ids
+    stamps: dict[int, float] = {}
+    stop = threading.Event()
+
+    def publish() -> None:
+        k = 0
+        while not stop.is_set():
+            t_cap = time.monotonic() - 0.02  # "exposed" 20 ms before it is sent
+            stamps[k] = t_cap
+            server.publish_image(join_stereo(id_view(k, 0), id_view(k, 1)), 85, t_capture=t_cap)
+            k += 1
+            stop.wait(1 / FPS)
+
+    th = threading.Thread(target=publish, daemon=True)
+    th.start()
+    src = open_stereo_source(server.url, SourceOptions(timeout=5.0, grayscale=True, image_size=(320, 180)))
+    try:
+        got = [src.read() for _ in range(5)]
+    finally:
+        src.close()
+        stop.set()
+        th.join()
+    for f in got:
+        assert f is not None and f.left.ndim == 2 and f.left.shape == (180, 320)
+        k = read_id(f.left) // 2
+        assert f.t_capture == pytest.approx(stamps[k], abs=2e-6)

@@ -49,6 +49,7 @@ def test_parts_are_the_published_jpegs() -> None:
         th = threading.Thread(target=client)
         th.start()
         time.sleep(0.3)  # connected and waiting: nothing is published yet
+        assert srv.clients == 1
         for j in jpegs:
             srv.publish(j)
             time.sleep(0.1)

@@ -19,9 +19,13 @@ from cvs.frames import FrameSourceError, StereoFrame, StereoSource
 
 
 class FrameFeed(Protocol):
-    """The loop's view of a frame source."""
+    """The loop's view of a frame source. ``last_arrival``: when the frame take() returned last
+    became available to the loop (``time.monotonic()`` [s]; NaN for on-demand sources), so that
+    ``last_arrival - frame.t_capture`` is the frame's own transport (exposure or rendering,
+    encoding, network, decoding) when the source carries the capture time."""
 
     name: str
+    last_arrival: float
 
     def take(self, fresh_after: float = -math.inf, wait_until: float = -math.inf) -> StereoFrame | None:
         """The newest frame not handed out yet, or None when there is none (a lost cycle).
@@ -44,6 +48,7 @@ class SynchronousFeed:
     def __init__(self, source: StereoSource) -> None:
         self.source = source
         self.name = source.name
+        self.last_arrival = math.nan
 
     def take(self, fresh_after: float = -math.inf, wait_until: float = -math.inf) -> StereoFrame | None:
         """The source's next frame; FrameSourceError when it has ended."""
@@ -65,10 +70,11 @@ class SynchronousFeed:
 class LatestFrameFeed:
     """A reader thread keeps the newest frame of a live source.
 
-    take(fresh_after, wait_until): the newest frame not handed out yet; while that frame was
-    captured before ``fresh_after`` (or there is none), wait for a newer one until ``wait_until``
-    (both on ``time.monotonic()`` [s]); at the deadline hand out the newest unseen frame, however
-    old, or None. The source's error (a stall it detected, the stream ending) is raised by the
+    take(fresh_after, wait_until): the newest frame not handed out yet; while that frame arrived
+    before ``fresh_after`` (or there is none), wait for a newer one until ``wait_until`` (both on
+    ``time.monotonic()`` [s]); at the deadline hand out the newest unseen frame, however old, or
+    None. A frame's arrival is when this feed's reader got it from the source. The source's
+    error (a stall it detected, the stream ending) is raised by the
     next take(). Frames replaced before anyone took them count in :attr:`dropped`.
     """
 
@@ -77,6 +83,8 @@ class LatestFrameFeed:
         self.name = source.name
         self._cond = threading.Condition()
         self._latest: StereoFrame | None = None
+        self._latest_arrival = math.nan
+        self.last_arrival = math.nan
         self._taken_index: int | None = None
         self._error: FrameSourceError | None = None
         self._replaced = 0
@@ -107,6 +115,7 @@ class LatestFrameFeed:
                 if self._latest is not None and self._latest.index != self._taken_index:
                     self._replaced += 1
                 self._latest = frame
+                self._latest_arrival = time.monotonic()
                 self.received += 1
                 self._cond.notify_all()
 
@@ -119,7 +128,7 @@ class LatestFrameFeed:
         with self._cond:
             while True:
                 f = self._unseen()
-                if f is not None and f.t_capture >= fresh_after:
+                if f is not None and self._latest_arrival >= fresh_after:
                     break
                 if self._error is not None:
                     raise self._error
@@ -129,6 +138,7 @@ class LatestFrameFeed:
                 self._cond.wait(remaining)
             if f is not None:
                 self._taken_index = f.index
+                self.last_arrival = self._latest_arrival
             return f
 
     @property

@@ -6,7 +6,9 @@ on hardware), t_wall (the cycle's ``time.monotonic()``), phase, p_des_{x,y,z}, p
 p_true_{x,y,z}, p_trk_{x,y,z} (optical tracker), psi_cmd_0..5, psi_true_0..5 (the truth columns
 are empty without a ground-truth observer: on hardware), meas_ok, rejected, vision_ms, ctrl_us,
 t_capture (the measured frame's capture time on the frames' clock [s], empty without a frame),
-latency_ms (capture -> command of the cycle's accepted measurement [ms], empty otherwise).
+latency_ms (capture -> command of the cycle's accepted measurement [ms], empty otherwise),
+transport_ms (capture -> the frame available to the loop [ms]: the part of the latency before
+the host could act; empty when unknown).
 ``config.json`` holds every configuration used; ``result.json`` the metrics.
 """
 
@@ -30,7 +32,8 @@ COLUMNS: tuple[str, ...] = (
     + tuple(f"p_{k}_{a}" for k in ("des", "cmd", "est", "true", "trk") for a in _XYZ)
     + tuple(f"psi_cmd_{i}" for i in range(6))
     + tuple(f"psi_true_{i}" for i in range(6))
-    + ("meas_ok", "rejected", "vision_ms", "ctrl_us", "t_capture", "latency_ms")
+    + ("meas_ok", "rejected", "vision_ms", "ctrl_us", "t_capture", "latency_ms",
+       "transport_ms")
 )
 
 
@@ -55,6 +58,7 @@ class CycleRecord:
     t_wall: float = math.nan
     t_capture: float = math.nan
     latency_ms: float = math.nan
+    transport_ms: float = math.nan
 
     def row(self) -> list[Any]:
         """CSV row in COLUMNS order."""
@@ -63,7 +67,7 @@ class CycleRecord:
         for v in (self.p_des, self.p_cmd, est, self.p_true, self.p_trk, self.psi_cmd, self.psi_true):
             vals += ["" if not math.isfinite(x) else f"{x:.9g}" for x in np.asarray(v, float)]
         vals += [int(self.meas_ok), int(self.rejected), f"{self.vision_ms:.3f}", f"{self.ctrl_us:.1f}",
-                 _num(self.t_capture, "{:.6f}"), _num(self.latency_ms, "{:.3f}")]
+                 _num(self.t_capture, "{:.6f}"), _num(self.latency_ms, "{:.3f}"), _num(self.transport_ms, "{:.3f}")]
         return vals
 
 

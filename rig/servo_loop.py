@@ -378,4 +378,6 @@ class ServoLoop:
             psi_true=np.asarray(truth.psi_true, float), meas_ok=outcome.accepted, rejected=outcome.rejected,
             vision_ms=meas.time_ms if meas is not None else 0.0, ctrl_us=outcome.ctrl_us, t_wall=t_wall,
             t_capture=meas.t_capture if meas is not None else float("nan"), latency_ms=1000.0 * latency_s,
+            transport_ms=1000.0 * (self.frames.last_arrival - meas.t_capture)
+            if meas is not None and self.frames is not None and self.wall_clock else float("nan"),
         )

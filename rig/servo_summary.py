@@ -46,6 +46,17 @@ def cycle_timing(records: list[CycleRecord], dt: float) -> dict[str, Any]:
             "jitter_ms": percentiles_ms(1000 * np.abs(late))}
 
 
+def latency_summary(records: list[CycleRecord]) -> dict[str, Any]:
+    """Capture -> command of the accepted measurements, split into the frame's transport
+    (capture -> available to the loop) and what the host adds (available -> command), and the
+    tracking time [ms]."""
+    lat = np.array([r.latency_ms for r in records], float)
+    transport = np.array([r.transport_ms if np.isfinite(r.latency_ms) else np.nan for r in records], float)
+    return {"capture_to_command": percentiles_ms(lat), "transport": percentiles_ms(transport),
+            "arrival_to_command": percentiles_ms(lat - transport),
+            "tracking": percentiles_ms(np.array([r.vision_ms for r in records if r.vision_ms > 0]))}
+
+
 def closed_loop_errors(records: list[CycleRecord]) -> dict[str, Any]:
     """Tip errors of the logged cycles [mm]: tracker vs desired (and noise-free truth) when
     there is ground truth, else the vision estimate vs desired."""
@@ -87,8 +98,7 @@ def summarize(setup: LoopSetup, traj: Trajectory, session: ServoSession, out: Se
         "controller": setup.controller.kind, "control_dt_s": setup.rig.control_dt,
         "sensor": setup.rig.sensor if session.truth is not None else "vision (camera)",
         "closed_loop": closed,
-        "latency": {"capture_to_command": percentiles_ms(np.array([r.latency_ms for r in all_recs])),
-                    "tracking": percentiles_ms(np.array([r.vision_ms for r in all_recs if r.vision_ms > 0]))},
+        "latency": latency_summary(all_recs),
         "timing": cycle_timing(all_recs, setup.rig.control_dt),
         "frames": frames,
         "stopped": out.stopped, "cause": out.cause,

@@ -9,10 +9,13 @@ loopback (:class:`rig.mjpeg_server.MjpegServer`). Each frame's capture instant i
 clock's ``time.monotonic()`` when the arm was sampled; ``truth_out`` logs it with the true tip
 in {w} [m] (CSV header ``t,tip_x,tip_y,tip_z``), one row per published frame.
 
-The host stamps a frame when it arrives (its HTTP source cannot see the emulator's clock), so
-the host's capture-to-command latency leaves out the frame's transport: rendering, JPEG
-encoding, the loopback hop and decoding. :meth:`VirtualLab.stats` reports what the camera side
-spends (render and encode times per frame); ``truth_out`` gives the true capture instants.
+Each JPEG also carries its capture instant (cvs.jpeg_stamp, a COM segment decoders ignore):
+valid only because both processes read one machine's monotonic clock, and not something a real
+camera needs (a host stamps a real camera's frames at arrival, or maps the device's own
+timestamps). With it, the host's capture-to-command latency includes the frame's transport
+(rendering, JPEG encoding, the loopback hop, decoding), which the host logs apart; without it
+(any other MJPEG sender) the transport is hidden in a frame that looks fresh on arrival.
+:attr:`VirtualLab.stats` reports what the camera side spends per frame.
 """
 
 from __future__ import annotations
@@ -168,7 +171,7 @@ class VirtualLab:
         r0 = time.perf_counter()
         pair = self.renderer.render(shape)
         r1 = time.perf_counter()
-        self.server.publish_image(np.hstack([pair.left, pair.right]), self.options.jpeg_quality)
+        self.server.publish_image(np.hstack([pair.left, pair.right]), self.options.jpeg_quality, t_capture=t)
         r2 = time.perf_counter()
         st = self.stats
         st.frames += 1

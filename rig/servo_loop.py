@@ -159,6 +159,7 @@ class ServoLoop:
         self.frame_wait = float(frame_wait)
         self.on_cycle = on_cycle
         self.last_measurement: TipMeasurement | None = None
+        self.last_frame: StereoFrame | None = None
         self.t = float(link.time)
         self.psi_cmd: Array | None = None
         self._wall0 = time.perf_counter()
@@ -300,18 +301,22 @@ class ServoLoop:
 
     def _take_frame(self, target: _CycleTarget, phase: str, memory: _Tracking,
                     stats: PhaseStats) -> StereoFrame | None:
-        """This cycle's frame: on the wall clock one captured after the cycle began if it comes
+        """This cycle's frame: on the wall clock one that arrived after the cycle began if it comes
         within ``frame_wait``, else the newest unseen one (None: none at all)."""
         assert self.frames is not None
         try:
             if self.wall_clock:
                 t_start = time.monotonic()
-                return self.frames.take(fresh_after=t_start, wait_until=t_start + self.frame_wait)
-            return self.frames.take()
+                frame = self.frames.take(fresh_after=t_start, wait_until=t_start + self.frame_wait)
+            else:
+                frame = self.frames.take()
         except FrameSourceError as e:
             self.link.hold()
             stats.stopped = f"camera: {e} at t = {target.t - self._sim0:.2f} s"
             raise CameraStalledError(stats.stopped + ": arm held", stats) from None
+        if frame is not None:
+            self.last_frame = frame
+        return frame
 
     def _measure_and_control(self, frame: StereoFrame | None, truth: TruthSample, target: _CycleTarget,
                              memory: _Tracking) -> _Outcome:

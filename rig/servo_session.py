@@ -152,11 +152,12 @@ def _count(out: ServoOutcome, stats: Any) -> None:
 
 def run_servo(setup: LoopSetup, traj: Trajectory, session: ServoSession, psi0: Array, settle: float,
               progress: bool = False, on_cycle: Callable[[CycleRecord], None] | None = None,
-              sensor: TipSensor | None = None) -> ServoOutcome:
+              sensor: TipSensor | None = None, recorder: Any = None) -> ServoOutcome:
     """Settle at ``psi0``, run ``traj`` closed loop, then close the session (hold + DISABLE).
 
     Safe stops and Ctrl-C are reported in the outcome, never raised; ``sensor`` replaces the
-    session's tip sensor (tests)."""
+    session's tip sensor (tests); ``recorder`` (rig.servo_recorder.ServoRecorder) records every
+    cycle and is closed at the end."""
     from rig.actuator_driver import ActuatorError, ActuatorEStopped, ActuatorNotEnabled
     from rig.servo_loop import CameraStalledError, MarkerLostError, ServoLoop
     from solvers.controller import make_controller
@@ -171,10 +172,17 @@ def run_servo(setup: LoopSetup, traj: Trajectory, session: ServoSession, psi0: A
         # the slow parts first: an enabled device wants a command every 250 ms from ENABLE on
         controller = make_controller(setup.params, setup.controller)
         session.start()
+        hook = on_cycle
+        if recorder is not None:
+            def hook(rec: CycleRecord) -> None:
+                recorder.record(rec, loop, session.link)
+                if on_cycle is not None:
+                    on_cycle(rec)
+
         loop = ServoLoop(setup.params, rig, session.link, frames=session.frames,
                          sensor=sensor if sensor is not None else session.sensor, controller=controller,
                          truth=session.truth, wall_clock=session.wall_clock, frame_wait=rig.frame_wait,
-                         on_cycle=on_cycle)
+                         on_cycle=hook)
         t_start = loop.t
         loop.start_at(psi0)
         stats = loop.run(traj, "servo", True, out.log, settle=settle, progress=progress)
@@ -199,5 +207,7 @@ def run_servo(setup: LoopSetup, traj: Trajectory, session: ServoSession, psi0: A
             out.cycles = out.cycles or len(out.log.phase("servo"))
         session.close()
         out.close_error = session.close_error
+        if recorder is not None:
+            recorder.close()
         out.wall_time_s = time.perf_counter() - wall0
     return out

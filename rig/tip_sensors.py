@@ -29,7 +29,8 @@ class TipMeasurement:
     """One tip measurement in {w} [m] from the frame captured at ``t_capture`` [s] (the frame's
     clock: the host's ``time.monotonic()`` on hardware, simulated time on the simulated bench);
     ``ok`` False with a ``reason`` when there is none. time_ms: the tracking time [ms];
-    corners_left: the detected corners in the left image's raw pixels (N, 2), for a viewer."""
+    corners_left: the detected corners in the left image's raw pixels (N, 2), for a viewer;
+    T_left_marker, tip_left: the marker pose (4x4 of {wm}) and the tip in {ll} [m], for a recorder."""
 
     ok: bool
     p_world: Array | None
@@ -39,6 +40,8 @@ class TipMeasurement:
     t_capture: float = float("nan")
     frame_index: int = -1
     corners_left: Array | None = None
+    T_left_marker: Array | None = None
+    tip_left: Array | None = None
 
 
 class TipSensor(Protocol):
@@ -80,4 +83,6 @@ class VisionTipSensor:
                                   frame_index=frame.index, corners_left=corners)
         W = self.T_world_left
         p = (np.asarray(res.tip_left, float).reshape(1, 3) @ W[:3, :3].T + W[:3, 3])[0]
-        return TipMeasurement(True, p, "", ms, float(res.rms_px), frame.t_capture, frame.index, corners)
+        return TipMeasurement(True, p, "", ms, float(res.rms_px), frame.t_capture, frame.index, corners,
+                              None if res.T_left_marker is None else np.asarray(res.T_left_marker, float),
+                              np.asarray(res.tip_left, float))

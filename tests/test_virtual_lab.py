@@ -103,7 +103,7 @@ def lab_process(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str,
     truth = tmp_path_factory.mktemp("lab") / "truth.csv"
     proc = subprocess.Popen(
         [sys.executable, "-m", "rig.cli", "emulator", "--pty", "--camera-port", "0", "--fps", str(FPS),
-         "--image-scale", str(SCALE), "--truth-out", str(truth), *RT_LAB],
+         "--image-scale", str(SCALE), "--jpeg-quality", "95", "--truth-out", str(truth), *RT_LAB],
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         pty, url = read_lines(proc, 2, timeout=60)
@@ -132,10 +132,13 @@ def in_process(setup: SimSetup, kind: str, duration: float) -> dict:
 def test_virtual_lab_reaches_the_in_process_accuracy(lab_process: tuple[str, str, Path], setup: SimSetup,
                                                      tmp_path: Path, kind: str, duration: float) -> None:
     pty, url, truth = lab_process
+    record = ["--record", str(tmp_path / "run.mcap"), "--record-jpeg"] if kind == "point" else []
     r = hardware_servo("--serial", pty, "--camera", url, "--image-scale", str(SCALE), *RT_HOST, "--trajectory", kind,
                        "--duration", str(duration), "--no-progress", "--out", str(tmp_path / "run"),
-                       "--json", str(tmp_path / "res.json"))
+                       "--json", str(tmp_path / "res.json"), *record)
     assert r.returncode == 0, r.stderr
+    if record:
+        check_recording(tmp_path / "run.mcap", json.loads((tmp_path / "res.json").read_text()))
     res = json.loads((tmp_path / "res.json").read_text())
     assert res["stopped"] == "" and res["safe_stop"]["held_and_disabled"]
     assert res["closed_loop"]["errors_from"] == "vision estimate"  # the host knows no truth
@@ -159,6 +162,30 @@ def test_virtual_lab_reaches_the_in_process_accuracy(lab_process: tuple[str, str
     assert latency["n"] >= lab.n and transport["n"] == latency["n"]
     assert 0 < transport["median_ms"] < latency["median_ms"] < 1000 * setup.rig.control_dt
     assert 0 < host["median_ms"] < 1000 * setup.rig.control_dt
+
+
+def check_recording(path: Path, res: dict) -> None:
+    """The servo run's bag: every cycle's actuators (commanded and measured), its frames and poses."""
+    from rosbags.highlevel import AnyReader
+
+    from cvs.ros_image_msgs import typestore
+
+    rec = res["recording"]
+    assert rec["problem"] == "" and rec["dropped_cycles"] == 0
+    with AnyReader([path], default_typestore=typestore()) as reader:
+        by_topic: dict[str, list] = {}
+        for conn, _, raw in reader.messages():
+            by_topic.setdefault(conn.topic, []).append(reader.deserialize(raw, conn.msgtype))
+    joints = by_topic["/wristmark/actuators"]
+    assert len(joints) == 2 * rec["cycles"] and rec["cycles"] >= res["closed_loop"]["cycles"]
+    assert [j.header.frame_id for j in joints[:2]] == ["commanded", "measured"]
+    assert list(joints[0].name) == ["phi", "d", "s1a", "s1b", "s2a", "s2b"]
+    commanded, measured = np.asarray(joints[-2].position), np.asarray(joints[-1].position)
+    assert np.all(np.isfinite(measured)) and np.abs(commanded - measured).max() < 2e-3  # it held the point
+    assert len(by_topic["/stereo/left/image_raw"]) == len(by_topic["/stereo/right/image_raw"]) >= res[
+        "closed_loop"]["cycles"]
+    assert by_topic["/stereo/left/image_raw"][0].format == "jpeg"
+    assert len(by_topic["/wristmark/tip"]) == 2 * len(by_topic["/wristmark/marker_pose"]) // 2 > 0
 
 
 def test_hardware_path_modules_never_import_the_simulated_bench() -> None:

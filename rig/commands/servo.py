@@ -67,6 +67,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "DESIGN.md 'Stereo frame sources'); the calibration is --calib")
     p.add_argument("--camera-timeout", type=positive_float(60.0), default=2.0, metavar="S",
                    help="with --camera: no frame for S seconds ends the camera's stream (default 2)")
+    p.add_argument("--record", metavar="FILE.mcap",
+                   help="with --serial: record the frames, marker poses and actuators (commanded and measured) "
+                        "as a ROS 2 bag")
+    p.add_argument("--record-jpeg", action="store_true", help="record images as JPEG (CompressedImage)")
     p.add_argument("--rt-priority", type=int_in(1, 99), metavar="N",
                    help="with --serial: run the loop (and its camera threads) under SCHED_FIFO at priority N, so a "
                         "loaded host keeps the control period (needs root or CAP_SYS_NICE)")
@@ -171,6 +175,11 @@ def check_link_options(args: argparse.Namespace) -> None:
     if args.rt_priority is not None and args.serial is None:
         raise InputError("--rt-priority is for the hardware path (--serial); the simulated bench runs in "
                          "simulated time")
+    if args.record and args.serial is None:
+        raise InputError("--record is for the hardware path (--serial --camera): the simulated bench writes "
+                         "log.csv with --out")
+    if args.record_jpeg and not args.record:
+        raise InputError("--record-jpeg needs --record FILE.mcap")
     if args.serial is not None and args.realtime:
         raise InputError("--realtime is for the in-process emulator; --serial is always real time")
     if args.timeout is not None and not args.timeout > 0:
@@ -194,6 +203,20 @@ def open_session(setup: LoopSetup, psi0: Array, options: LinkOptions, args: argp
     from sim.servo_bench import open_sim_session
 
     return open_sim_session(setup, psi0, options, seed=setup.rig.seed)  # type: ignore[arg-type]
+
+
+def open_recorder(args: argparse.Namespace, setup: LoopSetup, session: ServoSession) -> Any:
+    """The --record bag (after the session opened, before any motion); closes the session when
+    the bag cannot be written."""
+    if not args.record:
+        return None
+    from rig.servo_recorder import ServoRecorder
+
+    try:
+        return ServoRecorder(args.record, setup.params, jpeg=args.record_jpeg, world_T_left=setup.camera.T_world_left)
+    except BaseException:
+        session.close()
+        raise
 
 
 def write_outputs(args: argparse.Namespace, setup: LoopSetup, out: ServoOutcome, res: dict[str, Any]) -> None:
@@ -222,14 +245,19 @@ def run(args: argparse.Namespace) -> int:
         view = live_view(setup) if args.view else None
         try:
             session = open_session(setup, psi0, options, args)
+            recorder = open_recorder(args, setup, session)
             out = run_servo(setup, traj, session, psi0, settle=setup.rig.settle_time,
-                            progress=not args.no_progress, on_cycle=None if view is None else view.on_cycle)
+                            progress=not args.no_progress, on_cycle=None if view is None else view.on_cycle,
+                            recorder=recorder)
             if view is not None and args.view_hold > 0:
                 view.hold(args.view_hold)
         finally:
             if view is not None:
                 view.close()
     res = summarize(setup, traj, session, out)
+    if recorder is not None:
+        res["recording"] = {"path": args.record, "cycles": recorder.cycles, "dropped_cycles": recorder.dropped,
+                            "messages": recorder.bag.messages, "problem": recorder.error}
     write_outputs(args, setup, out, res)
     c = res["closed_loop"]
     errors = (f"closed-loop tip error mean {c['mean_mm']:.3f} mm, max {c['max_mm']:.3f} mm over {c['cycles']} "

@@ -131,7 +131,9 @@ class ServoLoop:
     truth: optional ground-truth observer (the simulated bench); wall_clock: the loop's time is
     the host's ``time.monotonic()`` (frames stamped on it, commands sent when computed) rather
     than simulated time (commands sent ``rig.vision_latency`` after the capture);
-    frame_wait: on the wall clock, how long [s] a cycle waits for a frame captured after it began.
+    frame_wait: on the wall clock, how long [s] a cycle waits for a frame that arrived after it began;
+    on_cycle(record) after every cycle; on_frame(frame, measurement) after every measured frame
+    (both must return at once: e.g. the live view's hooks).
     """
 
     def __init__(
@@ -147,6 +149,7 @@ class ServoLoop:
         wall_clock: bool = False,
         frame_wait: float = 0.04,
         on_cycle: object = None,
+        on_frame: object = None,
     ) -> None:
         self.params = params
         self.rig = rig
@@ -158,6 +161,7 @@ class ServoLoop:
         self.wall_clock = bool(wall_clock)
         self.frame_wait = float(frame_wait)
         self.on_cycle = on_cycle
+        self.on_frame = on_frame
         self.last_measurement: TipMeasurement | None = None
         self.last_frame: StereoFrame | None = None
         self.t = float(link.time)
@@ -328,6 +332,8 @@ class ServoLoop:
         model = forward_kinematics(self.params, self.psi_cmd)  # the commanded arm, nominal model
         meas = self.sensor.measure(frame, axis_hint_world=model.T_world_marker[:3, 2])  # which way it points
         self.last_measurement = meas
+        if callable(self.on_frame):
+            self.on_frame(frame, meas)
         if not (meas.ok and meas.p_world is not None and np.all(np.isfinite(meas.p_world))):
             memory.last_reason = meas.reason or "marker not found"
             return _Outcome(meas, truth, False, False, 0.0)

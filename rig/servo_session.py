@@ -152,11 +152,12 @@ def _count(out: ServoOutcome, stats: Any) -> None:
 
 def run_servo(setup: LoopSetup, traj: Trajectory, session: ServoSession, psi0: Array, settle: float,
               progress: bool = False, on_cycle: Callable[[CycleRecord], None] | None = None,
-              sensor: TipSensor | None = None, recorder: Any = None) -> ServoOutcome:
+              sensor: TipSensor | None = None, recorder: Any = None, on_frame: Any = None) -> ServoOutcome:
     """Settle at ``psi0``, run ``traj`` closed loop, then close the session (hold + DISABLE).
 
     Safe stops and Ctrl-C are reported in the outcome, never raised; ``sensor`` replaces the
-    session's tip sensor (tests); ``recorder`` (rig.servo_recorder.ServoRecorder) records every
+    session's tip sensor (tests); ``on_frame(frame, measurement)`` sees every measured frame
+    (the live view); ``recorder`` (rig.servo_recorder.ServoRecorder) records every
     cycle and is closed at the end."""
     from rig.actuator_driver import ActuatorError, ActuatorEStopped, ActuatorNotEnabled
     from rig.servo_loop import CameraStalledError, MarkerLostError, ServoLoop
@@ -182,7 +183,7 @@ def run_servo(setup: LoopSetup, traj: Trajectory, session: ServoSession, psi0: A
         loop = ServoLoop(setup.params, rig, session.link, frames=session.frames,
                          sensor=sensor if sensor is not None else session.sensor, controller=controller,
                          truth=session.truth, wall_clock=session.wall_clock, frame_wait=rig.frame_wait,
-                         on_cycle=hook)
+                         on_cycle=hook, on_frame=on_frame)
         t_start = loop.t
         loop.start_at(psi0)
         stats = loop.run(traj, "servo", True, out.log, settle=settle, progress=progress)

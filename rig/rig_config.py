@@ -26,6 +26,12 @@ class RigConfig:
     settle_time: closed-loop approach to the trajectory's start before logging metrics [s].
     feedforward_preview, feedforward_lead: the feed-forward tip velocity takes the desired path
     ``preview`` [s] ahead plus a first-order lead of ``lead`` [s] (rig.trajectories.feedforward_velocity).
+    frame_wait: on the wall clock (a camera), how long a cycle waits for a frame captured after
+    it began before it takes the newest older one [s] (0: never wait); a cycle without any new
+    frame holds the arm like a lost marker. image_scale: the simulated bench renders at this
+    fraction of the calibrated resolution; on hardware, the camera delivers it (the calibration
+    is scaled to match). vision_latency, plant_dt, sensor, truth_noise_rms, render_noise,
+    tracker_rms and realtime concern the simulated bench only.
     """
 
     control_dt: float = 0.060
@@ -44,6 +50,7 @@ class RigConfig:
     feedforward_lead: float = 0.06  # [s] first-order lead on the feed-forward (actuator lag)
     seed: int = 0
     realtime: bool = False
+    frame_wait: float = 0.04  # [s] wall clock: longest wait of a cycle for a fresh frame
 
     def validate(self) -> None:
         """Raise ConfigError naming the offending key."""
@@ -51,7 +58,7 @@ class RigConfig:
             if getattr(self, k) <= 0:
                 raise ConfigError(f"'{k}' must be > 0, got {getattr(self, k)}")
         for k in ("vision_latency", "truth_noise_rms", "tracker_rms", "settle_time", "feedforward_preview",
-                  "feedforward_lead"):
+                  "feedforward_lead", "frame_wait"):
             if getattr(self, k) < 0:
                 raise ConfigError(f"'{k}' must be >= 0, got {getattr(self, k)}")
         if self.vision_latency >= self.control_dt:
@@ -59,6 +66,9 @@ class RigConfig:
                 f"'vision_latency' ({self.vision_latency} s) must be shorter than 'control_dt' "
                 f"({self.control_dt} s): the paper sets the cycle longer than the processing time"
             )
+        if self.frame_wait >= self.control_dt:
+            raise ConfigError(f"'frame_wait' ({self.frame_wait} s) must be shorter than 'control_dt' "
+                              f"({self.control_dt} s)")
         if self.plant_dt > self.control_dt:
             raise ConfigError("'plant_dt' must not exceed 'control_dt'")
         if self.sensor not in SENSOR_KINDS:

@@ -1,9 +1,15 @@
 """Per-cycle records of a servo run and the run folder they are written to.
 
-``log.csv`` columns (SI: s, m, rad): t, phase, p_des_{x,y,z}, p_cmd_{x,y,z} (model tip at the
-commanded configuration), p_est_{x,y,z} (vision estimate, empty when none), p_true_{x,y,z},
-p_trk_{x,y,z} (optical tracker), psi_cmd_0..5, psi_true_0..5, meas_ok, rejected, vision_ms,
-ctrl_us. ``config.json`` holds every configuration used; ``result.json`` the metrics.
+``log.csv`` columns (SI: s, m, rad): t (the loop's clock: simulated time, or the wall clock's
+on hardware), t_wall (the cycle's ``time.monotonic()``), phase, p_des_{x,y,z}, p_cmd_{x,y,z}
+(model tip at the commanded configuration), p_est_{x,y,z} (vision estimate, empty when none),
+p_true_{x,y,z}, p_trk_{x,y,z} (optical tracker), psi_cmd_0..5, psi_true_0..5 (the truth columns
+are empty without a ground-truth observer: on hardware), meas_ok, rejected, vision_ms, ctrl_us,
+t_capture (the measured frame's capture time on the frames' clock [s], empty without a frame),
+latency_ms (capture -> command of the cycle's accepted measurement [ms], empty otherwise),
+transport_ms (capture -> the frame available to the loop [ms]: the part of the latency before
+the host could act; empty when unknown).
+``config.json`` holds every configuration used; ``result.json`` the metrics.
 """
 
 from __future__ import annotations
@@ -22,17 +28,19 @@ Array = NDArray[np.float64]
 
 _XYZ = ("x", "y", "z")
 COLUMNS: tuple[str, ...] = (
-    ("t", "phase")
+    ("t", "t_wall", "phase")
     + tuple(f"p_{k}_{a}" for k in ("des", "cmd", "est", "true", "trk") for a in _XYZ)
     + tuple(f"psi_cmd_{i}" for i in range(6))
     + tuple(f"psi_true_{i}" for i in range(6))
-    + ("meas_ok", "rejected", "vision_ms", "ctrl_us")
+    + ("meas_ok", "rejected", "vision_ms", "ctrl_us", "t_capture", "latency_ms",
+       "transport_ms")
 )
 
 
 @dataclass
 class CycleRecord:
-    """One servo cycle; positions in {w} [m], configurations [rad, m]."""
+    """One servo cycle; positions in {w} [m], configurations [rad, m]; times [s] (see the
+    module docstring); NaN where unknown."""
 
     t: float
     phase: str
@@ -47,15 +55,25 @@ class CycleRecord:
     rejected: bool
     vision_ms: float
     ctrl_us: float
+    t_wall: float = math.nan
+    t_capture: float = math.nan
+    latency_ms: float = math.nan
+    transport_ms: float = math.nan
 
     def row(self) -> list[Any]:
         """CSV row in COLUMNS order."""
         est = self.p_est if self.p_est is not None else [math.nan] * 3
-        vals: list[Any] = [f"{self.t:.6f}", self.phase]
+        vals: list[Any] = [f"{self.t:.6f}", _num(self.t_wall, "{:.6f}"), self.phase]
         for v in (self.p_des, self.p_cmd, est, self.p_true, self.p_trk, self.psi_cmd, self.psi_true):
             vals += ["" if not math.isfinite(x) else f"{x:.9g}" for x in np.asarray(v, float)]
-        vals += [int(self.meas_ok), int(self.rejected), f"{self.vision_ms:.3f}", f"{self.ctrl_us:.1f}"]
+        vals += [int(self.meas_ok), int(self.rejected), f"{self.vision_ms:.3f}", f"{self.ctrl_us:.1f}",
+                 _num(self.t_capture, "{:.6f}"), _num(self.latency_ms, "{:.3f}"), _num(self.transport_ms, "{:.3f}")]
         return vals
+
+
+def _num(x: float, fmt: str) -> str:
+    """A CSV cell: formatted, or empty when not finite."""
+    return fmt.format(x) if math.isfinite(x) else ""
 
 
 @dataclass

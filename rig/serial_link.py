@@ -22,8 +22,6 @@ once (:class:`ActuatorEStopped`, :class:`ActuatorNotEnabled`, :class:`ActuatorEr
 
 from __future__ import annotations
 
-import dataclasses
-import threading
 import time
 from dataclasses import dataclass
 
@@ -31,10 +29,7 @@ import numpy as np
 import serial
 from numpy.typing import NDArray
 
-from models.actuation import psi_from_actuators
-from models.arm_shape import ArmShape
 from models.limits import actuator_bounds
-from models.plant_interface import ActuatedArm
 from models.robot_params import RobotParams
 from rig.actuator_driver import (
     ActuatorDriver,
@@ -44,8 +39,6 @@ from rig.actuator_driver import (
     ActuatorProtocolError,
     DeviceState,
 )
-from sim.plant import TruePlant
-from sim.plant_params import PlantParams
 
 Array = NDArray[np.float64]
 
@@ -104,6 +97,12 @@ class SerialLink:
         self._last_io = self._wall0  # wall time of the last answered request [s]
         self._connected = False
         self._closed = False
+
+    @property
+    def time(self) -> float:
+        """The link's time [s]: the shared simulated clock's, or in real time the ``t_now`` given
+        to :meth:`connect` plus the wall-clock seconds since (as far as :meth:`advance_to` went)."""
+        return self.t
 
     @property
     def simulated(self) -> bool:
@@ -261,103 +260,3 @@ class SerialLink:
         if not st.enabled:
             return ActuatorNotEnabled("the device is disabled (DISABLE from elsewhere or a restart)")
         return None
-
-
-class LockedArm:
-    """An :class:`ActuatedArm` whose every call holds one lock: the emulator's thread advances
-    the arm while the loop's cameras read its shape."""
-
-    def __init__(self, arm: ActuatedArm, lock: threading.RLock | None = None) -> None:
-        self.arm = arm
-        self.lock = lock if lock is not None else threading.RLock()
-
-    def command(self, actuators: Array) -> None:
-        """Set targets [rad, m, m, m, m, m]."""
-        with self.lock:
-            self.arm.command(actuators)
-
-    def hold(self) -> None:
-        """Freeze the targets at the current positions."""
-        with self.lock:
-            self.arm.hold()
-
-    def advance(self, dt: float) -> None:
-        """Advance by ``dt`` [s]."""
-        with self.lock:
-            self.arm.advance(dt)
-
-    def measured_actuators(self) -> Array:
-        """Encoder positions [rad, m, m, m, m, m]."""
-        with self.lock:
-            return self.arm.measured_actuators()
-
-    def true_shape(self) -> ArmShape:
-        """The true shape now."""
-        with self.lock:
-            return self.arm.true_shape()
-
-    @property
-    def true_psi(self) -> Array:
-        """The true configuration (NaN when the arm does not expose it)."""
-        with self.lock:
-            return np.asarray(getattr(self.arm, "true_psi", np.full(6, np.nan)), float)
-
-    @property
-    def time(self) -> float:
-        """The arm's time [s]."""
-        with self.lock:
-            return self.arm.time
-
-
-class EncoderArm:
-    """What the simulated cameras see when the actuators are remote (``--serial``): the plant
-    model (``plant``'s gains, offsets, coupling, backlash, load; no motor lag) moved to the
-    encoder readings of the link's latest STATE. Commands go through the link, not here."""
-
-    def __init__(self, link: SerialLink, params: RobotParams, plant: PlantParams) -> None:
-        self.link = link
-        self.params = params
-        self._plant_params = dataclasses.replace(plant, actuator_tau=0.0)
-        self._plant: TruePlant | None = None
-        self._seen: Array | None = None
-
-    def _sync(self) -> TruePlant:
-        if self.link.state is None:
-            raise ActuatorError("no STATE read from the device yet: connect the link first")
-        a = self.link.state.positions
-        if self._plant is None:
-            self._plant = TruePlant(self.params, self._plant_params, psi0=psi_from_actuators(self.params, a))
-        if self._seen is None or not np.array_equal(a, self._seen):
-            self._plant.command(a)
-            self._plant.advance(self._plant.dt_internal)
-            self._seen = a.copy()
-        return self._plant
-
-    def command(self, actuators: Array) -> None:
-        """Ignored: the remote arm is commanded through the link."""
-
-    def hold(self) -> None:
-        """Ignored: the remote arm is held through the link."""
-
-    def advance(self, dt: float) -> None:
-        """Ignored: the remote arm moves in real time."""
-
-    def measured_actuators(self) -> Array:
-        """The latest encoder readings [rad, m, m, m, m, m]."""
-        if self.link.state is None:
-            raise ActuatorError("no STATE read from the device yet: connect the link first")
-        return self.link.state.positions.copy()
-
-    def true_shape(self) -> ArmShape:
-        """The modelled shape at the latest encoder readings."""
-        return self._sync().true_shape()
-
-    @property
-    def true_psi(self) -> Array:
-        """The modelled true configuration at the latest encoder readings."""
-        return self._sync().true_psi
-
-    @property
-    def time(self) -> float:
-        """The link's time [s]."""
-        return self.link.t

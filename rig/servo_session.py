@@ -1,8 +1,11 @@
-"""A closed-loop servo session: the link to the actuators (in-process emulator on a pty, an
-external box on a serial port, or the plant directly), the run with its safe stops, and its summary.
+"""A closed-loop servo session: the link to the actuators and the frames the loop sees, the run
+with its safe stops, and its summary. Nothing here knows whether the arm is real: the sessions
+are opened by :mod:`rig.hardware_session` (a serial port and a camera) or by
+:mod:`sim.servo_bench` (the simulated bench in process).
 
 Safe stops (the arm held, then DISABLE) are reported in :class:`ServoOutcome`, never raised:
-marker lost too long, the device silent or gone, an emergency stop, a watchdog trip, Ctrl-C.
+marker lost too long, the camera stalled or its stream failed, the device silent or gone, an
+emergency stop, a watchdog trip, Ctrl-C.
 """
 
 from __future__ import annotations
@@ -11,21 +14,19 @@ import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from models.errors import ConfigError, InputError, WristmarkError
-from models.plant_interface import ActuatedArm
+from models.errors import WristmarkError
 from rig.actuator_link import ActuatorLink
+from rig.frame_feed import FrameFeed
+from rig.ground_truth import GroundTruth
+from rig.loop_setup import LoopSetup
 from rig.run_log import CycleRecord, RunLog
 from rig.tip_sensors import TipSensor
 from rig.trajectories import Trajectory
-
-if TYPE_CHECKING:
-    from sim.actuator_emulator import ActuatorEmulator
-    from sim.setup import SimSetup
 
 Array = NDArray[np.float64]
 LINK_KINDS = ("emulator", "serial", "direct")
@@ -76,24 +77,35 @@ class PointHold(Trajectory):
 
 @dataclass
 class ServoSession:
-    """An open link with the arm the loop's cameras look at (and the emulator, if in process)."""
+    """An open link to the actuators and the loop's frames and tip sensor.
+
+    truth: ground-truth observer (the simulated bench only); wall_clock: frames stamped on
+    ``time.monotonic()``, commands sent when computed (hardware, the virtual lab); arm,
+    emulator: the simulated arm and actuator-box emulator when they run in this process."""
 
     link: ActuatorLink
-    arm: ActuatedArm
     options: LinkOptions
+    frames: FrameFeed
+    sensor: TipSensor
     port: str = ""
-    emulator: ActuatorEmulator | None = None
+    camera: str = ""
+    truth: GroundTruth | None = None
+    wall_clock: bool = False
+    arm: Any = None
+    emulator: Any = None
     closed: bool = False
     close_error: str = ""
+    on_close: list[Callable[[], None]] = dataclasses.field(default_factory=list)
 
     def start(self) -> None:
-        """ENABLE the device (serial links); call right before the first command."""
+        """ENABLE the device (serial links); call right before the first command. On the wall
+        clock the link's time is then the host's ``time.monotonic()``."""
         connect = getattr(self.link, "connect", None)
         if connect is not None:
-            connect(t_now=self.arm.time)
+            connect(t_now=time.monotonic() if self.wall_clock else self.link.time)
 
     def close(self) -> None:
-        """Hold + DISABLE (through the link), stop the in-process emulator. Never raises."""
+        """Hold + DISABLE (through the link), stop the frames and an in-process emulator. Never raises."""
         if self.closed:
             return
         self.closed = True
@@ -101,8 +113,11 @@ class ServoSession:
             self.link.close()
         finally:
             self.close_error = str(getattr(self.link, "close_error", ""))
-            if self.emulator is not None:
-                self.emulator.stop()
+            for step in (self.frames.close, *(self.on_close), *((self.emulator.stop,) if self.emulator else ())):
+                try:
+                    step()
+                except Exception as e:  # noqa: BLE001 - closing must go on; the cause is kept
+                    self.close_error = self.close_error or f"closing: {type(e).__name__}: {e}"
 
     def __enter__(self) -> ServoSession:
         return self
@@ -111,62 +126,17 @@ class ServoSession:
         self.close()
 
 
-def open_session(setup: SimSetup, psi0: Array, options: LinkOptions,
-                 emulator_factory: Callable[..., ActuatorEmulator] | None = None) -> ServoSession:
-    """Open the link to a device that answers and is not stopped (not yet enabled: see
-    :meth:`ServoSession.start`), the simulated arm resting at ``psi0``.
-
-    emulator_factory: ``(arm, params, clock=...) -> ActuatorEmulator`` (tests record packets).
-    """
-    from rig.actuator_driver import ActuatorDriver
-    from rig.actuator_link import DirectLink
-    from rig.serial_link import EncoderArm, LockedArm, SerialLink, SimClock
-    from sim.actuator_emulator import ActuatorEmulator
-    from sim.setup import make_plant
-
-    if options.kind not in LINK_KINDS:
-        raise ConfigError(f"link kind must be one of {', '.join(LINK_KINDS)}, got {options.kind!r}")
-    if options.kind == "direct":
-        plant = make_plant(setup, psi0)
-        return ServoSession(DirectLink(plant), plant, options, port="(in process)")
-    realtime = options.realtime or options.kind == "serial"
-    timeout = options.timeout if options.timeout is not None else (HW_TIMEOUT_S if realtime else SIM_TIMEOUT_S)
-    if options.kind == "serial":
-        if not options.port:
-            raise InputError("--serial needs a device path or pyserial URL")
-        driver = ActuatorDriver(options.port, options.baudrate, timeout, options.retries, params=setup.params)
-        link = SerialLink(driver)
-        session = ServoSession(link, EncoderArm(link, setup.params, setup.plant), options, port=options.port)
-    else:
-        arm = LockedArm(make_plant(setup, psi0))
-        clock = None if realtime else SimClock(arm.time)
-        factory = emulator_factory or ActuatorEmulator
-        emulator = factory(arm, setup.params, clock=clock if clock is not None else time.monotonic)
-        path = emulator.serve_pty()
-        try:
-            driver = ActuatorDriver(path, options.baudrate, timeout, options.retries, params=setup.params)
-        except BaseException:
-            emulator.stop()
-            raise
-        link = SerialLink(driver, clock=clock, pace=options.pace)
-        session = ServoSession(link, arm, options, port=path, emulator=emulator)
-    try:
-        link.probe()
-    except BaseException:
-        session.close()
-        raise
-    return session
-
-
 @dataclass
 class ServoOutcome:
     """A run's log and how it ended: stopped ("" when the trajectory completed), cause
-    (marker-lost, device, estop, watchdog, interrupted, error) and when, from the start [s]."""
+    (marker-lost, camera, device, estop, watchdog, interrupted, error) and when, from the start [s]."""
 
     log: RunLog
     cycles: int = 0
     lost: int = 0
     rejected: int = 0
+    no_frame: int = 0
+    skipped: int = 0
     stopped: str = ""
     cause: str = ""
     t_stop: float = float("nan")
@@ -174,17 +144,23 @@ class ServoOutcome:
     wall_time_s: float = 0.0
 
 
-def run_servo(setup: SimSetup, traj: Trajectory, session: ServoSession, psi0: Array, settle: float,
-              seed: int = 0, progress: bool = False, on_cycle: Callable[[CycleRecord], None] | None = None,
-              sensor: TipSensor | None = None) -> ServoOutcome:
+def _count(out: ServoOutcome, stats: Any) -> None:
+    """Copy a phase's counters (rig.servo_loop.PhaseStats) into the outcome."""
+    for name in ("cycles", "lost", "rejected", "no_frame", "skipped"):
+        setattr(out, name, int(getattr(stats, name)))
+
+
+def run_servo(setup: LoopSetup, traj: Trajectory, session: ServoSession, psi0: Array, settle: float,
+              progress: bool = False, on_cycle: Callable[[CycleRecord], None] | None = None,
+              sensor: TipSensor | None = None, recorder: Any = None, on_frame: Any = None) -> ServoOutcome:
     """Settle at ``psi0``, run ``traj`` closed loop, then close the session (hold + DISABLE).
 
     Safe stops and Ctrl-C are reported in the outcome, never raised; ``sensor`` replaces the
-    rig's tip sensor (tests)."""
+    session's tip sensor (tests); ``on_frame(frame, measurement)`` sees every measured frame
+    (the live view); ``recorder`` (rig.servo_recorder.ServoRecorder) records every
+    cycle and is closed at the end."""
     from rig.actuator_driver import ActuatorError, ActuatorEStopped, ActuatorNotEnabled
-    from rig.servo_loop import MarkerLostError, ServoLoop
-    from sim.optical_tracker import OpticalTracker
-    from sim.setup import make_sensor
+    from rig.servo_loop import CameraStalledError, MarkerLostError, ServoLoop
     from solvers.controller import make_controller
 
     opts = session.options
@@ -195,20 +171,27 @@ def run_servo(setup: SimSetup, traj: Trajectory, session: ServoSession, psi0: Ar
     t_start = 0.0
     try:
         # the slow parts first: an enabled device wants a command every 250 ms from ENABLE on
-        tracker = OpticalTracker(setup.rig.tracker_rms, seed=seed + 7)
-        sensor = sensor if sensor is not None else make_sensor(setup, seed)
         controller = make_controller(setup.params, setup.controller)
         session.start()
-        loop = ServoLoop(setup.params, rig, session.link, session.arm, tracker, sensor=sensor,
-                         controller=controller, on_cycle=on_cycle)
+        hook = on_cycle
+        if recorder is not None:
+            def hook(rec: CycleRecord) -> None:
+                recorder.record(rec, loop, session.link)
+                if on_cycle is not None:
+                    on_cycle(rec)
+
+        loop = ServoLoop(setup.params, rig, session.link, frames=session.frames,
+                         sensor=sensor if sensor is not None else session.sensor, controller=controller,
+                         truth=session.truth, wall_clock=session.wall_clock, frame_wait=rig.frame_wait,
+                         on_cycle=hook, on_frame=on_frame)
         t_start = loop.t
         loop.start_at(psi0)
         stats = loop.run(traj, "servo", True, out.log, settle=settle, progress=progress)
-        out.cycles, out.lost, out.rejected = stats.cycles, stats.lost, stats.rejected
+        _count(out, stats)
     except MarkerLostError as e:
-        out.stopped, out.cause = str(e), "marker-lost"
+        out.stopped, out.cause = str(e), "camera" if isinstance(e, CameraStalledError) else "marker-lost"
         if e.stats is not None:
-            out.cycles, out.lost, out.rejected = e.stats.cycles, e.stats.lost, e.stats.rejected
+            _count(out, e.stats)
     except ActuatorEStopped as e:
         out.stopped, out.cause = f"emergency stop: {e}", "estop"
     except ActuatorNotEnabled as e:
@@ -225,42 +208,7 @@ def run_servo(setup: SimSetup, traj: Trajectory, session: ServoSession, psi0: Ar
             out.cycles = out.cycles or len(out.log.phase("servo"))
         session.close()
         out.close_error = session.close_error
+        if recorder is not None:
+            recorder.close()
         out.wall_time_s = time.perf_counter() - wall0
     return out
-
-
-def summarize(setup: SimSetup, traj: Trajectory, session: ServoSession, out: ServoOutcome) -> dict[str, Any]:
-    """The result JSON: tip errors of the logged cycles (optical tracker vs desired) and the link."""
-    from rig.metrics import error_stats, estimate_errors, tracking_errors
-
-    recs = out.log.phase("servo")
-    trk = error_stats(tracking_errors(recs, "p_trk"))
-    true = error_stats(tracking_errors(recs, "p_true"))
-    closed: dict[str, Any] = {**trk.as_dict(), "cycles": trk.n,
-                              "noise_free": {"mean_mm": true.mean_mm, "max_mm": true.max_mm},
-                              "lost": out.lost, "rejected": out.rejected}
-    est = error_stats(estimate_errors(recs))
-    if est.n:
-        closed["vision_vs_true"] = {"mean_mm": est.mean_mm, "max_mm": est.max_mm}
-    link: dict[str, Any] = {"kind": session.options.kind, "port": session.port,
-                            "realtime": session.options.realtime or session.options.kind == "serial"}
-    driver = getattr(session.link, "driver", None)
-    if driver is not None:
-        link.update(driver.stats)
-        st = getattr(session.link, "state", None)
-        if st is not None:
-            link["device"] = {"flags": st.flags, "enabled": st.enabled, "estopped": st.estopped,
-                              "watchdog_tripped": st.watchdog_tripped, "clock_ms": st.clock_ms}
-        link.update(dataclasses.asdict(session.link.stats))  # type: ignore[attr-defined]
-    kind = "point" if isinstance(traj, PointHold) else "cube"
-    return {
-        "command": "servo", "trajectory": {"kind": kind, "duration_s": traj.duration,
-                                           "waypoints_m": np.asarray(traj.waypoints).tolist()},
-        "controller": setup.controller.kind, "control_dt_s": setup.rig.control_dt, "sensor": setup.rig.sensor,
-        "closed_loop": closed, "stopped": out.stopped, "cause": out.cause,
-        "t_stop_s": out.t_stop if out.stopped else None,
-        "safe_stop": {"held_and_disabled": not out.close_error, "problem": out.close_error},
-        "link": link, "wall_time_s": out.wall_time_s,
-    }
-
-

@@ -1,8 +1,11 @@
-"""Where the servo loop's tip measurement comes from.
+"""Where the servo loop's tip measurement comes from: a stereo frame in, a tip in {w} out.
 
-``VisionTipSensor`` is the default and the real thing: it renders the stereo endoscope's
-images of the true arm and runs the marker tracker on the pixels. ``NoisyTruthSensor`` is an
-explicit fast option (``sensor: truth-noise``) that never runs unless asked for.
+A :class:`TipSensor` gets a :class:`cvs.frames.StereoFrame` (from a camera, a video, a stream,
+or the simulated bench's renderer) and returns a :class:`TipMeasurement` stamped with the
+frame's capture time, so the loop measures its capture-to-command latency from the frames
+themselves. :class:`VisionTipSensor` runs the marker tracker on the frame's pixels; it never
+sees the arm. (The simulated bench's explicit fast option, truth plus noise, lives in
+:mod:`sim.truth_sensor`: only the simulated bench knows the truth.)
 """
 
 from __future__ import annotations
@@ -15,74 +18,71 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cvs.camera import StereoCamera
+from cvs.frames import StereoFrame
 from cvs.marker import MarkerModel
-from models.arm_shape import ArmShape
 
 Array = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
 class TipMeasurement:
-    """One tip measurement in {w} [m]; ``ok`` False with a ``reason`` when there is none."""
+    """One tip measurement in {w} [m] from the frame captured at ``t_capture`` [s] (the frame's
+    clock: the host's ``time.monotonic()`` on hardware, simulated time on the simulated bench);
+    ``ok`` False with a ``reason`` when there is none. time_ms: the tracking time [ms];
+    corners_left: the detected corners in the left image's raw pixels (N, 2), for a viewer;
+    T_left_marker, tip_left: the marker pose (4x4 of {wm}) and the tip in {ll} [m], for a recorder."""
 
     ok: bool
     p_world: Array | None
     reason: str = ""
     time_ms: float = 0.0
     rms_px: float = float("nan")
+    t_capture: float = float("nan")
+    frame_index: int = -1
+    corners_left: Array | None = None
+    T_left_marker: Array | None = None
+    tip_left: Array | None = None
 
 
 class TipSensor(Protocol):
-    """Anything that measures the tip of the arm from its true shape."""
+    """Anything that measures the tip of the arm in a stereo frame."""
 
-    def measure(self, shape: ArmShape, axis_hint_world: Array | None = None) -> TipMeasurement:
-        """Measure the tip of ``shape`` (the true arm now); ``axis_hint_world``: the expected
-        direction of the marker's z axis in {w} (e.g. the model's at the commanded configuration)."""
-
-
-class NoisyTruthSensor:
-    """The true tip plus isotropic Gaussian noise of 3D RMS ``rms`` [m] (fast option)."""
-
-    def __init__(self, rms: float, seed: int = 0) -> None:
-        self._sigma = rms / np.sqrt(3.0)
-        self._rng = np.random.default_rng(seed)
-
-    def measure(self, shape: ArmShape, axis_hint_world: Array | None = None) -> TipMeasurement:
-        """True tip + noise; never fails (the hint is not needed)."""
-        p = shape.tip + self._rng.normal(0.0, self._sigma, 3)
-        return TipMeasurement(True, p)
+    def measure(self, frame: StereoFrame, axis_hint_world: Array | None = None) -> TipMeasurement:
+        """Measure the tip in ``frame``; ``axis_hint_world``: the expected direction of the
+        marker's z axis in {w} (e.g. the model's at the commanded configuration)."""
+        ...
 
 
 class VisionTipSensor:
-    """Render the stereo pair of the true arm, track the marker in it, return the tip in {w}.
+    """Track the marker in a stereo frame's pixels; the tip in {w} through the calibration's
+    ``world_T_left`` (or a separate registration, ``T_world_left``)."""
 
-    ``camera`` renders (where the endoscope truly is); ``host_camera`` (default: the same) is what
-    the host believes: its tracker maps {ll} to {w} with the host's world_T_left."""
-
-    def __init__(
-        self, camera: StereoCamera, marker: MarkerModel, noise: str = "default", seed: int = 0,
-        host_camera: StereoCamera | None = None,
-    ) -> None:
+    def __init__(self, camera: StereoCamera, marker: MarkerModel, T_world_left: Array | None = None) -> None:
         from cvs.marker_tracker import MarkerTracker
-        from sim.render import StereoRenderer
-        from sim.render_settings import noise_preset
 
-        self.camera = camera if host_camera is None else host_camera
-        self.renderer = StereoRenderer(camera, marker, noise_preset(noise), seed=seed)
-        self.tracker = MarkerTracker(self.camera, marker)
-        self.last_images: tuple[np.ndarray, np.ndarray] | None = None
+        self.camera = camera
+        W = T_world_left if T_world_left is not None else camera.T_world_left
+        self.T_world_left = None if W is None else np.asarray(W, float)
+        self.tracker = MarkerTracker(camera, marker)
+        self.last_frame: StereoFrame | None = None
 
-    def measure(self, shape: ArmShape, axis_hint_world: Array | None = None) -> TipMeasurement:
-        """Render + track; the time reported is the tracking time only [ms]. The axis hint picks
+    def measure(self, frame: StereoFrame, axis_hint_world: Array | None = None) -> TipMeasurement:
+        """Track the frame; the time reported is the tracking time only [ms]. The axis hint picks
         which way the marker points (its pattern is symmetric under a half turn)."""
-        frame = self.renderer.render(shape)
-        self.last_images = (frame.left, frame.right)
+        self.last_frame = frame
         hint = None
-        if axis_hint_world is not None and self.camera.T_world_left is not None:
-            hint = np.asarray(self.camera.T_world_left, float)[:3, :3].T @ np.asarray(axis_hint_world, float)
+        if axis_hint_world is not None and self.T_world_left is not None:
+            hint = self.T_world_left[:3, :3].T @ np.asarray(axis_hint_world, float)
         t0 = time.perf_counter()
         res = self.tracker.track(frame.left, frame.right, axis_hint_left=hint)
         ms = 1000.0 * (time.perf_counter() - t0)
-        if not res.ok or res.tip_world is None:
-            return TipMeasurement(False, None, res.reason or "marker not found", ms)
-        return TipMeasurement(True, np.asarray(res.tip_world, float), "", ms, float(res.rms_px))
+        corners = np.asarray(res.corners_left, float).reshape(-1, 2)
+        if not res.ok or res.tip_left is None or self.T_world_left is None:
+            reason = res.reason or ("marker not found" if res.tip_left is None else "no world_T_left")
+            return TipMeasurement(False, None, reason, ms, t_capture=frame.t_capture,
+                                  frame_index=frame.index, corners_left=corners)
+        W = self.T_world_left
+        p = (np.asarray(res.tip_left, float).reshape(1, 3) @ W[:3, :3].T + W[:3, 3])[0]
+        return TipMeasurement(True, p, "", ms, float(res.rms_px), frame.t_capture, frame.index, corners,
+                              None if res.T_left_marker is None else np.asarray(res.T_left_marker, float),
+                              np.asarray(res.tip_left, float))

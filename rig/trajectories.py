@@ -7,7 +7,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from models.kinematics import tip_position
+from models.robot_params import HOME_PSI, RobotParams
+
 Array = NDArray[np.float64]
+CUBE_SIZE = (0.040, 0.020, 0.040)  # [m] edges along x_w, y_w (depth from the camera), z_w (paper: 40 x 20 x 40 mm)
+CUBE_SPEED = 0.010  # [m/s] (paper: 10 mm/s)
 
 # Corner order of a walk that covers all 12 edges of a box (4 edges twice): bottom square,
 # up, top square, the remaining verticals and back to the start (a closed walk).
@@ -72,8 +77,13 @@ def feedforward_velocity(traj: Trajectory, t: float, dt: float, preview: float, 
     return (p1 + lead * v1 - p0 - lead * v0) / dt
 
 
-def cube_trajectory(centre_world: Array, size: tuple[float, float, float] = (0.040, 0.020, 0.040),
-                    speed: float = 0.010) -> Trajectory:
+def workspace_centre(params: RobotParams) -> Array:
+    """The cube's centre in {w}: the tip at the home configuration [m]."""
+    return tip_position(params, HOME_PSI)
+
+
+def cube_trajectory(centre_world: Array, size: tuple[float, float, float] = CUBE_SIZE,
+                    speed: float = CUBE_SPEED) -> Trajectory:
     """All 12 edges of a box of edge lengths ``size`` (x_w, y_w, z_w) [m] around the centre."""
     c = np.asarray(centre_world, float)
     half = 0.5 * np.asarray(size, float)

@@ -23,6 +23,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from models.arm_shape import ArmShape
 from models.errors import WristmarkError
 from models.limits import actuator_bounds
 from models.plant_interface import ActuatedArm
@@ -85,6 +86,13 @@ class ActuatorEmulator:
                 self.watchdog_tripped = True
             self._advance(now - self._t_last)
             self._t_last = max(self._t_last, now)
+
+    def sample_arm(self) -> tuple[float, ArmShape]:
+        """Advance the arm to now (the watchdog runs) and return (now on the emulator's clock [s],
+        the arm's true shape then), atomically: what a camera sees at that instant."""
+        with self._lock:
+            self.poll()
+            return self._t_last, self.arm.true_shape()
 
     def _advance(self, dt: float) -> None:
         if dt > 0 and not self.fault:

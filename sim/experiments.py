@@ -13,24 +13,23 @@ import numpy as np
 
 from models.errors import ConfigError
 from models.ik import solve_tip_ik
-from models.kinematics import forward_kinematics, tip_position
+from models.kinematics import forward_kinematics
 from models.robot_params import HOME_PSI
+from rig import trajectories
 from rig.metrics import corner_overshoot, error_stats, estimate_errors, tracking_errors
 from rig.run_log import CycleRecord, RunLog, write_json
 from rig.servo_loop import MarkerLostError, PhaseStats, ServoLoop
-from rig.trajectories import Trajectory, accuracy_targets, cube_trajectory
-from sim.setup import SimSetup, make_direct_loop, make_plant, make_sensor
+from rig.trajectories import CUBE_SIZE, CUBE_SPEED, Trajectory, accuracy_targets, cube_trajectory
+from sim.setup import SimSetup, make_direct_loop, make_measurement, make_plant
 
 PAPER_CUBE = {"open_loop": {"mean_mm": 3.25, "max_mm": 8.40},
               "closed_loop": {"mean_mm": 0.82, "max_mm": 2.59}, "ratio": 0.2523}
 PAPER_ACCURACY = {"mean_mm": 0.67, "max_mm": 1.21}
-CUBE_SIZE = (0.040, 0.020, 0.040)  # [m] edges along x_w, y_w (depth from the camera), z_w (paper: 40 x 20 x 40 mm)
-CUBE_SPEED = 0.010  # [m/s] (paper: 10 mm/s)
 
 
 def workspace_centre(setup: SimSetup) -> np.ndarray:
     """The cube's centre in {w}: the tip at the home configuration [m]."""
-    return tip_position(setup.params, HOME_PSI)
+    return trajectories.workspace_centre(setup.params)
 
 
 def _phase_summary(log: RunLog, phase: str, traj: Trajectory) -> dict[str, Any]:
@@ -59,20 +58,23 @@ def _phase_summary(log: RunLog, phase: str, traj: Trajectory) -> dict[str, Any]:
 
 
 def run_cube(setup: SimSetup, out_dir: Path, progress: bool = True, seed: int | None = None,
-             duration: float | None = None, on_cycle: Callable[[CycleRecord], None] | None = None) -> dict[str, Any]:
+             duration: float | None = None, on_cycle: Callable[[CycleRecord], None] | None = None,
+             on_frame: Callable[..., None] | None = None) -> dict[str, Any]:
     """Cube trajectory open loop then closed loop on fresh plants; writes the run folder.
 
     ``duration`` [s] cuts the walk short (quick checks); None runs all 12 edges. ``on_cycle`` is
-    called with every cycle's record (e.g. a live 3D view)."""
+    called with every cycle's record, ``on_frame`` with every measured frame and its
+    measurement (e.g. a live 3D view)."""
     traj = cube_trajectory(workspace_centre(setup), CUBE_SIZE, CUBE_SPEED)
     if duration is not None:
         traj = traj.truncated(duration)
-    return run_open_closed(setup, traj, "cube", out_dir, progress, seed, on_cycle)
+    return run_open_closed(setup, traj, "cube", out_dir, progress, seed, on_cycle, on_frame)
 
 
 def run_point(setup: SimSetup, out_dir: Path, point: np.ndarray | None = None, progress: bool = True,
               seed: int | None = None, duration: float | None = None,
-              on_cycle: Callable[[CycleRecord], None] | None = None) -> dict[str, Any]:
+              on_cycle: Callable[[CycleRecord], None] | None = None,
+              on_frame: Callable[..., None] | None = None) -> dict[str, Any]:
     """Hold ``point`` in {w} [m] (default: the workspace centre) for ``duration`` [s] (default
     POINT_HOLD_S), open loop then closed loop on fresh plants; writes the run folder."""
     from rig.servo_session import POINT_HOLD_S, PointHold
@@ -83,12 +85,13 @@ def run_point(setup: SimSetup, out_dir: Path, point: np.ndarray | None = None, p
         raise ConfigError(f"the point {np.round(1000 * p, 2).tolist()} mm is out of reach of the arm "
                           f"(IK misses it by {1000 * miss:.2f} mm)")
     traj = PointHold(np.array([p]), 1.0, hold=POINT_HOLD_S if duration is None else duration)
-    return run_open_closed(setup, traj, "point", out_dir, progress, seed, on_cycle)
+    return run_open_closed(setup, traj, "point", out_dir, progress, seed, on_cycle, on_frame)
 
 
 def run_open_closed(setup: SimSetup, traj: Trajectory, experiment: str, out_dir: Path, progress: bool = True,
                     seed: int | None = None,
-                    on_cycle: Callable[[CycleRecord], None] | None = None) -> dict[str, Any]:
+                    on_cycle: Callable[[CycleRecord], None] | None = None,
+                    on_frame: Callable[..., None] | None = None) -> dict[str, Any]:
     """Follow ``traj`` open loop then closed loop on fresh plants; writes the run folder."""
     from viz.plots import plot_cube
 
@@ -105,6 +108,7 @@ def run_open_closed(setup: SimSetup, traj: Trajectory, experiment: str, out_dir:
                                        progress=progress)
     closed = make_direct_loop(setup, psi0, closed_loop=True, seed=seed)
     closed.on_cycle = on_cycle
+    closed.on_frame = on_frame
     try:
         stats["closed_loop"] = closed.run(traj, "closed_loop", True, log, settle=setup.rig.settle_time,
                                           progress=progress)
@@ -176,7 +180,7 @@ def run_accuracy(setup: SimSetup, out_dir: Path, n: int = 40, progress: bool = T
     targets = accuracy_targets(workspace_centre(setup), n=n, seed=seed)
     psi = np.asarray(HOME_PSI, float)
     plant = make_plant(setup, psi)
-    sensor = make_sensor(setup, seed)
+    frames, sensor = make_measurement(setup, plant, lambda: plant.time, seed)
     tracker = OpticalTracker(setup.rig.tracker_rms, seed=seed + 7)
     rows = []
     for i, p in enumerate(tqdm(targets, desc="accuracy", disable=not progress, leave=False)):
@@ -185,7 +189,9 @@ def run_accuracy(setup: SimSetup, out_dir: Path, n: int = 40, progress: bool = T
         plant.advance(1.0)
         shape = plant.true_shape()
         p_trk = tracker.measure(shape.tip)
-        m = sensor.measure(shape, axis_hint_world=forward_kinematics(setup.params, psi).T_world_marker[:3, 2])
+        frame = frames.take()
+        assert frame is not None
+        m = sensor.measure(frame, axis_hint_world=forward_kinematics(setup.params, psi).T_world_marker[:3, 2])
         err = float(np.linalg.norm(m.p_world - p_trk)) if m.ok and m.p_world is not None else float("nan")
         rows.append({"index": i, "target": p.tolist(), "tracker": p_trk.tolist(), "true": shape.tip.tolist(),
                      "estimate": None if m.p_world is None else m.p_world.tolist(), "ok": m.ok,
@@ -204,7 +210,8 @@ def run_accuracy(setup: SimSetup, out_dir: Path, n: int = 40, progress: bool = T
 
 
 def run_load(setup: SimSetup, out_dir: Path, forces: list[float], progress: bool = True,
-             duration: float | None = None, on_cycle: Callable[[CycleRecord], None] | None = None) -> dict[str, Any]:
+             duration: float | None = None, on_cycle: Callable[[CycleRecord], None] | None = None,
+             on_frame: Callable[..., None] | None = None) -> dict[str, Any]:
     """Tip force swept (magnitude [N], direction -z_w, gravity-like): cube open vs closed loop."""
     from tqdm import tqdm
 
@@ -216,7 +223,7 @@ def run_load(setup: SimSetup, out_dir: Path, forces: list[float], progress: bool
         sweep.set_description(f"load: force {i + 1} of {len(forces)} ({f:.2f} N)")
         plant = dataclasses.replace(setup.plant, tip_force=(0.0, 0.0, -float(f)))
         res = run_cube(setup.with_changes(plant=plant), out_dir / f"force_{f:.2f}N", progress=progress,
-                       duration=duration, on_cycle=on_cycle)
+                       duration=duration, on_cycle=on_cycle, on_frame=on_frame)
         rows.append({"force_N": f, "open_loop": {k: res["open_loop"][k] for k in ("mean_mm", "max_mm")},
                      "closed_loop": {k: res["closed_loop"][k] for k in ("mean_mm", "max_mm", "stopped")},
                      "ratio": res["ratio"]})
@@ -234,4 +241,5 @@ def run_load(setup: SimSetup, out_dir: Path, forces: list[float], progress: bool
     return out
 
 
-__all__ = ["run_cube", "run_point", "run_open_closed", "run_accuracy", "run_load", "ServoLoop"]
+__all__ = ["CUBE_SIZE", "CUBE_SPEED", "run_cube", "run_point", "run_open_closed", "run_accuracy", "run_load",
+           "ServoLoop"]

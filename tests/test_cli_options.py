@@ -178,8 +178,9 @@ def test_bad_numbers_are_refused_where_parsed(option: tuple[str, argparse.Action
     assert all(math.isfinite(float(v)) for v in flat), f"{argv}: parsed a non-finite value {value}"
 
 
-NOT_APPLICABLE = {"rms_px", "estimate", "code", "registration_world_T_left"}  # null by design: no reprojection with --sensor truth-noise /
-# not tracked / the reference sleeve carries no code (config.json marker.code) / no --registration given
+# null by design: no reprojection with --sensor truth-noise / not tracked / the reference sleeve
+# carries no code (config.json marker.code) / no --registration given
+NOT_APPLICABLE = {"rms_px", "estimate", "code", "registration_world_T_left"}
 
 
 def _no_nan(obj: Any, where: str) -> None:

@@ -1,5 +1,6 @@
 """`wristmark servo`: the closed loop through protocol-v1 bytes on a real pty, end to end (as a
-subprocess and in process), its accuracy against the in-process loop, and its safe stops."""
+subprocess and in process), its accuracy against the in-process loop, and its safe stops; the
+hardware path (`--serial PORT --camera URL`) against a virtual lab served from this process."""
 
 from __future__ import annotations
 
@@ -22,10 +23,12 @@ from models.robot_params import HOME_PSI
 from rig import protocol as P
 from rig.actuator_link import DirectLink
 from rig.commands import servo as S
-from rig.serial_link import LockedArm
+from rig.realtime_priority import realtime_priority_allowed
+from rig.servo_summary import summarize
 from rig.tip_sensors import TipMeasurement
-from sim.plant import TruePlant
+from sim.servo_bench import open_sim_session
 from sim.setup import SimSetup, load_setup
+from sim.virtual_lab import LabCamera, VirtualLab
 
 ROOT = Path(__file__).resolve().parent.parent
 HOME = np.asarray(HOME_PSI, float)
@@ -49,13 +52,23 @@ def setup() -> SimSetup:
     return s.with_changes(rig=dataclasses.replace(s.rig, sensor="truth-noise"))
 
 
+LAB_SCALE = 0.25  # the virtual lab's image scale in these tests (fast)
+RT_HOST = ["--rt-priority", "20"] if realtime_priority_allowed(20) else []  # see test_virtual_lab
+
+
 @pytest.fixture
-def wall_emulator() -> Iterator[tuple[RecordingEmulator, str]]:
-    """An actuator box on the wall clock, for `--serial` subprocesses (like hardware)."""
-    emu = RecordingEmulator(LockedArm(TruePlant(PARAMS, PLANT, psi0=HOME)), PARAMS)
-    path = emu.serve_pty()
-    yield emu, path
-    emu.stop()
+def lab(setup: SimSetup) -> Iterator[VirtualLab]:
+    """A virtual lab (actuator box on a pty, endoscope on an MJPEG stream, wall clock) served
+    from this process, for `--serial PTY --camera URL` subprocesses (like hardware)."""
+    vl = VirtualLab(PARAMS, PLANT, setup.camera, setup.marker, LabCamera(fps=30.0, image_scale=LAB_SCALE),
+                    rt_priority=10 if RT_HOST else None, emulator_factory=RecordingEmulator)
+    vl.start()
+    yield vl
+    vl.stop()
+
+
+def hardware_args(lab: VirtualLab) -> list[str]:
+    return ["--serial", lab.pty_path, "--camera", lab.url, "--image-scale", str(LAB_SCALE), "--no-progress", *RT_HOST]
 
 
 def run_in_process(
@@ -66,12 +79,14 @@ def run_in_process(
     on_cycle: Any = None,
     sensor: Any = None,
 ) -> tuple[S.ServoOutcome, S.ServoSession, dict]:
+    """``sensor``: None (the bench's own) or ``session -> TipSensor``."""
     traj = S.build_trajectory(setup, "cube", None, duration)
     psi0 = S.start_configuration(setup, traj)
-    session = S.open_session(setup, psi0, S.LinkOptions(kind=kind), emulator_factory=RecordingEmulator)
+    session = open_sim_session(setup, psi0, S.LinkOptions(kind=kind), emulator_factory=RecordingEmulator)
     hook = (lambda rec: on_cycle(session, rec)) if on_cycle is not None else None
-    out = S.run_servo(setup, traj, session, psi0, settle=settle, on_cycle=hook, sensor=sensor)
-    return out, session, S.summarize(setup, traj, session, out)
+    out = S.run_servo(setup, traj, session, psi0, settle=settle, on_cycle=hook,
+                      sensor=sensor(session) if sensor is not None else None)
+    return out, session, summarize(setup, traj, session, out)
 
 
 def one_line(stderr: str) -> str:
@@ -126,7 +141,7 @@ def test_serial_link_is_the_direct_loop_with_micro_unit_targets(setup: SimSetup)
     serial_out, _, serial_res = run_in_process(setup, "emulator")
     traj = S.build_trajectory(setup, "cube", None, 3.0)
     psi0 = S.start_configuration(setup, traj)
-    rounded = S.open_session(setup, psi0, S.LinkOptions(kind="direct"))
+    rounded = open_sim_session(setup, psi0, S.LinkOptions(kind="direct"))
     rounded.link = RoundingDirectLink(rounded.arm)
     rounded_out = S.run_servo(setup, traj, rounded, psi0, settle=1.5)
     direct_out, _, direct_res = run_in_process(setup, "direct")
@@ -184,19 +199,19 @@ def test_emergency_stop_mid_run_stops_safely(setup: SimSetup) -> None:
 class LosesMarker:
     """Truth + noise that goes blind after ``after`` measurements (marker occluded)."""
 
-    def __init__(self, after: int) -> None:
-        self.after, self.n = after, 0
+    def __init__(self, arm: Any, after: int) -> None:
+        self.arm, self.after, self.n = arm, after, 0
         self.rng = np.random.default_rng(0)
 
-    def measure(self, shape: Any, axis_hint_world: Any = None) -> TipMeasurement:
+    def measure(self, frame: Any, axis_hint_world: Any = None) -> TipMeasurement:
         self.n += 1
         if self.n > self.after:
             return TipMeasurement(False, None, "marker not found")
-        return TipMeasurement(True, shape.tip + self.rng.normal(0, 1e-4, 3))
+        return TipMeasurement(True, self.arm.true_shape().tip + self.rng.normal(0, 1e-4, 3))
 
 
 def test_marker_lost_holds_then_disables_on_the_device(setup: SimSetup) -> None:
-    out, session, res = run_in_process(setup, sensor=LosesMarker(after=40))
+    out, session, res = run_in_process(setup, sensor=lambda session: LosesMarker(session.arm, after=40))
     emu = session.emulator
     assert out.cause == "marker-lost" and "marker lost" in out.stopped
     assert out.cycles >= 40 and res["safe_stop"]["held_and_disabled"]
@@ -218,9 +233,9 @@ def test_pty_closing_mid_run_stops_with_a_clear_error(setup: SimSetup) -> None:
     assert "unreachable" in out.close_error and not res["safe_stop"]["held_and_disabled"]
 
 
-def test_serial_port_vanishing_mid_run_exits_non_zero_with_one_line(wall_emulator: tuple) -> None:
-    emu, path = wall_emulator
-    proc = popen_wristmark("servo", "--serial", path, "--sensor", "truth-noise", "--no-progress")
+def test_serial_port_vanishing_mid_run_exits_non_zero_with_one_line(lab: VirtualLab) -> None:
+    emu, path = lab.emulator, lab.pty_path
+    proc = popen_wristmark("servo", *hardware_args(lab))
     deadline = time.monotonic() + 20
     while "SetTarget" not in emu.received and time.monotonic() < deadline:
         time.sleep(0.05)
@@ -232,9 +247,9 @@ def test_serial_port_vanishing_mid_run_exits_non_zero_with_one_line(wall_emulato
     assert line.startswith("wristmark servo: error: stopped safely") and path in line
 
 
-def test_ctrl_c_holds_and_disables_the_device(wall_emulator: tuple) -> None:
-    emu, path = wall_emulator
-    proc = popen_wristmark("servo", "--serial", path, "--sensor", "truth-noise", "--no-progress")
+def test_ctrl_c_holds_and_disables_the_device(lab: VirtualLab) -> None:
+    emu = lab.emulator
+    proc = popen_wristmark("servo", *hardware_args(lab))
     deadline = time.monotonic() + 20
     while "SetTarget" not in emu.received and time.monotonic() < deadline:
         time.sleep(0.05)
@@ -257,23 +272,53 @@ def test_ctrl_c_holds_and_disables_the_device(wall_emulator: tuple) -> None:
         (["--trajectory", "point", "--point", "1", "1", "1"], ["out of reach"]),
         (["--point", "0", "0", "0.15"], ["--trajectory point"]),
         (["--timeout", "0"], ["--timeout"]),
+        (["--sensor", "truth-noise"], ["--sensor", "only for the simulated bench"]),
+        (["--plant", "configs/plant.yaml"], ["--plant", "only for the simulated bench"]),
+        (["--realtime"], ["--realtime", "always real time"]),
+        (["--camera-timeout", "0"], ["--camera-timeout"]),
     ],
 )
-def test_bad_options_fail_before_any_motion(wall_emulator: tuple, args: list[str], words: list[str]) -> None:
-    emu, path = wall_emulator
-    r = wristmark("servo", "--serial", path, "--sensor", "truth-noise", "--no-progress", *args)
+def test_bad_options_fail_before_any_motion(lab: VirtualLab, args: list[str], words: list[str]) -> None:
+    r = wristmark("servo", *hardware_args(lab), *args)
     assert r.returncode == 2
     line = one_line(r.stderr)
     assert line.startswith("wristmark servo: error:")
     for w in words:
         assert w in line
-    assert emu.received == []  # not even opened
+    assert lab.emulator.received == []  # not even opened
+
+
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (["--serial", "/dev/null"], ["--serial needs --camera SPEC"]),
+        (["--camera", "http://127.0.0.1:1/x"], ["--camera SPEC needs --serial PORT"]),
+        (["--camera", "configs/camera.yaml"], ["--camera SPEC needs --serial PORT"]),  # the old --camera YAML
+        (["--rt-priority", "5"], ["--rt-priority is for the hardware path"]),
+    ],
+)
+def test_serial_and_camera_go_together(args: list[str], words: list[str]) -> None:
+    r = wristmark("servo", "--no-progress", *args)
+    assert r.returncode == 2
+    line = one_line(r.stderr)
+    for w in words:
+        assert w in line
 
 
 def test_missing_port_is_one_line() -> None:
-    r = wristmark("servo", "--serial", "/dev/does-not-exist", "--sensor", "truth-noise")
+    r = wristmark("servo", "--serial", "/dev/does-not-exist", "--camera", "http://127.0.0.1:1/none")
     assert r.returncode == 2
     assert "cannot open actuator port" in one_line(r.stderr)
+
+
+def test_wrong_image_size_fails_before_any_motion(lab: VirtualLab) -> None:
+    """The stream is 0.25 x the calibration; without --image-scale the sizes differ."""
+    args = [a for a in hardware_args(lab) if a not in ("--image-scale", str(LAB_SCALE))]
+    r = wristmark("servo", *args)
+    assert r.returncode == 2
+    line = one_line(r.stderr)
+    assert "480x270" in line and "1920x1080" in line and lab.url in line
+    assert "Enable" not in lab.emulator.received and "SetTarget" not in lab.emulator.received
 
 
 def test_view_without_the_live_view_module_is_one_clear_error(setup: SimSetup,

@@ -9,28 +9,38 @@ from pathlib import Path
 import pytest
 
 import sim.setup as sim_setup
-from models.arm_shape import ArmShape
-from rig.tip_sensors import NoisyTruthSensor, TipMeasurement
+from cvs.frames import StereoFrame
+from rig.tip_sensors import TipMeasurement, TipSensor
 from sim.experiments import cube_table, run_cube
 from sim.setup import load_setup
 
 
 class BlindAfter:
-    """Truth + noise for ``n`` frames, then never a marker (as if it left the view)."""
+    """The bench's own sensor for ``n`` frames, then never a marker (as if it left the view)."""
 
-    def __init__(self, n: int) -> None:
+    def __init__(self, inner: TipSensor, n: int) -> None:
         self.n = n
-        self.inner = NoisyTruthSensor(1e-4, seed=1)
+        self.inner = inner
 
-    def measure(self, shape: ArmShape, axis_hint_world: object = None) -> TipMeasurement:
+    def measure(self, frame: StereoFrame, axis_hint_world: object = None) -> TipMeasurement:
         self.n -= 1
-        return self.inner.measure(shape) if self.n >= 0 else TipMeasurement(False, None, "marker not found")
+        return self.inner.measure(frame) if self.n >= 0 else TipMeasurement(False, None, "marker not found")
+
+
+def _blind_after(n: int):  # type: ignore[no-untyped-def]
+    real = sim_setup.make_measurement
+
+    def make(setup, arm, clock, seed):  # type: ignore[no-untyped-def]
+        frames, sensor = real(setup, arm, clock, seed)
+        return frames, BlindAfter(sensor, n)
+
+    return make
 
 
 def test_cube_reports_a_safe_stop_and_still_writes_the_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     setup = load_setup()
     setup = setup.with_changes(rig=dataclasses.replace(setup.rig, sensor="truth-noise", max_lost_cycles=5))
-    monkeypatch.setattr(sim_setup, "make_sensor", lambda s, seed: BlindAfter(60))
+    monkeypatch.setattr(sim_setup, "make_measurement", _blind_after(60))
     res = run_cube(setup, tmp_path, progress=False, duration=6.0)
     c = res["closed_loop"]
     assert "marker lost for 6 cycles" in c["stopped"]

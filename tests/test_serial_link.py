@@ -22,8 +22,9 @@ from rig.actuator_driver import (
     ActuatorRejected,
 )
 from rig.actuator_link import DirectLink
-from rig.serial_link import EncoderArm, LockedArm, SerialLink, SimClock
+from rig.serial_link import SerialLink, SimClock
 from sim.actuator_emulator import ActuatorEmulator
+from sim.locked_arm import LockedArm
 from sim.plant import TruePlant
 from sim.plant_params import PlantParams
 
@@ -204,16 +205,3 @@ def test_connect_refuses_an_emergency_stopped_device() -> None:
             link.connect()
         link.close()
         assert "Enable" not in emu.received and "SetTarget" not in emu.received
-
-
-def test_encoder_arm_shows_the_remote_arm(bench: Bench) -> None:
-    target = actuators_from_psi(PARAMS, HOME + np.array([0.2, 0.005, 0.25, 0.3, 0.3, -0.5]))
-    bench.link.send_target(target)
-    shadow = EncoderArm(bench.link, PARAMS, PLANT)
-    for k in range(1, 40):  # the camera samples the encoders every cycle
-        bench.link.advance_to(0.015 * k)
-        shadow.true_shape()
-    bench.link.advance_to(1.0)
-    assert shadow.time == pytest.approx(1.0)
-    err = np.linalg.norm(shadow.true_shape().tip - bench.plant.true_tip())
-    assert err < TIP_QUANTUM  # quantised encoders, same plant model

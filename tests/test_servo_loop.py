@@ -13,15 +13,18 @@ from models.kinematics import tip_position
 from models.limits import within_limits
 from models.robot_params import HOME_PSI, RobotParams
 from rig.actuator_link import DirectLink
+from rig.frame_feed import SynchronousFeed
 from rig.rig_config import RigConfig
 from rig.run_log import RunLog
 from rig.servo_loop import MarkerLostError, ServoLoop
-from rig.tip_sensors import NoisyTruthSensor, TipMeasurement
+from rig.tip_sensors import TipMeasurement
 from rig.trajectories import Trajectory
 from sim.optical_tracker import OpticalTracker
 from sim.plant import TruePlant
 from sim.plant_params import PlantParams
 from sim.setup import load_setup, make_direct_loop
+from sim.truth import SimulatedTruth
+from sim.truth_sensor import NoisyTruthSensor, TruthClockSource
 from solvers.controller import ControllerConfig, make_controller
 
 P = RobotParams()
@@ -35,14 +38,22 @@ def _line() -> Trajectory:
     return Trajectory(np.array([c, c + [0.01, 0.0, 0.005]]), 0.01)
 
 
-def _loop(sensor: object, closed: bool, rig: RigConfig = RIG, kind: str = "qp") -> tuple[ServoLoop, TruePlant]:
-    traj = _line()
-    psi0 = solve_tip_ik(P, traj.sample(0)[0], np.array(HOME_PSI)).psi
-    plant = TruePlant(P, PLANT, psi0=psi0)
-    loop = ServoLoop(P, rig, DirectLink(plant), plant, OpticalTracker(1.2e-4, seed=1),
+PSI0 = solve_tip_ik(P, _line().sample(0)[0], np.array(HOME_PSI)).psi
+
+
+def _plant() -> TruePlant:
+    return TruePlant(P, PLANT, psi0=PSI0)
+
+
+def _loop(sensor: object, closed: bool, rig: RigConfig = RIG, kind: str = "qp",
+          plant: TruePlant | None = None) -> tuple[ServoLoop, TruePlant]:
+    plant = plant if plant is not None else _plant()
+    link = DirectLink(plant)
+    loop = ServoLoop(P, rig, link, frames=SynchronousFeed(TruthClockSource(lambda: link.time)) if closed else None,
                      sensor=sensor if closed else None,  # type: ignore[arg-type]
+                     truth=SimulatedTruth(plant, OpticalTracker(1.2e-4, seed=1)),
                      controller=make_controller(P, ControllerConfig(kind=kind)) if closed else None)
-    loop.start_at(psi0)
+    loop.start_at(PSI0)
     return loop, plant
 
 
@@ -55,7 +66,8 @@ def test_closed_loop_removes_most_of_the_open_loop_error(kind: str) -> None:
     log = RunLog()
     ol, _ = _loop(None, False)
     ol.run(_line(), "open", False, log)
-    cl, _ = _loop(NoisyTruthSensor(1e-4, seed=2), True, kind=kind)
+    plant = _plant()
+    cl, _ = _loop(NoisyTruthSensor(plant, 1e-4, seed=2), True, kind=kind, plant=plant)
     cl.run(_line(), "closed", True, log, settle=1.0)
     assert _mean_err(log, "open") > 1e-3
     assert _mean_err(log, "closed") < 0.4 * _mean_err(log, "open")
@@ -65,20 +77,21 @@ def test_closed_loop_removes_most_of_the_open_loop_error(kind: str) -> None:
 class _Blinking:
     """Real measurements until cycle ``lose_at``, then nothing (marker out of view)."""
 
-    def __init__(self, lose_at: int) -> None:
-        self.inner = NoisyTruthSensor(1e-4, seed=3)
+    def __init__(self, plant: TruePlant, lose_at: int) -> None:
+        self.inner = NoisyTruthSensor(plant, 1e-4, seed=3)
         self.n = 0
         self.lose_at = lose_at
 
-    def measure(self, shape: object, axis_hint_world: object = None) -> TipMeasurement:
+    def measure(self, frame: object, axis_hint_world: object = None) -> TipMeasurement:
         self.n += 1
         if self.n > self.lose_at:
             return TipMeasurement(False, None, "marker not found")
-        return self.inner.measure(shape)  # type: ignore[arg-type]
+        return self.inner.measure(frame)  # type: ignore[arg-type]
 
 
 def test_lost_marker_holds_then_stops() -> None:
-    loop, plant = _loop(_Blinking(lose_at=8), True)
+    plant = _plant()
+    loop, _ = _loop(_Blinking(plant, lose_at=8), True, plant=plant)
     log = RunLog()
     with pytest.raises(MarkerLostError, match="marker lost"):
         loop.run(_line(), "closed", True, log, settle=0.0)
@@ -92,13 +105,13 @@ def test_lost_marker_holds_then_stops() -> None:
 
 
 class _Jumpy:
-    def __init__(self) -> None:
-        self.inner = NoisyTruthSensor(1e-5, seed=4)
+    def __init__(self, plant: TruePlant) -> None:
+        self.inner = NoisyTruthSensor(plant, 1e-5, seed=4)
         self.n = 0
 
-    def measure(self, shape: object, axis_hint_world: object = None) -> TipMeasurement:
+    def measure(self, frame: object, axis_hint_world: object = None) -> TipMeasurement:
         self.n += 1
-        m = self.inner.measure(shape)  # type: ignore[arg-type]
+        m = self.inner.measure(frame)  # type: ignore[arg-type]
         if self.n == 10:
             assert m.p_world is not None
             return TipMeasurement(True, m.p_world + np.array([0.01, 0, 0]))
@@ -106,7 +119,8 @@ class _Jumpy:
 
 
 def test_a_jumping_measurement_is_rejected() -> None:
-    loop, _ = _loop(_Jumpy(), True)
+    plant = _plant()
+    loop, _ = _loop(_Jumpy(plant), True, plant=plant)
     log = RunLog()
     loop.run(_line(), "closed", True, log, settle=0.0)
     rej = [r for r in log.records if r.rejected]

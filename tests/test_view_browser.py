@@ -214,14 +214,22 @@ def test_served_replay_page_shows_arm_marker_and_tips(page: Any, tmp_path: Path)
 
 
 def test_live_page_follows_the_loop(page: Any, tmp_path: Path) -> None:
+    from cvs.frames import StereoFrame
+    from rig.tip_sensors import TipMeasurement
     from viz.live import start_live_view
 
     recs = [r for r in fake_records(30) if r.phase == "closed_loop"]
     setup = load_setup()
     view = start_live_view(setup, stream=None)
+    w, h = setup.camera.image_size
+    left = np.zeros((h, w, 3), np.uint8)
+    left[:, : w // 2] = (255, 0, 255)  # magenta left half, dark right half
+    frame = StereoFrame(left, left, 0.0, 0)
+    corners = np.array([[w * 0.75, h * 0.5], [w * 0.8, h * 0.6]])
     try:
         for rec in recs:
             view.on_cycle(rec)
+            view.on_frame(frame, TipMeasurement(True, rec.p_est, corners_left=corners))
             time.sleep(0.01)
         last = recs[-1]
         open_scene(page, view.url, animated=False)
@@ -231,8 +239,25 @@ def test_live_page_follows_the_loop(page: Any, tmp_path: Path) -> None:
             const w = {want}; return p.every((v, i) => Math.abs(v - w[i]) < 1e-7); }}""", timeout=15000)
         page.wait_for_function("() => document.getElementById('wm-status').textContent.includes('closed_loop')",
                                timeout=15000)
+        # the latest left frame, with its corners, on a pane at the left frustum's far end
+        page.wait_for_function("""() => {
+            const n = viewer.scene_tree.find(['meshcat', 'wristmark', 'endoscope', 'left_image']);
+            let map = null;
+            if (n && n.object) n.object.traverse(c => { if (c.material && c.material.map) map = c.material.map; });
+            return !!(map && map.image && map.image.width === 384 && map.image.height === 216); }""", timeout=15000)
+        texel = page.evaluate("""() => {
+            const n = viewer.scene_tree.find(['meshcat', 'wristmark', 'endoscope', 'left_image']);
+            let map = null;
+            n.object.traverse(c => { if (c.material && c.material.map) map = c.material.map; });
+            const c = document.createElement('canvas'); c.width = 384; c.height = 216;
+            const g = c.getContext('2d'); g.drawImage(map.image, 0, 0);
+            const at = (x, y) => Array.from(g.getImageData(x, y, 1, 1).data.slice(0, 3));
+            return {left: at(50, 108), right: at(330, 150), corner: at(288 + 4, 108)}; }""")
+        assert texel["left"][0] > 200 and texel["left"][1] < 60 and texel["left"][2] > 200  # magenta
+        assert max(texel["right"]) < 40  # dark
+        assert texel["corner"][0] > 150 and texel["corner"][1] > 150  # a yellow corner circle
         img = screenshot(page, "view-live", tmp_path)
         print(check_scene(img, page_view(page), SceneState.from_record(last), SceneConfig.from_setup(setup)))
     finally:
         view.close()
-    assert view.stats.error == "" and view.stats.frames >= 1
+    assert view.stats.error == "" and view.stats.frames >= 1 and view.stats.images >= 1

@@ -10,6 +10,7 @@ Use::
 
     view = start_live_view(setup)              # prints the URL to open
     loop.on_cycle = view.on_cycle              # rig.servo_loop.ServoLoop
+    loop.on_frame = view.on_frame              # the left camera image with its corners (2 Hz)
     ...                                        # run the loop
     view.close()                               # or view.hold() first, to keep serving
 """
@@ -23,10 +24,12 @@ import pickle
 import select
 import subprocess
 import sys
+import tempfile
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 from models.errors import WristmarkError
 from viz.record_wire import encode
@@ -34,10 +37,11 @@ from viz.scene import SceneConfig
 from viz.viewer_client import MeshcatServer, ViewerError
 
 if TYPE_CHECKING:
+    from rig.loop_setup import LoopSetup
     from rig.run_log import CycleRecord
-    from sim.setup import SimSetup
 
 DEFAULT_RATE_HZ = 30.0  # [Hz] frames sent to the browser at most
+DEFAULT_IMAGE_RATE_HZ = 2.0  # [Hz] camera images shown at most
 DEFAULT_TRAIL_SECONDS = 6.0  # [s] of recent tip paths drawn
 PIPE_BYTES = 1 << 20  # [B] pipe to the drawing process
 WORKER_STARTUP_TIMEOUT = 60.0  # [s] to import Pinocchio and build the scene on a loaded machine
@@ -47,7 +51,7 @@ WORKER_STARTUP_TIMEOUT = 60.0  # [s] to import Pinocchio and build the scene on 
 class LiveStats:
     """Counters of a live view. Loop side: records sent and dropped (pipe full), time spent in
     on_cycle [us]. Drawing side (filled by close()): frames drawn, frame rate [Hz], mean frame
-    time [ms], records received."""
+    time [ms], records received, camera images shown."""
 
     sent: int = 0
     dropped: int = 0
@@ -56,6 +60,7 @@ class LiveStats:
     frame_rate_hz: float = 0.0
     mean_draw_ms: float = 0.0
     received: int = 0
+    images: int = 0
     error: str = ""
 
     @property
@@ -68,10 +73,16 @@ class LiveStats:
 class LiveView:
     """A served scene updated from servo-loop records; see the module docstring."""
 
-    def __init__(self, server: MeshcatServer, worker: subprocess.Popen[bytes]) -> None:
+    def __init__(self, server: MeshcatServer, worker: subprocess.Popen[bytes], image_path: Path | None = None,
+                 image_rate_hz: float = DEFAULT_IMAGE_RATE_HZ) -> None:
         self.server = server
         self.url = server.url
         self.stats = LiveStats()
+        self.image_path = image_path
+        self.images = 0
+        self._image_period = 1.0 / image_rate_hz
+        self._next_image = 0.0
+        self._image_busy = threading.Event()
         self._worker = worker
         assert worker.stdin is not None
         self._fd: int | None = worker.stdin.fileno()
@@ -95,6 +106,34 @@ class LiveView:
             self.stats.error = f"drawing process gone: {e}"
             self._fd = None
         self.stats.on_cycle_us_total += 1e6 * (time.perf_counter() - t0)
+
+    def on_frame(self, frame: Any, measurement: Any) -> None:
+        """ServoLoop frame hook: show the left image with the detected corners, at most
+        ``image_rate_hz`` times a second; the shrinking and PNG encoding run in a thread of
+        their own, so the loop pays a few microseconds (a frame arriving while one is being
+        encoded is skipped)."""
+        now = time.monotonic()
+        if self.image_path is None or now < self._next_image or self._image_busy.is_set():
+            return
+        self._next_image = now + self._image_period
+        self._image_busy.set()
+        corners = getattr(measurement, "corners_left", None)
+        threading.Thread(target=self._write_image, args=(frame.left, corners), daemon=True).start()
+
+    def _write_image(self, left: Any, corners: Any) -> None:
+        from viz.frame_pane import frame_png
+
+        try:
+            png = frame_png(left, corners)
+            if png is not None and self.image_path is not None:
+                tmp = self.image_path.with_suffix(".tmp")
+                tmp.write_bytes(png)
+                os.replace(tmp, self.image_path)  # the drawing process never reads half a file
+                self.images += 1
+        except Exception as e:  # noqa: BLE001 - the view is best effort; the loop goes on
+            self.stats.error = self.stats.error or f"camera image: {type(e).__name__}: {e}"
+        finally:
+            self._image_busy.clear()
 
     def hold(self, seconds: float | None = None) -> None:
         """Keep serving (the page keeps the last frame) for ``seconds``; None: until Ctrl-C."""
@@ -130,10 +169,18 @@ class LiveView:
                     self.stats.frame_rate_hz = float(s["frame_rate_hz"])
                     self.stats.mean_draw_ms = float(s["mean_draw_ms"])
                     self.stats.received = int(s["records"])
+                    self.stats.images = int(s.get("images", 0))
             w.stdout.close()
         if w.returncode not in (0, None) and not self.stats.error:
             self.stats.error = f"drawing process exited with status {w.returncode}"
         self.server.close()
+        if self.image_path is not None:
+            for p in (self.image_path, self.image_path.with_suffix(".tmp")):
+                p.unlink(missing_ok=True)
+            try:
+                self.image_path.parent.rmdir()
+            except OSError:
+                pass
 
     def __enter__(self) -> LiveView:
         return self
@@ -143,12 +190,15 @@ class LiveView:
 
 
 def _start_worker(server: MeshcatServer, config: SceneConfig, rate_hz: float,
-                  trail_seconds: float) -> subprocess.Popen[bytes]:
+                  trail_seconds: float, image_path: Path | None = None,
+                  image_rate_hz: float = DEFAULT_IMAGE_RATE_HZ) -> subprocess.Popen[bytes]:
     env = dict(os.environ)
     root = str(Path(__file__).resolve().parent.parent)
     env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
     args = [sys.executable, "-u", "-m", "viz.live_worker", server.zmq_url,
             "--rate", repr(rate_hz), "--trail", repr(trail_seconds)]
+    if image_path is not None:
+        args += ["--image", str(image_path), "--image-rate", repr(image_rate_hz)]
     proc = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
     assert proc.stdin is not None and proc.stdout is not None
     blob = pickle.dumps(config)
@@ -169,7 +219,7 @@ def _start_worker(server: MeshcatServer, config: SceneConfig, rate_hz: float,
     return proc
 
 
-def start_live_view(setup: SimSetup | None = None, *, config: SceneConfig | None = None,
+def start_live_view(setup: LoopSetup | None = None, *, config: SceneConfig | None = None,
                     title: str = "wristmark live view", rate_hz: float = DEFAULT_RATE_HZ,
                     trail_seconds: float = DEFAULT_TRAIL_SECONDS, stream: TextIO | None = sys.stderr,
                     host: str | None = None) -> LiveView:
@@ -188,12 +238,13 @@ def start_live_view(setup: SimSetup | None = None, *, config: SceneConfig | None
             setup = load_setup()
         config = SceneConfig.from_setup(setup)
     server = MeshcatServer.start(title=title, host=host, stream=stream)
+    image_path = Path(tempfile.mkdtemp(prefix="wristmark-live-")) / "left.png" if config.camera is not None else None
     try:
-        worker = _start_worker(server, config, rate_hz, trail_seconds)
+        worker = _start_worker(server, config, rate_hz, trail_seconds, image_path)
     except BaseException:
         server.close()
         raise
-    view = LiveView(server, worker)
+    view = LiveView(server, worker, image_path)
     if stream is not None:
         print(f"live 3D view: open {view.url}", file=stream, flush=True)
     return view

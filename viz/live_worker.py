@@ -23,8 +23,9 @@ from collections import deque
 import meshcat
 import numpy as np
 
+from viz.frame_pane import show_frame
 from viz.record_wire import RECORD_SIZE, WireRecord, decode
-from viz.scene import ArmScene, SceneConfig, SceneState
+from viz.scene import ROOT, ArmScene, SceneConfig, SceneState
 from viz.style import TIP_KINDS
 from viz.viewer_client import ZmqWindow
 
@@ -58,8 +59,14 @@ def status_lines(rec: WireRecord) -> dict[str, str]:
 class Drawer:
     """Keeps the newest record and the trail, draws at most once per ``period`` [s]."""
 
-    def __init__(self, scene: ArmScene, window: ZmqWindow, period: float, trail_seconds: float) -> None:
+    def __init__(self, scene: ArmScene, window: ZmqWindow, period: float, trail_seconds: float,
+                 image: str | None = None, image_period: float = 0.5) -> None:
         self.scene = scene
+        self.image = image
+        self.image_period = image_period
+        self._image_mtime = 0
+        self._next_image = 0.0
+        self.images = 0
         self.window = window
         self.period = period
         self.trail_seconds = trail_seconds
@@ -115,6 +122,24 @@ class Drawer:
         self.pending = False
         self.next_frame = t0 + self.period
 
+    def show_image(self) -> None:
+        """Upload the camera image when its file changed (at most once per image period)."""
+        now = time.monotonic()
+        if self.image is None or now < self._next_image or self.scene.config.camera is None:
+            return
+        try:
+            mtime = os.stat(self.image).st_mtime_ns
+        except FileNotFoundError:
+            return
+        if mtime == self._image_mtime:
+            return
+        with open(self.image, "rb") as f:
+            png = f.read()
+        self._image_mtime = mtime
+        self._next_image = now + self.image_period
+        show_frame(self.scene.vis, ROOT, self.scene.config.camera, png)
+        self.images += 1
+
     def stats(self) -> dict[str, float]:
         """Records received, frames drawn, frame rate [Hz], mean frame time [ms]."""
         span = self.last - self.first
@@ -123,6 +148,7 @@ class Drawer:
             "frames": self.frames,
             "frame_rate_hz": (self.frames - 1) / span if self.frames > 1 and span > 0 else 0.0,
             "mean_draw_ms": 1000.0 * self.draw_s / self.frames if self.frames else 0.0,
+            "images": self.images,
         }
 
 
@@ -137,7 +163,7 @@ def serve(fd: int, drawer: Drawer) -> None:
         if delay > 0:
             time.sleep(delay)
         if not drawer.pending:
-            select.select([fd], [], [], 1.0)
+            select.select([fd], [], [], drawer.image_period if drawer.image else 1.0)
         while True:
             try:
                 chunk = os.read(fd, 1 << 16)
@@ -153,6 +179,7 @@ def serve(fd: int, drawer: Drawer) -> None:
         buf = buf[n * RECORD_SIZE:]
         if drawer.pending:
             drawer.draw()
+        drawer.show_image()
 
 
 def _lower_priority() -> None:
@@ -169,6 +196,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("zmq_url")
     ap.add_argument("--rate", type=float, default=30.0, help="frames per second at most [Hz]")
     ap.add_argument("--trail", type=float, default=6.0, help="trail length [s]")
+    ap.add_argument("--image", help="PNG file of the latest left camera image (written by the loop's process)")
+    ap.add_argument("--image-rate", type=float, default=2.0, help="camera images shown per second at most [Hz]")
     args = ap.parse_args(argv)
     _lower_priority()
     fd = sys.stdin.buffer.fileno()
@@ -182,7 +211,7 @@ def main(argv: list[str] | None = None) -> int:
         scene = ArmScene(vis, config)
         scene.show(SceneState.at_rest(config.params))
     print("ready", flush=True)
-    drawer = Drawer(scene, window, 1.0 / args.rate, args.trail)
+    drawer = Drawer(scene, window, 1.0 / args.rate, args.trail, args.image, 1.0 / args.image_rate)
     try:
         serve(fd, drawer)
     except Exception as e:  # noqa: BLE001 - one line; the loop goes on without its view

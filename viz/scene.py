@@ -50,7 +50,7 @@ from viz.style import (
 )
 
 if TYPE_CHECKING:
-    from sim.setup import SimSetup
+    from rig.loop_setup import LoopSetup
 
 Array = NDArray[np.float64]
 
@@ -84,9 +84,11 @@ class SceneConfig:
     links_per_segment: int = 6  # pseudo-rigid links drawn per segment
 
     @classmethod
-    def from_setup(cls, setup: SimSetup) -> SceneConfig:
-        """The scene of a simulated-bench setup (sim.setup.load_setup)."""
-        return cls(setup.params, setup.marker, setup.camera, float(setup.plant.stem_coupling))
+    def from_setup(cls, setup: LoopSetup) -> SceneConfig:
+        """The scene of a loop's setup; a simulated bench's (sim.setup.SimSetup) also gives the
+        true arm's stem coupling (hardware: none known, 0)."""
+        plant = getattr(setup, "plant", None)
+        return cls(setup.params, setup.marker, setup.camera, float(getattr(plant, "stem_coupling", 0.0)))
 
 
 @dataclass

@@ -76,8 +76,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"the live view closes when the run ends; then replay the run: wristmark view {out}",
               file=sys.stderr, flush=True)
     on_cycle = view.on_cycle if view is not None else None
+    on_frame = view.on_frame if view is not None else None
     try:
-        res = _run(args, setup, out, progress, on_cycle)
+        res = _run(args, setup, out, progress, on_cycle, on_frame)
     finally:
         if view is not None:
             view.close()
@@ -98,12 +99,13 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace, setup: SimSetup, out: Path, progress: bool,
-         on_cycle: Callable[[CycleRecord], None] | None) -> dict[str, Any]:
+         on_cycle: Callable[[CycleRecord], None] | None, on_frame: Callable[..., None] | None) -> dict[str, Any]:
     """Run the experiment ``args.name``, print its summary, return its result."""
     from sim import experiments
 
     if args.name == "cube":
-        res = experiments.run_cube(setup, out, progress=progress, duration=args.duration, on_cycle=on_cycle)
+        res = experiments.run_cube(setup, out, progress=progress, duration=args.duration, on_cycle=on_cycle,
+                                   on_frame=on_frame)
         print(experiments.cube_table(res))
     elif args.name == "point":
         res = experiments.run_point(setup, out, point=args.point, progress=progress, duration=args.duration,
@@ -116,7 +118,7 @@ def _run(args: argparse.Namespace, setup: SimSetup, out: Path, progress: bool,
               f"(paper: {res['paper']['mean_mm']} / {res['paper']['max_mm']} mm)")
     else:
         res = experiments.run_load(setup, out, args.forces, progress=progress, duration=args.duration,
-                                   on_cycle=on_cycle)
+                                   on_cycle=on_cycle, on_frame=on_frame)
         print((out / "results.md").read_text())
     return res
 

@@ -1,16 +1,21 @@
 """``wristmark servo``: the closed loop driving the actuators through protocol v1.
 
-By default the command starts the actuator-box emulator in process on a new pseudo-terminal,
-driving the simulated true arm, and talks to it through :class:`rig.actuator_driver.ActuatorDriver`:
-every command crosses the pty as bytes, while the emulator and the loop share a simulated clock
-(faster than real time, deterministic). ``--realtime`` runs that emulator on the wall clock
-instead; ``--serial PORT`` drives an external box (hardware, ``wristmark emulator --pty``, any
-pyserial URL) in real time, the simulated cameras then seeing the arm its encoders report;
-``--direct`` is the in-process reference without serial bytes.
+The hardware path, ``--serial PORT --camera SPEC``: an actuator box on a serial port (hardware,
+the virtual lab's ``wristmark emulator --pty --camera-port``, any pyserial URL) and a stereo
+camera named by a frame-source SPEC (DESIGN.md "Stereo frame sources"), in real time on the
+host's monotonic clock; the tip comes only from tracking the camera's frames, and nothing of
+the simulated bench is imported.
+
+Without ``--serial`` the command runs the simulated bench in process: the actuator-box emulator
+on a new pseudo-terminal, driving the simulated true arm, talked to through
+:class:`rig.actuator_driver.ActuatorDriver` (every command crosses the pty as bytes) while the
+emulator and the loop share a simulated clock (faster than real time, deterministic);
+``--realtime`` runs that emulator on the wall clock instead; ``--direct`` is the in-process
+reference without serial bytes.
 
 Safe stops (the arm held, then DISABLE; one line on stderr; exit 3): marker lost too long, the
-device silent or gone, an emergency stop, a watchdog trip. Ctrl-C stops the same way (exit 130).
-Bad options fail before any motion command (exit 2).
+camera stalled or its stream ended, the device silent or gone, an emergency stop, a watchdog
+trip. Ctrl-C stops the same way (exit 130). Bad options fail before any motion command (exit 2).
 """
 
 from __future__ import annotations
@@ -41,7 +46,7 @@ from rig.commands.option_types import (
     nonnegative_float,
     positive_float,
 )
-from rig.commands.setup_args import add_setup_arguments, setup_from_args
+from rig.commands.setup_args import add_registration_argument, add_setup_arguments, setup_from_args
 from rig.output_dir import add_force_argument, claim_outputs
 from rig.run_log import write_json
 from rig.servo_session import (
@@ -50,15 +55,16 @@ from rig.servo_session import (
     SIM_TIMEOUT_S,
     LinkOptions,
     PointHold,
-    open_session,
+    ServoOutcome,
+    ServoSession,
     run_servo,
-    summarize,
 )
+from rig.servo_summary import summarize
 from rig.trajectories import Trajectory
 from viz.web_hosts import add_host_argument
 
 if TYPE_CHECKING:
-    from sim.setup import SimSetup
+    from rig.loop_setup import LoopSetup
 
 Array = NDArray[np.float64]
 
@@ -66,10 +72,22 @@ Array = NDArray[np.float64]
 def add_arguments(p: argparse.ArgumentParser) -> None:
     link = p.add_mutually_exclusive_group()
     link.add_argument("--serial", metavar="PORT",
-                      help="drive an external actuator box in real time: device path or pyserial URL "
-                           "(default: an in-process emulator on a new pty)")
+                      help="hardware path: drive an actuator box in real time (device path or pyserial URL; "
+                           "needs --camera). Default: the simulated bench, its emulator on a new pty")
     link.add_argument("--direct", action="store_true",
                       help="in-process plant without serial bytes (the reference for the serial path)")
+    p.add_argument("--camera", metavar="SPEC",
+                   help="with --serial: the stereo camera's frame source (/dev/videoN, http://..., a video; "
+                        "DESIGN.md 'Stereo frame sources'); the calibration is --calib")
+    p.add_argument("--camera-timeout", type=positive_float(60.0), default=2.0, metavar="S",
+                   help="with --camera: no frame for S seconds ends the camera's stream (default 2)")
+    p.add_argument("--record", metavar="FILE.mcap",
+                   help="with --serial: record the frames, marker poses and actuators (commanded and measured) "
+                        "as a ROS 2 bag")
+    p.add_argument("--record-jpeg", action="store_true", help="record images as JPEG (CompressedImage)")
+    p.add_argument("--rt-priority", type=int_in(1, 99), metavar="N",
+                   help="with --serial: run the loop (and its camera threads) under SCHED_FIFO at priority N, so a "
+                        "loaded host keeps the control period (needs root or CAP_SYS_NICE)")
     p.add_argument("--realtime", action="store_true",
                    help="run the in-process emulator on the wall clock, its watchdog live, like hardware "
                         "(implied by --serial)")
@@ -90,6 +108,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", metavar="OUT", help="write the result JSON to OUT")
     p.add_argument("--out", metavar="DIR", help="write config.json, log.csv, result.json to DIR (empty unless --force)")
     add_force_argument(p)
+    add_registration_argument(p)
     add_setup_arguments(p)
     p.add_argument("--view", action="store_true", help="show the run live in the Meshcat view (paced)")
     add_host_argument(p)
@@ -99,21 +118,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 # -- command line ------------------------------------------------------------------------------
-def build_setup(args: argparse.Namespace) -> SimSetup:
-    """The simulated setup with the command-line overrides, validated."""
-    return setup_from_args(args, settle_time=args.settle)
+def build_setup(args: argparse.Namespace) -> LoopSetup:
+    """The setup with the command-line overrides, validated: the simulated bench's SimSetup, or
+    for the hardware path (``--serial``) a LoopSetup without the simulated bench."""
+    return setup_from_args(args, simulated=args.serial is None, settle_time=args.settle)  # type: ignore[no-any-return]
 
 
-def build_trajectory(setup: SimSetup, kind: str, point: list[float] | None, duration: float | None) -> Trajectory:
+def build_trajectory(setup: LoopSetup, kind: str, point: list[float] | None, duration: float | None) -> Trajectory:
     """The cube walk around the workspace centre, or a held point; cut to ``duration`` [s]."""
-    from rig.trajectories import cube_trajectory
-    from sim.experiments import CUBE_SIZE, CUBE_SPEED, workspace_centre
+    from rig.trajectories import CUBE_SIZE, CUBE_SPEED, cube_trajectory, workspace_centre
 
     if duration is not None and not (np.isfinite(duration) and duration > 0):
         raise InputError(f"--duration must be > 0 s, got {duration}")
     if point is not None and kind != "point":
         raise InputError("--point needs --trajectory point")
-    centre = workspace_centre(setup)
+    centre = workspace_centre(setup.params)
     if kind == "point":
         p = np.asarray(point if point is not None else centre, float)
         if not np.all(np.isfinite(p)):
@@ -123,7 +142,7 @@ def build_trajectory(setup: SimSetup, kind: str, point: list[float] | None, dura
     return traj.truncated(duration) if duration is not None else traj
 
 
-def start_configuration(setup: SimSetup, traj: Trajectory) -> Array:
+def start_configuration(setup: LoopSetup, traj: Trajectory) -> Array:
     """IK of the trajectory's start (raises InputError when it is out of reach)."""
     from models.ik import solve_tip_ik
     from models.robot_params import HOME_PSI
@@ -136,7 +155,7 @@ def start_configuration(setup: SimSetup, traj: Trajectory) -> Array:
     return np.asarray(ik.psi, float)
 
 
-def live_view(setup: SimSetup, host: str | None = None) -> Any:
+def live_view(setup: LoopSetup, host: str | None = None) -> Any:
     """The Meshcat live view (viz.live.start_live_view), or a one-line error when it is missing."""
     try:
         from viz.live import start_live_view  # type: ignore[import-not-found, unused-ignore]
@@ -147,62 +166,129 @@ def live_view(setup: SimSetup, host: str | None = None) -> Any:
 
 @contextmanager
 def _sigterm_as_interrupt() -> Iterator[None]:
-    """SIGTERM stops the run like Ctrl-C (main thread only)."""
+    """SIGTERM and SIGINT stop the run like Ctrl-C (main thread only); SIGINT also when the
+    process was started with it ignored (``nohup``, a background job of a script), so that
+    ``kill -INT`` always holds and disables the arm."""
 
     def handler(signum: int, frame: FrameType | None) -> None:
         raise KeyboardInterrupt
 
     try:
-        previous = signal.signal(signal.SIGTERM, handler)
+        previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGTERM, signal.SIGINT)}
     except ValueError:  # not the main thread
         yield
         return
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for sig, old in previous.items():
+            signal.signal(sig, old)
 
 
-def run(args: argparse.Namespace) -> int:
-    setup = build_setup(args)
-    traj = build_trajectory(setup, args.trajectory, args.point, args.duration)
-    psi0 = start_configuration(setup, traj)
+def check_link_options(args: argparse.Namespace) -> None:
+    """The link and camera options fit together (InputError before anything is opened)."""
+    if args.serial is not None and not args.camera:
+        raise InputError("--serial needs --camera SPEC: the frames of the stereo camera (e.g. the virtual lab's "
+                         "stream URL); the simulated cameras exist only in the in-process bench (no --serial)")
+    if args.camera and args.serial is None:
+        raise InputError("--camera SPEC needs --serial PORT (the hardware path); without --serial the "
+                         "simulated bench renders its own frames")
+    if args.rt_priority is not None and args.serial is None:
+        raise InputError("--rt-priority is for the hardware path (--serial); the simulated bench runs in "
+                         "simulated time")
+    if args.record and args.serial is None:
+        raise InputError("--record is for the hardware path (--serial --camera): the simulated bench writes "
+                         "log.csv with --out")
+    if args.record_jpeg and not args.record:
+        raise InputError("--record-jpeg needs --record FILE.mcap")
+    if args.serial is not None and args.realtime:
+        raise InputError("--realtime is for the in-process emulator; --serial is always real time")
     if args.timeout is not None and not args.timeout > 0:
         raise InputError(f"--timeout must be > 0 s, got {args.timeout}")
     if args.baud <= 0:
         raise InputError(f"--baud must be > 0, got {args.baud}")
-    kind = "serial" if args.serial else "direct" if args.direct else "emulator"
     if not (np.isfinite(args.view_hold) and args.view_hold >= 0):
         raise InputError(f"--view-hold must be >= 0 s, got {args.view_hold}")
-    claim_outputs(dirs=[args.out], files=[args.json], force=args.force)
+
+
+def open_session(setup: LoopSetup, psi0: Array, options: LinkOptions, args: argparse.Namespace) -> ServoSession:
+    """The hardware session (serial port + camera), or the simulated bench's in process."""
+    if options.kind == "serial":
+        from rig.hardware_session import open_hardware_session
+
+        if args.rt_priority is not None:  # before any thread starts: the camera's threads inherit it
+            from rig.realtime_priority import request_realtime_priority
+
+            request_realtime_priority(args.rt_priority)
+        return open_hardware_session(setup, options, args.camera, camera_timeout=args.camera_timeout)
+    from sim.servo_bench import open_sim_session
+
+    return open_sim_session(setup, psi0, options, seed=setup.rig.seed)  # type: ignore[arg-type]
+
+
+def open_recorder(args: argparse.Namespace, setup: LoopSetup, session: ServoSession) -> Any:
+    """The --record bag (after the session opened, before any motion); closes the session when
+    the bag cannot be written."""
+    if not args.record:
+        return None
+    from rig.servo_recorder import ServoRecorder
+
+    try:
+        return ServoRecorder(args.record, setup.params, jpeg=args.record_jpeg,
+                             world_T_left=setup.host_camera.T_world_left)
+    except BaseException:
+        session.close()
+        raise
+
+
+def write_outputs(args: argparse.Namespace, setup: LoopSetup, out: ServoOutcome, res: dict[str, Any]) -> None:
+    """DIR/config.json, DIR/log.csv, DIR/result.json (--out) and the result JSON (--json)."""
+    if args.out:
+        out_dir = Path(args.out)
+        out_dir.mkdir(parents=True, exist_ok=True)
+        write_json(out_dir / "config.json", {"command": "servo", "link": res["link"], "camera": args.camera,
+                                             **setup.describe()})
+        out.log.write_csv(out_dir / "log.csv")
+        write_json(out_dir / "result.json", {**res, "run_dir": str(out_dir)})
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        write_json(args.json, res)
+
+
+def run(args: argparse.Namespace) -> int:
+    check_link_options(args)
+    setup = build_setup(args)
+    traj = build_trajectory(setup, args.trajectory, args.point, args.duration)
+    psi0 = start_configuration(setup, traj)
+    claim_outputs(dirs=[args.out], files=[args.json], force=args.force)  # after every option was validated
+    kind = "serial" if args.serial else "direct" if args.direct else "emulator"
     options = LinkOptions(kind=kind, port=args.serial, baudrate=args.baud, timeout=args.timeout,
                           realtime=bool(args.realtime), pace=bool(args.pace or args.view))
     with _sigterm_as_interrupt():
         view = live_view(setup, args.host) if args.view else None
         try:
-            session = open_session(setup, psi0, options)
-            out = run_servo(setup, traj, session, psi0, settle=setup.rig.settle_time, seed=setup.rig.seed,
-                            progress=not args.no_progress, on_cycle=None if view is None else view.on_cycle)
+            session = open_session(setup, psi0, options, args)
+            recorder = open_recorder(args, setup, session)
+            out = run_servo(setup, traj, session, psi0, settle=setup.rig.settle_time,
+                            progress=not args.no_progress, on_cycle=None if view is None else view.on_cycle,
+                            recorder=recorder, on_frame=None if view is None else view.on_frame)
             if view is not None and args.view_hold > 0:
                 view.hold(args.view_hold)
         finally:
             if view is not None:
                 view.close()
     res = summarize(setup, traj, session, out)
-    if args.out:
-        out_dir = Path(args.out)
-        out_dir.mkdir(parents=True, exist_ok=True)
-        write_json(out_dir / "config.json", {"command": "servo", "link": res["link"], **setup.describe()})
-        out.log.write_csv(out_dir / "log.csv")
-        write_json(out_dir / "result.json", {**res, "run_dir": str(out_dir)})
-    if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        write_json(args.json, res)
+    if recorder is not None:
+        res["recording"] = {"path": args.record, "cycles": recorder.cycles, "dropped_cycles": recorder.dropped,
+                            "messages": recorder.bag.messages, "problem": recorder.error}
+    write_outputs(args, setup, out, res)
     c = res["closed_loop"]
     errors = (f"closed-loop tip error mean {c['mean_mm']:.3f} mm, max {c['max_mm']:.3f} mm over {c['cycles']} "
-              "cycles (optical tracker vs desired)" if c["cycles"] else "no trajectory cycle ran")
+              f"cycles ({c['errors_from']} vs desired)" if c["cycles"] else "no trajectory cycle ran")
+    lat = res["latency"]["capture_to_command"]
+    latency = f"; capture -> command median {lat['median_ms']:.1f} ms" if options.kind == "serial" and lat["n"] else ""
     print(f"servo ({res['trajectory']['kind']}, {traj.duration:.1f} s, controller {res['controller']}, "
-          f"sensor {res['sensor']}, link {kind} {session.port}): {errors}")
+          f"sensor {res['sensor']}, link {kind} {session.port}): {errors}{latency}")
     if not out.stopped:
         return 0
     safe = ("arm held and disabled" if not out.close_error

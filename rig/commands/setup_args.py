@@ -1,6 +1,9 @@
-"""Command-line options shared by the commands that run the simulated rig (experiment, servo):
-which configuration files, and overrides of the loop (cycle, latency, sensor, image scale, seed)
-and of the controller kind. ``setup_from_args`` loads and validates them into a SimSetup."""
+"""Command-line options shared by the commands that run a servo loop (experiment, servo): which
+configuration files, and overrides of the loop (cycle, latency, sensor, image scale, seed) and
+of the controller kind. ``setup_from_args`` loads and validates them into a SimSetup (the
+simulated bench) or, for the hardware path, a :class:`rig.loop_setup.LoopSetup` without
+importing the simulated bench. The stereo calibration is ``--calib`` (``--camera`` names a
+frame source in ``servo``)."""
 
 from __future__ import annotations
 
@@ -8,7 +11,7 @@ import argparse
 import dataclasses
 from typing import TYPE_CHECKING, Any
 
-from models.errors import ConfigError
+from models.errors import ConfigError, InputError
 from rig.commands.option_types import (
     MAX_CONTROL_DT,
     MAX_IMAGE_SCALE,
@@ -20,7 +23,9 @@ from rig.commands.option_types import (
 )
 
 if TYPE_CHECKING:
-    from sim.setup import SimSetup
+    from rig.loop_setup import LoopSetup
+
+SIM_ONLY = ("plant", "latency", "sensor")  # options that only the simulated bench has
 
 
 def add_setup_arguments(p: argparse.ArgumentParser) -> None:
@@ -30,16 +35,16 @@ def add_setup_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--controller-config", metavar="YAML", help="controller file (default configs/controller.yaml)")
     p.add_argument("--rig", metavar="YAML", help="rig/loop file (default configs/rig.yaml)")
     p.add_argument("--robot", metavar="YAML", help="robot file (default configs/robot.yaml)")
-    p.add_argument("--camera", "--calib", dest="camera", metavar="YAML", help="stereo calibration")
+    p.add_argument("--calib", metavar="YAML", help="stereo calibration (default configs/camera.yaml)")
     p.add_argument("--marker", metavar="YAML", help="marker file (default configs/marker.yaml)")
     p.add_argument("--dt", type=float_in(MIN_CONTROL_DT, MAX_CONTROL_DT), metavar="S",
                    help="control cycle [s] (paper: 0.060)")
     p.add_argument("--latency", type=nonnegative_float(MAX_CONTROL_DT), metavar="S",
-                   help="capture -> command latency [s]")
+                   help="simulated bench: capture -> command latency [s]")
     p.add_argument("--sensor", choices=("vision", "truth-noise"),
-                   help="tip measurement: rendered images + tracker (default) or truth+noise (fast)")
+                   help="simulated bench: rendered images + tracker (default) or truth+noise (fast)")
     p.add_argument("--image-scale", type=float_in(MIN_IMAGE_SCALE, MAX_IMAGE_SCALE), metavar="F",
-                   help="render at F x the calibrated size")
+                   help="images at F x the calibrated size (simulated bench: rendered so; a camera: delivers so)")
     p.add_argument("--seed", type=seed_int(), help="random seed (noise, rendering, tracker)")
 
 
@@ -49,14 +54,28 @@ def add_registration_argument(p: argparse.ArgumentParser) -> None:
                    help="registration file (wristmark register): overrides the calibration's world_T_left")
 
 
-def setup_from_args(args: argparse.Namespace, **rig_overrides: Any) -> SimSetup:
+def setup_from_args(args: argparse.Namespace, simulated: bool = True, **rig_overrides: Any) -> Any:
     """Load the configuration files and apply the command-line overrides (plus ``rig_overrides``
-    that are not None), validated; an unknown controller kind lists the valid ones."""
-    from sim.setup import load_setup
+    that are not None), validated; an unknown controller kind lists the valid ones.
+
+    simulated: a SimSetup (the simulated bench, with its plant file); False: a LoopSetup for the
+    hardware path (the simulated bench is not imported; its options are refused)."""
     from solvers.controller import make_controller
 
-    setup = load_setup(robot=args.robot, marker=args.marker, camera=args.camera, plant=args.plant,
-                       rig=args.rig, controller=args.controller_config)
+    setup: LoopSetup
+    if simulated:
+        from sim.setup import load_setup
+
+        setup = load_setup(robot=args.robot, marker=args.marker, camera=args.calib, plant=args.plant,
+                           rig=args.rig, controller=args.controller_config)
+    else:
+        from rig.loop_setup import load_loop_setup
+
+        given = [f"--{k}" for k in SIM_ONLY if getattr(args, k, None) is not None]
+        if given:
+            raise InputError(f"{', '.join(given)}: only for the simulated bench, not with a camera")
+        setup = load_loop_setup(robot=args.robot, marker=args.marker, camera=args.calib, rig=args.rig,
+                                controller=args.controller_config)
     if getattr(args, "registration", None):
         from cvs.registration_io import load_registration
 
@@ -66,6 +85,8 @@ def setup_from_args(args: argparse.Namespace, **rig_overrides: Any) -> SimSetup:
         changes["control_dt"] = args.dt
         if args.latency is None and setup.rig.vision_latency >= args.dt:
             changes["vision_latency"] = 0.75 * args.dt
+        if setup.rig.frame_wait >= args.dt:
+            changes["frame_wait"] = 0.5 * args.dt
     if args.latency is not None:
         changes["vision_latency"] = args.latency
     for key, value in (("sensor", args.sensor), ("image_scale", args.image_scale), ("seed", args.seed),

@@ -34,7 +34,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-play", action="store_true", help="served replay: do not start playing")
     p.add_argument("--robot", metavar="YAML", help="home view: robot file (default configs/robot.yaml)")
     p.add_argument("--marker", metavar="YAML", help="home view: marker file")
-    p.add_argument("--camera", "--calib", dest="camera", metavar="YAML", help="home view: stereo calibration")
+    p.add_argument("--calib", metavar="YAML", help="home view: stereo calibration")
     p.add_argument("--json", action="store_true", help="print the URL or the written file as JSON")
     add_force_argument(p)
     add_host_argument(p)
@@ -53,14 +53,14 @@ def run(args: argparse.Namespace) -> int:
     max_frames = DEFAULT_MAX_FRAMES if args.max_frames is None else args.max_frames
     if max_frames < 2:
         raise InputError(f"--max-frames must be >= 2, got {max_frames}")
-    if args.run_dir and (args.robot or args.marker or args.camera):
-        raise InputError("--robot/--marker/--camera set the home view; a replay uses the run's config.json")
+    if args.run_dir and (args.robot or args.marker or args.calib):
+        raise InputError("--robot/--marker/--calib set the home view; a replay uses the run's config.json")
     replay: RunReplay | None = load_run(args.run_dir) if args.run_dir else None
     config: SceneConfig | None = None
     if replay is None:
         from sim.setup import load_setup
 
-        config = SceneConfig.from_setup(load_setup(robot=args.robot, marker=args.marker, camera=args.camera))
+        config = SceneConfig.from_setup(load_setup(robot=args.robot, marker=args.marker, camera=args.calib))
     title = f"wristmark replay: {replay.run_dir.name}" if replay else "wristmark: arm at home"
     status = replay.summary if replay else {"configuration": "home (HOME_PSI)"}
 

@@ -1,0 +1,184 @@
+"""Benchmark: frames in, and the loop on the virtual lab against the in-process bench.
+
+(a) bench/video_tracking.py's ``run()``: a 1080p side-by-side MJPG video played at 60 fps.
+(b) For each image scale (1: 1080p, and 0.5): the renderer's frame rate on this machine alone
+(median time of a render plus JPEG encode), then the virtual lab rendering as fast as it can
+(``--max-fps``; the achieved rate is reported): the
+emulator (`wristmark emulator --pty --camera-port 0 --fps F`) in one process, the hardware path
+(`wristmark servo --serial PTY --camera URL`) in another, a cube of ``--duration`` s (default 20):
+capture-to-command latency (median, p95, max; split into the frame's transport and what the
+host adds), frames dropped, cycle jitter, and the true-tip error from ``--truth-out``; beside it
+the in-process run of the same plant, scale and trajectory (simulated clock, 45 ms latency).
+Both processes run under SCHED_FIFO where the host allows it (rig/realtime_priority.py).
+Prints one JSON object. Targets (issue 11): host latency beyond the transport <= 10 ms
+(median); lab true-tip error within 20 % of the in-process run.
+Usage: .venv/bin/python bench/virtual_lab.py [--duration S] [--scales 1 0.5] [--skip-video]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import select
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from rig.commands.option_types import positive_float  # noqa: E402
+from rig.realtime_priority import realtime_priority_allowed  # noqa: E402
+
+WRISTMARK = [sys.executable, "-m", "rig.cli"]
+
+
+def sustained_fps(scale: float, n: int = 12) -> dict[str, float]:
+    """Median render + JPEG-encode time of the lab's camera at ``scale`` and the rate it allows."""
+    import cv2
+
+    from cvs.camera import scaled_stereo_camera
+    from models.robot_params import HOME_PSI
+    from sim.render import StereoRenderer
+    from sim.render_settings import noise_preset
+    from sim.setup import load_setup, make_plant
+
+    setup = load_setup()
+    cam = setup.camera if scale == 1.0 else scaled_stereo_camera(setup.camera, scale)
+    renderer = StereoRenderer(cam, setup.marker, noise_preset("default"))
+    plant = make_plant(setup, np.asarray(HOME_PSI, float))
+    times = []
+    for k in range(n + 2):
+        t0 = time.perf_counter()
+        pair = renderer.render(plant.true_shape())
+        cv2.imencode(".jpg", np.hstack([pair.left, pair.right]), [cv2.IMWRITE_JPEG_QUALITY, 95])
+        if k >= 2:
+            times.append(time.perf_counter() - t0)
+        plant.advance(0.05)
+    ms = 1000 * float(np.median(times))
+    return {"frame_ms_median": round(ms, 1), "fps": round(1000.0 / ms, 1)}
+
+
+def _read_lines(proc: subprocess.Popen[bytes], n: int, timeout: float) -> list[str]:
+    assert proc.stdout is not None
+    fd, got, deadline = proc.stdout.fileno(), b"", time.monotonic() + timeout
+    while got.count(b"\n") < n:
+        ready, _, _ = select.select([fd], [], [], max(0.0, deadline - time.monotonic()))
+        if not ready or not (chunk := os.read(fd, 4096)):
+            raise RuntimeError(f"the emulator printed only {got!r}")
+        got += chunk
+    return [ln.strip() for ln in got.decode().splitlines()[:n]]
+
+
+def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_lab: bool) -> dict[str, Any]:
+    """The virtual lab at up to ``fps`` and ``scale``: a cube of ``duration`` s on the hardware
+    path (rt: the host loop under SCHED_FIFO; rt_lab: the lab's threads too)."""
+    from rig.metrics import error_stats
+    from sim.virtual_lab import read_truth_csv, true_tip_errors
+
+    truth = tmp / f"truth_{scale}.csv"
+    emu = subprocess.Popen([*WRISTMARK, "emulator", "--pty", "--camera-port", "0", "--fps", f"{fps:.2f}",
+                            "--image-scale", str(scale), "--jpeg-quality", "95", "--truth-out", str(truth),
+                            *(["--rt-priority", "10"] if rt_lab else [])],
+                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        pty, url = _read_lines(emu, 2, timeout=120)
+        run_dir = tmp / f"run_{scale}"
+        r = subprocess.run([*WRISTMARK, "servo", "--serial", pty, "--camera", url, "--image-scale", str(scale),
+                            "--duration", str(duration), "--no-progress", "--out", str(run_dir),
+                            "--json", str(tmp / f"res_{scale}.json"), *(["--rt-priority", "20"] if rt else [])],
+                           cwd=ROOT, capture_output=True, text=True, timeout=600)
+    finally:
+        emu.send_signal(signal.SIGTERM)
+        _, emu_err = emu.communicate(timeout=60)
+    if r.returncode != 0:
+        return {"error": r.stderr.strip()}
+    res = json.loads((tmp / f"res_{scale}.json").read_text())
+    err = error_stats(true_tip_errors(run_dir / "log.csv", truth))
+    t, _ = read_truth_csv(truth)
+    lat = res["latency"]
+    return {
+        "fps_requested": round(fps, 1),
+        "fps_rendered": round((len(t) - 1) / (t[-1] - t[0]), 1) if len(t) > 1 else None,
+        "latency_ms": {k: {q: lat[k][q] for q in ("median_ms", "p95_ms", "max_ms")} for k in
+                       ("capture_to_command", "transport", "arrival_to_command", "tracking")},
+        "frames": {"received": res["frames"]["received"], "dropped": res["frames"]["dropped"],
+                   "cycles_without_a_new_frame": res["closed_loop"]["no_frame"]},
+        "cycle_jitter_ms": res["timing"]["jitter_ms"], "cycles_skipped": res["closed_loop"]["skipped"],
+        "link_overruns": res["link"]["overruns"],
+        "true_tip_mm": {"mean": err.mean_mm, "max": err.max_mm, "cycles": err.n},
+        "emulator": emu_err.decode(errors="replace").strip().splitlines()[-1:],
+    }
+
+
+def in_process_run(scale: float, duration: float) -> dict[str, Any]:
+    """The same cube on the in-process bench (pty emulator, simulated clock)."""
+    import dataclasses
+
+    from rig.commands import servo as S
+    from rig.servo_summary import summarize
+    from sim.servo_bench import open_sim_session
+    from sim.setup import load_setup
+
+    setup = load_setup()
+    setup = setup.with_changes(rig=dataclasses.replace(setup.rig, image_scale=scale))
+    traj = S.build_trajectory(setup, "cube", None, duration)
+    psi0 = S.start_configuration(setup, traj)
+    session = open_sim_session(setup, psi0, S.LinkOptions(kind="emulator"), seed=setup.rig.seed)
+    out = S.run_servo(setup, traj, session, psi0, settle=setup.rig.settle_time)
+    c = summarize(setup, traj, session, out)["closed_loop"]
+    return {"true_tip_mm": {"mean": c["noise_free"]["mean_mm"], "max": c["noise_free"]["max_mm"],
+                            "cycles": c["cycles"]}, "latency_ms_modelled": 1000 * setup.rig.vision_latency}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--duration", type=positive_float(600.0), default=20.0, help="cube duration [s] (default 20)")
+    ap.add_argument("--scales", type=positive_float(1.0), nargs="+", default=[1.0, 0.5, 0.35], help="image scales")
+    ap.add_argument("--skip-video", action="store_true", help="skip part (a), the video tracking bench")
+    ap.add_argument("--max-fps", type=positive_float(240.0), default=60.0,
+                    help="the lab renders at most this rate (default 60: as fast as it can here)")
+    ap.add_argument("--max-fps-rt", type=positive_float(240.0), default=10.0,
+                    help="the lab's threads get real-time priority only if its renderer alone sustains 1.5 x this")
+    a = ap.parse_args()
+    rt = realtime_priority_allowed(20)
+    out: dict[str, Any] = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
+                                       "load_avg_1min_at_start": os.getloadavg()[0]},
+                           "realtime_priority": rt}
+    if not a.skip_video:
+        sys.path.insert(0, str(ROOT / "bench"))
+        import video_tracking
+
+        out["video_tracking"] = video_tracking.run()
+    out["virtual_lab"] = []
+    with tempfile.TemporaryDirectory(prefix="wristmark-lab-bench-") as tmp:
+        for scale in a.scales:
+            sustained = sustained_fps(scale)
+            # the lab renders as fast as it can (up to --max-fps); its threads run in real time
+            # only where the renderer does not need both cores (it would starve the host's loop)
+            rt_lab = rt and sustained["fps"] >= 1.5 * a.max_fps_rt
+            lab = lab_run(scale, a.max_fps, a.duration, Path(tmp), rt, rt_lab)
+            lab["lab_realtime_priority"] = rt_lab
+            ref = in_process_run(scale, a.duration)
+            row: dict[str, Any] = {"image_scale": scale, "renderer": sustained, "lab": lab, "in_process": ref}
+            if "true_tip_mm" in lab:
+                ratio = lab["true_tip_mm"]["mean"] / ref["true_tip_mm"]["mean"]
+                host = lab["latency_ms"]["arrival_to_command"]["median_ms"]
+                row["targets"] = {"true_tip_ratio": round(ratio, 3), "true_tip_within_20_percent": bool(ratio <= 1.2),
+                                  "host_latency_beyond_transport_ms": host, "host_latency_met": bool(host <= 10.0)}
+            out["virtual_lab"].append(row)
+    out["machine"]["load_avg_1min_at_end"] = os.getloadavg()[0]
+    print(json.dumps(out, indent=1, default=float))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -27,7 +27,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--board", required=True, metavar="SPEC",
                    help="chessboard:CxR:SQUARE (inner corners) or charuco:CxR:SQUARE:MARKER:DICT (squares), metres")
     p.add_argument("images", nargs="*", metavar="LEFT RIGHT", help="stereo pairs: left and right image paths")
-    p.add_argument("--source", metavar="SPEC", help="read the views from a frame source instead (docs/frame_sources.md)")
+    p.add_argument("--source", metavar="SPEC", help="read the views from a frame source (docs/frame_sources.md)")
     p.add_argument("--frames", type=int_in(1, 100000), default=200, metavar="N",
                    help="--source: read at most N frames (default 200)")
     p.add_argument("--layout", choices=("sbs", "tb"), default="sbs",

@@ -10,6 +10,7 @@ import json
 from pathlib import Path
 
 from models.errors import InputError
+from rig.output_dir import claim_outputs
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -32,8 +33,8 @@ def run(args: argparse.Namespace) -> int:
         if not args.out:
             raise InputError("calib convert needs --out C.yaml")
         out = Path(args.out)
-        if out.exists() and not args.force:
-            raise InputError(f"{out}: exists; pass --force to overwrite it")
+        if not args.force:  # refuse an existing --out (checked only: written over at the end)
+            claim_outputs(files=[out])
         save_calibration(out, cam)
         print(f"wrote {out}")
         return 0

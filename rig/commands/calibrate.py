@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from models.errors import InputError
 from rig.commands.option_types import int_in, positive_float
+from rig.output_dir import claim_outputs
 
 Pair = tuple[str, NDArray[np.uint8], NDArray[np.uint8]]
 
@@ -72,8 +73,8 @@ def run(args: argparse.Namespace) -> int:
 
     board = BoardSpec.parse(args.board)
     out = Path(args.out)
-    if out.exists() and not args.force:
-        raise InputError(f"{out}: exists; pass --force to overwrite it")
+    if not args.force:  # refuse an existing --out (checked only: written over at the end)
+        claim_outputs(files=[out])
     paths = [Path(p) for p in args.images]
     if bool(paths) == bool(args.source):
         raise InputError("give the views either as LEFT RIGHT image pairs or with --source SPEC (not both)")

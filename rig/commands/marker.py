@@ -12,6 +12,7 @@ import argparse
 from pathlib import Path
 
 from models.errors import InputError
+from rig.output_dir import claim_outputs
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -30,8 +31,8 @@ def run(args: argparse.Namespace) -> int:
     kind = out.suffix.lower()
     if kind not in (".svg", ".pdf"):
         raise InputError(f"--out must end in .svg or .pdf, got '{out.name}'")
-    if out.exists() and not args.force:
-        raise InputError(f"{out} exists: pass --force to overwrite it")
+    if not args.force:  # refuse an existing --out (checked only: written over at the end)
+        claim_outputs(files=[out])
     if not out.parent.is_dir():
         raise InputError(f"{out.parent}: folder not found")
     marker_path = Path(args.marker)

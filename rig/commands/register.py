@@ -20,6 +20,7 @@ import numpy as np
 
 from models.errors import InputError
 from rig.commands.option_types import float_in, int_in, positive_float, seed_int
+from rig.output_dir import claim_outputs
 
 REPLY_TIMEOUT_S = 0.2  # [s] per attempt at a reply from the actuator box (3 retries)
 
@@ -122,8 +123,8 @@ def run(args: argparse.Namespace) -> int:
     from solvers.registration import solve_registration, transform_error
 
     out = Path(args.out)
-    if out.exists() and not args.force:
-        raise InputError(f"{out}: exists; pass --force to overwrite it")
+    if not args.force:  # refuse an existing --out (checked only: written over at the end)
+        claim_outputs(files=[out])
     if args.from_log and args.serial:
         raise InputError("give either --from-log DIR or --serial PORT, not both")
     if args.camera and not args.serial:

@@ -24,10 +24,10 @@ browser:
 	bash scripts/ensure-chromium.sh
 
 lint: setup
-	$(VENV)/bin/ruff check models cvs solvers viz rig sim tests bench
+	$(VENV)/bin/ruff check wristmark tests bench
 
 typecheck: setup
-	$(VENV)/bin/mypy models cvs solvers viz rig sim
+	$(VENV)/bin/mypy wristmark
 
 pytest: setup browser
 	$(PY) -m pytest

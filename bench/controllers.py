@@ -14,10 +14,10 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from models.kinematics import tip_position
-from models.robot_params import HOME_PSI, RobotParams
-from solvers.controller import ControllerConfig, make_controller
-from solvers.qp_controller import BoxQp
+from wristmark.models.kinematics import tip_position
+from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark.solvers.controller import ControllerConfig, make_controller
+from wristmark.solvers.qp_controller import BoxQp
 
 
 @contextlib.contextmanager

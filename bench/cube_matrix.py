@@ -28,10 +28,10 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from rig.commands.option_types import positive_float  # noqa: E402
-from sim.experiments import PAPER_CUBE, run_cube  # noqa: E402
-from sim.plant_params import PlantParams  # noqa: E402
-from sim.setup import SimSetup, default_config, load_setup  # noqa: E402
+from wristmark.rig.commands.option_types import positive_float  # noqa: E402
+from wristmark.sim.experiments import PAPER_CUBE, run_cube  # noqa: E402
+from wristmark.sim.plant_params import PlantParams  # noqa: E402
+from wristmark.sim.setup import SimSetup, default_config, load_setup  # noqa: E402
 
 HEADER = ("| run | open mean [mm] | open max [mm] | closed mean [mm] | closed max [mm] | closed/open "
           "| corner overshoot max [mm] | corner overshoot mean [mm] | wall [s] |")

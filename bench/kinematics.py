@@ -19,9 +19,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from models.kinematics import forward_kinematics, tip_jacobian, tip_position  # noqa: E402
-from models.pinocchio_model import PinocchioArm  # noqa: E402
-from models.robot_params import RobotParams  # noqa: E402
+from wristmark.models.kinematics import forward_kinematics, tip_jacobian, tip_position  # noqa: E402
+from wristmark.models.pinocchio_model import PinocchioArm  # noqa: E402
+from wristmark.models.robot_params import RobotParams  # noqa: E402
 
 AIM_US = 50.0  # target for the controller's path [us]
 

@@ -17,21 +17,22 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from models.actuation import actuators_from_psi  # noqa: E402
-from models.ik import solve_tip_ik  # noqa: E402
-from models.kinematics import tip_position  # noqa: E402
-from models.limits import within_limits  # noqa: E402
-from models.robot_params import HOME_PSI, RobotParams  # noqa: E402
-from rig.trajectories import cube_trajectory  # noqa: E402
-from sim.plant import TruePlant  # noqa: E402
-from sim.plant_params import PlantParams  # noqa: E402
+from wristmark.models.actuation import actuators_from_psi  # noqa: E402
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.ik import solve_tip_ik  # noqa: E402
+from wristmark.models.kinematics import tip_position  # noqa: E402
+from wristmark.models.limits import within_limits  # noqa: E402
+from wristmark.models.robot_params import HOME_PSI, RobotParams  # noqa: E402
+from wristmark.rig.trajectories import cube_trajectory  # noqa: E402
+from wristmark.sim.plant import TruePlant  # noqa: E402
+from wristmark.sim.plant_params import PlantParams  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def run(plant_path: Path, dt: float, size: tuple[float, float, float], speed: float) -> dict[str, object]:
     """Open-loop cube run; errors are |true tip - desired tip| at each cycle."""
-    params = RobotParams.load(ROOT / "configs" / "robot.yaml")
+    params = RobotParams.load(CONFIG_DIR / "robot.yaml")
     plant_params = PlantParams.load(plant_path)
     centre = tip_position(params, np.asarray(HOME_PSI))
     traj = cube_trajectory(centre, size, speed)
@@ -67,7 +68,7 @@ def run(plant_path: Path, dt: float, size: tuple[float, float, float], speed: fl
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--plant", type=Path, default=ROOT / "configs" / "plant.yaml")
+    ap.add_argument("--plant", type=Path, default=CONFIG_DIR / "plant.yaml")
     ap.add_argument("--dt", type=float, default=0.06, help="control cycle [s]")
     ap.add_argument("--size", type=float, nargs=3, default=(0.040, 0.020, 0.040), help="edges x y z [m]")
     ap.add_argument("--speed", type=float, default=0.010, help="[m/s]")

@@ -33,13 +33,14 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from cvs.marker_tracker import MarkerTracker  # noqa: E402
-from rig.registration_poses import choose_poses  # noqa: E402
-from rig.registration_run import collect, registration_poses  # noqa: E402
-from sim.experiments import run_cube  # noqa: E402
-from sim.registration_bench import SimRegistrationRig  # noqa: E402
-from sim.setup import SimSetup, load_setup  # noqa: E402
-from solvers.registration import solve_registration, transform_error  # noqa: E402
+from wristmark.cvs.marker_tracker import MarkerTracker  # noqa: E402
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.rig.registration_poses import choose_poses  # noqa: E402
+from wristmark.rig.registration_run import collect, registration_poses  # noqa: E402
+from wristmark.sim.experiments import run_cube  # noqa: E402
+from wristmark.sim.registration_bench import SimRegistrationRig  # noqa: E402
+from wristmark.sim.setup import SimSetup, load_setup  # noqa: E402
+from wristmark.solvers.registration import solve_registration, transform_error  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 CAMERA_OFFSET = (0.004, 0.003, -0.003, -0.03, 0.035, 0.03)  # [m, m, m, rad, rad, rad]: 5.8 mm, 3.2 deg
@@ -89,7 +90,7 @@ ABLATION = {
 
 def ablation(image_scale: float) -> list[dict[str, Any]]:
     """Registration error per model error, rigid arm vs arm errors estimated (12 poses)."""
-    base = load_setup(plant=ROOT / "configs" / "plant_ideal.yaml")
+    base = load_setup(plant=CONFIG_DIR / "plant_ideal.yaml")
     rows = []
     for name, change in ABLATION.items():
         pl = dataclasses.replace(base.plant, camera_offset=CAMERA_OFFSET, **change)
@@ -123,7 +124,7 @@ def main() -> int:
         return 0
     rows = []
     for plant in ("plant.yaml", "plant_unseen.yaml"):
-        base = load_setup(plant=ROOT / "configs" / plant)
+        base = load_setup(plant=CONFIG_DIR / plant)
         for load in (True, False):
             pl = dataclasses.replace(base.plant, camera_offset=CAMERA_OFFSET,
                                      tip_force=base.plant.tip_force if load else (0.0, 0.0, 0.0))

@@ -15,22 +15,22 @@ import argparse
 import json
 import time
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 import cv2
 import numpy as np
 
-import sim.render as render_module
-from cvs.calibration_io import load_calibration
-from cvs.camera import scaled_stereo_camera
-from cvs.marker import MarkerModel
-from models.arm_shape import arm_shape
-from models.robot_params import RobotParams
-from rig.commands.render import PSI_SPREAD
-from sim.render import StereoRenderer
-from sim.render_settings import noise_preset
-from sim.visibility import random_visible_psi
+import wristmark.sim.render as render_module
+from wristmark.cvs.calibration_io import load_calibration
+from wristmark.cvs.camera import scaled_stereo_camera
+from wristmark.cvs.marker import MarkerModel
+from wristmark.models.arm_shape import arm_shape
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.robot_params import RobotParams
+from wristmark.rig.commands.render import PSI_SPREAD
+from wristmark.sim.render import StereoRenderer
+from wristmark.sim.render_settings import noise_preset
+from wristmark.sim.visibility import random_visible_psi
 
 STAGES = ("plan_arm", "render_arm", "optics_signal_box", "optics_signal", "sensor_image")
 
@@ -41,7 +41,7 @@ def main() -> None:
     ap.add_argument("--noise", default="default")
     ap.add_argument("--scale", type=float, default=1.0)
     a = ap.parse_args()
-    cam = load_calibration(Path(__file__).resolve().parents[1] / "configs" / "camera.yaml")
+    cam = load_calibration(CONFIG_DIR / "camera.yaml")
     if a.scale != 1.0:
         cam = scaled_stereo_camera(cam, a.scale)
     params, marker = RobotParams(), MarkerModel()

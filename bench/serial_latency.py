@@ -19,12 +19,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from models.actuation import actuators_from_psi  # noqa: E402
-from models.robot_params import HOME_PSI, RobotParams  # noqa: E402
-from rig.actuator_driver import ActuatorDriver  # noqa: E402
-from sim.actuator_emulator import ActuatorEmulator  # noqa: E402
-from sim.plant import TruePlant  # noqa: E402
-from sim.plant_params import PlantParams  # noqa: E402
+from wristmark.models.actuation import actuators_from_psi  # noqa: E402
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.robot_params import HOME_PSI, RobotParams  # noqa: E402
+from wristmark.rig.actuator_driver import ActuatorDriver  # noqa: E402
+from wristmark.sim.actuator_emulator import ActuatorEmulator  # noqa: E402
+from wristmark.sim.plant import TruePlant  # noqa: E402
+from wristmark.sim.plant_params import PlantParams  # noqa: E402
 
 
 def _stats(samples: list[float]) -> dict[str, float]:
@@ -39,8 +40,7 @@ def main() -> None:
     ap.add_argument("--ideal", action="store_true", help="ideal plant (no lag) instead of configs/plant.yaml")
     args = ap.parse_args()
     params = RobotParams()
-    root = Path(__file__).resolve().parents[1]
-    plant = PlantParams() if args.ideal else PlantParams.load(root / "configs" / "plant.yaml")
+    plant = PlantParams() if args.ideal else PlantParams.load(CONFIG_DIR / "plant.yaml")
     arm = TruePlant(params, plant, psi0=np.array(HOME_PSI))
     emu = ActuatorEmulator(arm, params)
     path = emu.serve_pty()

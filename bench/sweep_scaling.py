@@ -56,9 +56,9 @@ def machine_load() -> dict:
 
 
 def main() -> None:
-    from sim.sweep_run import run_sweep
-    from sim.sweep_spec import load_spec
-    from sim.sweep_trial import TrialJob, run_trial, warm_up
+    from wristmark.sim.sweep_run import run_sweep
+    from wristmark.sim.sweep_spec import load_spec
+    from wristmark.sim.sweep_trial import TrialJob, run_trial, warm_up
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--trials", type=int, default=8)

@@ -42,11 +42,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from cvs.corner_detector import MarkerCornerDetector  # noqa: E402
-from cvs.marker_tracker import MarkerTracker, TrackerSettings  # noqa: E402
-from rig.cli import main as cli_main  # noqa: E402
-from sim.dataset import StereoDataset, load_dataset  # noqa: E402
-from solvers.homography_init import homography_pose  # noqa: E402
+from wristmark.cvs.corner_detector import MarkerCornerDetector  # noqa: E402
+from wristmark.cvs.marker_tracker import MarkerTracker, TrackerSettings  # noqa: E402
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.rig.cli import main as cli_main  # noqa: E402
+from wristmark.sim.dataset import StereoDataset, load_dataset  # noqa: E402
+from wristmark.solvers.homography_init import homography_pose  # noqa: E402
 
 
 def _corner_errors(det: np.ndarray, truth: list) -> list[float]:
@@ -316,7 +317,7 @@ def main() -> int:
     ap.add_argument("--pairs", type=int, default=20)
     ap.add_argument("--seed", type=int, default=11)
     ap.add_argument("--detectors", default="paper,saddle", help="comma-separated: paper, saddle, auto")
-    ap.add_argument("--coded", default=str(Path(__file__).resolve().parents[1] / "configs" / "marker_coded.yaml"),
+    ap.add_argument("--coded", default=str(CONFIG_DIR / "marker_coded.yaml"),
                     help="coded marker file rendered at the same poses ('' to skip)")
     a = ap.parse_args()
     cv2.setNumThreads(1)

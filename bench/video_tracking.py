@@ -33,12 +33,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from cvs.calibration_io import load_calibration  # noqa: E402
-from cvs.camera import StereoCamera, scaled_stereo_camera  # noqa: E402
-from cvs.marker import MarkerModel  # noqa: E402
-from cvs.marker_tracker import MarkerTracker  # noqa: E402
-from cvs.open_source import SourceOptions, open_stereo_source  # noqa: E402
-from rig.commands.option_types import int_in, positive_float  # noqa: E402
+from wristmark.cvs.calibration_io import load_calibration  # noqa: E402
+from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera  # noqa: E402
+from wristmark.cvs.marker import MarkerModel  # noqa: E402
+from wristmark.cvs.marker_tracker import MarkerTracker  # noqa: E402
+from wristmark.cvs.open_source import SourceOptions, open_stereo_source  # noqa: E402
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.rig.commands.option_types import int_in, positive_float  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -53,9 +54,9 @@ def _ms(values: list[float]) -> dict[str, float]:
 
 def make_video(path: Path, frames: int, fps: float, scale: float, seed: int = 0) -> Path:
     """Render the motion and write it as a side-by-side MJPG video; returns the path."""
-    from sim.motion_video import render_motion, write_stereo_video
+    from wristmark.sim.motion_video import render_motion, write_stereo_video
 
-    cam = load_calibration(ROOT / "configs" / "camera.yaml")
+    cam = load_calibration(CONFIG_DIR / "camera.yaml")
     return write_stereo_video(path, render_motion(cam, frames, scale=scale, seed=seed), fps=fps)
 
 
@@ -105,7 +106,7 @@ def run(frames: int = 120, fps: float = 60.0, scale: float = 1.0, repeat: int = 
         workdir: str | Path | None = None, grayscale: bool = True) -> dict[str, Any]:
     """The benchmark of the module docstring; returns its JSON as a dict. grayscale: the
     tracked runs decode grey views (``--grayscale`` of ``wristmark track``)."""
-    cam = load_calibration(ROOT / "configs" / "camera.yaml")
+    cam = load_calibration(CONFIG_DIR / "camera.yaml")
     camera = scaled_stereo_camera(cam, scale) if scale != 1.0 else cam
     marker = MarkerModel()
     with tempfile.TemporaryDirectory(prefix="wristmark-video-bench-", dir=workdir) as tmp:

@@ -35,21 +35,21 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rig.commands.option_types import positive_float  # noqa: E402
-from rig.realtime_priority import realtime_priority_allowed  # noqa: E402
+from wristmark.rig.commands.option_types import positive_float  # noqa: E402
+from wristmark.rig.realtime_priority import realtime_priority_allowed  # noqa: E402
 
-WRISTMARK = [sys.executable, "-m", "rig.cli"]
+WRISTMARK = [sys.executable, "-m", "wristmark"]
 
 
 def sustained_fps(scale: float, n: int = 12) -> dict[str, float]:
     """Median render + JPEG-encode time of the lab's camera at ``scale`` and the rate it allows."""
     import cv2
 
-    from cvs.camera import scaled_stereo_camera
-    from models.robot_params import HOME_PSI
-    from sim.render import StereoRenderer
-    from sim.render_settings import noise_preset
-    from sim.setup import load_setup, make_plant
+    from wristmark.cvs.camera import scaled_stereo_camera
+    from wristmark.models.robot_params import HOME_PSI
+    from wristmark.sim.render import StereoRenderer
+    from wristmark.sim.render_settings import noise_preset
+    from wristmark.sim.setup import load_setup, make_plant
 
     setup = load_setup()
     cam = setup.camera if scale == 1.0 else scaled_stereo_camera(setup.camera, scale)
@@ -81,8 +81,8 @@ def _read_lines(proc: subprocess.Popen[bytes], n: int, timeout: float) -> list[s
 def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_lab: bool) -> dict[str, Any]:
     """The virtual lab at up to ``fps`` and ``scale``: a cube of ``duration`` s on the hardware
     path (rt: the host loop under SCHED_FIFO; rt_lab: the lab's threads too)."""
-    from rig.metrics import error_stats
-    from sim.virtual_lab import read_truth_csv, true_tip_errors
+    from wristmark.rig.metrics import error_stats
+    from wristmark.sim.virtual_lab import read_truth_csv, true_tip_errors
 
     truth = tmp / f"truth_{scale}.csv"
     emu = subprocess.Popen([*WRISTMARK, "emulator", "--pty", "--camera-port", "0", "--fps", f"{fps:.2f}",
@@ -123,10 +123,10 @@ def in_process_run(scale: float, duration: float) -> dict[str, Any]:
     """The same cube on the in-process bench (pty emulator, simulated clock)."""
     import dataclasses
 
-    from rig.commands import servo as S
-    from rig.servo_summary import summarize
-    from sim.servo_bench import open_sim_session
-    from sim.setup import load_setup
+    from wristmark.rig.commands import servo as S
+    from wristmark.rig.servo_summary import summarize
+    from wristmark.sim.servo_bench import open_sim_session
+    from wristmark.sim.setup import load_setup
 
     setup = load_setup()
     setup = setup.with_changes(rig=dataclasses.replace(setup.rig, image_scale=scale))

@@ -9,14 +9,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from models.actuation import (
+from wristmark.models.actuation import (
     ACTUATOR_NAMES,
     actuator_jacobian,
     actuators_from_psi,
     psi_from_actuators,
 )
-from models.errors import InputError
-from models.robot_params import RobotParams
+from wristmark.models.errors import InputError
+from wristmark.models.robot_params import RobotParams
 
 PARAMS = RobotParams()
 SEEDED = settings(max_examples=80, derandomize=True, deadline=None)

@@ -9,10 +9,10 @@ import tty
 import numpy as np
 import pytest
 
-from models.actuation import actuators_from_psi
-from models.robot_params import HOME_PSI, RobotParams
-from rig import protocol as P
-from rig.actuator_driver import ActuatorDriver, ActuatorProtocolError, DeviceState
+from wristmark.models.actuation import actuators_from_psi
+from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark.rig import protocol as P
+from wristmark.rig.actuator_driver import ActuatorDriver, ActuatorProtocolError, DeviceState
 
 
 class ScriptedDevice:

@@ -16,12 +16,12 @@ import numpy as np
 import pytest
 import serial
 
-from models.actuation import actuators_from_psi, psi_from_actuators
-from models.arm_shape import ArmShape, arm_shape
-from models.limits import actuator_bounds
-from models.robot_params import HOME_PSI, RobotParams
-from rig import protocol as P
-from rig.actuator_driver import (
+from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
+from wristmark.models.arm_shape import ArmShape, arm_shape
+from wristmark.models.limits import actuator_bounds
+from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark.rig import protocol as P
+from wristmark.rig.actuator_driver import (
     ActuatorDisconnected,
     ActuatorDriver,
     ActuatorEStopped,
@@ -29,7 +29,7 @@ from rig.actuator_driver import (
     ActuatorRejected,
     ActuatorTimeout,
 )
-from sim.actuator_emulator import ActuatorEmulator
+from wristmark.sim.actuator_emulator import ActuatorEmulator
 
 PARAMS = RobotParams()
 A_HOME = actuators_from_psi(PARAMS, HOME_PSI)

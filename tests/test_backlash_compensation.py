@@ -6,11 +6,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from models.limits import psi_bounds
-from models.robot_params import HOME_PSI, RobotParams
-from solvers.backlash_compensation import BacklashInverse
-from solvers.controller import ControllerConfig, make_controller
-from solvers.tip_integral import TipErrorIntegral
+from wristmark.models.limits import psi_bounds
+from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark.solvers.backlash_compensation import BacklashInverse
+from wristmark.solvers.controller import ControllerConfig, make_controller
+from wristmark.solvers.tip_integral import TipErrorIntegral
 
 P = RobotParams()
 PLAY = np.array([0.006, 8e-5, 8e-5, 8e-5, 7e-5, 7e-5])
@@ -87,7 +87,7 @@ def test_compensated_steps_stay_within_limits(kind: str) -> None:
     rng = np.random.default_rng(3)
     psi = np.array(HOME_PSI, float)
     lo, hi = psi_bounds(P)
-    from models.kinematics import tip_position
+    from wristmark.models.kinematics import tip_position
 
     for k in range(200):
         p = tip_position(P, psi)
@@ -100,7 +100,7 @@ def test_compensated_steps_stay_within_limits(kind: str) -> None:
 
 
 def test_config_rejects_bad_backlash_keys() -> None:
-    from models.errors import ConfigError
+    from wristmark.models.errors import ConfigError
 
     with pytest.raises(ConfigError, match="backlash_play_max"):
         ControllerConfig(backlash_play_max=(0.0, 1.0)).validate()
@@ -112,8 +112,8 @@ def _cube(plant: str, compensation: bool, duration: float) -> dict:
     import tempfile
     from pathlib import Path
 
-    from sim.experiments import run_cube
-    from sim.setup import default_config, load_setup
+    from wristmark.sim.experiments import run_cube
+    from wristmark.sim.setup import default_config, load_setup
 
     setup = load_setup(plant=default_config(plant))
     setup = setup.with_changes(rig=dataclasses.replace(setup.rig, sensor="truth-noise"),

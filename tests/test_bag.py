@@ -13,12 +13,12 @@ import pytest
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import StoragePlugin, Writer
 
-from cvs.frame_source_bag import mutual_nearest_pairs
-from cvs.frames import FrameSourceError, StereoFrame, frames
-from cvs.open_source import SourceOptions, open_stereo_source
-from cvs.ros_image_msgs import image_msg, stamp_ns, typestore
-from models.errors import InputError
-from rig.bag_recorder import ACTUATOR_NAMES, BagRecorder
+from wristmark.cvs.frame_source_bag import mutual_nearest_pairs
+from wristmark.cvs.frames import FrameSourceError, StereoFrame, frames
+from wristmark.cvs.open_source import SourceOptions, open_stereo_source
+from wristmark.cvs.ros_image_msgs import image_msg, stamp_ns, typestore
+from wristmark.models.errors import InputError
+from wristmark.rig.bag_recorder import ACTUATOR_NAMES, BagRecorder
 
 W_T_L = np.array([[0, 0, 1, 0.01], [-1, 0, 0, 0.02], [0, -1, 0, 0.03], [0, 0, 0, 1.0]])
 

@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 import yaml
 
-from cvs.calibration_io import calibration_mapping, load_calibration, save_calibration
-from models.errors import ConfigError
+from wristmark.cvs.calibration_io import calibration_mapping, load_calibration, save_calibration
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.errors import ConfigError
 
-DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "camera.yaml"
+DEFAULT = CONFIG_DIR / "camera.yaml"
 
 
 def _same(a, b) -> None:

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
-from cvs.calibration_io import load_calibration
-from cvs.camera import scaled_stereo_camera
+from wristmark.cvs.calibration_io import load_calibration
+from wristmark.cvs.camera import scaled_stereo_camera
+from wristmark.models.config_files import CONFIG_DIR
 
-DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "camera.yaml"
+DEFAULT = CONFIG_DIR / "camera.yaml"
 
 
 def test_project_undistort_round_trip() -> None:

@@ -11,9 +11,9 @@ import numpy as np
 import pinocchio as pin
 from reference_chain import chain
 
-from models.kinematics import tip_jacobian
-from models.robot_params import RobotParams
-from rig.cli import COMMANDS
+from wristmark.models.kinematics import tip_jacobian
+from wristmark.models.robot_params import RobotParams
+from wristmark.rig.cli import COMMANDS
 
 ROOT = Path(__file__).resolve().parent.parent
 PARAMS = RobotParams()
@@ -21,7 +21,7 @@ PARAMS = RobotParams()
 
 def wristmark(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "rig.cli", *args],
+        [sys.executable, "-m", "wristmark", *args],
         cwd=ROOT,
         capture_output=True,
         text=True,

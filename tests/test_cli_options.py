@@ -22,7 +22,7 @@ import pytest
 from hypothesis import HealthCheck, assume, event, given, settings
 from hypothesis import strategies as st
 
-from rig import cli
+from wristmark.rig import cli
 
 # A value-taking option whose metavar or help names one of these is numeric even without a type.
 NUMERIC_METAVARS = {"S", "N", "PX", "F", "Q", "X", "Y", "Z", "HZ", "FPS", "M", "MM", "DEG", "RAD", "KB"}
@@ -268,7 +268,7 @@ def test_closed_pipe_ends_quietly(tmp_path: Path) -> None:
         "r, w = os.pipe()\n"
         "os.close(r)\n"  # the reader is gone before anything is written
         "os.dup2(w, 1)\n"
-        "from rig import cli\n"
+        "from wristmark.rig import cli\n"
         "sys.exit(cli.main(['fk', '--psi', '0', '0.04', '0.7', '0', '0.9', '0', '--json']))\n"
     )
     p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60,

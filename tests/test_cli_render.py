@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from models.robot_params import HOME_PSI
-from rig.cli import main
-from sim.dataset import load_dataset
+from wristmark.models.robot_params import HOME_PSI
+from wristmark.rig.cli import main
+from wristmark.sim.dataset import load_dataset
 
 
 def test_render_one_pair_end_to_end(tmp_path: Path, capsys) -> None:
@@ -51,7 +51,7 @@ def test_render_given_psi_and_file(tmp_path: Path) -> None:
     ],
 )
 def test_bad_options_give_one_line_errors(tmp_path: Path, extra: list[str], needle: str) -> None:
-    cmd = [sys.executable, "-m", "rig.cli", "render", "--out", str(tmp_path / "x"), "--scale", "0.25", *extra]
+    cmd = [sys.executable, "-m", "wristmark", "render", "--out", str(tmp_path / "x"), "--scale", "0.25", *extra]
     p = subprocess.run(cmd, capture_output=True, text=True, cwd=Path(__file__).resolve().parents[1], timeout=120)
     assert p.returncode != 0
     lines = p.stderr.strip().splitlines()

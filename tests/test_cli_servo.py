@@ -18,17 +18,17 @@ import numpy as np
 import pytest
 from test_serial_link import PARAMS, PLANT, RecordingEmulator
 
-from models.errors import InputError
-from models.robot_params import HOME_PSI
-from rig import protocol as P
-from rig.actuator_link import DirectLink
-from rig.commands import servo as S
-from rig.realtime_priority import realtime_priority_allowed
-from rig.servo_summary import summarize
-from rig.tip_sensors import TipMeasurement
-from sim.servo_bench import open_sim_session
-from sim.setup import SimSetup, load_setup
-from sim.virtual_lab import LabCamera, VirtualLab
+from wristmark.models.errors import InputError
+from wristmark.models.robot_params import HOME_PSI
+from wristmark.rig import protocol as P
+from wristmark.rig.actuator_link import DirectLink
+from wristmark.rig.commands import servo as S
+from wristmark.rig.realtime_priority import realtime_priority_allowed
+from wristmark.rig.servo_summary import summarize
+from wristmark.rig.tip_sensors import TipMeasurement
+from wristmark.sim.servo_bench import open_sim_session
+from wristmark.sim.setup import SimSetup, load_setup
+from wristmark.sim.virtual_lab import LabCamera, VirtualLab
 
 ROOT = Path(__file__).resolve().parent.parent
 HOME = np.asarray(HOME_PSI, float)
@@ -36,13 +36,13 @@ HOME = np.asarray(HOME_PSI, float)
 
 def wristmark(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "rig.cli", *args], cwd=ROOT, capture_output=True, text=True, timeout=timeout
+        [sys.executable, "-m", "wristmark", *args], cwd=ROOT, capture_output=True, text=True, timeout=timeout
     )
 
 
 def popen_wristmark(*args: str) -> subprocess.Popen[str]:
     return subprocess.Popen(
-        [sys.executable, "-m", "rig.cli", *args], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        [sys.executable, "-m", "wristmark", *args], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
     )
 
 
@@ -323,6 +323,6 @@ def test_wrong_image_size_fails_before_any_motion(lab: VirtualLab) -> None:
 
 def test_view_without_the_live_view_module_is_one_clear_error(setup: SimSetup,
                                                               monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setitem(sys.modules, "viz.live", None)  # as if viz/live.py were missing
+    monkeypatch.setitem(sys.modules, "wristmark.viz.live", None)  # as if viz/live.py were missing
     with pytest.raises(InputError, match="--view needs the Meshcat live view"):
         S.live_view(setup)

@@ -9,8 +9,8 @@ import cv2
 import numpy as np
 import pytest
 
-from rig.cli import main
-from sim.dataset import load_dataset
+from wristmark.rig.cli import main
+from wristmark.sim.dataset import load_dataset
 
 
 @pytest.fixture(scope="module")

@@ -11,10 +11,11 @@ import cv2
 import numpy as np
 import pytest
 
-from cvs.calibration_io import load_calibration, save_calibration
-from cvs.camera import scaled_stereo_camera
-from rig.cli import main
-from sim.motion_video import render_motion, write_stereo_video
+from wristmark.cvs.calibration_io import load_calibration, save_calibration
+from wristmark.cvs.camera import scaled_stereo_camera
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.rig.cli import main
+from wristmark.sim.motion_video import render_motion, write_stereo_video
 
 ROOT = Path(__file__).resolve().parents[1]
 N = 8
@@ -23,7 +24,7 @@ N = 8
 @pytest.fixture(scope="module")
 def material(tmp_path_factory: pytest.TempPathFactory) -> dict:
     d = tmp_path_factory.mktemp("track_source")
-    cam = load_calibration(ROOT / "configs" / "camera.yaml")
+    cam = load_calibration(CONFIG_DIR / "camera.yaml")
     pairs = render_motion(cam, N, scale=0.5, seed=2)
     save_calibration(d / "calib.yaml", scaled_stereo_camera(cam, 0.5))
     return {
@@ -143,7 +144,7 @@ def test_dataset_folder_source(tmp_path: Path, capsys: pytest.CaptureFixture[str
 @pytest.mark.parametrize("case", ["size", "missing", "both", "truncated", "annotate_bad", "topics"])
 def test_errors_exit_2_one_line(material: dict, tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                 case: str) -> None:
-    full = str(ROOT / "configs" / "camera.yaml")
+    full = str(CONFIG_DIR / "camera.yaml")
     cut = tmp_path / "cut.avi"
     data = Path(material["avi"]).read_bytes()
     cut.write_bytes(data[: len(data) // 2])
@@ -184,14 +185,14 @@ def test_live_stream_that_stalls_keeps_the_recording(tmp_path: Path, capsys: pyt
     stalls; the recording holds exactly the frames that were printed."""
     import threading
 
-    from cvs.frame_layout import join_stereo
-    from cvs.frames import frames
-    from cvs.open_source import SourceOptions, open_stereo_source
-    from rig.mjpeg_server import MjpegServer
+    from wristmark.cvs.frame_layout import join_stereo
+    from wristmark.cvs.frames import frames
+    from wristmark.cvs.open_source import SourceOptions, open_stereo_source
+    from wristmark.rig.mjpeg_server import MjpegServer
 
     id_view = frame_ids[0]
     calib = tmp_path / "small.yaml"
-    save_calibration(calib, scaled_stereo_camera(load_calibration(ROOT / "configs" / "camera.yaml"), 1 / 6))
+    save_calibration(calib, scaled_stereo_camera(load_calibration(CONFIG_DIR / "camera.yaml"), 1 / 6))
     bag = tmp_path / "live.mcap"
     with MjpegServer() as srv:
         def publish() -> None:

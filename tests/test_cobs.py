@@ -4,7 +4,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rig.cobs import CobsError, cobs_decode, cobs_encode
+from wristmark.rig.cobs import CobsError, cobs_decode, cobs_encode
 
 # Vectors from the COBS paper / Wikipedia table.
 VECTORS = [

@@ -8,12 +8,13 @@ from pathlib import Path
 
 import pytest
 
-from cvs.marker import MarkerModel
-from models.config_io import from_mapping, load_config, load_yaml, save_yaml, to_mapping
-from models.errors import ConfigError, WristmarkError
-from models.robot_params import RobotParams
+from wristmark.cvs.marker import MarkerModel
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.config_io import from_mapping, load_config, load_yaml, save_yaml, to_mapping
+from wristmark.models.errors import ConfigError, WristmarkError
+from wristmark.models.robot_params import RobotParams
 
-CONFIGS = Path(__file__).resolve().parent.parent / "configs"
+CONFIGS = CONFIG_DIR
 
 
 def _write(tmp_path: Path, text: str, name: str = "cfg.yaml") -> Path:

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from reference_chain import segment, segment_eq1
 from scipy.spatial.transform import Rotation
 
-from models.constant_curvature import (
+from wristmark.models.constant_curvature import (
     f_g,
     rot_y,
     rot_z,

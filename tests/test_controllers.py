@@ -8,17 +8,18 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import lsq_linear
 
-from models.errors import ConfigError
-from models.kinematics import tip_jacobian, tip_position
-from models.limits import psi_bounds
-from models.robot_params import HOME_PSI, RobotParams
-from solvers.controller import ControllerConfig, make_controller
-from solvers.paper_controller import sr_pseudo_inverse
-from solvers.qp_controller import BoxQp
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.errors import ConfigError
+from wristmark.models.kinematics import tip_jacobian, tip_position
+from wristmark.models.limits import psi_bounds
+from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark.solvers.controller import ControllerConfig, make_controller
+from wristmark.solvers.paper_controller import sr_pseudo_inverse
+from wristmark.solvers.qp_controller import BoxQp
 
 P = RobotParams()
 HOME = np.array(HOME_PSI)
-CONFIGS = Path(__file__).resolve().parent.parent / "configs"
+CONFIGS = CONFIG_DIR
 
 
 def test_default_file_loads() -> None:

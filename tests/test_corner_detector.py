@@ -6,15 +6,14 @@ from __future__ import annotations
 
 import math
 import time
-from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 
-from cvs.calibration_io import load_calibration
-from cvs.camera import scaled_stereo_camera
-from cvs.corner_detector import (
+from wristmark.cvs.calibration_io import load_calibration
+from wristmark.cvs.camera import scaled_stereo_camera
+from wristmark.cvs.corner_detector import (
     CornerChain,
     DetectorSettings,
     MarkerCornerDetector,
@@ -24,15 +23,16 @@ from cvs.corner_detector import (
     htm_refine,
     quadric_subpixel,
 )
-from cvs.marker import MarkerModel
-from cvs.marker_tracker import MarkerTracker, TrackerSettings
-from models.arm_shape import arm_shape
-from models.robot_params import RobotParams
-from sim.render import RenderedPair, StereoRenderer
-from sim.render_settings import noise_preset
-from sim.visibility import random_visible_psi
+from wristmark.cvs.marker import MarkerModel
+from wristmark.cvs.marker_tracker import MarkerTracker, TrackerSettings
+from wristmark.models.arm_shape import arm_shape
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.robot_params import RobotParams
+from wristmark.sim.render import RenderedPair, StereoRenderer
+from wristmark.sim.render_settings import noise_preset
+from wristmark.sim.visibility import random_visible_psi
 
-CAM = scaled_stereo_camera(load_calibration(Path(__file__).resolve().parents[1] / "configs" / "camera.yaml"), 0.5)
+CAM = scaled_stereo_camera(load_calibration(CONFIG_DIR / "camera.yaml"), 0.5)
 MARKER = MarkerModel()
 SPREAD = (0.25, 0.012, 0.2, 0.6, 0.3, 0.6)  # as `wristmark render`
 
@@ -310,7 +310,7 @@ def test_orientation_bins_are_the_exact_atan2_bins() -> None:
     """The polynomial arctangent with an atan2 fallback near boundaries gives the bin of the exact
     atan2 for random, quantised (Sobel sums of a uint8 image), axis-aligned, diagonal and
     one-ulp-off gradients."""
-    from cvs.xcorner_test import NBINS, orientation_bin
+    from wristmark.cvs.xcorner_test import NBINS, orientation_bin
 
     rng = np.random.default_rng(0)
     s = np.float32(0.125 / 255)
@@ -332,7 +332,7 @@ def test_orientation_bins_are_the_exact_atan2_bins() -> None:
 def test_htm_correlation_matches_the_tanh_model() -> None:
     """Separable exponentials give the correlation of eq. 8 (and math.tanh where they would
     overflow: a very sharp template)."""
-    from cvs.xcorner_test import htm_correlation
+    from wristmark.cvs.xcorner_test import htm_correlation
 
     rng = np.random.default_rng(1)
     img = rng.integers(0, 256, (40, 40)).astype(np.uint8)
@@ -349,9 +349,9 @@ def test_htm_correlation_matches_the_tanh_model() -> None:
 def test_lazy_xcorner_tests_give_the_chain_of_testing_all(frames: list[RenderedPair]) -> None:
     """The chain search tests candidates only when it reaches them; testing every candidate
     first changes nothing, and the lazy search tests far fewer."""
-    from cvs.corner_likelihood import find_candidates
-    from cvs.marker_chain import find_chain
-    from cvs.xcorner_test import check_xcorners
+    from wristmark.cvs.corner_likelihood import find_candidates
+    from wristmark.cvs.marker_chain import find_chain
+    from wristmark.cvs.xcorner_test import check_xcorners
 
     s = DetectorSettings()
     for f in frames:
@@ -391,7 +391,7 @@ def test_colour_frames_in_roi_tracking_convert_only_the_box(
 
 
 def test_detector_rejects_images_it_cannot_read() -> None:
-    from models.errors import InputError
+    from wristmark.models.errors import InputError
 
     det = MarkerCornerDetector()
     for bad in (np.zeros((50, 60), np.float32), np.zeros((50, 60, 2), np.uint8), np.zeros(60, np.uint8)):

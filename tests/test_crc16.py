@@ -3,7 +3,7 @@
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rig.crc16 import crc16_ccitt_false
+from wristmark.rig.crc16 import crc16_ccitt_false
 
 
 def _bitwise(data: bytes) -> int:

@@ -9,17 +9,18 @@ import cv2
 import numpy as np
 import pytest
 
-from cvs.calibration_io import load_calibration
-from cvs.camera import scaled_stereo_camera
-from cvs.marker import MarkerModel
-from models.arm_shape import arm_shape
-from models.errors import InputError
-from models.robot_params import HOME_PSI, RobotParams
-from sim.dataset import DatasetWriter, load_dataset
-from sim.render import StereoRenderer
-from sim.render_settings import RenderSettings
+from wristmark.cvs.calibration_io import load_calibration
+from wristmark.cvs.camera import scaled_stereo_camera
+from wristmark.cvs.marker import MarkerModel
+from wristmark.models.arm_shape import arm_shape
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.errors import InputError
+from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark.sim.dataset import DatasetWriter, load_dataset
+from wristmark.sim.render import StereoRenderer
+from wristmark.sim.render_settings import RenderSettings
 
-DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "camera.yaml"
+DEFAULT = CONFIG_DIR / "camera.yaml"
 
 
 def test_round_trip(tmp_path: Path) -> None:

@@ -9,11 +9,12 @@ import shlex
 import subprocess
 from pathlib import Path
 
-from rig import cli
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.rig import cli
 
 ROOT = Path(__file__).resolve().parents[1]
 USER_FILES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md")),
-              *sorted(p for p in (ROOT / "configs").rglob("*") if p.is_file())]
+              *sorted(p for p in (CONFIG_DIR).rglob("*") if p.is_file())]
 WRITES = ("--out", "--json", "--snapshot")  # options whose value is a written path
 
 
@@ -43,7 +44,7 @@ def test_every_link_and_docs_path_exists() -> None:
         for path in re.findall(r"\b(docs/[\w./-]+\.md)\b", text):
             if not (ROOT / path).exists():
                 missing.append(f"{p.relative_to(ROOT)} mentions {path}")
-    for c in sorted((ROOT / "configs").rglob("*.yaml")):
+    for c in sorted((CONFIG_DIR).rglob("*.yaml")):
         for path in re.findall(r"\b(docs/[\w./-]+\.md)\b", c.read_text()):
             if not (ROOT / path).exists():
                 missing.append(f"{c.relative_to(ROOT)} mentions {path}")

@@ -9,11 +9,11 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from models.robot_params import RobotParams
-from rig import protocol as P
-from sim.actuator_emulator import ActuatorEmulator
-from sim.plant import TruePlant
-from sim.plant_params import PlantParams
+from wristmark.models.robot_params import RobotParams
+from wristmark.rig import protocol as P
+from wristmark.sim.actuator_emulator import ActuatorEmulator
+from wristmark.sim.plant import TruePlant
+from wristmark.sim.plant_params import PlantParams
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "protocol.md"
 

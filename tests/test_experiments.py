@@ -8,11 +8,11 @@ from pathlib import Path
 
 import pytest
 
-import sim.setup as sim_setup
-from cvs.frames import StereoFrame
-from rig.tip_sensors import TipMeasurement, TipSensor
-from sim.experiments import cube_table, run_cube
-from sim.setup import load_setup
+import wristmark.sim.setup as sim_setup
+from wristmark.cvs.frames import StereoFrame
+from wristmark.rig.tip_sensors import TipMeasurement, TipSensor
+from wristmark.sim.experiments import cube_table, run_cube
+from wristmark.sim.setup import load_setup
 
 
 class BlindAfter:

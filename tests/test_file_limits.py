@@ -15,8 +15,8 @@ from pathlib import Path
 
 import pytest
 
-from models.config_io import MAX_CONFIG_BYTES, load_yaml
-from models.errors import ConfigError
+from wristmark.models.config_io import MAX_CONFIG_BYTES, load_yaml
+from wristmark.models.errors import ConfigError
 
 ROOT = Path(__file__).resolve().parents[1]
 PRODUCT = ("models", "cvs", "solvers", "rig", "sim", "viz")
@@ -30,7 +30,7 @@ MEASURE = """
 import json, resource, sys, time
 sys.path.insert(0, {root!r})
 resource.setrlimit(resource.RLIMIT_AS, (2 << 30, 2 << 30))  # the test must not take the machine down
-from models.errors import ConfigError
+from wristmark.models.errors import ConfigError
 import {module}
 before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
 t0 = time.perf_counter()
@@ -67,7 +67,7 @@ def test_alias_bomb_is_refused_at_once(tmp_path: Path) -> None:
     f = tmp_path / "plant.yaml"
     f.write_text(BOMB)
     assert f.stat().st_size < 1100
-    res = measure("sim.plant_params", f"sim.plant_params.PlantParams.load({str(f)!r})")
+    res = measure("wristmark.sim.plant_params", f"wristmark.sim.plant_params.PlantParams.load({str(f)!r})")
     assert_refused_cheaply(res, "plant.yaml:2:", "anchors and aliases are not allowed", "&a")
 
 
@@ -76,7 +76,7 @@ def test_oversized_config_is_refused_before_reading(tmp_path: Path) -> None:
     with open(f, "wb") as fh:  # a sparse 200 MB file: "control_dt: 0.06" then zeros
         fh.write(b"control_dt: 0.06\n")
         fh.truncate(200 * 10**6)
-    res = measure("models.config_io", f"models.config_io.load_yaml({str(f)!r})")
+    res = measure("wristmark.models.config_io", f"wristmark.models.config_io.load_yaml({str(f)!r})")
     assert_refused_cheaply(res, "rig.yaml", "200.0 MB", "1.0 MB limit")
 
 
@@ -87,7 +87,7 @@ def test_oversized_calibration_is_refused_before_reading(tmp_path: Path, head: b
     with open(f, "wb") as fh:
         fh.write(head)
         fh.truncate(200 * 10**6)
-    res = measure("cvs.calibration_io", f"cvs.calibration_io.load_calibration({str(f)!r})")
+    res = measure("wristmark.cvs.calibration_io", f"wristmark.cvs.calibration_io.load_calibration({str(f)!r})")
     assert_refused_cheaply(res, "calib.yml", "calibration file", "limit")
 
 
@@ -121,7 +121,7 @@ def test_deep_nesting_is_one_error(tmp_path: Path) -> None:
 def test_the_command_line_reports_it_in_one_line(tmp_path: Path) -> None:
     f = tmp_path / "plant.yaml"
     f.write_text(BOMB)
-    p = subprocess.run([sys.executable, "-m", "rig.cli", "experiment", "cube", "--plant", str(f)], cwd=ROOT,
+    p = subprocess.run([sys.executable, "-m", "wristmark", "experiment", "cube", "--plant", str(f)], cwd=ROOT,
                        capture_output=True, text=True, timeout=120)
     assert p.returncode == 2
     assert len(p.stderr.strip().splitlines()) == 1 and "aliases are not allowed" in p.stderr

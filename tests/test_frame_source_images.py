@@ -8,9 +8,9 @@ from pathlib import Path
 import cv2
 import pytest
 
-from cvs.frames import FrameSourceError, StereoSource, frames
-from cvs.open_source import SourceOptions, open_stereo_source, source_length
-from models.errors import InputError
+from wristmark.cvs.frames import FrameSourceError, StereoSource, frames
+from wristmark.cvs.open_source import SourceOptions, open_stereo_source, source_length
+from wristmark.models.errors import InputError
 
 
 def _folder(tmp_path: Path, frame_ids: tuple, n: int, ext: str = ".png") -> Path:

@@ -11,10 +11,10 @@ from collections.abc import Callable, Iterator
 import numpy as np
 import pytest
 
-from cvs.frame_layout import join_stereo
-from cvs.frames import FrameSourceError
-from cvs.open_source import SourceOptions, open_stereo_source
-from rig.mjpeg_server import MjpegServer
+from wristmark.cvs.frame_layout import join_stereo
+from wristmark.cvs.frames import FrameSourceError
+from wristmark.cvs.open_source import SourceOptions, open_stereo_source
+from wristmark.rig.mjpeg_server import MjpegServer
 
 FPS = 40.0
 

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from cvs.frame_layout import join_stereo, split_stereo
-from cvs.frames import FrameSourceError, frames
-from cvs.open_source import SourceOptions, open_stereo_source, source_length
+from wristmark.cvs.frame_layout import join_stereo, split_stereo
+from wristmark.cvs.frames import FrameSourceError, frames
+from wristmark.cvs.open_source import SourceOptions, open_stereo_source, source_length
 
 N = 8
 CODECS = {"mjpg": ("MJPG", ".avi"), "ffv1": ("FFV1", ".mkv")}

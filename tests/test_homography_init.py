@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from cvs.camera import Camera
-from cvs.marker import MarkerModel
-from models.errors import InputError
-from solvers.homography_init import homography_dlt, homography_pose, pose_from_homography, undistorted_pixels
+from wristmark.cvs.camera import Camera
+from wristmark.cvs.marker import MarkerModel
+from wristmark.models.errors import InputError
+from wristmark.solvers.homography_init import homography_dlt, homography_pose, pose_from_homography, undistorted_pixels
 
 K = np.array([[1380.0, 0, 959.5], [0, 1380.0, 539.5], [0, 0, 1]])
 CAM = Camera(K, np.array([-0.25, 0.08, 0.001, -0.0005, 0.0]))

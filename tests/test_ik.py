@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from models.errors import InputError
-from models.ik import solve_tip_ik
-from models.kinematics import tip_position
-from models.limits import within_limits
-from models.robot_params import HOME_PSI, RobotParams
+from wristmark.models.errors import InputError
+from wristmark.models.ik import solve_tip_ik
+from wristmark.models.kinematics import tip_position
+from wristmark.models.limits import within_limits
+from wristmark.models.robot_params import HOME_PSI, RobotParams
 
 PARAMS = RobotParams()
 HOME = np.array(HOME_PSI)

@@ -9,7 +9,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from cvs.image_decode import decode_image
+from wristmark.cvs.image_decode import decode_image
 
 ROOT = Path(__file__).resolve().parents[1]
 CALIB = ROOT / "docs" / "example" / "calib.yaml"
@@ -27,7 +27,7 @@ def _images(tmp_path: Path) -> tuple[Path, Path]:
 
 def test_truncated_png_is_one_line_of_ours(tmp_path: Path) -> None:
     full, cut = _images(tmp_path)
-    p = subprocess.run([sys.executable, "-m", "rig.cli", "track", "--calib", str(CALIB), str(cut), str(full)],
+    p = subprocess.run([sys.executable, "-m", "wristmark", "track", "--calib", str(CALIB), str(cut), str(full)],
                        cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert p.returncode == 2
     lines = p.stderr.strip().splitlines()

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from cvs.jpeg_stamp import add_capture_stamp, read_capture_stamp
+from wristmark.cvs.jpeg_stamp import add_capture_stamp, read_capture_stamp
 
 
 def test_round_trip_and_decoders_ignore_it() -> None:

@@ -11,15 +11,15 @@ from hypothesis import strategies as st
 from reference_chain import chain
 from scipy.spatial.transform import Rotation
 
-from models.errors import InputError
-from models.kinematics import (
+from wristmark.models.errors import InputError
+from wristmark.models.kinematics import (
     ArmFrames,
     check_psi,
     forward_kinematics,
     tip_jacobian,
     tip_position,
 )
-from models.robot_params import HOME_PSI, RobotParams
+from wristmark.models.robot_params import HOME_PSI, RobotParams
 
 PARAMS = RobotParams()
 SEEDED = settings(max_examples=60, derandomize=True, deadline=None)

@@ -9,10 +9,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from models.actuation import actuators_from_psi
-from models.errors import LimitError
-from models.kinematics import forward_kinematics
-from models.limits import (
+from wristmark.models.actuation import actuators_from_psi
+from wristmark.models.errors import LimitError
+from wristmark.models.kinematics import forward_kinematics
+from wristmark.models.limits import (
     actuator_bounds,
     check_limits,
     clamp_psi,
@@ -22,7 +22,7 @@ from models.limits import (
     within_limits,
     wrap_angle,
 )
-from models.robot_params import HOME_PSI, RobotParams
+from wristmark.models.robot_params import HOME_PSI, RobotParams
 
 PARAMS = RobotParams()
 SEEDED = settings(max_examples=80, derandomize=True, deadline=None)

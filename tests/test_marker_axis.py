@@ -8,24 +8,24 @@ axis sees the same arm with the tip pointing LEFT, where the default prior (+x) 
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from cvs.calibration_io import load_calibration
-from cvs.camera import StereoCamera, scaled_stereo_camera
-from cvs.marker import MarkerModel
-from cvs.marker_axis import AxisEvidenceSettings, axis_evidence
-from cvs.marker_tracker import MarkerTracker
-from models.arm_shape import arm_shape
-from models.robot_params import RobotParams
-from sim.render import RenderedPair, StereoRenderer
-from sim.render_settings import RenderSettings
-from sim.visibility import random_visible_psi
-from solvers.stereo_pose import HALF_TURN_X
+from wristmark.cvs.calibration_io import load_calibration
+from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera
+from wristmark.cvs.marker import MarkerModel
+from wristmark.cvs.marker_axis import AxisEvidenceSettings, axis_evidence
+from wristmark.cvs.marker_tracker import MarkerTracker
+from wristmark.models.arm_shape import arm_shape
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.robot_params import RobotParams
+from wristmark.sim.render import RenderedPair, StereoRenderer
+from wristmark.sim.render_settings import RenderSettings
+from wristmark.sim.visibility import random_visible_psi
+from wristmark.solvers.stereo_pose import HALF_TURN_X
 
-CAM = scaled_stereo_camera(load_calibration(Path(__file__).resolve().parents[1] / "configs" / "camera.yaml"), 0.5)
+CAM = scaled_stereo_camera(load_calibration(CONFIG_DIR / "camera.yaml"), 0.5)
 MARKER = MarkerModel()
 SPREAD = (0.25, 0.012, 0.2, 0.6, 0.3, 0.6)  # as `wristmark render`
 

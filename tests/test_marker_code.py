@@ -11,20 +11,21 @@ import cv2
 import numpy as np
 import pytest
 
-from cvs.calibration_io import load_calibration
-from cvs.camera import StereoCamera, scaled_stereo_camera
-from cvs.marker import MarkerModel
-from cvs.marker_code import CODE_WORDS, coded_marker, window_margin
-from cvs.marker_tracker import MarkerTracker, TrackResult
-from models.arm_shape import ArmShape, arm_shape
-from models.errors import ConfigError
-from models.robot_params import HOME_PSI, RobotParams
-from sim.render import RenderedPair, StereoRenderer
-from sim.render_settings import RenderSettings
+from wristmark.cvs.calibration_io import load_calibration
+from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera
+from wristmark.cvs.marker import MarkerModel
+from wristmark.cvs.marker_code import CODE_WORDS, coded_marker, window_margin
+from wristmark.cvs.marker_tracker import MarkerTracker, TrackResult
+from wristmark.models.arm_shape import ArmShape, arm_shape
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.errors import ConfigError
+from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark.sim.render import RenderedPair, StereoRenderer
+from wristmark.sim.render_settings import RenderSettings
 
 ROOT = Path(__file__).resolve().parents[1]
-CODED = MarkerModel.load(ROOT / "configs" / "marker_coded.yaml")
-CAM = scaled_stereo_camera(load_calibration(ROOT / "configs" / "camera.yaml"), 0.75)  # at 540p the tilt is ~1 deg
+CODED = MarkerModel.load(CONFIG_DIR / "marker_coded.yaml")
+CAM = scaled_stereo_camera(load_calibration(CONFIG_DIR / "camera.yaml"), 0.75)  # at 540p the tilt is ~1 deg
 PARAMS = RobotParams()
 
 
@@ -194,7 +195,7 @@ def test_independent_renderer_draws_the_code_and_track_reads_it(tmp_path: Path) 
 
     out = tmp_path / "coded"
     ind.render_dataset(out, pairs=3, seed=151, scale=0.6, look=ind.Look(direction="random"),
-                       marker_file=ROOT / "configs" / "marker_coded.yaml")
+                       marker_file=CONFIG_DIR / "marker_coded.yaml")
     args = [str(ROOT / ".venv" / "bin" / "wristmark"), "track", "--calib", str(out / "calib.yaml"), "--marker",
             str(out / "marker.yaml"), "--json"]
     for left, right in chk.pair_paths(out):

@@ -12,14 +12,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cvs.marker import MarkerModel
-from cvs.marker_print import page_size
-from rig.cli import main
-from sim.render_arm import Sleeve, pack_sleeve
-from sim.render_raycast import sleeve_dark
+from wristmark.cvs.marker import MarkerModel
+from wristmark.cvs.marker_print import page_size
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.rig.cli import main
+from wristmark.sim.render_arm import Sleeve, pack_sleeve
+from wristmark.sim.render_raycast import sleeve_dark
 
 ROOT = Path(__file__).resolve().parents[1]
-CODED_FILE = ROOT / "configs" / "marker_coded.yaml"
+CODED_FILE = CONFIG_DIR / "marker_coded.yaml"
 PX_PER_MM = 20.0
 
 
@@ -36,7 +37,7 @@ def _rasterise_svg(path: Path) -> tuple[np.ndarray, float, float]:
     return img, w, h
 
 
-@pytest.mark.parametrize("marker_file", [CODED_FILE, ROOT / "configs" / "marker.yaml"])
+@pytest.mark.parametrize("marker_file", [CODED_FILE, CONFIG_DIR / "marker.yaml"])
 def test_printed_svg_wrapped_back_matches_the_renderers_sleeve(marker_file: Path, tmp_path: Path) -> None:
     out = tmp_path / "sleeve.svg"
     assert main(["marker", "print", "--marker", str(marker_file), "--out", str(out)]) == 0

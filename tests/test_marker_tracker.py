@@ -2,23 +2,22 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-from cvs.calibration_io import load_calibration
-from cvs.marker import MarkerModel
-from cvs.marker_tracker import MarkerTracker, kabsch
-from cvs.stereo_match import match_corners
-from models.arm_shape import arm_shape
-from models.errors import InputError
-from models.robot_params import RobotParams
-from sim.render import RenderedPair, StereoRenderer
-from sim.render_settings import RenderSettings
-from sim.visibility import random_visible_psi
+from wristmark.cvs.calibration_io import load_calibration
+from wristmark.cvs.marker import MarkerModel
+from wristmark.cvs.marker_tracker import MarkerTracker, kabsch
+from wristmark.cvs.stereo_match import match_corners
+from wristmark.models.arm_shape import arm_shape
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.errors import InputError
+from wristmark.models.robot_params import RobotParams
+from wristmark.sim.render import RenderedPair, StereoRenderer
+from wristmark.sim.render_settings import RenderSettings
+from wristmark.sim.visibility import random_visible_psi
 
-CAM = load_calibration(Path(__file__).resolve().parents[1] / "configs" / "camera.yaml")
+CAM = load_calibration(CONFIG_DIR / "camera.yaml")
 MARKER = MarkerModel()
 SPREAD = (0.25, 0.012, 0.2, 0.6, 0.3, 0.6)  # as `wristmark render`
 
@@ -140,7 +139,7 @@ class _Blind:
 
 @pytest.mark.parametrize(("kind", "recovers"), [("auto", True), ("paper", False)])
 def test_auto_gives_the_second_detector_one_try(frames: list[RenderedPair], kind: str, recovers: bool) -> None:
-    from cvs.marker_tracker import TrackerSettings
+    from wristmark.cvs.marker_tracker import TrackerSettings
 
     trk = MarkerTracker(CAM, MARKER, TrackerSettings(detector=kind))
     trk.detector_left = trk.detector_right = _Blind()  # type: ignore[assignment]
@@ -159,7 +158,7 @@ def test_roi_tracking_starts_from_the_previous_pose_only_when_it_fits(
 ) -> None:
     """Start poses are computed lazily: when the previous pair's pose already fits, no
     homography (nor IPPE, nor triangulation) is computed."""
-    import cvs.marker_tracker as mt
+    import wristmark.cvs.marker_tracker as mt
 
     calls: list[int] = []
     real = mt.homography_pose

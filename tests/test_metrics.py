@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from rig.metrics import corner_overshoot, error_stats, estimate_errors, tracking_errors
-from rig.run_log import CycleRecord
-from rig.trajectories import Trajectory
+from wristmark.rig.metrics import corner_overshoot, error_stats, estimate_errors, tracking_errors
+from wristmark.rig.run_log import CycleRecord
+from wristmark.rig.trajectories import Trajectory
 
 
 def _rec(t: float, p_des, p_true) -> CycleRecord:

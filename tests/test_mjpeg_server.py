@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 import pytest
 
-from rig.mjpeg_server import BOUNDARY, MjpegServer
+from wristmark.rig.mjpeg_server import BOUNDARY, MjpegServer
 
 
 def _read_parts(host: str, port: int, n: int, timeout: float = 5.0) -> tuple[bytes, list[bytes]]:

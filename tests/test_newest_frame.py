@@ -8,8 +8,8 @@ import time
 import numpy as np
 import pytest
 
-from cvs.frames import FrameSourceError, StereoFrame
-from cvs.newest_frame import NewestFrame
+from wristmark.cvs.frames import FrameSourceError, StereoFrame
+from wristmark.cvs.newest_frame import NewestFrame
 
 
 def _frame(k: int) -> StereoFrame:

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from sim.optical_tracker import OpticalTracker
+from wristmark.sim.optical_tracker import OpticalTracker
 
 P = np.array([0.01, -0.02, 0.15])
 

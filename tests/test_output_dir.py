@@ -17,8 +17,8 @@ from pathlib import Path
 
 import pytest
 
-from rig import cli
-from rig.output_dir import OutputExistsError, claim_outputs, link_latest, new_run_dir
+from wristmark.rig import cli
+from wristmark.rig.output_dir import OutputExistsError, claim_outputs, link_latest, new_run_dir
 
 ROOT = Path(__file__).resolve().parents[1]
 QUICK_CUBE = ["experiment", "cube", "--sensor", "truth-noise", "--duration", "0.12", "--no-progress"]

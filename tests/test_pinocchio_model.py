@@ -11,11 +11,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from models.errors import InputError
-from models.kinematics import forward_kinematics, tip_jacobian
-from models.pinocchio_model import PinocchioArm
-from models.robot_params import HOME_PSI, RobotParams
-from models.urdf import FRAME_NAMES
+from wristmark.models.errors import InputError
+from wristmark.models.kinematics import forward_kinematics, tip_jacobian
+from wristmark.models.pinocchio_model import PinocchioArm
+from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark.models.urdf import FRAME_NAMES
 
 PARAMS = RobotParams()
 SEEDED = settings(max_examples=40, derandomize=True, deadline=None)
@@ -127,7 +127,7 @@ def test_unknown_frame_and_bad_psi() -> None:
 
 def test_link_cylinders_follow_the_arc() -> None:
     """Each pseudo-rigid link's cylinder centre lies on its chord, within the sagitta of the arc."""
-    from models.constant_curvature import segment_point
+    from wristmark.models.constant_curvature import segment_point
 
     n = 8
     a = arm(n)

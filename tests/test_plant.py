@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from models.actuation import actuators_from_psi
-from models.kinematics import forward_kinematics
-from models.plant_interface import ActuatedArm
-from models.robot_params import HOME_PSI, RobotParams
-from sim.plant import TruePlant
-from sim.plant_params import PlantParams
+from wristmark.models.actuation import actuators_from_psi
+from wristmark.models.kinematics import forward_kinematics
+from wristmark.models.plant_interface import ActuatedArm
+from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark.sim.plant import TruePlant
+from wristmark.sim.plant_params import PlantParams
 
 PARAMS = RobotParams()
 HOME = np.array(HOME_PSI)

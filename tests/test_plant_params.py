@@ -6,10 +6,11 @@ from pathlib import Path
 
 import pytest
 
-from models.errors import ConfigError
-from sim.plant_params import PlantParams
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.errors import ConfigError
+from wristmark.sim.plant_params import PlantParams
 
-CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+CONFIGS = CONFIG_DIR
 
 
 def _write(tmp_path: Path, text: str) -> Path:

@@ -9,10 +9,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from models.errors import LimitError
-from rig import protocol as P
-from rig.cobs import cobs_decode
-from rig.crc16 import crc16_ccitt_false
+from wristmark.models.errors import LimitError
+from wristmark.rig import protocol as P
+from wristmark.rig.cobs import cobs_decode
+from wristmark.rig.crc16 import crc16_ccitt_false
 
 i32 = st.integers(P.I32_MIN, P.I32_MAX)
 u8 = st.integers(0, 255)

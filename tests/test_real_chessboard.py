@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
-from cvs.corner_detector import assemble_grid, detect_xcorners
+from wristmark.cvs.corner_detector import assemble_grid, detect_xcorners
 
 DATA = Path(__file__).resolve().parent / "data" / "opencv_stereo"
 IDS = ("01", "02", "03", "04", "05", "06", "07", "08", "09", "11", "12", "13", "14")

@@ -13,13 +13,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cvs.calibration_io import save_calibration
-from cvs.camera import scaled_stereo_camera
-from cvs.registration_io import load_registration
-from rig.cli import main
-from sim.plant_params import PlantParams
-from sim.setup import load_setup
-from solvers.registration import transform_error
+from wristmark.cvs.calibration_io import save_calibration
+from wristmark.cvs.camera import scaled_stereo_camera
+from wristmark.cvs.registration_io import load_registration
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.rig.cli import main
+from wristmark.sim.plant_params import PlantParams
+from wristmark.sim.setup import load_setup
+from wristmark.solvers.registration import transform_error
 
 ROOT = Path(__file__).resolve().parents[1]
 SCALE = 0.4
@@ -29,14 +30,14 @@ LAB = r"""
 import sys, threading, time
 import cv2, numpy as np
 cv2.setNumThreads(1)
-from cvs.camera import scaled_stereo_camera
-from models.robot_params import HOME_PSI
-from rig.mjpeg_server import MjpegServer
-from sim.actuator_emulator import ActuatorEmulator
-from sim.plant_params import PlantParams
-from sim.render import StereoRenderer
-from sim.render_settings import noise_preset
-from sim.setup import load_setup, make_plant
+from wristmark.cvs.camera import scaled_stereo_camera
+from wristmark.models.robot_params import HOME_PSI
+from wristmark.rig.mjpeg_server import MjpegServer
+from wristmark.sim.actuator_emulator import ActuatorEmulator
+from wristmark.sim.plant_params import PlantParams
+from wristmark.sim.render import StereoRenderer
+from wristmark.sim.render_settings import noise_preset
+from wristmark.sim.setup import load_setup, make_plant
 
 scale, offset = float(sys.argv[1]), tuple(float(v) for v in sys.argv[2:8])
 setup = load_setup(plant=sys.argv[8]).with_changes(plant=PlantParams(camera_offset=offset))
@@ -64,13 +65,13 @@ server.close()
 
 
 def test_register_through_serial_and_stream(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    setup = load_setup(plant=ROOT / "configs" / "plant_ideal.yaml")
+    setup = load_setup(plant=CONFIG_DIR / "plant_ideal.yaml")
     setup = setup.with_changes(plant=PlantParams(camera_offset=OFFSET))
     true_cam = scaled_stereo_camera(setup.true_camera, SCALE)
     save_calibration(tmp_path / "calib.yaml", scaled_stereo_camera(setup.camera, SCALE))
     err = (tmp_path / "lab.err").open("w")
     lab = subprocess.Popen([sys.executable, "-c", LAB, str(SCALE), *map(str, OFFSET),
-                            str(ROOT / "configs" / "plant_ideal.yaml")], cwd=ROOT, stdin=subprocess.PIPE,
+                            str(CONFIG_DIR / "plant_ideal.yaml")], cwd=ROOT, stdin=subprocess.PIPE,
                            stdout=subprocess.PIPE, stderr=err, text=True)
     try:
         assert lab.stdout is not None
@@ -108,11 +109,11 @@ def test_a_move_resumes_after_the_watchdog_fired() -> None:
     ENABLEs again and finishes the move from the encoders; it ends DISABLEd."""
     import time
 
-    from models.robot_params import HOME_PSI, RobotParams
-    from rig.actuator_driver import ActuatorDriver
-    from rig.registration_hardware import HardwareRegistrationRig
-    from sim.actuator_emulator import ActuatorEmulator
-    from sim.plant import TruePlant
+    from wristmark.models.robot_params import HOME_PSI, RobotParams
+    from wristmark.rig.actuator_driver import ActuatorDriver
+    from wristmark.rig.registration_hardware import HardwareRegistrationRig
+    from wristmark.sim.actuator_emulator import ActuatorEmulator
+    from wristmark.sim.plant import TruePlant
 
     params = RobotParams()
     home = np.asarray(HOME_PSI, float)

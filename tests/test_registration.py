@@ -10,16 +10,17 @@ import numpy as np
 import pytest
 import yaml
 
-from cvs.registration_io import Registration, load_registration, save_registration
-from models.errors import ConfigError, InputError
-from models.robot_params import RobotParams
-from rig.cli import main
-from rig.registration_poses import APPROACH, choose_poses
-from rig.registration_run import Observation, motion_sign, registration_poses
-from solvers.registration import ArmCorrection, RegistrationPose, solve_registration, transform_error
+from wristmark.cvs.registration_io import Registration, load_registration, save_registration
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.errors import ConfigError, InputError
+from wristmark.models.robot_params import RobotParams
+from wristmark.rig.cli import main
+from wristmark.rig.registration_poses import APPROACH, choose_poses
+from wristmark.rig.registration_run import Observation, motion_sign, registration_poses
+from wristmark.solvers.registration import ArmCorrection, RegistrationPose, solve_registration, transform_error
 
 PARAMS = RobotParams()
-CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+CONFIGS = CONFIG_DIR
 OFFSET = [0.004, 0.003, -0.003, -0.03, 0.035, 0.03]  # [m, m, m, rad, rad, rad]: 5.8 mm, 3.2 deg
 
 
@@ -33,11 +34,11 @@ def _true_W() -> np.ndarray:
 
 
 def _observations(arm: ArmCorrection, W: np.ndarray, n: int = 10) -> list[Observation]:
-    from cvs.calibration_io import load_calibration
-    from cvs.camera import StereoCamera
+    from wristmark.cvs.calibration_io import load_calibration
+    from wristmark.cvs.camera import StereoCamera
 
     cam: StereoCamera = load_calibration(CONFIGS / "camera.yaml")
-    from cvs.marker import MarkerModel
+    from wristmark.cvs.marker import MarkerModel
 
     poses = choose_poses(PARAMS, n, cam, MarkerModel())
     out = []
@@ -152,7 +153,7 @@ def misplaced(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 def test_simulated_bench_registration_accuracy(misplaced: dict[str, Path], capsys: pytest.CaptureFixture[str]) -> None:
     from scipy.spatial.transform import Rotation
 
-    from sim.setup import load_setup
+    from wristmark.sim.setup import load_setup
 
     setup = load_setup(plant=misplaced["plant"])
     truth = setup.true_camera.T_world_left
@@ -192,7 +193,7 @@ def test_closed_loop_after_registering(misplaced: dict[str, Path], tmp_path: Pat
 
 
 def test_track_with_registration_reports_the_world_tip(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from sim.dataset import load_dataset
+    from wristmark.sim.dataset import load_dataset
 
     ds = tmp_path / "ds"
     assert main(["render", "--out", str(ds), "--pairs", "1", "--seed", "2"]) == 0
@@ -208,9 +209,9 @@ def test_track_with_registration_reports_the_world_tip(tmp_path: Path, capsys: p
 
 
 def test_approach_offset_keeps_limits() -> None:
-    from cvs.calibration_io import load_calibration
-    from cvs.marker import MarkerModel
-    from models.limits import within_limits
+    from wristmark.cvs.calibration_io import load_calibration
+    from wristmark.cvs.marker import MarkerModel
+    from wristmark.models.limits import within_limits
 
     poses = choose_poses(PARAMS, 24, load_calibration(CONFIGS / "camera.yaml"), MarkerModel())
     assert len(poses) == 24
@@ -222,8 +223,8 @@ def test_approach_offset_keeps_limits() -> None:
 def test_camera_offset_moves_only_the_true_camera(tmp_path: Path) -> None:
     from scipy.spatial.transform import Rotation
 
-    from sim.plant_params import PlantParams
-    from sim.setup import load_setup
+    from wristmark.sim.plant_params import PlantParams
+    from wristmark.sim.setup import load_setup
 
     (tmp_path / "p.yaml").write_text(yaml.safe_dump({"camera_offset": OFFSET}))
     setup = load_setup(plant=tmp_path / "p.yaml")

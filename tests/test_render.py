@@ -8,17 +8,18 @@ import cv2
 import numpy as np
 import pytest
 
-from cvs.calibration_io import load_calibration
-from cvs.camera import scaled_stereo_camera
-from cvs.marker import MarkerModel
-from models.arm_shape import arm_shape
-from models.errors import ConfigError, InputError
-from models.robot_params import HOME_PSI, RobotParams
-from sim.render import RenderedPair, StereoRenderer
-from sim.render_settings import RenderSettings, noise_preset
-from sim.visibility import marker_visible
+from wristmark.cvs.calibration_io import load_calibration
+from wristmark.cvs.camera import scaled_stereo_camera
+from wristmark.cvs.marker import MarkerModel
+from wristmark.models.arm_shape import arm_shape
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.errors import ConfigError, InputError
+from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark.sim.render import RenderedPair, StereoRenderer
+from wristmark.sim.render_settings import RenderSettings, noise_preset
+from wristmark.sim.visibility import marker_visible
 
-DEFAULT = Path(__file__).resolve().parents[1] / "configs" / "camera.yaml"
+DEFAULT = CONFIG_DIR / "camera.yaml"
 PSI = np.array(HOME_PSI) + [0.2, 0.0, 0.1, 0.3, 0.0, 0.2]
 
 
@@ -167,8 +168,8 @@ def test_incremental_optics_equal_full_frame(half_camera, settings) -> None:
 def test_adaptive_supersampling_matches_full(half_camera) -> None:
     # Supersampling only where a pixel's neighbourhood changes surface or curves its shading
     # leaves the radiance within 0.1 grey levels of supersampling every pixel, with far fewer rays.
-    from sim.render import EXPOSURE, arm_primitives
-    from sim.render_arm import plan_arm, render_arm
+    from wristmark.sim.render import EXPOSURE, arm_primitives
+    from wristmark.sim.render_arm import plan_arm, render_arm
 
     raw = dict(read_noise=0.0, shot_gain=0.0, blur_sigma=0.0, vignetting=0.0)
     a = StereoRenderer(half_camera, MarkerModel(), RenderSettings(**raw), seed=0)
@@ -205,7 +206,7 @@ def test_noise_fresh_every_frame_with_the_sensor_statistics(half_camera) -> None
 def test_sensor_noise_does_not_depend_on_the_patch() -> None:
     # The noise of a pixel depends on (key, pixel, channel) only: replacing a region by a patch
     # gives the bytes of rendering the pasted frame whole.
-    from sim.render_sensor import normal_table, sensor_image
+    from wristmark.sim.render_sensor import normal_table, sensor_image
 
     rng = np.random.default_rng(0)
     st = noise_preset("default")
@@ -229,8 +230,8 @@ def test_shading_setting_validated() -> None:
 
 
 def test_render_stage_inputs_validated() -> None:
-    from sim.render_optics import optics_signal_box
-    from sim.render_sensor import sensor_image
+    from wristmark.sim.render_optics import optics_signal_box
+    from wristmark.sim.render_sensor import sensor_image
 
     cam = scaled_stereo_camera(load_calibration(DEFAULT), 0.25)
     r = StereoRenderer(cam, MarkerModel(), RenderSettings(), seed=0)

@@ -4,10 +4,11 @@ from pathlib import Path
 
 import pytest
 
-from models.errors import ConfigError
-from rig.rig_config import RigConfig
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.errors import ConfigError
+from wristmark.rig.rig_config import RigConfig
 
-CONFIGS = Path(__file__).resolve().parent.parent / "configs"
+CONFIGS = CONFIG_DIR
 
 
 def test_default_file_loads_and_matches_paper_cycle() -> None:

@@ -11,26 +11,27 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from models.actuation import actuators_from_psi
-from models.limits import actuator_bounds
-from models.robot_params import HOME_PSI, RobotParams
-from rig import protocol as P
-from rig.actuator_driver import (
+from wristmark.models.actuation import actuators_from_psi
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.limits import actuator_bounds
+from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark.rig import protocol as P
+from wristmark.rig.actuator_driver import (
     ActuatorDriver,
     ActuatorEStopped,
     ActuatorNotEnabled,
     ActuatorRejected,
 )
-from rig.actuator_link import DirectLink
-from rig.serial_link import SerialLink, SimClock
-from sim.actuator_emulator import ActuatorEmulator
-from sim.locked_arm import LockedArm
-from sim.plant import TruePlant
-from sim.plant_params import PlantParams
+from wristmark.rig.actuator_link import DirectLink
+from wristmark.rig.serial_link import SerialLink, SimClock
+from wristmark.sim.actuator_emulator import ActuatorEmulator
+from wristmark.sim.locked_arm import LockedArm
+from wristmark.sim.plant import TruePlant
+from wristmark.sim.plant_params import PlantParams
 
 ROOT = Path(__file__).resolve().parent.parent
 PARAMS = RobotParams()
-PLANT = PlantParams.load(ROOT / "configs" / "plant.yaml")
+PLANT = PlantParams.load(CONFIG_DIR / "plant.yaml")
 HOME = np.asarray(HOME_PSI, float)
 QUANTUM = 0.5e-6  # [rad or m] largest rounding of an SI value to protocol micro-units
 TIP_QUANTUM = 50e-6  # [m] tip displacement of QUANTUM on every actuator (see the first test)

@@ -8,24 +8,24 @@ import dataclasses
 import numpy as np
 import pytest
 
-from models.ik import solve_tip_ik
-from models.kinematics import tip_position
-from models.limits import within_limits
-from models.robot_params import HOME_PSI, RobotParams
-from rig.actuator_link import DirectLink
-from rig.frame_feed import SynchronousFeed
-from rig.rig_config import RigConfig
-from rig.run_log import RunLog
-from rig.servo_loop import MarkerLostError, ServoLoop
-from rig.tip_sensors import TipMeasurement
-from rig.trajectories import Trajectory
-from sim.optical_tracker import OpticalTracker
-from sim.plant import TruePlant
-from sim.plant_params import PlantParams
-from sim.setup import load_setup, make_direct_loop
-from sim.truth import SimulatedTruth
-from sim.truth_sensor import NoisyTruthSensor, TruthClockSource
-from solvers.controller import ControllerConfig, make_controller
+from wristmark.models.ik import solve_tip_ik
+from wristmark.models.kinematics import tip_position
+from wristmark.models.limits import within_limits
+from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark.rig.actuator_link import DirectLink
+from wristmark.rig.frame_feed import SynchronousFeed
+from wristmark.rig.rig_config import RigConfig
+from wristmark.rig.run_log import RunLog
+from wristmark.rig.servo_loop import MarkerLostError, ServoLoop
+from wristmark.rig.tip_sensors import TipMeasurement
+from wristmark.rig.trajectories import Trajectory
+from wristmark.sim.optical_tracker import OpticalTracker
+from wristmark.sim.plant import TruePlant
+from wristmark.sim.plant_params import PlantParams
+from wristmark.sim.setup import load_setup, make_direct_loop
+from wristmark.sim.truth import SimulatedTruth
+from wristmark.sim.truth_sensor import NoisyTruthSensor, TruthClockSource
+from wristmark.solvers.controller import ControllerConfig, make_controller
 
 P = RobotParams()
 PLANT = PlantParams(bend_gain=(0.95, 0.92), plane_offset=(0.02, -0.03), actuator_tau=0.03,
@@ -134,8 +134,8 @@ def test_config_rejects_latency_longer_than_cycle() -> None:
 
 
 def test_start_at_ramps_within_velocity_limits_from_where_the_arm_is() -> None:
-    from models.actuation import psi_from_actuators
-    from models.limits import wrap_angle
+    from wristmark.models.actuation import psi_from_actuators
+    from wristmark.models.limits import wrap_angle
 
     setup = load_setup()
     setup = setup.with_changes(rig=dataclasses.replace(setup.rig, sensor="truth-noise"))

@@ -2,17 +2,16 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-from cvs.calibration_io import load_calibration
-from cvs.marker import MarkerModel
-from cvs.stereo_match import StereoRectifier, chain_indices, match_corners
-from models.errors import InputError
+from wristmark.cvs.calibration_io import load_calibration
+from wristmark.cvs.marker import MarkerModel
+from wristmark.cvs.stereo_match import StereoRectifier, chain_indices, match_corners
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.errors import InputError
 
-CAM = load_calibration(Path(__file__).resolve().parents[1] / "configs" / "camera.yaml")
+CAM = load_calibration(CONFIG_DIR / "camera.yaml")
 MARKER = MarkerModel()
 RECT = StereoRectifier(CAM)
 

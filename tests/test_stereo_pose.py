@@ -2,20 +2,19 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from cvs.calibration_io import load_calibration
-from cvs.marker import MarkerModel
-from models.errors import InputError
-from solvers.homography_init import homography_pose
-from solvers.stereo_pose import PoseSettings, StereoPoseSolver
+from wristmark.cvs.calibration_io import load_calibration
+from wristmark.cvs.marker import MarkerModel
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.errors import InputError
+from wristmark.solvers.homography_init import homography_pose
+from wristmark.solvers.stereo_pose import PoseSettings, StereoPoseSolver
 
-CAM = load_calibration(Path(__file__).resolve().parents[1] / "configs" / "camera.yaml")
+CAM = load_calibration(CONFIG_DIR / "camera.yaml")
 MARKER = MarkerModel()
 
 

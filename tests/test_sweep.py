@@ -17,7 +17,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from rig.cli import main
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.rig.cli import main
 
 ROOT = Path(__file__).resolve().parent.parent
 METRICS = ("open_mean_mm", "open_max_mm", "closed_mean_mm", "closed_max_mm", "ratio", "closed_rms_mm",
@@ -34,7 +35,7 @@ SPEC = {
 
 
 def wristmark(*args: str, timeout: float = 240) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "rig.cli", *args], cwd=ROOT, capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "wristmark", *args], cwd=ROOT, capture_output=True, text=True,
                           timeout=timeout)
 
 
@@ -106,8 +107,8 @@ def test_one_worker_gives_exactly_the_same_rows(spec_file: Path, two_workers: Pa
 
 def test_trials_equal_the_same_runs_of_wristmark_experiment(two_workers: Path, tmp_path: Path) -> None:
     """Each trial run by hand: plant and rig files written here from configs/, not by the sweep."""
-    base = yaml.safe_load((ROOT / "configs" / "plant.yaml").read_text())
-    rig = dict(yaml.safe_load((ROOT / "configs" / "rig.yaml").read_text()), settle_time=0.5)
+    base = yaml.safe_load((CONFIG_DIR / "plant.yaml").read_text())
+    rig = dict(yaml.safe_load((CONFIG_DIR / "rig.yaml").read_text()), settle_time=0.5)
     write_yaml(tmp_path / "rig.yaml", rig)
 
     def one(i: int, latency: float, backlash: float) -> dict:
@@ -134,7 +135,7 @@ def test_trials_equal_the_same_runs_of_wristmark_experiment(two_workers: Path, t
 def test_a_killed_sweep_resumes_with_only_the_missing_trials(spec_file: Path, two_workers: Path,
                                                             tmp_path: Path) -> None:
     out = tmp_path / "killed"
-    proc = subprocess.Popen([sys.executable, "-m", "rig.cli", "sweep", str(spec_file), "--out", str(out),
+    proc = subprocess.Popen([sys.executable, "-m", "wristmark", "sweep", str(spec_file), "--out", str(out),
                              "--workers", "1", "--no-progress"], cwd=ROOT, start_new_session=True,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
@@ -244,8 +245,8 @@ def test_a_safe_stop_and_an_error_are_rows_not_a_crashed_sweep(tmp_path: Path) -
 
 
 def test_a_trial_that_fails_returns_an_error_row(tmp_path: Path) -> None:
-    from sim.sweep_spec import load_spec
-    from sim.sweep_trial import TrialJob, run_trial
+    from wristmark.sim.sweep_spec import load_spec
+    from wristmark.sim.sweep_trial import TrialJob, run_trial
 
     spec = tmp_path / "far.yaml"
     write_yaml(spec, {"experiment": "point", "set": {"sensor": "truth-noise", "duration": 1.0},
@@ -260,7 +261,7 @@ def test_a_trial_that_fails_returns_an_error_row(tmp_path: Path) -> None:
 
 
 def test_trials_expand_grid_random_and_seeds_in_order(tmp_path: Path) -> None:
-    from sim.sweep_spec import load_spec
+    from wristmark.sim.sweep_spec import load_spec
 
     spec = tmp_path / "mix.yaml"
     write_yaml(spec, {
@@ -328,10 +329,10 @@ def test_an_unreachable_scheduler_is_one_line(tmp_path: Path, spec_file: Path) -
 
 
 def test_the_fingerprint_follows_the_configuration_files_a_trial_reads(tmp_path: Path) -> None:
-    from sim.sweep_spec import load_spec
+    from wristmark.sim.sweep_spec import load_spec
 
     plant = tmp_path / "plant.yaml"
-    plant.write_text((ROOT / "configs" / "plant.yaml").read_text())
+    plant.write_text((CONFIG_DIR / "plant.yaml").read_text())
     spec = tmp_path / "s.yaml"
     write_yaml(spec, {"experiment": "cube", "set": {"sensor": "truth-noise", "plant": str(plant)},
                       "grid": {"latency": [0.03, 0.04]}})
@@ -348,8 +349,8 @@ def test_the_fingerprint_follows_the_configuration_files_a_trial_reads(tmp_path:
 ])
 def test_accuracy_and_load_trials_fill_their_metrics(experiment: str, options: dict, filled: tuple[str, ...],
                                                      tmp_path: Path) -> None:
-    from sim.sweep_spec import load_spec
-    from sim.sweep_trial import TrialJob, metric_columns, run_trial
+    from wristmark.sim.sweep_spec import load_spec
+    from wristmark.sim.sweep_trial import TrialJob, metric_columns, run_trial
 
     spec = tmp_path / "s.yaml"
     write_yaml(spec, {"experiment": experiment, "set": {"sensor": "truth-noise", **options}})

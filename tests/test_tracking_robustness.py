@@ -5,23 +5,22 @@ reason: never a wrong pose."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import cv2
 import numpy as np
 import pytest
 
-from cvs.calibration_io import load_calibration
-from cvs.marker import MarkerModel
-from cvs.marker_tracker import MarkerTracker, TrackResult
-from models.arm_shape import arm_shape
-from models.ik import solve_tip_ik
-from models.kinematics import tip_position
-from models.robot_params import HOME_PSI, RobotParams
-from sim.render import RenderedPair, StereoRenderer
-from sim.render_settings import RenderSettings, noise_preset
+from wristmark.cvs.calibration_io import load_calibration
+from wristmark.cvs.marker import MarkerModel
+from wristmark.cvs.marker_tracker import MarkerTracker, TrackResult
+from wristmark.models.arm_shape import arm_shape
+from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.ik import solve_tip_ik
+from wristmark.models.kinematics import tip_position
+from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark.sim.render import RenderedPair, StereoRenderer
+from wristmark.sim.render_settings import RenderSettings, noise_preset
 
-CAM = load_calibration(Path(__file__).resolve().parents[1] / "configs" / "camera.yaml")
+CAM = load_calibration(CONFIG_DIR / "camera.yaml")
 MARKER = MarkerModel()
 PARAMS = RobotParams()
 HOME = np.asarray(HOME_PSI, float)

@@ -7,7 +7,7 @@ import itertools
 import numpy as np
 import pytest
 
-from rig.trajectories import accuracy_targets, cube_trajectory, feedforward_velocity
+from wristmark.rig.trajectories import accuracy_targets, cube_trajectory, feedforward_velocity
 
 CENTRE = np.array([0.01, -0.005, 0.16])
 SIZE = (0.040, 0.020, 0.040)

@@ -10,10 +10,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from cvs.marker import MarkerModel
-from models.errors import ConfigError, InputError
-from models.robot_params import RobotParams
-from models.urdf import FRAME_NAMES, MATERIALS, chord_length, generate_urdf, write_urdf
+from wristmark.cvs.marker import MarkerModel
+from wristmark.models.errors import ConfigError, InputError
+from wristmark.models.robot_params import RobotParams
+from wristmark.models.urdf import FRAME_NAMES, MATERIALS, chord_length, generate_urdf, write_urdf
 
 PARAMS = RobotParams()
 

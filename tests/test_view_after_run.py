@@ -12,7 +12,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def test_experiment_view_says_the_url_closed_and_prints_the_replay_command(tmp_path: Path) -> None:
     run = tmp_path / "run"
-    p = subprocess.run([sys.executable, "-m", "rig.cli", "experiment", "cube", "--sensor", "truth-noise",
+    p = subprocess.run([sys.executable, "-m", "wristmark", "experiment", "cube", "--sensor", "truth-noise",
                         "--duration", "0.3", "--view", "--host", "127.0.0.2", "--no-progress", "--out", str(run)],
                        cwd=ROOT, capture_output=True, text=True, timeout=180)
     assert p.returncode == 0, p.stderr

@@ -26,13 +26,13 @@ import pytest
 from PIL import Image
 from test_viz_scene import fake_records, make_fake_run
 
-from rig.cli import main
-from sim.setup import load_setup
-from viz.framing import CameraView
-from viz.replay import load_run
-from viz.scene import ROOT, ArmScene, SceneConfig, SceneState
-from viz.snapshot import recording_visualizer
-from viz.style import RGB, TIP_KINDS, TIP_STYLES
+from wristmark.rig.cli import main
+from wristmark.sim.setup import load_setup
+from wristmark.viz.framing import CameraView
+from wristmark.viz.replay import load_run
+from wristmark.viz.scene import ROOT, ArmScene, SceneConfig, SceneState
+from wristmark.viz.snapshot import recording_visualizer
+from wristmark.viz.style import RGB, TIP_KINDS, TIP_STYLES
 
 WIDTH, HEIGHT = 1200, 800  # [px] viewport
 ARTIFACTS = Path(__file__).resolve().parent.parent / "runs" / "test-artifacts"
@@ -192,7 +192,7 @@ def test_static_home_snapshot_shows_arm_and_marker(page: Any, tmp_path: Path) ->
 
 def test_served_replay_page_shows_arm_marker_and_tips(page: Any, tmp_path: Path) -> None:
     run = make_fake_run(tmp_path / "run", cycles=30)
-    proc = subprocess.Popen([sys.executable, "-m", "rig.cli", "view", str(run), "--serve-seconds", "120",
+    proc = subprocess.Popen([sys.executable, "-m", "wristmark", "view", str(run), "--serve-seconds", "120",
                              "--no-play", "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         assert proc.stdout is not None
@@ -214,9 +214,9 @@ def test_served_replay_page_shows_arm_marker_and_tips(page: Any, tmp_path: Path)
 
 
 def test_live_page_follows_the_loop(page: Any, tmp_path: Path) -> None:
-    from cvs.frames import StereoFrame
-    from rig.tip_sensors import TipMeasurement
-    from viz.live import start_live_view
+    from wristmark.cvs.frames import StereoFrame
+    from wristmark.rig.tip_sensors import TipMeasurement
+    from wristmark.viz.live import start_live_view
 
     recs = [r for r in fake_records(30) if r.phase == "closed_loop"]
     setup = load_setup()

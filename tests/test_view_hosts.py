@@ -18,7 +18,7 @@ from pathlib import Path
 import psutil
 import pytest
 
-from viz.web_hosts import exposure_notice, listen_addresses
+from wristmark.viz.web_hosts import exposure_notice, listen_addresses
 
 ROOT = Path(__file__).resolve().parents[1]
 LOOPBACK = {"127.0.0.1", "::1"}
@@ -41,7 +41,7 @@ def listening(pid: int) -> set[tuple[str, int]]:
 @contextmanager
 def served_view(*extra: str) -> Iterator[tuple[subprocess.Popen[str], str]]:
     """``wristmark view --json`` running; yields the process and the URL it printed."""
-    proc = subprocess.Popen([sys.executable, "-m", "rig.cli", "view", "--json", "--serve-seconds", "120", *extra],
+    proc = subprocess.Popen([sys.executable, "-m", "wristmark", "view", "--json", "--serve-seconds", "120", *extra],
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         assert proc.stdout is not None
@@ -87,7 +87,7 @@ def test_host_opts_in_to_another_address_and_says_so() -> None:
 
 
 def test_the_live_view_is_on_loopback_too() -> None:
-    from viz.live import start_live_view
+    from wristmark.viz.live import start_live_view
 
     view = start_live_view(stream=None)
     try:
@@ -99,7 +99,7 @@ def test_the_live_view_is_on_loopback_too() -> None:
 
 
 def test_an_address_not_on_this_machine_is_one_line() -> None:
-    p = subprocess.run([sys.executable, "-m", "rig.cli", "view", "--serve-seconds", "1", "--host", "192.0.2.1"],
+    p = subprocess.run([sys.executable, "-m", "wristmark", "view", "--serve-seconds", "1", "--host", "192.0.2.1"],
                        cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert p.returncode == 2
     assert len(p.stderr.strip().splitlines()) == 1 and "cannot listen on 192.0.2.1" in p.stderr

@@ -20,15 +20,15 @@ import numpy as np
 import pytest
 from test_serial_link import PARAMS, PLANT
 
-from rig import protocol as P
-from rig.commands import servo as S
-from rig.metrics import error_stats
-from rig.realtime_priority import realtime_priority_allowed
-from rig.servo_summary import summarize
-from sim.actuator_emulator import ActuatorEmulator
-from sim.servo_bench import open_sim_session
-from sim.setup import SimSetup, load_setup
-from sim.virtual_lab import LabCamera, VirtualLab, true_tip_errors
+from wristmark.rig import protocol as P
+from wristmark.rig.commands import servo as S
+from wristmark.rig.metrics import error_stats
+from wristmark.rig.realtime_priority import realtime_priority_allowed
+from wristmark.rig.servo_summary import summarize
+from wristmark.sim.actuator_emulator import ActuatorEmulator
+from wristmark.sim.servo_bench import open_sim_session
+from wristmark.sim.setup import SimSetup, load_setup
+from wristmark.sim.virtual_lab import LabCamera, VirtualLab, true_tip_errors
 
 ROOT = Path(__file__).resolve().parent.parent
 # Image scale of the lab's endoscope and of the in-process reference. Measured on the loaded
@@ -54,13 +54,13 @@ NO_SIM = """
 import importlib.abc, sys
 class NoSim(importlib.abc.MetaPathFinder):
     def find_spec(self, name, path=None, target=None):
-        if name == "sim" or name.startswith("sim."):
+        if name == "wristmark.sim" or name.startswith("wristmark.sim."):
             raise ImportError("the hardware path imported " + name)
         return None
 sys.meta_path.insert(0, NoSim())
-from rig.cli import main
+from wristmark.rig.cli import main
 rc = main(sys.argv[1:])
-loaded = sorted(m for m in sys.modules if m == "sim" or m.startswith("sim."))
+loaded = sorted(m for m in sys.modules if m == "wristmark.sim" or m.startswith("wristmark.sim."))
 if loaded:
     print("simulated bench imported: " + ", ".join(loaded), file=sys.stderr)
     rc = rc or 99
@@ -102,7 +102,7 @@ def lab_process(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str,
     """`wristmark emulator --pty --camera-port 0` as its own process: (pty, url, truth CSV)."""
     truth = tmp_path_factory.mktemp("lab") / "truth.csv"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "rig.cli", "emulator", "--pty", "--camera-port", "0", "--fps", str(FPS),
+        [sys.executable, "-m", "wristmark", "emulator", "--pty", "--camera-port", "0", "--fps", str(FPS),
          "--image-scale", str(SCALE), "--jpeg-quality", "95", "--truth-out", str(truth), *RT_LAB],
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
@@ -169,7 +169,7 @@ def check_recording(path: Path, res: dict) -> None:
     """The servo run's bag: every cycle's actuators (commanded and measured), its frames and poses."""
     from rosbags.highlevel import AnyReader
 
-    from cvs.ros_image_msgs import typestore
+    from wristmark.cvs.ros_image_msgs import typestore
 
     rec = res["recording"]
     assert rec["problem"] == "" and rec["dropped_cycles"] == 0
@@ -192,19 +192,20 @@ def check_recording(path: Path, res: dict) -> None:
 def test_hardware_path_modules_never_import_the_simulated_bench() -> None:
     code = """
 import sys
-import rig.commands.servo as servo, rig.hardware_session, rig.servo_loop, rig.actuator_driver, rig.serial_link
-import rig.protocol, rig.frame_feed, rig.tip_sensors, rig.servo_summary, cvs.marker_tracker, cvs.open_source
-import cvs.frame_source_stream, cvs.frame_source_v4l2, solvers.controller
-from rig.cli import build_parser
+import wristmark.rig.commands.servo as servo, wristmark.rig.hardware_session, wristmark.rig.servo_loop
+import wristmark.rig.actuator_driver, wristmark.rig.serial_link, wristmark.rig.protocol, wristmark.rig.frame_feed
+import wristmark.rig.tip_sensors, wristmark.rig.servo_summary, wristmark.cvs.marker_tracker, wristmark.cvs.open_source
+import wristmark.cvs.frame_source_stream, wristmark.cvs.frame_source_v4l2, wristmark.solvers.controller
+from wristmark.rig.cli import build_parser
 args = build_parser("servo").parse_args(["servo", "--serial", "/dev/null", "--camera", "http://127.0.0.1:1/x"])
 servo.check_link_options(args)
 setup = servo.build_setup(args)
 traj = servo.build_trajectory(setup, "cube", None, 1.0)
 servo.start_configuration(setup, traj)
-from rig.servo_loop import ServoLoop
-from rig.tip_sensors import VisionTipSensor
+from wristmark.rig.servo_loop import ServoLoop
+from wristmark.rig.tip_sensors import VisionTipSensor
 VisionTipSensor(setup.scaled_camera, setup.marker)
-print(sorted(m for m in sys.modules if m == "sim" or m.startswith("sim.")))
+print(sorted(m for m in sys.modules if m == "wristmark.sim" or m.startswith("wristmark.sim.")))
 """
     r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
@@ -235,7 +236,7 @@ def test_a_stream_stalling_mid_run_holds_the_arm_then_stops_safely(setup: SimSet
     emu = lab.emulator
     assert isinstance(emu, TargetRecorder)
     try:
-        proc = subprocess.Popen([sys.executable, "-m", "rig.cli", "servo", "--serial", pty, "--camera", url,
+        proc = subprocess.Popen([sys.executable, "-m", "wristmark", "servo", "--serial", pty, "--camera", url,
                                  "--image-scale", str(SCALE), *RT_HOST, "--duration", "30", "--no-progress"],
                                 cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                                 env={**os.environ, "PYTHONUNBUFFERED": "1"})

@@ -16,19 +16,19 @@ import umsgpack
 from meshcat.commands import SetTransform
 from meshcat.path import Path as MeshcatPath
 
-from models.actuation import actuators_from_psi
-from models.kinematics import forward_kinematics
-from models.robot_params import HOME_PSI
-from rig.cli import main
-from rig.run_log import CycleRecord, RunLog, write_json
-from sim.plant import TruePlant
-from sim.setup import load_setup
-from viz import command_tree, record_wire
-from viz.framing import DEFAULT_DIRECTION, frame_points
-from viz.replay import _animation, _frame_indices, build_replay, load_run
-from viz.scene import HIDDEN_SCALE, ROOT, ArmScene, SceneConfig, SceneState
-from viz.snapshot import recording_visualizer
-from viz.style import LEGEND, TIP_KINDS
+from wristmark.models.actuation import actuators_from_psi
+from wristmark.models.kinematics import forward_kinematics
+from wristmark.models.robot_params import HOME_PSI
+from wristmark.rig.cli import main
+from wristmark.rig.run_log import CycleRecord, RunLog, write_json
+from wristmark.sim.plant import TruePlant
+from wristmark.sim.setup import load_setup
+from wristmark.viz import command_tree, record_wire
+from wristmark.viz.framing import DEFAULT_DIRECTION, frame_points
+from wristmark.viz.replay import _animation, _frame_indices, build_replay, load_run
+from wristmark.viz.scene import HIDDEN_SCALE, ROOT, ArmScene, SceneConfig, SceneState
+from wristmark.viz.snapshot import recording_visualizer
+from wristmark.viz.style import LEGEND, TIP_KINDS
 
 OFFSET = 0.006  # [m] tip spheres of the fake run are this far apart on screen
 
@@ -241,7 +241,7 @@ def _records(n: int) -> list[CycleRecord]:
 
 
 def test_live_view_draws_at_least_20_hz_without_blocking_the_loop() -> None:
-    from viz.live import start_live_view
+    from wristmark.viz.live import start_live_view
 
     recs = _records(400)
     view = start_live_view(stream=None)
@@ -266,7 +266,7 @@ def test_live_view_draws_at_least_20_hz_without_blocking_the_loop() -> None:
 
 
 def test_live_view_drops_records_instead_of_blocking_when_the_drawer_stalls() -> None:
-    from viz.live import start_live_view
+    from wristmark.viz.live import start_live_view
 
     rec = _records(1)[0]
     view = start_live_view(stream=None)

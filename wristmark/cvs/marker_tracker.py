@@ -1,0 +1,474 @@
+"""The stereo tracking pipeline of paper Sec. III: corners -> correspondence -> pose -> tip.
+
+``MarkerTracker.track(left_img, right_img)`` runs, per stereo pair: the corner detector in each
+image (ROI tracking from pair to pair, whole frame when lost), rectified-y correspondence with
+relative indices (cvs.stereo_match), the homography start (eq. 14-15, or triangulation + Kabsch
+when a camera sees fewer than 4 corners or the homography start does not converge), the CasADi
+stereo solve (eq. 16) and the tip (eq. 5). It returns ``ok=False`` with a reason rather than a
+doubtful pose: no marker, too few corners, no stereo pairs, or a residual above ``max_rms_px``.
+``track_corners`` takes corners directly (controller loops, baselines, tests).
+
+The sleeve looks the same after a half turn about x_wm, so which way z_wm (distal) points is
+decided after the solve, and never guessed: a coded sleeve's code (cvs.marker_decode: the
+absolute pose, roll included, ``roll_known``); else a caller's ``axis_hint_left`` (e.g. the
+kinematic model's marker axis in a servo loop); else the previous pair's pose, but only when
+this fit is consistent with it (chains found in the previous ROIs, small motion: within
+``prior_max_move_m``, ``prior_max_turn_deg`` and ``prior_max_px``) and the image
+(cvs.marker_axis) does not contradict it; else decisive image evidence (the arm's body
+continues behind the sleeve, nothing lies beyond the tip), and last the default prior
+``PoseSettings.axis_hint_left`` (+x: the arm enters from the left). With
+``TrackerSettings.strict_direction`` the image evidence must hold in both of its bands
+(cvs.marker_axis.axis_evidence_strict) and there is no default: otherwise the result is
+``ok=False`` with reason "direction ambiguous" (never a guess; a distal tool as wide as the arm
+with no body behind the sleeve fools the lenient evidence). ``TrackResult.axis_source`` says which one
+decided.
+"""
+
+from __future__ import annotations
+
+import importlib
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field, replace
+from typing import Any, Protocol
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from wristmark.cvs.camera import StereoCamera
+from wristmark.cvs.gray_image import to_gray
+from wristmark.cvs.marker import MarkerModel
+from wristmark.cvs.marker_axis import AxisEvidenceSettings, axis_evidence, axis_evidence_strict
+from wristmark.cvs.marker_decode import CodeDecoder, CodeReading, CodeReadSettings
+from wristmark.cvs.stereo_match import StereoMatch, StereoRectifier, match_corners
+from wristmark.models.errors import InputError
+from wristmark.solvers.homography_init import homography_pose
+from wristmark.solvers.stereo_pose import MarkerPose, PoseSettings, StereoPoseSolver
+
+Array = NDArray[np.float64]
+IntArray = NDArray[np.int_]
+
+
+class CornerDetector(Protocol):
+    """What the tracker needs from a detector (cvs.corner_detector.MarkerCornerDetector):
+    ``detect`` gets grey frames, ``track`` grey or BGR ones (it converts only what it searches)."""
+
+    def detect(self, gray: Any, roi: Any = None) -> Any: ...
+
+    def track(self, gray: Any) -> Any: ...
+
+
+@dataclass(frozen=True)
+class TrackerSettings:
+    """min_corners: per camera [-]; min_pairs: stereo pairs needed [-]; max_dy_px: rectified-y
+    tolerance of a pair [px]; max_rms_px: largest accepted reprojection RMS [px]; good_rms_px: in
+    ROI tracking, an RMS of the fit from the previous pose that ends the search over start poses
+    [px]; a cold pair tries every start and keeps the best (local minima of eq. 16 sit near
+    0.8-1 px at 0.2 px corner noise, but with 4 nearly collinear corners a wrong pose can fit to
+    0.3 px while the true one fits to the noise level); detector:
+    'auto' (the paper's detector if installed, else the saddle fallback; when the paper's
+    detector finds no marker in a pair, the saddle detector gets one try on the same pair),
+    'paper' or 'saddle'; pose: solver settings; axis: the image evidence for the direction of
+    z_wm (cvs.marker_axis); code: reading a coded sleeve's cells (cvs.marker_decode);
+    prior_max_move_m [m], prior_max_turn_deg [deg], prior_max_px [px]: the previous pair's pose
+    is a prior for the direction only if this pair's fit is within these of it (translation,
+    rotation modulo the corner symmetry, the previous pose's corners on this pair's left
+    detections: small motion, same corners); strict_direction: never a direction that only the
+    default prior (+x) or one-band image evidence gave (cvs.marker_axis.axis_evidence_strict):
+    'direction ambiguous' instead (``wristmark track --strict-direction``)."""
+
+    min_corners: int = 3
+    min_pairs: int = 2
+    max_dy_px: float = 2.0
+    max_rms_px: float = 0.75
+    good_rms_px: float = 0.4
+    detector: str = "auto"
+    pose: PoseSettings = field(default_factory=PoseSettings)
+    axis: AxisEvidenceSettings = field(default_factory=AxisEvidenceSettings)
+    code: CodeReadSettings = field(default_factory=CodeReadSettings)
+    prior_max_move_m: float = 0.003
+    prior_max_turn_deg: float = 15.0
+    prior_max_px: float = 6.0
+    strict_direction: bool = False
+
+
+@dataclass(frozen=True)
+class TrackResult:
+    """One stereo pair's tracking result (left camera frame {ll}, metres).
+
+    ok: a pose was found and passed the checks; reason: why not ('' when ok); tip_left, tip_world
+    [m] (tip_world None without world_T_left); T_left_marker: 4x4 pose of {wm} in {ll};
+    corners_left/right: detected corners in raw pixels (N, 2); rms_px [px]; time_ms: total [ms];
+    timings: ms per stage (detect, match, init, solve); pose: the solver result when one ran;
+    axis_source: what fixed the direction of z_wm ('hint', 'previous', 'image', 'default' or
+    'code' or 'none'; '' when not ok); axis_score: the image evidence in [-1, 1] for the
+    returned direction (NaN when the image was not asked); roll_known: a coded sleeve's code
+    was read, T_left_marker is the absolute pose (roll included) and ids_left / ids_right the
+    absolute corner ids of corners_left / right (-1: not used); otherwise roll is known modulo
+    one column and ids are None; code: the code reading (coded sleeves).
+    """
+
+    ok: bool
+    reason: str
+    tip_left: Array | None
+    tip_world: Array | None
+    T_left_marker: Array | None
+    corners_left: Array
+    corners_right: Array
+    rms_px: float
+    time_ms: float
+    timings: dict[str, float]
+    pose: MarkerPose | None = None
+    match: StereoMatch | None = None
+    axis_source: str = ""
+    axis_score: float = float("nan")
+    roll_known: bool = False
+    ids_left: IntArray | None = None
+    ids_right: IntArray | None = None
+    code: CodeReading | None = None
+
+
+def _make_detector(kind: str) -> CornerDetector:
+    if kind not in ("auto", "paper", "saddle"):
+        raise InputError(f"unknown detector '{kind}' (valid: auto, paper, saddle)")
+    if kind in ("auto", "paper"):
+        try:
+            mod = importlib.import_module("wristmark.cvs.corner_detector")
+            det: CornerDetector = mod.MarkerCornerDetector()
+            return det
+        except ImportError as e:
+            if kind == "paper":
+                raise InputError("the paper's detector (cvs.corner_detector) is not installed") from e
+    from wristmark.cvs.saddle_corners import SaddleCornerDetector
+
+    return SaddleCornerDetector()
+
+
+def _checked_image(img: Any, size: tuple[int, int], name: str) -> NDArray[np.uint8]:
+    """The image as an array after checking shape, size and dtype (InputError, one line);
+    nothing is converted: the detectors crop first and convert only what they search."""
+    a = np.asarray(img)
+    if not (a.ndim == 2 or (a.ndim == 3 and a.shape[2] in (3, 4))):
+        raise InputError(f"{name} image must be grayscale (h, w) or BGR (h, w, 3), got shape {a.shape}")
+    w, h = size
+    if a.shape[:2] != (h, w):
+        raise InputError(f"{name} image is {a.shape[1]}x{a.shape[0]} but the calibration expects {w}x{h}")
+    if a.dtype != np.uint8:
+        raise InputError(f"{name} image must be 8-bit (uint8), got {a.dtype}")
+    return a
+
+
+def _roll(a: float) -> Array:
+    """4x4 rotation by a [rad] about z."""
+    c, sn = np.cos(a), np.sin(a)
+    return np.array([[c, -sn, 0, 0], [sn, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+
+
+def kabsch(P_model: Array, P_obs: Array) -> Array:
+    """4x4 rigid transform T with P_obs ~ R P_model + t (least squares, proper rotation)."""
+    cm, co = P_model.mean(axis=0), P_obs.mean(axis=0)
+    H = (P_model - cm).T @ (P_obs - co)
+    u, _, vt = np.linalg.svd(H)
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(vt.T @ u.T)) or 1.0])
+    R = vt.T @ D @ u.T
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, co - R @ cm
+    return T
+
+
+class MarkerTracker:
+    """Stereo tip tracker for one calibration and marker; keeps ROI state between pairs."""
+
+    def __init__(self, camera: StereoCamera, marker: MarkerModel, settings: TrackerSettings | None = None) -> None:
+        self.settings = settings or TrackerSettings()
+        camera.validate()
+        marker.validate()
+        self.camera, self.marker = camera, marker
+        self.rectifier = StereoRectifier(camera)
+        self.solver = StereoPoseSolver(camera, marker, self.settings.pose)
+        self.detector_left = _make_detector(self.settings.detector)
+        self.detector_right = _make_detector(self.settings.detector)
+        T_rl = np.eye(4)
+        T_rl[:3, :3], T_rl[:3, 3] = camera.R, camera.T
+        self._T_left_right = np.linalg.inv(T_rl)
+        self._tracking = False
+        self._continuous = False  # this pair's chains were found in the previous pair's ROIs
+        self._last_pose: MarkerPose | None = None  # the previous pair's good pose
+        self._last_fit_px = float("inf")  # RMS of the previous pose's corners on this pair's [px]
+        self._last_shift = 0  # even index shift from the previous pair's fit to this pair's (tracking)
+        self._last_oriented = False  # the previous pose's direction was decided
+        self.decoder = None if marker.code is None else CodeDecoder(camera, marker, self.settings.code)
+        self._second: tuple[CornerDetector, CornerDetector] | None = None
+        self._use_second = self.settings.detector == "auto" and type(self.detector_left).__name__ != (
+            "SaddleCornerDetector")
+        cv2.setNumThreads(1)
+
+    def _fail(self, reason: str, cl: Array, cr: Array, t0: float, timings: dict[str, float], **kw: Any) -> TrackResult:
+        return TrackResult(
+            False, reason, None, None, None, cl, cr, float("nan"), 1e3 * (time.perf_counter() - t0), timings, **kw
+        )
+
+    def track(self, left_img: Any, right_img: Any, axis_hint_left: Array | None = None) -> TrackResult:
+        """Track the marker in one stereo pair (grayscale or BGR uint8 images of the calibrated
+        size). In ROI tracking only the boxes around the previous corners are converted to grey
+        and searched; whole frames are converted once, when a whole-frame search is needed.
+        ``axis_hint_left``: expected direction of z_wm (distal) in {ll}, if the caller knows it."""
+        t0 = time.perf_counter()
+        self._continuous = False
+        il = _checked_image(left_img, self.camera.image_size, "left")
+        ir = _checked_image(right_img, self.camera.image_size, "right")
+        roi = self._tracking
+        if roi:
+            dl, dr = self.detector_left.track(il), self.detector_right.track(ir)
+            # the previous pose is a start and a prior only if both chains were found in their ROIs
+            self._continuous = getattr(dl, "roi", None) is not None and getattr(dr, "roi", None) is not None
+        else:
+            il, ir = to_gray(il), to_gray(ir)
+            dl, dr = self.detector_left.detect(il), self.detector_right.detect(ir)
+        t_det = 1e3 * (time.perf_counter() - t0)
+        res = self.track_corners(dl.corners, dr.corners, dl.polarity, dr.polarity, _t0=t0)
+        res.timings["detect"] = t_det
+        if not res.ok and roi:
+            # the ROI may have lost the marker: search both whole frames once more
+            self._continuous = False
+            t1 = time.perf_counter()
+            il, ir = to_gray(il), to_gray(ir)
+            dl, dr = self.detector_left.detect(il), self.detector_right.detect(ir)
+            t_full = 1e3 * (time.perf_counter() - t1)
+            res = self.track_corners(dl.corners, dr.corners, dl.polarity, dr.polarity, _t0=t0)
+            res.timings["detect"] = t_det + t_full
+        if not res.ok and self._use_second:
+            # 'auto': one try with the other detector (different failure modes, same pose gates)
+            if self._second is None:
+                self._second = (_make_detector("saddle"), _make_detector("saddle"))
+            t2 = time.perf_counter()
+            il, ir = to_gray(il), to_gray(ir)
+            sl, sr = self._second[0].detect(il), self._second[1].detect(ir)
+            t_second = 1e3 * (time.perf_counter() - t2)
+            res2 = self.track_corners(sl.corners, sr.corners, sl.polarity, sr.polarity, _t0=t0)
+            if res2.ok:
+                res = res2
+            res.timings["second_detector"] = t_second
+        found = res.ok
+        if res.ok:
+            t3 = time.perf_counter()
+            res = self._orient(res, (il, ir), axis_hint_left)
+            res.timings["axis"] = 1e3 * (time.perf_counter() - t3)
+            res = replace(res, time_ms=1e3 * (time.perf_counter() - t0))
+        self._tracking = found  # an ambiguous direction keeps the corners' ROIs
+        self._last_pose = res.pose if found else None
+        self._last_oriented = res.ok
+        return res
+
+    def _orient(self, res: TrackResult, images: tuple[NDArray[np.uint8], NDArray[np.uint8]],
+                hint: Array | None) -> TrackResult:
+        """Fix the direction of z_wm (and, with a readable code, the roll) of a good fit: the
+        code (coded sleeves), a caller's hint, else the previous pair's pose where this fit is
+        consistent with it and the image does not contradict it, else decisive image evidence,
+        else (not strict_direction) the default prior; otherwise ok false, 'direction ambiguous'."""
+        assert res.pose is not None
+        pose, score = res.pose, float("nan")
+        if self.decoder is not None:
+            t = time.perf_counter()
+            reading = self.decoder.read(images, pose.T_fit)
+            res.timings["code"] = 1e3 * (time.perf_counter() - t)
+            res = replace(res, code=reading)
+            if reading.ok and reading.T_fit_abs is not None:
+                T = pose.T_fit @ reading.T_fit_abs
+                tip_left, tip_world = self.solver._tips(T)
+                pose = replace(pose, T_left_marker=T, tip_left=tip_left, tip_world=tip_world)
+                m = res.match
+                n = self.marker.columns
+                ids_l = None if m is None else reading.absolute_ids(m.index_left, n)
+                ids_r = None if m is None else reading.absolute_ids(m.index_right, n)
+                return replace(res, tip_left=tip_left, tip_world=tip_world, T_left_marker=T, pose=pose,
+                               axis_source="code", roll_known=True, ids_left=ids_l, ids_right=ids_r)
+        z = pose.T_left_marker[:3, 2]
+        want: Array | None = None
+        source = "none"
+        if hint is not None:
+            want, source = np.asarray(hint, float).reshape(3), "hint"
+        else:
+            strict, ax = self.settings.strict_direction, self.settings.axis
+            evidence = axis_evidence_strict if strict else axis_evidence
+            prior = self._consistent_prior(pose)
+            # with a consistent prior the image need only not contradict it: the left image suffices
+            score = evidence(images, self.camera, self.marker, pose.T_left_marker, ax, left_only=prior is not None)
+            decided = abs(score) >= (ax.decide_strict if strict else ax.decide)
+            if prior is not None:
+                if not decided or (score > 0) == (float(z @ prior) > 0):
+                    want, source = prior, "previous"
+            elif decided:
+                want, source = (z if score > 0 else -z), "image"
+            elif not strict and self.settings.pose.axis_hint_left is not None:
+                want, source = np.asarray(self.settings.pose.axis_hint_left, float), "default"
+        if want is None:
+            return replace(res, ok=False, reason="direction ambiguous", tip_left=None, tip_world=None,
+                           T_left_marker=None, axis_source="", axis_score=score)
+        if float(np.dot(z, want)) < 0:
+            pose, score = self.solver.half_turned(pose), -score
+        return replace(res, tip_left=pose.tip_left, tip_world=pose.tip_world, T_left_marker=pose.T_left_marker,
+                       pose=pose, axis_source=source, axis_score=score)
+
+    def _consistent_prior(self, pose: MarkerPose) -> Array | None:
+        """The previous pair's z_wm direction in {ll} if it may serve as a prior for this fit:
+        the chains were found in the previous ROIs, the previous direction was decided, and this
+        fit moved little from the previous one (TrackerSettings.prior_*); else None."""
+        prev = self._last_pose
+        if not (self._continuous and self._last_oriented and prev is not None):
+            return None
+        s = self.settings
+        T_prev = prev.T_fit @ _roll(self._last_shift * self.marker.beta)  # in this pair's indices
+        if np.linalg.norm(pose.T_fit[:3, 3] - T_prev[:3, 3]) > s.prior_max_move_m:
+            return None
+        dR = T_prev[:3, :3].T @ pose.T_fit[:3, :3]
+        if np.degrees(np.arccos(np.clip((np.trace(dR) - 1.0) / 2.0, -1.0, 1.0))) > s.prior_max_turn_deg:
+            return None
+        if self._last_fit_px > s.prior_max_px:
+            return None
+        return np.asarray(prev.T_left_marker[:3, 2], float)
+
+    def reset(self) -> None:
+        """Forget the ROI state: the next pair is searched in the whole frames."""
+        self._tracking = self._continuous = self._last_oriented = False
+        self._last_pose = None
+
+    def _start_poses(
+        self, idx_l: IntArray, ul: Array, idx_r: IntArray, ur: Array, m: StereoMatch
+    ) -> Iterator[Array]:
+        """Start poses, most likely first, each computed only when the ones before it did not
+        give a good fit: the previous pair's pose (tracking), the homography of the camera with
+        more corners (paper eq. 14-15), both planar solutions of cv2 IPPE (the homography's
+        mirror-tilt ambiguity) and triangulation + Kabsch."""
+        self._last_shift, self._last_fit_px = 0, float("inf")
+        if self._continuous and self._last_pose is not None:
+            yield self._previous_start(idx_l, ul)
+        pts = self.solver.marker_points
+        use_left = idx_l.size >= idx_r.size
+        idx, uv, cam = (idx_l, ul, self.camera.left) if use_left else (idx_r, ur, self.camera.right)
+        T_fix = np.eye(4) if use_left else self._T_left_right
+        if idx.size >= 4:
+            H: Array | None = None
+            try:
+                H = T_fix @ homography_pose(cam, pts(idx), uv)
+            except (InputError, np.linalg.LinAlgError):
+                pass
+            if H is not None:
+                yield H
+            ippe: list[Array] = []
+            try:
+                n, rvecs, tvecs, _ = cv2.solvePnPGeneric(
+                    pts(idx), uv, np.asarray(cam.K, float), np.asarray(cam.dist, float), flags=cv2.SOLVEPNP_IPPE
+                )
+                for rv, tv in zip(rvecs[:n], tvecs[:n]):
+                    T = np.eye(4)
+                    T[:3, :3], T[:3, 3] = cv2.Rodrigues(rv)[0], np.asarray(tv).reshape(3)
+                    ippe.append(T_fix @ T)
+            except cv2.error:
+                pass
+            yield from ippe
+        if m.n_pairs >= 3:
+            X = cv2.triangulatePoints(
+                self.rectifier.P1, self.rectifier.P2, m.rect_left[m.pairs[:, 0]].T, m.rect_right[m.pairs[:, 1]].T
+            )
+            X = (X[:3] / X[3]).T @ np.asarray(self.rectifier.R1)  # rectified-left -> {ll}
+            yield kabsch(pts(m.index_left[m.pairs[:, 0]]), X)
+
+    def _previous_start(self, idx: IntArray, uv: Array) -> Array:
+        """The previous pair's fitted pose in this pair's relative indices. The chain's first
+        corner can change from pair to pair (a corner appears or leaves at its end), which
+        shifts the indices by an even k (polarity fixes the parity): the start is the previous
+        pose rolled by the k beta that best puts its corners on this pair's left detections."""
+        assert self._last_pose is not None
+        T = self._last_pose.T_fit
+        n, beta = self.marker.columns, self.marker.beta
+        ks = np.arange(0, n, 2)
+        P = np.concatenate([self.solver.marker_points(idx + k) for k in ks])  # {wm}, model index i + k
+        proj = self.camera.project_left(P @ T[:3, :3].T + T[:3, 3]).reshape(ks.size, -1, 2)
+        err = np.sqrt(((proj - uv[None]) ** 2).sum(axis=2).mean(axis=1))
+        j = int(np.argmin(err))
+        k = int(ks[j])
+        self._last_shift, self._last_fit_px = k, float(err[j])
+        return T @ _roll(k * beta)  # maps model point i to where the previous pose had i + k
+
+    def track_corners(
+        self,
+        corners_left: Array,
+        corners_right: Array,
+        polarity_left: Array | None = None,
+        polarity_right: Array | None = None,
+        _t0: float | None = None,
+    ) -> TrackResult:
+        """Pose and tip from raw-pixel corners (N, 2) of each image and optional polarities (+-1)."""
+        t0 = time.perf_counter() if _t0 is None else _t0
+        s = self.settings
+        cl = np.asarray(corners_left, float).reshape(-1, 2)
+        cr = np.asarray(corners_right, float).reshape(-1, 2)
+        timings: dict[str, float] = {}
+        if cl.shape[0] == 0 and cr.shape[0] == 0:
+            return self._fail("no marker found in either image", cl, cr, t0, timings)
+        if min(cl.shape[0], cr.shape[0]) < s.min_corners:
+            return self._fail(
+                f"too few marker corners (left {cl.shape[0]}, right {cr.shape[0]}; need {s.min_corners} each)",
+                cl,
+                cr,
+                t0,
+                timings,
+            )
+        t1 = time.perf_counter()
+        pl = None if polarity_left is None else np.asarray(polarity_left, int)
+        pr = None if polarity_right is None else np.asarray(polarity_right, int)
+        m = match_corners(self.rectifier, cl, cr, pl, pr, s.max_dy_px)
+        timings["match"] = 1e3 * (time.perf_counter() - t1)
+        if m.n_pairs < s.min_pairs:
+            return self._fail(
+                f"only {m.n_pairs} left/right corner pairs (need {s.min_pairs})", cl, cr, t0, timings, match=m
+            )
+        kl, kr = m.index_left >= 0, m.index_right >= 0
+        idx_l, ul, idx_r, ur = m.index_left[kl], cl[kl], m.index_right[kr], cr[kr]
+        starts = self._start_poses(idx_l, ul, idx_r, ur, m)
+        best: MarkerPose | None = None
+        t_init = t_solve = 0.0
+        while True:  # tracking: stop at a good fit from the previous pose; else the best of all starts
+            t2 = time.perf_counter()
+            T0 = next(starts, None)
+            t3 = time.perf_counter()
+            t_init += t3 - t2
+            if T0 is None:
+                break
+            pose = self.solver.solve(idx_l, ul, idx_r, ur, T0)
+            t_solve += time.perf_counter() - t3
+            if np.isfinite(pose.rms_px) and (best is None or pose.rms_px < best.rms_px):
+                best = pose
+            if self._continuous and best is not None and best.rms_px <= s.good_rms_px:
+                break
+        timings["init"], timings["solve"] = 1e3 * t_init, 1e3 * t_solve
+        if best is None:
+            return self._fail(
+                "no start pose (need 4 corners in one image or 3 stereo pairs)", cl, cr, t0, timings, match=m
+            )
+        if not best.rms_px <= s.max_rms_px or best.T_left_marker[2, 3] <= 0:
+            return self._fail(
+                f"reprojection RMS {best.rms_px:.2f} px above {s.max_rms_px} px: corners do not fit the marker",
+                cl,
+                cr,
+                t0,
+                timings,
+                pose=best,
+                match=m,
+            )
+        return TrackResult(
+            True,
+            "",
+            best.tip_left,
+            best.tip_world,
+            best.T_left_marker,
+            cl,
+            cr,
+            best.rms_px,
+            1e3 * (time.perf_counter() - t0),
+            timings,
+            pose=best,
+            match=m,
+        )

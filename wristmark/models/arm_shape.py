@@ -1,0 +1,76 @@
+"""The arm's 3D shape for rendering and viewing: backbone centreline, marker pose and tip.
+
+Produced from the nominal model (:func:`arm_shape`) or by the simulated true plant (which may
+bend the stem and the segments differently); consumed by the image synthesis and the 3D view.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from wristmark.models.constant_curvature import segment_point
+from wristmark.models.kinematics import ArmFrames, check_psi, forward_kinematics
+from wristmark.models.robot_params import RobotParams
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class ArmShape:
+    """Shape of the arm in {w} [m].
+
+    centreline: (N, 3) backbone points from the incision to the end ring {2e}, in order.
+    distal_start: index in ``centreline`` of the first point of segment 2's base ring {2b}.
+    frames: poses of the chain's frames (marker {wm}, tip, ...).
+    radius: outer radius of the arm's tube [m].
+    """
+
+    centreline: Array
+    distal_start: int
+    frames: ArmFrames
+    radius: float
+
+    @property
+    def T_world_marker(self) -> Array:
+        """Pose of {wm} in {w}."""
+        return self.frames.T_world_marker
+
+    @property
+    def tip(self) -> Array:
+        """Tip position in {w} [m]."""
+        return self.frames.tip
+
+
+def _segment_samples(T_base: Array, length: float, theta: float, delta: float, n: int) -> Array:
+    pts = [segment_point(length, theta, delta, s) for s in np.linspace(0.0, 1.0, n)]
+    P = np.asarray(pts)
+    return P @ T_base[:3, :3].T + T_base[:3, 3]
+
+
+def shape_from_frames(
+    params: RobotParams,
+    psi: object,
+    frames: ArmFrames,
+    stem_points: Array | None = None,
+    samples_per_segment: int = 24,
+) -> ArmShape:
+    """Assemble an ArmShape from frames; segments are sampled along their arcs with ``psi``'s
+    bends. ``stem_points`` (M, 3) in {w} replaces the straight stem from the incision to {1b}."""
+    q = check_psi(psi)
+    L1, L2 = params.segment_lengths
+    if stem_points is None:
+        stem = np.array([[0.0, 0.0, 0.0], frames.T_world_1b[:3, 3]])
+    else:
+        stem = np.asarray(stem_points, float).reshape(-1, 3)
+    seg1 = _segment_samples(frames.T_world_1b, L1, q[2], q[3], samples_per_segment)
+    seg2 = _segment_samples(frames.T_world_2b, L2, q[4], q[5], samples_per_segment)
+    centre = np.vstack([stem[:-1], seg1, seg2])
+    return ArmShape(centre, len(stem) - 1 + len(seg1), frames, params.outer_diameter / 2.0)
+
+
+def arm_shape(params: RobotParams, psi: object, samples_per_segment: int = 24) -> ArmShape:
+    """Nominal (model) shape of the arm at configuration psi."""
+    return shape_from_frames(params, psi, forward_kinematics(params, psi), None, samples_per_segment)

@@ -1,0 +1,172 @@
+"""Typed, validated loading of dataclass configurations from YAML (SI units throughout).
+
+Every dataclass configuration in wristmark is built with :func:`from_mapping`, which rejects
+unknown keys, converts lists to tuples of floats with the declared length, and reports the key
+and the file in a one-line :class:`ConfigError`. Range checks live in each dataclass's
+``validate()`` method, called after construction.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import types
+import typing
+from pathlib import Path
+from typing import Any, TypeVar
+
+import yaml
+
+from wristmark.models.config_files import find_config
+from wristmark.models.errors import ConfigError
+
+T = TypeVar("T")
+
+
+MAX_CONFIG_BYTES = 1 << 20  # [B] largest configuration or calibration file read (1 MiB)
+
+
+class YamlAliasError(yaml.YAMLError):
+    """An anchor or alias in a wristmark YAML file (line: 1-based)."""
+
+    def __init__(self, message: str, line: int) -> None:
+        super().__init__(message)
+        self.message = message
+        self.line = line
+
+
+class NoAliasSafeLoader(yaml.SafeLoader):
+    """yaml.SafeLoader that refuses anchors and aliases (configuration files never need them,
+    and nested aliases let a 1 KB file expand to gigabytes: the "billion laughs")."""
+
+    def compose_node(self, parent: Any, index: Any) -> Any:
+        event = self.peek_event()
+        if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None) is not None:
+            sign = "*" if isinstance(event, yaml.AliasEvent) else "&"
+            raise YamlAliasError(f"YAML anchors and aliases are not allowed ('{sign}{event.anchor}'): "
+                                 "write the values out", event.start_mark.line + 1)
+        return super().compose_node(parent, index)
+
+
+def check_file_size(path: str | Path, limit: int = MAX_CONFIG_BYTES, what: str = "configuration file") -> Path:
+    """Raise ConfigError if ``path`` is missing or larger than ``limit`` bytes (checked before
+    anything reads it); return it as a Path. A missing path named like a shipped configuration
+    file is that file (:func:`wristmark.models.config_files.find_config`)."""
+    p = find_config(path)
+    if not p.is_file():
+        raise ConfigError(f"{p}: {what} not found")
+    size = p.stat().st_size
+    if size > limit:
+        raise ConfigError(f"{p}: {what} of {size / 1e6:.1f} MB, over the {limit / 1e6:.1f} MB limit "
+                          "(not read; is it the right file?)")
+    return p
+
+
+def load_yaml(path: str | Path) -> dict[str, Any]:
+    """Read a YAML mapping from ``path``; raise :class:`ConfigError` if missing, malformed,
+    larger than MAX_CONFIG_BYTES, or using anchors/aliases (:class:`NoAliasSafeLoader`)."""
+    p = check_file_size(path)
+    try:
+        data = yaml.load(p.read_bytes(), Loader=NoAliasSafeLoader)  # noqa: S506 - a SafeLoader
+    except YamlAliasError as e:
+        raise ConfigError(f"{p}:{e.line}: {e.message}") from None
+    except yaml.YAMLError as e:
+        first = str(e).splitlines()[0] if str(e) else "parse error"
+        raise ConfigError(f"{p}: not valid YAML ({first})") from e
+    except RecursionError:
+        raise ConfigError(f"{p}: not valid YAML (nested too deeply)") from None
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"{p}: expected a mapping of keys to values, got {type(data).__name__}")
+    return data
+
+
+def save_yaml(path: str | Path, data: dict[str, Any]) -> None:
+    """Write ``data`` (plain Python types) as block-style YAML."""
+    Path(path).write_text(yaml.safe_dump(data, sort_keys=False, default_flow_style=None))
+
+
+def _convert(value: Any, tp: Any, key: str, source: str) -> Any:
+    origin = typing.get_origin(tp)
+    args = typing.get_args(tp)
+    if origin in (typing.Union, types.UnionType):
+        if value is None and type(None) in args:
+            return None
+        non_none = [a for a in args if a is not type(None)]
+        return _convert(value, non_none[0], key, source)
+    if tp is float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ConfigError(f"{source}: '{key}' must be a number, got {value!r}")
+        if not math.isfinite(float(value)):
+            raise ConfigError(f"{source}: '{key}' must be finite, got {value!r}")
+        return float(value)
+    if tp is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(f"{source}: '{key}' must be an integer, got {value!r}")
+        return int(value)
+    if tp is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(f"{source}: '{key}' must be true or false, got {value!r}")
+        return value
+    if tp is str:
+        if not isinstance(value, str):
+            raise ConfigError(f"{source}: '{key}' must be a string, got {value!r}")
+        return value
+    if origin is tuple:
+        if not isinstance(value, list | tuple):
+            raise ConfigError(f"{source}: '{key}' must be a list, got {value!r}")
+        if len(args) == 2 and args[1] is Ellipsis:
+            return tuple(_convert(v, args[0], f"{key}[{i}]", source) for i, v in enumerate(value))
+        if len(value) != len(args):
+            raise ConfigError(
+                f"{source}: '{key}' must have {len(args)} entries, got {len(value)}"
+            )
+        return tuple(_convert(v, a, f"{key}[{i}]", source) for i, (v, a) in enumerate(zip(value, args)))
+    if dataclasses.is_dataclass(tp):
+        if not isinstance(value, dict):
+            raise ConfigError(f"{source}: '{key}' must be a mapping, got {value!r}")
+        return from_mapping(tp, value, source, prefix=f"{key}.")  # type: ignore[arg-type]
+    return value
+
+
+def from_mapping(cls: type[T], data: dict[str, Any], source: str = "<config>", prefix: str = "") -> T:
+    """Build dataclass ``cls`` from ``data``; unknown keys and wrong types raise ConfigError.
+
+    Missing keys take the dataclass defaults. ``cls.validate()`` is called if it exists.
+    """
+    if not isinstance(data, dict):
+        raise ConfigError(f"{source}: expected a mapping, got {type(data).__name__}")
+    hints = typing.get_type_hints(cls)
+    names = {f.name for f in dataclasses.fields(cls) if f.init}  # type: ignore[arg-type]
+    unknown = sorted(set(data) - names)
+    if unknown:
+        raise ConfigError(
+            f"{source}: unknown key '{prefix}{unknown[0]}' (valid keys: {', '.join(sorted(names))})"
+        )
+    kwargs = {k: _convert(v, hints[k], prefix + k, source) for k, v in data.items()}
+    obj = cls(**kwargs)
+    validate = getattr(obj, "validate", None)
+    if callable(validate):
+        try:
+            validate()
+        except ConfigError as e:
+            msg = str(e)
+            raise ConfigError(msg if msg.startswith(source) else f"{source}: {msg}") from None
+    return obj
+
+
+def to_mapping(obj: Any) -> dict[str, Any]:
+    """Dataclass -> plain dict of lists/floats suitable for YAML or JSON."""
+    def plain(v: Any) -> Any:
+        if dataclasses.is_dataclass(v) and not isinstance(v, type):
+            return {f.name: plain(getattr(v, f.name)) for f in dataclasses.fields(v)}
+        if isinstance(v, tuple | list):
+            return [plain(x) for x in v]
+        return v
+    return typing.cast(dict[str, Any], plain(obj))
+
+
+def load_config(cls: type[T], path: str | Path) -> T:
+    """Load dataclass ``cls`` from the YAML file at ``path`` (validated)."""
+    return from_mapping(cls, load_yaml(path), str(path))

@@ -1,0 +1,76 @@
+"""How commands reach the arm and simulated time moves on.
+
+``DirectLink`` calls the simulated plant in process. ``SerialLink`` sends every command as
+protocol-v1 bytes through a serial device (a pseudo-terminal to the emulator, or hardware);
+with the in-process emulator the simulated clock is shared, so the loop runs faster than real
+time and the bytes still cross a real pty.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from wristmark.models.plant_interface import ActuatedArm
+
+Array = NDArray[np.float64]
+
+
+class ActuatorLink(Protocol):
+    """The servo loop's view of the actuators and of time."""
+
+    @property
+    def time(self) -> float:
+        """The link's time now [s] (simulated, or the wall clock's for a real-time link)."""
+        ...
+
+    def advance_to(self, t: float) -> None:
+        """Let the world run until time ``t`` [s] (a real-time link waits until then)."""
+
+    def send_target(self, actuators: Array) -> None:
+        """Command actuator targets [rad, m, m, m, m, m] now."""
+
+    def hold(self) -> None:
+        """Stop: hold the current position."""
+
+    def measured_actuators(self) -> Array:
+        """Encoder readings [rad, m, m, m, m, m]."""
+
+    def close(self) -> None:
+        """Leave the actuators safe (held and disabled where that applies)."""
+
+
+class DirectLink:
+    """In-process link to a simulated arm."""
+
+    def __init__(self, arm: ActuatedArm) -> None:
+        self.arm = arm
+
+    @property
+    def time(self) -> float:
+        """The plant's simulated time [s]."""
+        return self.arm.time
+
+    def advance_to(self, t: float) -> None:
+        """Step the plant to time ``t`` [s]."""
+        dt = t - self.arm.time
+        if dt > 0:
+            self.arm.advance(dt)
+
+    def send_target(self, actuators: Array) -> None:
+        """Set the plant's actuator targets."""
+        self.arm.command(np.asarray(actuators, float))
+
+    def hold(self) -> None:
+        """Hold the plant."""
+        self.arm.hold()
+
+    def measured_actuators(self) -> Array:
+        """Plant encoders."""
+        return self.arm.measured_actuators()
+
+    def close(self) -> None:
+        """Hold the plant."""
+        self.arm.hold()

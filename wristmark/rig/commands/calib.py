@@ -1,0 +1,43 @@
+"""``wristmark calib {convert,show}``: read any calibration form of DESIGN.md (project YAML,
+OpenCV FileStorage, ROS camera_info pair ``LEFT.yaml,RIGHT.yaml``, Kalibr camchain) and write it
+as the project's YAML, or print a summary (focal lengths, baseline, field of view, overlap)."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+from pathlib import Path
+
+from wristmark.models.errors import InputError
+from wristmark.rig.output_dir import claim_outputs
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("action", choices=("convert", "show"), help="convert: write the project's YAML; show: summary")
+    p.add_argument("--calib", required=True, metavar="SPEC",
+                   help="calibration: YAML, OpenCV .yml/.xml, ROS LEFT.yaml,RIGHT.yaml, or Kalibr camchain")
+    p.add_argument("--out", metavar="C.yaml", help="convert: output file (the project's calibration YAML)")
+    p.add_argument("--force", action="store_true", help="convert: overwrite an existing --out")
+    p.add_argument("--registration", metavar="FILE", help="set world_T_left from a registration file")
+    p.add_argument("--json", action="store_true", help="show: print the summary as JSON")
+
+
+def run(args: argparse.Namespace) -> int:
+    from wristmark.cvs.calibration_io import load_calibration, save_calibration
+    from wristmark.cvs.calibration_summary import summarize, summary_text
+    from wristmark.cvs.registration_io import apply_registration
+
+    cam = apply_registration(load_calibration(args.calib), args.registration)
+    if args.action == "convert":
+        if not args.out:
+            raise InputError("calib convert needs --out C.yaml")
+        out = Path(args.out)
+        if not args.force:  # refuse an existing --out (checked only: written over at the end)
+            claim_outputs(files=[out])
+        save_calibration(out, cam)
+        print(f"wrote {out}")
+        return 0
+    s = summarize(cam)
+    print(json.dumps(dataclasses.asdict(s)) if args.json else summary_text(s))
+    return 0

@@ -1,0 +1,132 @@
+"""``wristmark emulator --pty [--camera-port PORT]``: the simulated bench as a lab.
+
+``--pty`` serves the actuator-box emulator (protocol v1, driving the simulated true arm on the
+wall clock) on a new pseudo-terminal and prints its path as the first line of stdout.
+``--camera-port PORT`` makes it the virtual lab (:mod:`sim.virtual_lab`): the same process also
+plays the stereo endoscope, rendering its true arm at up to ``--fps`` frames per second and
+serving them side by side as an MJPEG stream on 127.0.0.1:PORT (0: any free port), whose URL is
+the second line of stdout. Both lines are flushed at once; it serves until SIGINT / SIGTERM.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+from pathlib import Path
+from types import FrameType
+
+import numpy as np
+
+from wristmark.models.config_files import default_config
+from wristmark.models.errors import InputError
+from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark.rig.commands.option_types import MAX_TIMEOUT_S, PSI_ABS_MAX, float_in, int_in, positive_float, seed_int
+
+DEFAULT_PLANT = default_config("plant.yaml")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--pty", action="store_true", help="serve on a new pseudo-terminal (the only transport)")
+    p.add_argument("--plant", help="plant file of the simulated true arm (default configs/plant.yaml)")
+    p.add_argument("--robot", help="robot YAML (default: the reference robot)")
+    p.add_argument("--watchdog", type=positive_float(MAX_TIMEOUT_S), default=0.25, metavar="S",
+                   help="watchdog timeout [s] (default 0.25, as protocol v1 specifies)")
+    p.add_argument("--psi0", nargs=6, type=float_in(-PSI_ABS_MAX, PSI_ABS_MAX), metavar="X",
+                   help="initial configuration (default: home)")
+    p.add_argument("--rt-priority", type=int_in(1, 99), metavar="N",
+                   help="run every thread (serving, and with --camera-port rendering and streaming) under "
+                        "SCHED_FIFO at priority N, as firmware and a camera are not starved by other work "
+                        "(needs root or CAP_SYS_NICE)")
+    cam = p.add_argument_group("virtual endoscope (with --camera-port)")
+    cam.add_argument("--camera-port", type=int_in(0, 65535), metavar="PORT",
+                     help="also play the stereo endoscope: an MJPEG stream on 127.0.0.1:PORT (0: any free port)")
+    cam.add_argument("--fps", type=positive_float(1000.0), default=30.0, metavar="F",
+                     help="frames per second at most (default 30; fewer where rendering cannot keep up)")
+    cam.add_argument("--truth-out", metavar="CSV",
+                     help="log each frame's capture time and true tip (t,tip_x,tip_y,tip_z)")
+    cam.add_argument("--image-scale", type=float_in(0.05, 1.0), default=1.0, metavar="S",
+                     help="render at S x the calibrated size (default 1)")
+    cam.add_argument("--calib", metavar="YAML",
+                     help="the endoscope's calibration and pose (default configs/camera.yaml)")
+    cam.add_argument("--marker", metavar="YAML", help="marker file (default configs/marker.yaml)")
+    cam.add_argument("--jpeg-quality", type=int_in(1, 100), default=90, metavar="Q", help="JPEG quality (default 90)")
+    cam.add_argument("--seed", type=seed_int(), default=0, help="render noise seed (default 0)")
+
+
+def _camera_options_without_port(args: argparse.Namespace) -> list[str]:
+    given = [("--fps", args.fps != 30.0), ("--truth-out", args.truth_out), ("--image-scale", args.image_scale != 1.0),
+             ("--calib", args.calib), ("--marker", args.marker)]
+    return [name for name, set_ in given if set_]
+
+
+def run(args: argparse.Namespace) -> int:
+    from wristmark.sim.actuator_emulator import ActuatorEmulator
+    from wristmark.sim.plant import TruePlant
+    from wristmark.sim.plant_params import PlantParams
+
+    if not args.pty:
+        raise InputError("only the pseudo-terminal transport exists: pass --pty")
+    if not args.watchdog > 0:
+        raise InputError(f"--watchdog must be > 0 s, got {args.watchdog}")
+    if args.camera_port is None and _camera_options_without_port(args):
+        raise InputError(f"{', '.join(_camera_options_without_port(args))} need --camera-port PORT")
+    params = RobotParams.load(args.robot) if args.robot else RobotParams()
+    plant_path = Path(args.plant) if args.plant else DEFAULT_PLANT
+    plant = PlantParams.load(plant_path) if plant_path.exists() or args.plant else PlantParams()
+    psi0 = np.array(args.psi0 if args.psi0 else HOME_PSI, dtype=float)
+    done = threading.Event()
+
+    def _stop(signum: int, frame: FrameType | None) -> None:
+        done.set()
+
+    signal.signal(signal.SIGTERM, _stop)
+    signal.signal(signal.SIGINT, _stop)
+    if args.camera_port is None:
+        if args.rt_priority is not None:
+            from wristmark.rig.realtime_priority import request_realtime_priority
+
+            request_realtime_priority(args.rt_priority)  # the serving thread inherits it
+        emulator = ActuatorEmulator(TruePlant(params, plant, psi0=psi0), params, watchdog_s=args.watchdog)
+        path = emulator.serve_pty()
+        print(path, flush=True)
+        print(f"actuator emulator (protocol v1, watchdog {args.watchdog * 1000:.0f} ms) on {path}; "
+              "Ctrl-C to stop", file=sys.stderr, flush=True)
+        while not done.wait(0.2):
+            pass
+        emulator.stop()
+        return 0
+    return _serve_lab(args, params, plant, psi0, done)
+
+
+def _serve_lab(args: argparse.Namespace, params: RobotParams, plant: object, psi0: np.ndarray,
+               done: threading.Event) -> int:
+    from wristmark.cvs.calibration_io import load_calibration
+    from wristmark.cvs.marker import MarkerModel
+    from wristmark.rig.loop_setup import default_config
+    from wristmark.sim.virtual_lab import LabCamera, VirtualLab
+
+    calib = load_calibration(args.calib or default_config("camera.yaml"))
+    marker = MarkerModel.load(args.marker or default_config("marker.yaml"))
+    camera = LabCamera(fps=args.fps, image_scale=args.image_scale, seed=args.seed, jpeg_quality=args.jpeg_quality,
+                       port=args.camera_port)
+    lab = VirtualLab(params, plant, calib, marker, camera, psi0=psi0, watchdog_s=args.watchdog,  # type: ignore[arg-type]
+                     truth_out=args.truth_out, rt_priority=args.rt_priority)
+    try:
+        path, url = lab.start()
+        print(path, flush=True)
+        print(url, flush=True)
+        w, h = lab.renderer.camera.image_size
+        print(f"virtual lab: actuator box (protocol v1) on {path}; stereo endoscope {2 * w}x{h} side by side at "
+              f"up to {args.fps:g} fps on {url}; Ctrl-C to stop", file=sys.stderr, flush=True)
+        while not done.wait(0.2):
+            if lab.error:
+                print(f"wristmark emulator: error: {lab.error}", file=sys.stderr, flush=True)
+                return 1
+    finally:
+        lab.stop()
+    s = lab.stats.summary()
+    print(f"virtual lab: {s['frames']} frames at {s['fps'] or 0:.1f} fps (render {s['render_ms_median'] or 0:.1f} ms, "
+          f"JPEG {s['encode_ms_median'] or 0:.1f} ms median)", file=sys.stderr, flush=True)
+    return 0

@@ -1,0 +1,130 @@
+"""``wristmark experiment {cube,point,accuracy,load}``: the paper's experiments on the simulated bench."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from wristmark.models.errors import ConfigError
+from wristmark.rig.commands.option_types import (
+    MAX_DURATION_S,
+    MAX_POSITIONS,
+    MAX_TIP_FORCE_N,
+    finite_float,
+    int_in,
+    nonnegative_float,
+    positive_float,
+)
+from wristmark.rig.commands.setup_args import add_registration_argument, add_setup_arguments, setup_from_args
+from wristmark.rig.output_dir import add_force_argument, claim_outputs, link_latest, new_run_dir
+from wristmark.rig.run_log import write_json
+from wristmark.viz.web_hosts import add_host_argument
+
+if TYPE_CHECKING:
+    from wristmark.rig.run_log import CycleRecord
+    from wristmark.sim.setup import SimSetup
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("name", choices=("cube", "point", "accuracy", "load"), help="which experiment")
+    p.add_argument("--json", metavar="OUT", help="write the result JSON to OUT")
+    p.add_argument("--out", metavar="DIR",
+                   help="run folder, empty unless --force (default: a new runs/<name>-<time>, linked as runs/latest)")
+    add_force_argument(p)
+    add_setup_arguments(p)
+    add_registration_argument(p)
+    p.add_argument("--duration", type=positive_float(MAX_DURATION_S), metavar="S",
+                   help="cube/load: run only the first S seconds of the cube walk (quick checks); "
+                        "point: hold for S seconds (default 5)")
+    p.add_argument("--point", type=finite_float(), nargs=3, metavar=("X", "Y", "Z"),
+                   help="point: the point to hold in {w} [m] (default: the workspace centre)")
+    p.add_argument("--positions", type=int_in(1, MAX_POSITIONS), default=40, help="accuracy: number of positions")
+    p.add_argument("--forces", type=nonnegative_float(MAX_TIP_FORCE_N), nargs="+", default=[0.0, 0.1, 0.2, 0.3],
+                   help="load: tip forces [N] to sweep")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.add_argument("--view", action="store_true",
+                   help="live 3D view in the browser (Meshcat; prints the URL to open)")
+    add_host_argument(p)
+
+
+def check_args(args: argparse.Namespace) -> SimSetup:
+    """Validate the options (ConfigError naming the bad one) and load the setup they ask for."""
+    if args.duration is not None and not args.duration > 0:
+        raise ConfigError(f"--duration must be > 0 s, got {args.duration}")
+    if len({f"{f:.2f}" for f in args.forces}) != len(args.forces):
+        raise ConfigError(f"--forces must differ by 0.01 N at least (each writes force_X.XXN/), got {args.forces}")
+    if args.point is not None and args.name != "point":
+        raise ConfigError("--point needs the point experiment")
+    return setup_from_args(args)
+
+
+def run(args: argparse.Namespace) -> int:
+    setup = check_args(args)
+    out = Path(args.out) if args.out else new_run_dir("runs", args.name)
+    claim_outputs(dirs=[out], files=[args.json], force=args.force)
+    progress = not args.no_progress
+    t0 = time.perf_counter()
+    view = None
+    if args.view:
+        from wristmark.viz.live import start_live_view
+
+        view = start_live_view(setup, host=args.host)
+        print(f"the live view closes when the run ends; then replay the run: wristmark view {out}",
+              file=sys.stderr, flush=True)
+    on_cycle = view.on_cycle if view is not None else None
+    on_frame = view.on_frame if view is not None else None
+    try:
+        res = _run(args, setup, out, progress, on_cycle, on_frame)
+    finally:
+        if view is not None:
+            view.close()
+            print(f"replay in the browser: wristmark view {out}", file=sys.stderr)
+            print(f"(the live view at {view.url} has closed with the run)", file=sys.stderr)
+    res["wall_time_s"] = time.perf_counter() - t0
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        write_json(args.json, res)
+    print(f"run folder: {out}")
+    if not args.out:
+        link_latest(out)
+    stopped = [r for r in _phases(res) if r.get("stopped")]
+    if stopped:
+        print(f"wristmark experiment: error: closed loop stopped safely: {stopped[0]['stopped']}", file=sys.stderr)
+        return 3
+    return 0
+
+
+def _run(args: argparse.Namespace, setup: SimSetup, out: Path, progress: bool,
+         on_cycle: Callable[[CycleRecord], None] | None, on_frame: Callable[..., None] | None) -> dict[str, Any]:
+    """Run the experiment ``args.name``, print its summary, return its result."""
+    from wristmark.sim import experiments
+
+    if args.name == "cube":
+        res = experiments.run_cube(setup, out, progress=progress, duration=args.duration, on_cycle=on_cycle,
+                                   on_frame=on_frame)
+        print(experiments.cube_table(res))
+    elif args.name == "point":
+        res = experiments.run_point(setup, out, point=args.point, progress=progress, duration=args.duration,
+                                    on_cycle=on_cycle)
+        print(experiments.cube_table(res))
+    elif args.name == "accuracy":
+        res = experiments.run_accuracy(setup, out, n=args.positions, progress=progress)
+        print(f"accuracy over {res['positions']} positions ({res['tracked']} tracked): "
+              f"mean {res['mean_mm']:.3f} mm, max {res['max_mm']:.3f} mm "
+              f"(paper: {res['paper']['mean_mm']} / {res['paper']['max_mm']} mm)")
+    else:
+        res = experiments.run_load(setup, out, args.forces, progress=progress, duration=args.duration,
+                                   on_cycle=on_cycle, on_frame=on_frame)
+        print((out / "results.md").read_text())
+    return res
+
+
+def _phases(res: dict) -> list[dict]:
+    """Every phase summary in a result (cube: open/closed loop; load: those of each force)."""
+    if "rows" in res:
+        return [ph for row in res["rows"] for ph in (row["open_loop"], row["closed_loop"])]
+    return [res[k] for k in ("open_loop", "closed_loop") if k in res]

@@ -1,0 +1,44 @@
+"""``wristmark marker print``: the unrolled sleeve of a marker file at 1:1 (cvs.marker_print).
+
+``wristmark marker print --marker FILE --out sleeve.svg|sleeve.pdf [--force]`` writes the page
+(2 pi r wide plus margins, the sleeve's z extent tall, a 10 mm scale bar and the marker file's
+name) for a lab to print on label film at 100 % and wrap around the arm. An existing --out is
+kept unless --force.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from wristmark.models.errors import InputError
+from wristmark.rig.output_dir import claim_outputs
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    sub = p.add_subparsers(dest="action", required=True, metavar="ACTION")
+    pr = sub.add_parser("print", help="write the unrolled sleeve at 1:1 (SVG or PDF)")
+    pr.add_argument("--marker", required=True, help="marker YAML (DESIGN.md; configs/marker_coded.yaml)")
+    pr.add_argument("--out", required=True, help="output file: .svg or .pdf")
+    pr.add_argument("--force", action="store_true", help="overwrite an existing --out")
+
+
+def run(args: argparse.Namespace) -> int:
+    from wristmark.cvs.marker import MarkerModel
+    from wristmark.cvs.marker_print import write_pdf, write_svg
+
+    out = Path(args.out)
+    kind = out.suffix.lower()
+    if kind not in (".svg", ".pdf"):
+        raise InputError(f"--out must end in .svg or .pdf, got '{out.name}'")
+    if not args.force:  # refuse an existing --out (checked only: written over at the end)
+        claim_outputs(files=[out])
+    if not out.parent.is_dir():
+        raise InputError(f"{out.parent}: folder not found")
+    marker_path = Path(args.marker)
+    if not marker_path.is_file():
+        raise InputError(f"{marker_path}: marker file not found")
+    marker = MarkerModel.load(marker_path)
+    (write_svg if kind == ".svg" else write_pdf)(marker, out, marker_path.name)
+    print(f"wrote {out} ({kind[1:].upper()}, 1:1: print at 100 %)")
+    return 0

@@ -1,0 +1,149 @@
+"""``wristmark render``: write a synthetic stereo dataset (DESIGN.md "Stereo dataset format")."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from wristmark.models.config_files import default_config
+from wristmark.models.errors import InputError
+from wristmark.rig.commands.option_types import (
+    MAX_BLUR_PX,
+    MAX_IMAGE_SCALE,
+    MAX_PAIRS,
+    MIN_IMAGE_SCALE,
+    PSI_ABS_MAX,
+    float_in,
+    int_in,
+    nonnegative_float,
+    seed_int,
+)
+from wristmark.rig.output_dir import add_force_argument, claim_outputs
+
+Array = NDArray[np.float64]
+# Half-widths of the random psi draw around HOME_PSI: phi [rad], d [m], theta1, delta1, theta2, delta2 [rad].
+PSI_SPREAD = (0.25, 0.012, 0.2, 0.6, 0.3, 0.6)
+MAX_TRIES = 400  # random draws per pair before giving up
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--out", required=True, help="dataset folder to write (created; must be empty unless --force)")
+    p.add_argument("--pairs", type=int_in(1, MAX_PAIRS), default=None, help="number of random pairs (default 10)")
+    p.add_argument("--seed", type=seed_int(), default=0, help="random seed (configurations, background, noise)")
+    p.add_argument("--calib", help="stereo calibration YAML or OpenCV file (default: configs/camera.yaml)")
+    p.add_argument("--marker", help="marker YAML (default: the reference marker)")
+    p.add_argument("--robot", help="robot YAML (default: the reference robot)")
+    p.add_argument(
+        "--psi",
+        nargs=6,
+        type=float_in(-PSI_ABS_MAX, PSI_ABS_MAX),
+        action="append",
+        metavar=("PHI", "D", "THETA1", "DELTA1", "THETA2", "DELTA2"),
+        help="render this configuration [rad, m, rad, rad, rad, rad]; repeatable",
+    )
+    p.add_argument("--psi-file", help="text file with one configuration (6 numbers) per line")
+    p.add_argument("--noise", choices=("none", "default", "strong"), default="default", help="noise preset")
+    p.add_argument("--settings", help="render settings YAML (overrides --noise)")
+    p.add_argument("--jpeg", type=int_in(1, 100), default=None, metavar="Q",
+                   help="JPEG round trip at quality Q (1-100)")
+    p.add_argument("--motion-blur", type=nonnegative_float(MAX_BLUR_PX), default=None, metavar="PX",
+                   help="linear motion blur length [px]")
+    p.add_argument("--scale", type=float_in(MIN_IMAGE_SCALE, MAX_IMAGE_SCALE), default=1.0,
+                   help="image scale factor of the camera (e.g. 0.5)")
+    p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
+    add_force_argument(p)
+
+
+def read_psi_file(path: str | Path) -> list[Array]:
+    """Configurations from a text file: 6 numbers per line (spaces or commas), '#' comments."""
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"{p}: psi file not found")
+    rows: list[Array] = []
+    for k, line in enumerate(p.read_text().splitlines(), 1):
+        line = line.split("#", 1)[0].replace(",", " ").strip()
+        if not line:
+            continue
+        try:
+            vals = [float(x) for x in line.split()]
+        except ValueError as e:
+            raise InputError(f"{p}:{k}: expected 6 numbers, got '{line}'") from e
+        if len(vals) != 6 or not all(math.isfinite(v) for v in vals):
+            raise InputError(f"{p}:{k}: expected 6 finite numbers (phi d theta1 delta1 theta2 delta2)")
+        rows.append(np.array(vals))
+    if not rows:
+        raise InputError(f"{p}: no configurations in the file")
+    return rows
+
+
+def run(args: argparse.Namespace) -> int:
+    from wristmark.cvs.calibration_io import load_calibration
+    from wristmark.cvs.camera import scaled_stereo_camera
+    from wristmark.cvs.marker import MarkerModel
+    from wristmark.models.arm_shape import arm_shape
+    from wristmark.models.limits import check_limits
+    from wristmark.models.robot_params import RobotParams
+    from wristmark.sim.dataset import DatasetWriter
+    from wristmark.sim.render import StereoRenderer
+    from wristmark.sim.render_settings import RenderSettings, noise_preset
+    from wristmark.sim.visibility import marker_visible, random_visible_psi
+
+    if args.pairs is not None and args.pairs < 1:
+        raise InputError(f"--pairs must be >= 1, got {args.pairs}")
+    if not args.scale > 0 or args.scale > 4:
+        raise InputError(f"--scale must be in (0, 4], got {args.scale}")
+    overrides: dict[str, object] = {}
+    if args.jpeg is not None:
+        if not 1 <= args.jpeg <= 100:
+            raise InputError(f"--jpeg must be a quality in 1..100, got {args.jpeg}")
+        overrides["jpeg_quality"] = args.jpeg
+    if args.motion_blur is not None:
+        if not args.motion_blur >= 0:
+            raise InputError(f"--motion-blur must be >= 0 px, got {args.motion_blur}")
+        overrides["motion_blur"] = args.motion_blur
+    if args.settings:
+        from dataclasses import replace
+
+        settings = replace(RenderSettings.load(args.settings), **overrides)  # type: ignore[arg-type]
+        settings.validate()
+    else:
+        settings = noise_preset(args.noise, **overrides)
+
+    calib = args.calib or str(default_config("camera.yaml"))
+    camera = load_calibration(calib)
+    if args.scale != 1.0:
+        camera = scaled_stereo_camera(camera, args.scale)
+    marker = MarkerModel.load(args.marker) if args.marker else MarkerModel()
+    params = RobotParams.load(args.robot) if args.robot else RobotParams()
+
+    given: list[Array] = [np.asarray(q, float) for q in (args.psi or [])]
+    if args.psi_file:
+        given += read_psi_file(args.psi_file)
+    rng = np.random.default_rng(args.seed)
+    if given:
+        if args.pairs is not None and args.pairs != len(given):
+            raise InputError(f"--pairs {args.pairs} disagrees with the {len(given)} given configurations")
+        configs = [check_limits(params, q) for q in given]
+        for q in configs:
+            if not marker_visible(camera, marker, arm_shape(params, q)):
+                raise InputError(f"the marker is not seen by both cameras at psi = {np.round(q, 4).tolist()}")
+    else:
+        configs = [
+            random_visible_psi(params, camera, marker, rng, PSI_SPREAD, MAX_TRIES) for _ in range(args.pairs or 10)
+        ]
+
+    claim_outputs(dirs=[args.out], force=args.force)
+    renderer = StereoRenderer(camera, marker, settings, seed=args.seed)
+    writer = DatasetWriter(args.out, camera, marker)
+    for q in configs:
+        writer.add(renderer.render(arm_shape(params, q)))
+    if args.json:
+        print(json.dumps({"out": str(args.out), "pairs": len(configs), "psi": [q.tolist() for q in configs]}))
+    else:
+        print(f"wrote {len(configs)} stereo pairs to {args.out}")
+    return 0

@@ -1,0 +1,298 @@
+"""``wristmark servo``: the closed loop driving the actuators through protocol v1.
+
+The hardware path, ``--serial PORT --camera SPEC``: an actuator box on a serial port (hardware,
+the virtual lab's ``wristmark emulator --pty --camera-port``, any pyserial URL) and a stereo
+camera named by a frame-source SPEC (DESIGN.md "Stereo frame sources"), in real time on the
+host's monotonic clock; the tip comes only from tracking the camera's frames, and nothing of
+the simulated bench is imported.
+
+Without ``--serial`` the command runs the simulated bench in process: the actuator-box emulator
+on a new pseudo-terminal, driving the simulated true arm, talked to through
+:class:`rig.actuator_driver.ActuatorDriver` (every command crosses the pty as bytes) while the
+emulator and the loop share a simulated clock (faster than real time, deterministic);
+``--realtime`` runs that emulator on the wall clock instead; ``--direct`` is the in-process
+reference without serial bytes.
+
+Safe stops (the arm held, then DISABLE; one line on stderr; exit 3): marker lost too long, the
+camera stalled or its stream ended, the device silent or gone, an emergency stop, a watchdog
+trip. Ctrl-C stops the same way (exit 130). Bad options fail before any motion command (exit 2).
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from types import FrameType
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from wristmark.models.errors import InputError
+from wristmark.rig.commands.option_types import (
+    MAX_BAUD,
+    MAX_DURATION_S,
+    MAX_HOLD_S,
+    MAX_POINT_M,
+    MAX_SETTLE_S,
+    MAX_TIMEOUT_S,
+    MIN_BAUD,
+    float_in,
+    int_in,
+    nonnegative_float,
+    positive_float,
+)
+from wristmark.rig.commands.setup_args import add_registration_argument, add_setup_arguments, setup_from_args
+from wristmark.rig.output_dir import add_force_argument, claim_outputs
+from wristmark.rig.run_log import write_json
+from wristmark.rig.servo_session import (
+    HW_TIMEOUT_S,
+    POINT_HOLD_S,
+    SIM_TIMEOUT_S,
+    LinkOptions,
+    PointHold,
+    ServoOutcome,
+    ServoSession,
+    run_servo,
+)
+from wristmark.rig.servo_summary import summarize
+from wristmark.rig.trajectories import Trajectory
+from wristmark.viz.web_hosts import add_host_argument
+
+if TYPE_CHECKING:
+    from wristmark.rig.loop_setup import LoopSetup
+
+Array = NDArray[np.float64]
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    link = p.add_mutually_exclusive_group()
+    link.add_argument("--serial", metavar="PORT",
+                      help="hardware path: drive an actuator box in real time (device path or pyserial URL; "
+                           "needs --camera). Default: the simulated bench, its emulator on a new pty")
+    link.add_argument("--direct", action="store_true",
+                      help="in-process plant without serial bytes (the reference for the serial path)")
+    p.add_argument("--camera", metavar="SPEC",
+                   help="with --serial: the stereo camera's frame source (/dev/videoN, http://..., a video; "
+                        "docs/frame_sources.md); the calibration is --calib")
+    p.add_argument("--camera-timeout", type=positive_float(60.0), default=2.0, metavar="S",
+                   help="with --camera: no frame for S seconds ends the camera's stream (default 2)")
+    p.add_argument("--record", metavar="FILE.mcap",
+                   help="with --serial: record the frames, marker poses and actuators (commanded and measured) "
+                        "as a ROS 2 bag")
+    p.add_argument("--record-jpeg", action="store_true", help="record images as JPEG (CompressedImage)")
+    p.add_argument("--rt-priority", type=int_in(1, 99), metavar="N",
+                   help="with --serial: run the loop (and its camera threads) under SCHED_FIFO at priority N, so a "
+                        "loaded host keeps the control period (needs root or CAP_SYS_NICE)")
+    p.add_argument("--realtime", action="store_true",
+                   help="run the in-process emulator on the wall clock, its watchdog live, like hardware "
+                        "(implied by --serial)")
+    p.add_argument("--pace", action="store_true",
+                   help="simulated time, but never faster than the wall clock (implied by --view)")
+    p.add_argument("--baud", type=int_in(MIN_BAUD, MAX_BAUD), default=115200, help="serial baud rate (default 115200)")
+    p.add_argument("--timeout", type=positive_float(MAX_TIMEOUT_S), metavar="S",
+                   help=f"reply timeout per attempt [s] (default {HW_TIMEOUT_S} real time, "
+                        f"{SIM_TIMEOUT_S} simulated)")
+    p.add_argument("--trajectory", choices=("cube", "point"), default="cube",
+                   help="cube: the paper's cube walk (default); point: hold --point")
+    p.add_argument("--point", type=float_in(-MAX_POINT_M, MAX_POINT_M), nargs=3, metavar=("X", "Y", "Z"),
+                   help="point to hold in {w} [m] (default: the workspace centre)")
+    p.add_argument("--duration", type=positive_float(MAX_DURATION_S), metavar="S",
+                   help=f"run only the first S seconds of the trajectory (point: default {POINT_HOLD_S:g})")
+    p.add_argument("--settle", type=nonnegative_float(MAX_SETTLE_S), metavar="S",
+                   help="closed-loop approach to the start [s] (rig file)")
+    p.add_argument("--json", metavar="OUT", help="write the result JSON to OUT")
+    p.add_argument("--out", metavar="DIR", help="write config.json, log.csv, result.json to DIR (empty unless --force)")
+    add_force_argument(p)
+    add_registration_argument(p)
+    add_setup_arguments(p)
+    p.add_argument("--view", action="store_true", help="show the run live in the Meshcat view (paced)")
+    add_host_argument(p)
+    p.add_argument("--view-hold", type=nonnegative_float(MAX_HOLD_S), default=0.0, metavar="S",
+                   help="with --view: keep serving the view S seconds after the run (Ctrl-C ends it)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+# -- command line ------------------------------------------------------------------------------
+def build_setup(args: argparse.Namespace) -> LoopSetup:
+    """The setup with the command-line overrides, validated: the simulated bench's SimSetup, or
+    for the hardware path (``--serial``) a LoopSetup without the simulated bench."""
+    return setup_from_args(args, simulated=args.serial is None, settle_time=args.settle)  # type: ignore[no-any-return]
+
+
+def build_trajectory(setup: LoopSetup, kind: str, point: list[float] | None, duration: float | None) -> Trajectory:
+    """The cube walk around the workspace centre, or a held point; cut to ``duration`` [s]."""
+    from wristmark.rig.trajectories import CUBE_SIZE, CUBE_SPEED, cube_trajectory, workspace_centre
+
+    if duration is not None and not (np.isfinite(duration) and duration > 0):
+        raise InputError(f"--duration must be > 0 s, got {duration}")
+    if point is not None and kind != "point":
+        raise InputError("--point needs --trajectory point")
+    centre = workspace_centre(setup.params)
+    if kind == "point":
+        p = np.asarray(point if point is not None else centre, float)
+        if not np.all(np.isfinite(p)):
+            raise InputError(f"--point must be 3 finite numbers [m], got {p.tolist()}")
+        return PointHold(np.array([p]), 1.0, hold=duration if duration is not None else POINT_HOLD_S)
+    traj = cube_trajectory(centre, CUBE_SIZE, CUBE_SPEED)
+    return traj.truncated(duration) if duration is not None else traj
+
+
+def start_configuration(setup: LoopSetup, traj: Trajectory) -> Array:
+    """IK of the trajectory's start (raises InputError when it is out of reach)."""
+    from wristmark.models.ik import solve_tip_ik
+    from wristmark.models.robot_params import HOME_PSI
+
+    p0 = traj.sample(0.0)[0]
+    ik = solve_tip_ik(setup.params, p0, np.asarray(HOME_PSI, float))
+    if not ik.error <= 1e-4:
+        raise InputError(f"the start point {np.round(1000 * p0, 2).tolist()} mm is out of reach of the arm "
+                         f"(IK misses it by {1000 * ik.error:.2f} mm)")
+    return np.asarray(ik.psi, float)
+
+
+def live_view(setup: LoopSetup, host: str | None = None) -> Any:
+    """The Meshcat live view (viz.live.start_live_view), or a one-line error when it is missing."""
+    try:
+        from wristmark.viz.live import start_live_view  # type: ignore[import-not-found, unused-ignore]
+    except ImportError as e:
+        raise InputError(f"--view needs the Meshcat live view (viz/live.py), which is not available: {e}") from None
+    return start_live_view(setup, host=host)
+
+
+@contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """SIGTERM and SIGINT stop the run like Ctrl-C (main thread only); SIGINT also when the
+    process was started with it ignored (``nohup``, a background job of a script), so that
+    ``kill -INT`` always holds and disables the arm."""
+
+    def handler(signum: int, frame: FrameType | None) -> None:
+        raise KeyboardInterrupt
+
+    try:
+        previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGTERM, signal.SIGINT)}
+    except ValueError:  # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+
+
+def check_link_options(args: argparse.Namespace) -> None:
+    """The link and camera options fit together (InputError before anything is opened)."""
+    if args.serial is not None and not args.camera:
+        raise InputError("--serial needs --camera SPEC: the frames of the stereo camera (e.g. the virtual lab's "
+                         "stream URL); the simulated cameras exist only in the in-process bench (no --serial)")
+    if args.camera and args.serial is None:
+        raise InputError("--camera SPEC needs --serial PORT (the hardware path); without --serial the "
+                         "simulated bench renders its own frames")
+    if args.rt_priority is not None and args.serial is None:
+        raise InputError("--rt-priority is for the hardware path (--serial); the simulated bench runs in "
+                         "simulated time")
+    if args.record and args.serial is None:
+        raise InputError("--record is for the hardware path (--serial --camera): the simulated bench writes "
+                         "log.csv with --out")
+    if args.record_jpeg and not args.record:
+        raise InputError("--record-jpeg needs --record FILE.mcap")
+    if args.serial is not None and args.realtime:
+        raise InputError("--realtime is for the in-process emulator; --serial is always real time")
+    if args.timeout is not None and not args.timeout > 0:
+        raise InputError(f"--timeout must be > 0 s, got {args.timeout}")
+    if args.baud <= 0:
+        raise InputError(f"--baud must be > 0, got {args.baud}")
+    if not (np.isfinite(args.view_hold) and args.view_hold >= 0):
+        raise InputError(f"--view-hold must be >= 0 s, got {args.view_hold}")
+
+
+def open_session(setup: LoopSetup, psi0: Array, options: LinkOptions, args: argparse.Namespace) -> ServoSession:
+    """The hardware session (serial port + camera), or the simulated bench's in process."""
+    if options.kind == "serial":
+        from wristmark.rig.hardware_session import open_hardware_session
+
+        if args.rt_priority is not None:  # before any thread starts: the camera's threads inherit it
+            from wristmark.rig.realtime_priority import request_realtime_priority
+
+            request_realtime_priority(args.rt_priority)
+        return open_hardware_session(setup, options, args.camera, camera_timeout=args.camera_timeout)
+    from wristmark.sim.servo_bench import open_sim_session
+
+    return open_sim_session(setup, psi0, options, seed=setup.rig.seed)  # type: ignore[arg-type]
+
+
+def open_recorder(args: argparse.Namespace, setup: LoopSetup, session: ServoSession) -> Any:
+    """The --record bag (after the session opened, before any motion); closes the session when
+    the bag cannot be written."""
+    if not args.record:
+        return None
+    from wristmark.rig.servo_recorder import ServoRecorder
+
+    try:
+        return ServoRecorder(args.record, setup.params, jpeg=args.record_jpeg,
+                             world_T_left=setup.host_camera.T_world_left)
+    except BaseException:
+        session.close()
+        raise
+
+
+def write_outputs(args: argparse.Namespace, setup: LoopSetup, out: ServoOutcome, res: dict[str, Any]) -> None:
+    """DIR/config.json, DIR/log.csv, DIR/result.json (--out) and the result JSON (--json)."""
+    if args.out:
+        out_dir = Path(args.out)
+        out_dir.mkdir(parents=True, exist_ok=True)
+        write_json(out_dir / "config.json", {"command": "servo", "link": res["link"], "camera": args.camera,
+                                             **setup.describe()})
+        out.log.write_csv(out_dir / "log.csv")
+        write_json(out_dir / "result.json", {**res, "run_dir": str(out_dir)})
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        write_json(args.json, res)
+
+
+def run(args: argparse.Namespace) -> int:
+    check_link_options(args)
+    setup = build_setup(args)
+    traj = build_trajectory(setup, args.trajectory, args.point, args.duration)
+    psi0 = start_configuration(setup, traj)
+    claim_outputs(dirs=[args.out], files=[args.json], force=args.force)  # after every option was validated
+    kind = "serial" if args.serial else "direct" if args.direct else "emulator"
+    options = LinkOptions(kind=kind, port=args.serial, baudrate=args.baud, timeout=args.timeout,
+                          realtime=bool(args.realtime), pace=bool(args.pace or args.view))
+    with _sigterm_as_interrupt():
+        view = live_view(setup, args.host) if args.view else None
+        try:
+            session = open_session(setup, psi0, options, args)
+            recorder = open_recorder(args, setup, session)
+            out = run_servo(setup, traj, session, psi0, settle=setup.rig.settle_time,
+                            progress=not args.no_progress, on_cycle=None if view is None else view.on_cycle,
+                            recorder=recorder, on_frame=None if view is None else view.on_frame)
+            if view is not None and args.view_hold > 0:
+                view.hold(args.view_hold)
+        finally:
+            if view is not None:
+                view.close()
+    res = summarize(setup, traj, session, out)
+    if recorder is not None:
+        res["recording"] = {"path": args.record, "cycles": recorder.cycles, "dropped_cycles": recorder.dropped,
+                            "messages": recorder.bag.messages, "problem": recorder.error}
+    write_outputs(args, setup, out, res)
+    c = res["closed_loop"]
+    errors = (f"closed-loop tip error mean {c['mean_mm']:.3f} mm, max {c['max_mm']:.3f} mm over {c['cycles']} "
+              f"cycles ({c['errors_from']} vs desired)" if c["cycles"] else "no trajectory cycle ran")
+    lat = res["latency"]["capture_to_command"]
+    latency = f"; capture -> command median {lat['median_ms']:.1f} ms" if options.kind == "serial" and lat["n"] else ""
+    print(f"servo ({res['trajectory']['kind']}, {traj.duration:.1f} s, controller {res['controller']}, "
+          f"sensor {res['sensor']}, link {kind} {session.port}): {errors}{latency}")
+    if not out.stopped:
+        return 0
+    safe = ("arm held and disabled" if not out.close_error
+            else f"could not confirm hold/disable ({out.close_error})")
+    print(f"wristmark servo: error: stopped safely at t = {out.t_stop:.2f} s: {out.stopped}; {safe}",
+          file=sys.stderr)
+    return 130 if out.cause == "interrupted" else 3

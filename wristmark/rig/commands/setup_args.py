@@ -1,0 +1,109 @@
+"""Command-line options shared by the commands that run a servo loop (experiment, servo): which
+configuration files, and overrides of the loop (cycle, latency, sensor, image scale, seed) and
+of the controller kind. ``setup_from_args`` loads and validates them into a SimSetup (the
+simulated bench) or, for the hardware path, a :class:`rig.loop_setup.LoopSetup` without
+importing the simulated bench. The stereo calibration is ``--calib`` (``--camera`` names a
+frame source in ``servo``)."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+from typing import TYPE_CHECKING, Any
+
+from wristmark.models.errors import ConfigError, InputError
+from wristmark.rig.commands.option_types import (
+    MAX_CONTROL_DT,
+    MAX_IMAGE_SCALE,
+    MIN_CONTROL_DT,
+    MIN_IMAGE_SCALE,
+    float_in,
+    nonnegative_float,
+    seed_int,
+)
+
+if TYPE_CHECKING:
+    from wristmark.rig.loop_setup import LoopSetup
+
+SIM_ONLY = ("plant", "latency", "sensor")  # options that only the simulated bench has
+
+
+def add_setup_arguments(p: argparse.ArgumentParser) -> None:
+    """Configuration files and loop/controller overrides."""
+    p.add_argument("--plant", help="plant file: how the simulated true arm differs (default configs/plant.yaml)")
+    p.add_argument("--controller", metavar="NAME", help="controller kind (paper, qp, ...)")
+    p.add_argument("--controller-config", metavar="YAML", help="controller file (default configs/controller.yaml)")
+    p.add_argument("--rig", metavar="YAML", help="rig/loop file (default configs/rig.yaml)")
+    p.add_argument("--robot", metavar="YAML", help="robot file (default configs/robot.yaml)")
+    p.add_argument("--calib", metavar="YAML", help="stereo calibration (default configs/camera.yaml)")
+    p.add_argument("--marker", metavar="YAML", help="marker file (default configs/marker.yaml)")
+    p.add_argument("--dt", type=float_in(MIN_CONTROL_DT, MAX_CONTROL_DT), metavar="S",
+                   help="control cycle [s] (paper: 0.060)")
+    p.add_argument("--latency", type=nonnegative_float(MAX_CONTROL_DT), metavar="S",
+                   help="simulated bench: capture -> command latency [s]")
+    p.add_argument("--sensor", choices=("vision", "truth-noise"),
+                   help="simulated bench: rendered images + tracker (default) or truth+noise (fast)")
+    p.add_argument("--image-scale", type=float_in(MIN_IMAGE_SCALE, MAX_IMAGE_SCALE), metavar="F",
+                   help="images at F x the calibrated size (simulated bench: rendered so; a camera: delivers so)")
+    p.add_argument("--seed", type=seed_int(), help="random seed (noise, rendering, tracker)")
+
+
+def add_registration_argument(p: argparse.ArgumentParser) -> None:
+    """``--registration FILE``: the host's world_T_left from a registration file (wristmark register)."""
+    p.add_argument("--registration", metavar="FILE",
+                   help="registration file (wristmark register): overrides the calibration's world_T_left")
+
+
+def setup_from_args(args: argparse.Namespace, simulated: bool = True, **rig_overrides: Any) -> Any:
+    """Load the configuration files and apply the command-line overrides (plus ``rig_overrides``
+    that are not None), validated; an unknown controller kind lists the valid ones.
+
+    simulated: a SimSetup (the simulated bench, with its plant file); False: a LoopSetup for the
+    hardware path (the simulated bench is not imported; its options are refused)."""
+    from wristmark.solvers.controller import make_controller
+
+    setup: LoopSetup
+    if simulated:
+        from wristmark.sim.setup import load_setup
+
+        setup = load_setup(robot=args.robot, marker=args.marker, camera=args.calib, plant=args.plant,
+                           rig=args.rig, controller=args.controller_config)
+    else:
+        from wristmark.rig.loop_setup import load_loop_setup
+
+        given = [f"--{k}" for k in SIM_ONLY if getattr(args, k, None) is not None]
+        if given:
+            raise InputError(f"{', '.join(given)}: only for the simulated bench, not with a camera")
+        setup = load_loop_setup(robot=args.robot, marker=args.marker, camera=args.calib, rig=args.rig,
+                                controller=args.controller_config)
+    if getattr(args, "registration", None):
+        from wristmark.cvs.registration_io import load_registration
+
+        setup = setup.with_changes(registration=load_registration(args.registration).world_T_left)
+    changes: dict[str, Any] = {}
+    if args.dt is not None:
+        changes["control_dt"] = args.dt
+        if args.latency is None and setup.rig.vision_latency >= args.dt:
+            changes["vision_latency"] = 0.75 * args.dt
+        if setup.rig.frame_wait >= args.dt:
+            changes["frame_wait"] = 0.5 * args.dt
+    if args.latency is not None:
+        changes["vision_latency"] = args.latency
+    for key, value in (("sensor", args.sensor), ("image_scale", args.image_scale), ("seed", args.seed),
+                       *rig_overrides.items()):
+        if value is not None:
+            changes[key] = value
+    if changes:
+        rig = dataclasses.replace(setup.rig, **changes)
+        try:
+            rig.validate()
+        except ConfigError as e:
+            raise ConfigError(f"command-line options: {e}") from None
+        setup = setup.with_changes(rig=rig)
+    ctrl = setup.controller
+    if args.controller:
+        ctrl = dataclasses.replace(ctrl, kind=args.controller)
+    if args.dt is not None:
+        ctrl = dataclasses.replace(ctrl, dt=args.dt)
+    make_controller(setup.params, ctrl)  # validates the kind (lists the valid ones)
+    return setup.with_changes(controller=ctrl)

@@ -1,0 +1,252 @@
+"""``wristmark track``: tip and marker pose in each stereo frame (DESIGN.md "Command line",
+"Stereo frame sources", "Recording").
+
+Frames come from ``LEFT RIGHT ...`` image pairs or ``--source SPEC`` (dataset folder, video,
+two videos, V4L2 camera, HTTP/RTSP stream, ROS 2 bag: cvs.open_source) and are tracked in
+order as one sequence (ROI tracking from frame to frame). With ``--json`` one object per frame
+and line: left, right, ok, tip, R, t (pose of {wm} in {ll}, metres), corners_left,
+corners_right (raw pixels), rms_px, time_ms, and axis_source (what decided the direction of
+z_wm: cvs.marker_tracker); with ``--source`` also ``frame`` (the source's index) and
+``t_capture`` (host monotonic clock [s]). ``"ok": false`` with a ``reason`` when the marker is
+not found, or "direction ambiguous" when nothing tells which way the marker points (the
+direction is never guessed unless --lenient-direction; docs/conventions.md); the exit status
+stays 0 (that is a result, not an error). When ok, also ``roll_known`` (a coded sleeve's code was
+read: R includes the roll) and ``ids`` ({"left": [...], "right": [...]}: absolute column ids of
+the corners, null when the roll is unknown).
+
+With ``--source``: a progress bar on stderr for finite sources (on a terminal), and at the end
+one summary line on stderr: frames, rate [fps], tracking latency (result time minus
+``t_capture``) median and p95 [ms], dropped frames. ``--annotate`` writes the frames with the
+corners, their indices and the marker axes drawn (cvs.annotate); ``--record FILE.mcap`` writes
+the frames and poses as a ROS 2 bag (rig.bag_recorder) that ``--source FILE.mcap`` replays.
+
+Errors are for the whole command (one line on stderr, exit 2): an odd number of paths, a
+missing file (all paths are checked before any pair is tracked), a source that cannot be
+opened, an unreadable (corrupt) or wrong-size image or a stalled stream — those are found when
+their frame is reached, after the earlier frames' lines were printed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from wristmark.cvs.frames import StereoFrame
+from wristmark.models.errors import InputError
+from wristmark.rig.commands.option_types import MAX_RMS_PX, float_in, int_in, positive_float
+
+DEFAULT_TIMEOUT_S = 5.0
+
+
+def size_type(text: str) -> tuple[int, int]:
+    """``WxH`` as (width, height) [px], each in 1..16384."""
+    parts = text.lower().split("x")
+    try:
+        w, h = (int(p) for p in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a size WxH (e.g. 3840x1080)") from None
+    if not (0 < w <= 16384 and 0 < h <= 16384):
+        raise argparse.ArgumentTypeError(f"{text}: width and height must be in 1..16384 px")
+    return w, h
+
+
+size_type.__name__ = "size"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--calib", required=True, help="stereo calibration (YAML of docs/formats.md or OpenCV FileStorage)")
+    p.add_argument("--marker", help="marker YAML (default: the reference marker)")
+    p.add_argument("--registration", metavar="FILE",
+                   help="registration file (wristmark register): overrides the calibration's world_T_left; "
+                   "the JSON then also has tip_world, in {w} and metres")
+    p.add_argument("images", nargs="*", metavar="LEFT RIGHT", help="stereo pairs: left and right image paths")
+    p.add_argument("--source", metavar="SPEC", help="frame source instead of image pairs: DIR, VIDEO, LEFT,RIGHT, "
+                   "/dev/videoN, device:N, http://..., rtsp://..., FILE.mcap, BAGDIR")
+    p.add_argument("--frames", type=int_in(1, 10**9), metavar="N", help="stop after N frames (e.g. of a live source)")
+    p.add_argument("--layout", choices=("sbs", "tb"), default="sbs",
+                   help="how one frame holds both views: side by side (left view left) or top-bottom")
+    p.add_argument("--topics", metavar="LEFT,RIGHT", help="image topics of a bag "
+                   "(default /stereo/left/image_raw,/stereo/right/image_raw)")
+    p.add_argument("--size", type=size_type, metavar="WxH", help="camera frame size to request [px] (whole frame)")
+    p.add_argument("--fps", type=positive_float(1000.0), metavar="F", help="camera frame rate to request [1/s]")
+    p.add_argument("--fourcc", default="MJPG", help="camera pixel format (default MJPG)")
+    p.add_argument("--timeout", type=positive_float(3600.0), default=DEFAULT_TIMEOUT_S, metavar="S",
+                   help=f"live source: open and stall timeout [s] (default {DEFAULT_TIMEOUT_S:g})")
+    p.add_argument("--paced", action="store_true",
+                   help="play a video or bag at its recorded rate in wall-clock time "
+                   "(video: newest frame, drops counted)")
+    p.add_argument("--grayscale", action="store_true",
+                   help="hand the tracker grey views (an MJPG video then decodes only its luma: 2-5x faster)")
+    p.add_argument("--annotate", metavar="DIR|FILE.mp4", help="write annotated frames to a folder or a video "
+                   "(.mp4, .avi, .mkv)")
+    p.add_argument("--record", metavar="FILE.mcap", help="record frames and poses as a ROS 2 bag (MCAP)")
+    p.add_argument("--record-jpeg", action="store_true", help="record images as JPEG (CompressedImage)")
+    p.add_argument(
+        "--detector",
+        choices=("auto", "paper", "saddle"),
+        default="auto",
+        help="corner detector (auto: the paper's detector when installed)",
+    )
+    p.add_argument(
+        "--max-rms",
+        type=positive_float(MAX_RMS_PX),
+        default=None,
+        metavar="PX",
+        help="largest accepted reprojection RMS [px] (default 0.75)",
+    )
+    p.add_argument(
+        "--axis-hint",
+        type=float_in(-1e6, 1e6),
+        nargs=3,
+        metavar=("X", "Y", "Z"),
+        help="expected direction of the marker's z axis (towards the tip) in the left camera frame; "
+        "default: a coded sleeve's code, a consistent previous pair or the images decide (else 'direction ambiguous')",
+    )
+    p.add_argument(
+        "--lenient-direction",
+        action="store_true",
+        help="guess which way the marker points when nothing decides it (one-band image evidence, else +x: the "
+        "arm entering from the left); default: 'direction ambiguous' unless the code, --axis-hint, a consistent "
+        "previous pair or the image beyond the tip decides",
+    )
+    p.add_argument("--json", action="store_true", help="one JSON object per frame and line on stdout")
+
+
+def _round(a: Any, nd: int) -> Any:
+    return np.round(np.asarray(a, float), nd).tolist()
+
+
+def _ids(res: Any) -> dict[str, list[int | None]] | None:
+    """Absolute column ids of corners_left / corners_right (None: corner not used), or None when
+    the roll is unknown (reference sleeve, or a code that could not be read)."""
+    if not res.roll_known or res.ids_left is None or res.ids_right is None:
+        return None
+    pairs = (("left", res.ids_left), ("right", res.ids_right))
+    return {k: [int(i) if i >= 0 else None for i in ids] for k, ids in pairs}
+
+
+def result_fields(res: Any) -> dict[str, Any]:
+    """The JSON fields of one TrackResult after left/right (DESIGN.md order)."""
+    out: dict[str, Any] = {"ok": res.ok}
+    if res.ok and res.T_left_marker is not None and res.tip_left is not None:
+        out |= {
+            "tip": _round(res.tip_left, 9),
+            "R": _round(res.T_left_marker[:3, :3], 9),
+            "t": _round(res.T_left_marker[:3, 3], 9),
+        }
+    else:
+        out["reason"] = res.reason
+    out |= {
+        "corners_left": _round(res.corners_left, 4),
+        "corners_right": _round(res.corners_right, 4),
+        "rms_px": round(res.rms_px, 5) if res.ok else None,
+        "time_ms": round(res.time_ms, 3),
+    }
+    if res.ok:
+        out["axis_source"] = res.axis_source
+        out["roll_known"] = res.roll_known
+        out["ids"] = _ids(res)
+    return out
+
+
+def _text_line(frame: StereoFrame, res: Any) -> str:
+    left, right = frame.name_left.rsplit("/", 1)[-1], frame.name_right.rsplit("/", 1)[-1]
+    names = left if left == right else f"{left} {right}"
+    if res.ok and res.tip_left is not None:
+        x, y, z = (1e3 * res.tip_left).tolist()
+        return (f"{names}: tip in {{ll}} [{x:.3f}, {y:.3f}, {z:.3f}] mm, "
+                f"rms {res.rms_px:.3f} px, {res.time_ms:.1f} ms")
+    return f"{names}: no pose ({res.reason})"
+
+
+def _settings(args: argparse.Namespace) -> Any:
+    from wristmark.cvs.marker_tracker import TrackerSettings
+
+    settings = TrackerSettings(detector=args.detector, strict_direction=not args.lenient_direction)
+    if args.max_rms is not None:
+        settings = replace(settings, max_rms_px=args.max_rms, good_rms_px=min(settings.good_rms_px, args.max_rms))
+    return settings
+
+
+def _topics(text: str | None) -> tuple[str, str]:
+    from wristmark.cvs.open_source import DEFAULT_TOPICS
+
+    if text is None:
+        return DEFAULT_TOPICS
+    parts = [t.strip() for t in text.split(",")]
+    if len(parts) != 2 or not all(parts):
+        raise InputError(f"--topics must be LEFT,RIGHT (two topic names), got '{text}'")
+    return parts[0], parts[1]
+
+
+def run(args: argparse.Namespace) -> int:
+    from wristmark.cvs.calibration_io import load_calibration
+    from wristmark.cvs.marker import MarkerModel
+    from wristmark.cvs.marker_tracker import MarkerTracker
+    from wristmark.cvs.open_source import SourceOptions, open_stereo_source
+    from wristmark.cvs.registration_io import apply_registration
+
+    def fields(res: Any) -> dict[str, Any]:
+        out = result_fields(res)
+        if args.registration and res.ok and res.tip_world is not None:
+            out["tip_world"] = _round(res.tip_world, 9)
+        return out
+
+    if args.source is not None and args.images:
+        raise InputError("give either LEFT RIGHT image pairs or --source SPEC, not both")
+    if args.source is None and not args.images:
+        raise InputError("nothing to track: give LEFT RIGHT image pairs or --source SPEC")
+    if args.source is None and (args.annotate or args.record):
+        raise InputError("--annotate and --record need --source SPEC (e.g. --source DIR for a dataset folder)")
+    if args.record_jpeg and not args.record:
+        raise InputError("--record-jpeg needs --record FILE.mcap")
+    hint = None
+    if args.axis_hint is not None:
+        hint = np.asarray(args.axis_hint, float)
+        if not np.linalg.norm(hint) > 0:
+            raise InputError(f"--axis-hint must be a non-zero direction, got {args.axis_hint}")
+    if args.source is None:
+        source = open_stereo_source(args.images)  # paths checked before anything is loaded
+    camera = apply_registration(load_calibration(args.calib), args.registration)
+    marker = MarkerModel.load(args.marker) if args.marker else MarkerModel()
+    tracker = MarkerTracker(camera, marker, _settings(args))
+    if args.source is None:
+        for frame in iter(source.read, None):
+            try:
+                res = tracker.track(frame.left, frame.right, axis_hint_left=hint)
+            except InputError as e:
+                raise InputError(f"{frame.name_left} / {frame.name_right}: {e}") from e
+            out = {"left": frame.name_left, "right": frame.name_right} | fields(res)
+            print(json.dumps(out) if args.json else _text_line(frame, res), flush=True)
+        return 0
+    options = SourceOptions(layout=args.layout, size=args.size, fps=args.fps, fourcc=args.fourcc or None,
+                            topics=_topics(args.topics), timeout=args.timeout, paced=args.paced,
+                            image_size=camera.image_size, grayscale=args.grayscale)
+    from wristmark.rig.track_stream import TrackOutputs, track_source
+
+    def emit(frame: StereoFrame, res: Any) -> None:
+        if args.json:
+            line = {"left": frame.name_left, "right": frame.name_right} | fields(res)
+            print(json.dumps(line | {"frame": frame.index, "t_capture": round(frame.t_capture, 6)}), flush=True)
+        else:
+            print(_text_line(frame, res), flush=True)
+
+    source = open_stereo_source(args.source, options)
+    try:
+        fps = float(getattr(source, "fps", 0.0) or 30.0)  # a video's own rate for an annotated video
+        outputs = TrackOutputs.open(args.annotate, args.record, args.record_jpeg, camera, marker, fps)
+    except BaseException:
+        source.close()
+        raise
+    try:
+        summary = track_source(source, tracker, emit, outputs, args.frames, hint)
+    finally:
+        source.close()
+        outputs.close()
+    print(summary.line(), file=sys.stderr, flush=True)
+    return 0

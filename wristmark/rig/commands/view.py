@@ -1,0 +1,110 @@
+"""``wristmark view [RUN_DIR]``: the Meshcat 3D view of a run (replay) or of the arm at home.
+
+Without ``--snapshot`` it serves the scene: the first stdout line is ``open URL`` (with
+``--json``: ``{"url": URL}``), then it serves until Ctrl-C, SIGTERM or ``--serve-seconds``.
+A RUN_DIR is replayed as an animation with a time slider (the control panel opens on it).
+``--snapshot OUT.html`` writes a self-contained page that opens from a file instead.
+Errors (missing run folder, corrupt log.csv, unwritable OUT) are one line on stderr, exit 2.
+The live view of a running loop is ``--view`` on ``wristmark experiment``/``servo``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import sys
+import time
+from types import FrameType
+
+from wristmark.models.errors import InputError
+from wristmark.rig.commands.option_types import MAX_FRAMES, MAX_HOLD_S, int_in, nonnegative_float
+from wristmark.rig.output_dir import add_force_argument, claim_outputs
+from wristmark.viz.web_hosts import add_host_argument
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("run_dir", nargs="?", metavar="RUN_DIR",
+                   help="experiment run folder to replay (log.csv + config.json); none: the arm at home")
+    p.add_argument("--snapshot", metavar="OUT.html", help="write a self-contained static HTML page and exit")
+    p.add_argument("--serve-seconds", type=nonnegative_float(MAX_HOLD_S), metavar="S",
+                   help="serve for S seconds, then exit (default: until Ctrl-C / SIGTERM)")
+    p.add_argument("--max-frames", type=int_in(2, MAX_FRAMES), default=None, metavar="N",
+                   help="key frames of a replay at most (longer runs are decimated; default 1000)")
+    p.add_argument("--no-play", action="store_true", help="served replay: do not start playing")
+    p.add_argument("--robot", metavar="YAML", help="home view: robot file (default configs/robot.yaml)")
+    p.add_argument("--marker", metavar="YAML", help="home view: marker file")
+    p.add_argument("--calib", metavar="YAML", help="home view: stereo calibration")
+    p.add_argument("--json", action="store_true", help="print the URL or the written file as JSON")
+    add_force_argument(p)
+    add_host_argument(p)
+
+
+def _stop_on_sigterm(signum: int, frame: FrameType | None) -> None:
+    raise KeyboardInterrupt
+
+
+def run(args: argparse.Namespace) -> int:
+    from wristmark.viz.replay import DEFAULT_MAX_FRAMES, RunReplay, build_replay, home_scene, load_run
+    from wristmark.viz.scene import SceneConfig
+
+    if args.serve_seconds is not None and not args.serve_seconds >= 0:
+        raise InputError(f"--serve-seconds must be >= 0, got {args.serve_seconds}")
+    max_frames = DEFAULT_MAX_FRAMES if args.max_frames is None else args.max_frames
+    if max_frames < 2:
+        raise InputError(f"--max-frames must be >= 2, got {max_frames}")
+    if args.run_dir and (args.robot or args.marker or args.calib):
+        raise InputError("--robot/--marker/--calib set the home view; a replay uses the run's config.json")
+    replay: RunReplay | None = load_run(args.run_dir) if args.run_dir else None
+    config: SceneConfig | None = None
+    if replay is None:
+        from wristmark.sim.setup import load_setup
+
+        config = SceneConfig.from_setup(load_setup(robot=args.robot, marker=args.marker, camera=args.calib))
+    title = f"wristmark replay: {replay.run_dir.name}" if replay else "wristmark: arm at home"
+    status = replay.summary if replay else {"configuration": "home (HOME_PSI)"}
+
+    if args.snapshot:
+        from wristmark.viz.snapshot import recording_visualizer, write_html
+
+        claim_outputs(files=[args.snapshot], force=args.force)
+        vis, window = recording_visualizer()
+        if replay:
+            build_replay(vis, replay, max_frames, play=False)
+        else:
+            home_scene(vis, config)
+        out = write_html(args.snapshot, window.html(title, status, open_controls=replay is not None))
+        size = out.stat().st_size
+        if args.json:
+            print(json.dumps({"snapshot": str(out), "bytes": size}))
+        else:
+            print(f"wrote {out} ({size / 1e6:.1f} MB): open it in a browser")
+        return 0
+
+    from wristmark.viz.viewer_client import MeshcatServer
+
+    server = MeshcatServer.start(title=title, controls=replay is not None, host=args.host)
+    previous = signal.signal(signal.SIGTERM, _stop_on_sigterm)
+    try:
+        vis = server.visualizer()
+        with vis.window.batch():
+            if replay:
+                build_replay(vis, replay, max_frames, play=not args.no_play)
+            else:
+                home_scene(vis, config)
+        vis.window.send_status(status)
+        print(json.dumps({"url": server.url}) if args.json else f"open {server.url}", flush=True)
+        if not args.json:
+            print("serving; Ctrl-C to stop", file=sys.stderr, flush=True)
+        deadline = None if args.serve_seconds is None else time.monotonic() + args.serve_seconds
+        while deadline is None or time.monotonic() < deadline:
+            time.sleep(0.2 if deadline is None else max(0.0, min(0.2, deadline - time.monotonic())))
+            if server.proc.poll() is not None:
+                raise InputError("the Meshcat server exited unexpectedly")
+    except KeyboardInterrupt:
+        pass
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        server.close()
+    return 0
+

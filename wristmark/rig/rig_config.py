@@ -1,0 +1,89 @@
+"""Configuration of the simulated rig and its servo loop (configs/rig.yaml); SI units."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from wristmark.models.config_io import from_mapping, load_yaml
+from wristmark.models.errors import ConfigError
+
+SENSOR_KINDS = ("vision", "truth-noise")
+NOISE_LEVELS = ("none", "default", "strong")
+
+
+@dataclass(frozen=True)
+class RigConfig:
+    """How the simulated bench runs.
+
+    control_dt: servo cycle [s] (paper: 60 ms). vision_latency: capture -> command applied [s]
+    (paper: ~45 ms of image processing). plant_dt: plant integration step [s].
+    sensor: "vision" renders stereo images and tracks the marker (default, the real pipeline);
+    "truth-noise" is an explicit fast option: the true tip plus Gaussian noise.
+    gate: largest accepted jump between consecutive measurements [m]; model_gate: largest
+    accepted distance between a measurement and the model's commanded tip [m].
+    max_lost_cycles: consecutive cycles without a measurement after which the loop stops.
+    settle_time: closed-loop approach to the trajectory's start before logging metrics [s].
+    feedforward_preview, feedforward_lead: the feed-forward tip velocity takes the desired path
+    ``preview`` [s] ahead plus a first-order lead of ``lead`` [s] (rig.trajectories.feedforward_velocity).
+    frame_wait: on the wall clock (a camera), how long a cycle waits for a frame captured after
+    it began before it takes the newest older one [s] (0: never wait); a cycle without any new
+    frame holds the arm like a lost marker. image_scale: the simulated bench renders at this
+    fraction of the calibrated resolution; on hardware, the camera delivers it (the calibration
+    is scaled to match). vision_latency, plant_dt, sensor, truth_noise_rms, render_noise,
+    tracker_rms and realtime concern the simulated bench only.
+    """
+
+    control_dt: float = 0.060
+    vision_latency: float = 0.045
+    plant_dt: float = 0.001
+    sensor: str = "vision"
+    truth_noise_rms: float = 0.0002  # [m] 3D RMS of the truth-noise sensor
+    image_scale: float = 1.0  # render at this fraction of the calibrated resolution
+    render_noise: str = "default"
+    tracker_rms: float = 0.00012  # [m] optical tracker (Polaris Vega: 0.12 mm RMS)
+    gate: float = 0.004  # [m]
+    model_gate: float = 0.025  # [m]
+    max_lost_cycles: int = 25
+    settle_time: float = 1.5  # [s]
+    feedforward_preview: float = 0.035  # [s] desired path previewed this far ahead (loop delay)
+    feedforward_lead: float = 0.06  # [s] first-order lead on the feed-forward (actuator lag)
+    seed: int = 0
+    realtime: bool = False
+    frame_wait: float = 0.04  # [s] wall clock: longest wait of a cycle for a fresh frame
+
+    def validate(self) -> None:
+        """Raise ConfigError naming the offending key."""
+        for k in ("control_dt", "plant_dt", "image_scale", "gate", "model_gate"):
+            if getattr(self, k) <= 0:
+                raise ConfigError(f"'{k}' must be > 0, got {getattr(self, k)}")
+        for k in ("vision_latency", "truth_noise_rms", "tracker_rms", "settle_time", "feedforward_preview",
+                  "feedforward_lead", "frame_wait"):
+            if getattr(self, k) < 0:
+                raise ConfigError(f"'{k}' must be >= 0, got {getattr(self, k)}")
+        if self.vision_latency >= self.control_dt:
+            raise ConfigError(
+                f"'vision_latency' ({self.vision_latency} s) must be shorter than 'control_dt' "
+                f"({self.control_dt} s): the paper sets the cycle longer than the processing time"
+            )
+        if self.frame_wait >= self.control_dt:
+            raise ConfigError(f"'frame_wait' ({self.frame_wait} s) must be shorter than 'control_dt' "
+                              f"({self.control_dt} s)")
+        if self.plant_dt > self.control_dt:
+            raise ConfigError("'plant_dt' must not exceed 'control_dt'")
+        if self.sensor not in SENSOR_KINDS:
+            raise ConfigError(f"'sensor' must be one of {', '.join(SENSOR_KINDS)}, got {self.sensor!r}")
+        if self.render_noise not in NOISE_LEVELS:
+            raise ConfigError(
+                f"'render_noise' must be one of {', '.join(NOISE_LEVELS)}, got {self.render_noise!r}"
+            )
+        if self.max_lost_cycles < 1:
+            raise ConfigError(f"'max_lost_cycles' must be >= 1, got {self.max_lost_cycles}")
+
+    @classmethod
+    def load(cls, path: str | Path) -> RigConfig:
+        """Load configs/rig.yaml-style files (flat mapping, or under a 'rig' key)."""
+        data = load_yaml(path)
+        if set(data) == {"rig"}:
+            data = data["rig"]
+        return from_mapping(cls, data, str(path))

@@ -1,0 +1,395 @@
+"""The servo loop: frames in, tip measured, commands out, one cycle every ``control_dt``.
+
+One cycle k at t_k = t0 + k dt on the loop's clock:
+1. time runs to t_k (the link waits on the wall clock, or steps the simulated world); on the wall
+   clock a host that fell a whole period behind skips the cycles it missed (counted);
+2. closed loop: a stereo frame is taken from the frame feed (the simulated bench renders the
+   true arm now; a live camera hands out its newest frame, waiting a bounded time for one
+   captured after t_k); the tip sensor measures it; the measurement is gated (jump from the
+   previous accepted one, distance from the model's commanded tip); the controller computes the
+   next commanded configuration, clamped to the joint and velocity limits; no frame, a lost or a
+   rejected measurement holds the arm (the command unchanged). Open loop: the nominal model's
+   IK of the desired tip gives the command;
+3. the command is sent: on the wall clock as soon as it is computed, on the simulated bench
+   ``vision_latency`` after the capture (open loop: at once). The capture-to-command latency is
+   measured from the frame's capture time.
+
+Ground truth (true tip, optical tracker, true configuration) is logged when an optional
+:class:`rig.ground_truth.GroundTruth` observer is given: only the simulated bench has one.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from wristmark.cvs.frames import FrameSourceError, StereoFrame
+from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
+from wristmark.models.errors import WristmarkError
+from wristmark.models.ik import solve_tip_ik
+from wristmark.models.kinematics import forward_kinematics, tip_position
+from wristmark.models.limits import clamp_psi, wrap_angle
+from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark.rig.actuator_link import ActuatorLink
+from wristmark.rig.frame_feed import FrameFeed
+from wristmark.rig.ground_truth import NO_TRUTH, GroundTruth, TruthSample
+from wristmark.rig.progress import PhaseProgress
+from wristmark.rig.rig_config import RigConfig
+from wristmark.rig.run_log import CycleRecord, RunLog
+from wristmark.rig.tip_sensors import TipMeasurement, TipSensor
+from wristmark.rig.trajectories import Trajectory, feedforward_velocity
+from wristmark.solvers.controller import Controller
+
+Array = NDArray[np.float64]
+NO_FRAME = "no new frame from the camera"
+
+
+def ramp_to(params: RobotParams, start: Array, target: Array, dt: float) -> list[Array]:
+    """Intermediate configurations from ``start`` to ``target`` (both excluded), one per cycle of
+    ``dt`` [s], each step within the joint velocity limits; bending-plane angles take the short way."""
+    diff = np.asarray(target, float) - np.asarray(start, float)
+    for i in (3, 5):  # delta1, delta2 [rad]: the short way (phi is not wrapped: the stem has end stops)
+        diff[i] = wrap_angle(float(diff[i]))
+    steps = int(np.ceil(np.max(np.abs(diff) / (np.asarray(params.max_velocity, float) * dt)) - 1e-9))
+    return [clamp_psi(params, np.asarray(start, float) + diff * (k / steps)) for k in range(1, steps)]
+
+
+@dataclass
+class PhaseStats:
+    """Counters of one phase: cycles run, measurements lost (no frame or no marker) and
+    rejected by the gates, cycles without a new frame, the longest run of lost cycles, cycles
+    skipped because the host fell a whole period behind the wall clock (a late cycle runs at
+    once; the ones it missed are not made up), and why the phase stopped early ("" when it did not)."""
+
+    cycles: int = 0
+    lost: int = 0
+    rejected: int = 0
+    no_frame: int = 0
+    max_consecutive_lost: int = 0
+    skipped: int = 0
+    stopped: str = ""
+
+
+class MarkerLostError(WristmarkError):
+    """The marker stayed out of sight longer than the loop allows; the arm was held.
+
+    ``stats`` holds the phase's counters up to the stop (None when raised elsewhere); ``record``
+    the stopping cycle's log record, when it got that far."""
+
+    def __init__(self, message: str, stats: PhaseStats | None = None, record: CycleRecord | None = None) -> None:
+        super().__init__(message)
+        self.stats = stats
+        self.record = record
+
+
+class CameraStalledError(MarkerLostError):
+    """The camera delivered no new frame for longer than the loop allows, or its stream failed
+    or ended; the arm was held."""
+
+
+@dataclass(frozen=True)
+class _CycleTarget:
+    """What cycle k aims at: its time t [s], whether it settles, the desired tip p_des [m] and
+    feed-forward velocity v_des [m/s], and (open loop) the desired tip at the cycle's end."""
+
+    k: int
+    t: float
+    settling: bool
+    p_des: Array
+    v_des: Array
+    p_next: Array
+
+
+@dataclass
+class _Tracking:
+    """The closed loop's memory across cycles: the last accepted tip [m] and the current run of
+    cycles without an accepted measurement (and why the last one failed)."""
+
+    last_ok: Array | None = None
+    lost_run: int = 0
+    last_reason: str = ""
+
+
+@dataclass(frozen=True)
+class _Outcome:
+    """One closed-loop cycle's measurement and what the loop made of it."""
+
+    meas: TipMeasurement | None
+    truth: TruthSample
+    accepted: bool
+    rejected: bool
+    ctrl_us: float
+
+
+class ServoLoop:
+    """Runs trajectories open or closed loop through one actuator link.
+
+    frames + sensor: the closed loop's measurements (a frame feed and a tip sensor);
+    truth: optional ground-truth observer (the simulated bench); wall_clock: the loop's time is
+    the host's ``time.monotonic()`` (frames stamped on it, commands sent when computed) rather
+    than simulated time (commands sent ``rig.vision_latency`` after the capture);
+    frame_wait: on the wall clock, how long [s] a cycle waits for a frame that arrived after it began;
+    on_cycle(record) after every cycle; on_frame(frame, measurement) after every measured frame
+    (both must return at once: e.g. the live view's hooks).
+    """
+
+    def __init__(
+        self,
+        params: RobotParams,
+        rig: RigConfig,
+        link: ActuatorLink,
+        *,
+        frames: FrameFeed | None = None,
+        sensor: TipSensor | None = None,
+        controller: Controller | None = None,
+        truth: GroundTruth | None = None,
+        wall_clock: bool = False,
+        frame_wait: float = 0.04,
+        on_cycle: object = None,
+        on_frame: object = None,
+    ) -> None:
+        self.params = params
+        self.rig = rig
+        self.link = link
+        self.frames = frames
+        self.sensor = sensor
+        self.controller = controller
+        self.truth = truth
+        self.wall_clock = bool(wall_clock)
+        self.frame_wait = float(frame_wait)
+        self.on_cycle = on_cycle
+        self.on_frame = on_frame
+        self.last_measurement: TipMeasurement | None = None
+        self.last_frame: StereoFrame | None = None
+        self.t = float(link.time)
+        self.psi_cmd: Array | None = None
+        self._wall0 = time.perf_counter()
+        self._sim0 = self.t
+
+    # -- time and commands ----------------------------------------------------------------
+    def _advance(self, t: float) -> None:
+        if self.rig.realtime and not self.wall_clock:
+            ahead = (t - self._sim0) - (time.perf_counter() - self._wall0)
+            if ahead > 0:
+                time.sleep(ahead)
+        self.link.advance_to(t)
+        self.t = t
+
+    def _now(self) -> float:
+        """The time on the frames' clock [s]: the wall clock, or the loop's simulated time."""
+        return time.monotonic() if self.wall_clock else self.t
+
+    def _send(self, psi: Array) -> None:
+        self.link.send_target(actuators_from_psi(self.params, psi))
+
+    def start_at(self, psi: Array) -> None:
+        """Move to ``psi`` and let the arm settle there (2 s).
+
+        The way there is a ramp from where the encoders say the arm is, one target per control
+        cycle, each step within the joint velocity limits (an arm far from the start never gets
+        one big jump; a simulated arm already there gets no ramp)."""
+        target = clamp_psi(self.params, psi)
+        dt = self.rig.control_dt
+        for step in ramp_to(self.params, self._encoder_psi(target), target, dt):
+            self.psi_cmd = step
+            self._send(step)
+            self._advance(self.t + dt)
+        self.psi_cmd = target
+        self._send(target)
+        self._advance(self.t + 2.0)
+
+    def _encoder_psi(self, hint: Array) -> Array:
+        """The configuration the encoders report (``hint`` picks delta where it is ambiguous)."""
+        return psi_from_actuators(self.params, self.link.measured_actuators(), delta_hint=hint)
+
+    def params_home(self) -> Array:
+        """Home configuration used as the IK start."""
+        return np.asarray(HOME_PSI, float)
+
+    # -- one phase -----------------------------------------------------------------------
+    def run(self, traj: Trajectory, phase: str, closed_loop: bool, log: RunLog, settle: float = 0.0,
+            progress: bool = False) -> PhaseStats:
+        """Follow ``traj`` (times relative to now); log every cycle under ``phase``.
+
+        ``settle`` seconds of holding the trajectory's start come first (logged as
+        ``phase + ':settle'``). Raises MarkerLostError after too many lost measurements and
+        CameraStalledError after too many cycles without a frame or when the stream fails
+        (the arm held in both cases)."""
+        if closed_loop and (self.sensor is None or self.controller is None or self.frames is None):
+            raise WristmarkError("closed loop needs a frame feed, a tip sensor and a controller")
+        if self.psi_cmd is None:
+            ik = solve_tip_ik(self.params, traj.sample(0.0)[0], self.params_home())
+            self.start_at(ik.psi)
+        dt = self.rig.control_dt
+        n_settle = int(round(settle / dt))
+        n_traj = int(np.floor(traj.duration / dt)) + 1
+        stats = PhaseStats()
+        memory = _Tracking()
+        t0 = self.t
+        n = n_settle + n_traj
+        bar = PhaseProgress(phase, n_settle, n_traj, progress)
+        k = 0
+        while k < n:
+            target = self._target(traj, k, t0 + k * dt, n_settle)
+            self._advance(target.t)
+            t_wall = time.monotonic()
+            missed = min(int((t_wall - target.t) // dt), n - 1 - k) if self.wall_clock else 0
+            if missed > 0:  # a whole cycle late on the wall clock: skip to the current cycle
+                stats.skipped += missed
+                k += missed
+                for _ in range(missed):
+                    bar.step()
+                continue
+            if closed_loop:
+                try:
+                    rec = self._closed_cycle(target, t_wall, phase, memory, stats)
+                except MarkerLostError as e:
+                    if e.record is not None:
+                        log.add(e.record)
+                    raise
+            else:
+                rec = self._open_cycle(target, t_wall, phase)
+            stats.cycles += 1
+            log.add(rec)
+            if callable(self.on_cycle):
+                self.on_cycle(rec)
+            k += 1
+            bar.step()
+        bar.close()
+        return stats
+
+    def _target(self, traj: Trajectory, k: int, t_k: float, n_settle: int) -> _CycleTarget:
+        dt = self.rig.control_dt
+        tau_raw = (k - n_settle) * dt  # trajectory time; negative while settling
+        tau = max(0.0, tau_raw)
+        p_des, _ = traj.sample(tau)
+        # feed-forward: the desired path previewed by the loop's delay, with a lead for the
+        # actuators' lag; the preview also covers the start of motion (zero until then)
+        v_des = feedforward_velocity(traj, tau_raw, dt, self.rig.feedforward_preview, self.rig.feedforward_lead)
+        # open loop commands a position reached over the coming cycle: aim at its end
+        p_next = traj.sample(tau + dt)[0] if k >= n_settle - 1 else p_des
+        return _CycleTarget(k, t_k, k < n_settle, p_des, v_des, p_next)
+
+    def _observe(self) -> TruthSample:
+        return self.truth.observe() if self.truth is not None else NO_TRUTH
+
+    # -- open loop ------------------------------------------------------------------------
+    def _open_cycle(self, target: _CycleTarget, t_wall: float, phase: str) -> CycleRecord:
+        truth = self._observe()
+        assert self.psi_cmd is not None
+        ik = solve_tip_ik(self.params, target.p_next, self.psi_cmd)
+        self.psi_cmd = clamp_psi(self.params, ik.psi)
+        self._send(self.psi_cmd)
+        return self._record(target, t_wall, phase, _Outcome(None, truth, False, False, 0.0), float("nan"))
+
+    # -- closed loop ----------------------------------------------------------------------
+    def _closed_cycle(self, target: _CycleTarget, t_wall: float, phase: str, memory: _Tracking,
+                      stats: PhaseStats) -> CycleRecord:
+        frame = self._take_frame(target, phase, memory, stats)
+        truth = self._observe()
+        outcome = self._measure_and_control(frame, truth, target, memory)
+        if outcome.accepted:
+            memory.lost_run = 0
+        else:
+            self._count_lost(outcome, memory, stats)
+            if memory.lost_run > self.rig.max_lost_cycles:
+                self._stop_lost(target, t_wall, phase, outcome, memory, stats)
+        if not self.wall_clock:
+            self._advance(target.t + self.rig.vision_latency)  # the simulated processing time
+        assert self.psi_cmd is not None
+        self._send(self.psi_cmd)
+        latency = self._now() - outcome.meas.t_capture if outcome.accepted and outcome.meas else float("nan")
+        return self._record(target, t_wall, phase, outcome, latency)
+
+    def _take_frame(self, target: _CycleTarget, phase: str, memory: _Tracking,
+                    stats: PhaseStats) -> StereoFrame | None:
+        """This cycle's frame: on the wall clock one that arrived after the cycle began if it comes
+        within ``frame_wait``, else the newest unseen one (None: none at all)."""
+        assert self.frames is not None
+        try:
+            if self.wall_clock:
+                t_start = time.monotonic()
+                frame = self.frames.take(fresh_after=t_start, wait_until=t_start + self.frame_wait)
+            else:
+                frame = self.frames.take()
+        except FrameSourceError as e:
+            self.link.hold()
+            stats.stopped = f"camera: {e} at t = {target.t - self._sim0:.2f} s"
+            raise CameraStalledError(stats.stopped + ": arm held", stats) from None
+        if frame is not None:
+            self.last_frame = frame
+        return frame
+
+    def _measure_and_control(self, frame: StereoFrame | None, truth: TruthSample, target: _CycleTarget,
+                             memory: _Tracking) -> _Outcome:
+        """Measure the frame, gate the measurement, and step the controller when it is accepted."""
+        assert self.sensor is not None and self.controller is not None and self.psi_cmd is not None
+        if frame is None:
+            memory.last_reason = NO_FRAME
+            return _Outcome(None, truth, False, False, 0.0)
+        model = forward_kinematics(self.params, self.psi_cmd)  # the commanded arm, nominal model
+        meas = self.sensor.measure(frame, axis_hint_world=model.T_world_marker[:3, 2])  # which way it points
+        self.last_measurement = meas
+        if callable(self.on_frame):
+            self.on_frame(frame, meas)
+        if not (meas.ok and meas.p_world is not None and np.all(np.isfinite(meas.p_world))):
+            memory.last_reason = meas.reason or "marker not found"
+            return _Outcome(meas, truth, False, False, 0.0)
+        p_est = meas.p_world
+        jump_ok = memory.last_ok is None or (
+            np.linalg.norm(p_est - memory.last_ok) <= self.rig.gate * (1 + memory.lost_run))
+        model_ok = np.linalg.norm(p_est - model.tip) <= self.rig.model_gate
+        if not (jump_ok and model_ok):
+            memory.last_reason = "measurement rejected by the gates"
+            return _Outcome(meas, truth, False, True, 0.0)
+        memory.last_ok = p_est
+        c0 = time.perf_counter()
+        step = self.controller.step(self.psi_cmd, p_est, target.p_des, target.v_des, self.rig.control_dt)
+        ctrl_us = 1e6 * (time.perf_counter() - c0)
+        self.psi_cmd = step.psi_next
+        return _Outcome(meas, truth, True, False, ctrl_us)
+
+    def _count_lost(self, outcome: _Outcome, memory: _Tracking, stats: PhaseStats) -> None:
+        stats.lost += int(not outcome.rejected)
+        stats.rejected += int(outcome.rejected)
+        stats.no_frame += int(outcome.meas is None)
+        memory.lost_run += 1
+        stats.max_consecutive_lost = max(stats.max_consecutive_lost, memory.lost_run)
+
+    def _stop_lost(self, target: _CycleTarget, t_wall: float, phase: str, outcome: _Outcome,
+                   memory: _Tracking, stats: PhaseStats) -> None:
+        """Hold the arm, log the cycle, raise: the camera stalled or the marker stayed lost."""
+        self.link.hold()
+        at = f"at t = {target.t - self._sim0:.2f} s"
+        if memory.last_reason == NO_FRAME:
+            waited = memory.lost_run * self.rig.control_dt
+            name = self.frames.name if self.frames is not None else "camera"
+            stats.stopped = f"camera stalled: no new frame from {name} for {memory.lost_run} cycles " \
+                            f"({waited:.2f} s) {at}"
+            error: type[MarkerLostError] = CameraStalledError
+        else:
+            stats.stopped = f"marker lost for {memory.lost_run} cycles {at} ({memory.last_reason})"
+            error = MarkerLostError
+        rec = self._record(target, t_wall, phase, outcome, float("nan"))
+        raise error(stats.stopped + ": arm held", stats, rec)
+
+    # -- the log --------------------------------------------------------------------------
+    def _record(self, target: _CycleTarget, t_wall: float, phase: str, outcome: _Outcome,
+                latency_s: float) -> CycleRecord:
+        assert self.psi_cmd is not None
+        meas, truth = outcome.meas, outcome.truth
+        ok = meas is not None and meas.ok and meas.p_world is not None and bool(np.all(np.isfinite(meas.p_world)))
+        p_est = meas.p_world if ok and meas is not None else None
+        return CycleRecord(
+            t=target.t, phase=phase + (":settle" if target.settling else ""), p_des=np.asarray(target.p_des, float),
+            p_cmd=tip_position(self.params, self.psi_cmd), p_est=p_est, p_true=np.asarray(truth.p_true, float),
+            p_trk=np.asarray(truth.p_trk, float), psi_cmd=self.psi_cmd.copy(),
+            psi_true=np.asarray(truth.psi_true, float), meas_ok=outcome.accepted, rejected=outcome.rejected,
+            vision_ms=meas.time_ms if meas is not None else 0.0, ctrl_us=outcome.ctrl_us, t_wall=t_wall,
+            t_capture=meas.t_capture if meas is not None else float("nan"), latency_ms=1000.0 * latency_s,
+            transport_ms=1000.0 * (self.frames.last_arrival - meas.t_capture)
+            if meas is not None and self.frames is not None and self.wall_clock else float("nan"),
+        )

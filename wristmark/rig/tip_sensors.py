@@ -1,0 +1,88 @@
+"""Where the servo loop's tip measurement comes from: a stereo frame in, a tip in {w} out.
+
+A :class:`TipSensor` gets a :class:`cvs.frames.StereoFrame` (from a camera, a video, a stream,
+or the simulated bench's renderer) and returns a :class:`TipMeasurement` stamped with the
+frame's capture time, so the loop measures its capture-to-command latency from the frames
+themselves. :class:`VisionTipSensor` runs the marker tracker on the frame's pixels; it never
+sees the arm. (The simulated bench's explicit fast option, truth plus noise, lives in
+:mod:`sim.truth_sensor`: only the simulated bench knows the truth.)
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from wristmark.cvs.camera import StereoCamera
+from wristmark.cvs.frames import StereoFrame
+from wristmark.cvs.marker import MarkerModel
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class TipMeasurement:
+    """One tip measurement in {w} [m] from the frame captured at ``t_capture`` [s] (the frame's
+    clock: the host's ``time.monotonic()`` on hardware, simulated time on the simulated bench);
+    ``ok`` False with a ``reason`` when there is none. time_ms: the tracking time [ms];
+    corners_left: the detected corners in the left image's raw pixels (N, 2), for a viewer;
+    T_left_marker, tip_left: the marker pose (4x4 of {wm}) and the tip in {ll} [m], for a recorder."""
+
+    ok: bool
+    p_world: Array | None
+    reason: str = ""
+    time_ms: float = 0.0
+    rms_px: float = float("nan")
+    t_capture: float = float("nan")
+    frame_index: int = -1
+    corners_left: Array | None = None
+    T_left_marker: Array | None = None
+    tip_left: Array | None = None
+
+
+class TipSensor(Protocol):
+    """Anything that measures the tip of the arm in a stereo frame."""
+
+    def measure(self, frame: StereoFrame, axis_hint_world: Array | None = None) -> TipMeasurement:
+        """Measure the tip in ``frame``; ``axis_hint_world``: the expected direction of the
+        marker's z axis in {w} (e.g. the model's at the commanded configuration)."""
+        ...
+
+
+class VisionTipSensor:
+    """Track the marker in a stereo frame's pixels; the tip in {w} through the calibration's
+    ``world_T_left`` (or a separate registration, ``T_world_left``)."""
+
+    def __init__(self, camera: StereoCamera, marker: MarkerModel, T_world_left: Array | None = None) -> None:
+        from wristmark.cvs.marker_tracker import MarkerTracker
+
+        self.camera = camera
+        W = T_world_left if T_world_left is not None else camera.T_world_left
+        self.T_world_left = None if W is None else np.asarray(W, float)
+        self.tracker = MarkerTracker(camera, marker)
+        self.last_frame: StereoFrame | None = None
+
+    def measure(self, frame: StereoFrame, axis_hint_world: Array | None = None) -> TipMeasurement:
+        """Track the frame; the time reported is the tracking time only [ms]. The axis hint picks
+        which way the marker points (its pattern is symmetric under a half turn)."""
+        self.last_frame = frame
+        hint = None
+        if axis_hint_world is not None and self.T_world_left is not None:
+            hint = self.T_world_left[:3, :3].T @ np.asarray(axis_hint_world, float)
+        t0 = time.perf_counter()
+        res = self.tracker.track(frame.left, frame.right, axis_hint_left=hint)
+        ms = 1000.0 * (time.perf_counter() - t0)
+        corners = np.asarray(res.corners_left, float).reshape(-1, 2)
+        if not res.ok or res.tip_left is None or self.T_world_left is None:
+            reason = res.reason or ("marker not found" if res.tip_left is None else "no world_T_left")
+            return TipMeasurement(False, None, reason, ms, t_capture=frame.t_capture,
+                                  frame_index=frame.index, corners_left=corners)
+        W = self.T_world_left
+        p = (np.asarray(res.tip_left, float).reshape(1, 3) @ W[:3, :3].T + W[:3, 3])[0]
+        return TipMeasurement(True, p, "", ms, float(res.rms_px), frame.t_capture, frame.index, corners,
+                              None if res.T_left_marker is None else np.asarray(res.T_left_marker, float),
+                              np.asarray(res.tip_left, float))

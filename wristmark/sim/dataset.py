@@ -1,0 +1,132 @@
+"""The stereo dataset folder of DESIGN.md: calib.yaml, marker.yaml, pair_NN_left.png,
+pair_NN_right.png and truth.json (pose of {wm} and tip in the left camera frame, metres;
+corners in raw pixels with cos_view)."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from wristmark.cvs.calibration_io import load_calibration, save_calibration
+from wristmark.cvs.camera import StereoCamera
+from wristmark.cvs.marker import MarkerModel
+from wristmark.models.config_io import save_yaml, to_mapping
+from wristmark.models.errors import InputError
+from wristmark.sim.render import CornerTruth, RenderedPair
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class PairTruth:
+    """Ground truth of one pair: R, t of {wm} in {ll} [m], tip in {ll} [m], corners per camera."""
+
+    pair: int
+    R: Array
+    t: Array
+    tip: Array
+    corners_left: tuple[CornerTruth, ...]
+    corners_right: tuple[CornerTruth, ...]
+
+
+@dataclass(frozen=True)
+class StereoDataset:
+    """A loaded dataset: calibration, marker, image paths per pair and truth."""
+
+    root: Path
+    camera: StereoCamera
+    marker: MarkerModel
+    pairs: tuple[tuple[Path, Path], ...]
+    truth: tuple[PairTruth, ...]
+
+
+def pair_paths(root: str | Path, n: int) -> tuple[Path, Path]:
+    """Paths of pair ``n``'s left and right PNG images."""
+    r = Path(root)
+    return r / f"pair_{n:02d}_left.png", r / f"pair_{n:02d}_right.png"
+
+
+def _corners_json(cs: tuple[CornerTruth, ...]) -> list[dict[str, Any]]:
+    return [{"index": c.index, "uv": [c.uv[0], c.uv[1]], "cos_view": c.cos_view} for c in cs]
+
+
+def truth_entry(n: int, frame: RenderedPair) -> dict[str, Any]:
+    """The truth.json object of pair ``n`` (DESIGN.md)."""
+    return {
+        "pair": n,
+        "R": frame.T_left_marker[:3, :3].tolist(),
+        "t": frame.T_left_marker[:3, 3].tolist(),
+        "tip": np.asarray(frame.tip_left, float).tolist(),
+        "corners_left": _corners_json(frame.corners_left),
+        "corners_right": _corners_json(frame.corners_right),
+    }
+
+
+class DatasetWriter:
+    """Writes a stereo dataset folder pair by pair; truth.json is rewritten after each pair."""
+
+    def __init__(self, root: str | Path, camera: StereoCamera, marker: MarkerModel) -> None:
+        self.root = Path(root)
+        try:
+            self.root.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            raise InputError(f"{self.root}: cannot create the dataset folder ({e.strerror})") from e
+        save_calibration(self.root / "calib.yaml", camera)
+        mk = {k: v for k, v in to_mapping(marker).items() if v not in (None, [], ())}  # a plain sleeve: 4 keys
+        save_yaml(self.root / "marker.yaml", mk)
+        self.entries: list[dict[str, Any]] = []
+
+    def add(self, frame: RenderedPair) -> int:
+        """Write the next pair's images and truth; returns its index NN."""
+        n = len(self.entries)
+        for path, img in zip(pair_paths(self.root, n), (frame.left, frame.right)):
+            if not cv2.imwrite(str(path), img):
+                raise InputError(f"{path}: could not write the image (check the folder)")
+        self.entries.append(truth_entry(n, frame))
+        (self.root / "truth.json").write_text(json.dumps(self.entries, indent=1))
+        return n
+
+
+def _corners(data: Any, src: str) -> tuple[CornerTruth, ...]:
+    return tuple(
+        CornerTruth(int(c["index"]), (float(c["uv"][0]), float(c["uv"][1])), float(c["cos_view"])) for c in data
+    )
+
+
+def load_dataset(root: str | Path) -> StereoDataset:
+    """Read a dataset folder; raise InputError/ConfigError naming the missing or bad file."""
+    r = Path(root)
+    if not r.is_dir():
+        raise InputError(f"{r}: dataset folder not found")
+    camera = load_calibration(r / "calib.yaml")
+    marker = MarkerModel.load(r / "marker.yaml")
+    tpath = r / "truth.json"
+    if not tpath.is_file():
+        raise InputError(f"{tpath}: file not found")
+    try:
+        raw = json.loads(tpath.read_text())
+        truth = tuple(
+            PairTruth(
+                int(e["pair"]),
+                np.asarray(e["R"], float).reshape(3, 3),
+                np.asarray(e["t"], float).reshape(3),
+                np.asarray(e["tip"], float).reshape(3),
+                _corners(e["corners_left"], str(tpath)),
+                _corners(e["corners_right"], str(tpath)),
+            )
+            for e in raw
+        )
+    except (ValueError, KeyError, TypeError, IndexError) as e:
+        raise InputError(f"{tpath}: malformed truth ({type(e).__name__}: {e})") from e
+    pairs = tuple(pair_paths(r, t.pair) for t in truth)
+    for lp, rp in pairs:
+        for p in (lp, rp):
+            if not p.is_file():
+                raise InputError(f"{p}: image listed in truth.json is missing")
+    return StereoDataset(r, camera, marker, pairs, truth)

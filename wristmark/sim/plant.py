@@ -1,0 +1,150 @@
+"""The simulated true arm: follows actuator commands through the errors of a plant file.
+
+Signal path, per actuator: target -> first-order motor lag (actuator_tau) -> motor position
+(what the encoders measure) -> backlash play operator of width b (the output that moves the
+backbones) -> nominal inverse actuation map -> psi_out. Then the arm's true bending:
+theta_t = g_t theta_out, delta_t = delta_out + o_t; the exposed stem (length d, incision to
+{1b}) bends as a constant-curvature arc of angle zeta * theta_1 in segment 1's plane (stem
+coupling); a tip force F adds to each segment's bend vector the moment of F about the
+segment's base, perpendicular to its axis, divided by its stiffness (small-deflection,
+evaluated on the unloaded shape). A bend (theta, delta) is the vector theta [sin d, cos d] in
+the base-ring plane (the rotation axis of eq. 2), so load bends compose with commanded ones.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
+from wristmark.models.arm_shape import ArmShape, shape_from_frames
+from wristmark.models.constant_curvature import rot_z, segment_point, segment_transform
+from wristmark.models.errors import InputError
+from wristmark.models.kinematics import ArmFrames, check_psi
+from wristmark.models.robot_params import RobotParams
+from wristmark.sim.plant_params import PlantParams
+
+Array = NDArray[np.float64]
+
+
+def _tz(z: float) -> Array:
+    T = np.eye(4)
+    T[2, 3] = z
+    return T
+
+
+def _add_bend(theta: float, delta: float, dv: Array) -> tuple[float, float]:
+    bx = theta * math.sin(delta) + dv[0]
+    by = theta * math.cos(delta) + dv[1]
+    th = math.hypot(bx, by)
+    return th, (math.atan2(bx, by) if th > 0 else delta)
+
+
+class TruePlant:
+    """Simulated true arm implementing :class:`models.plant_interface.ActuatedArm`."""
+
+    def __init__(self, params: RobotParams, plant: PlantParams, psi0: Array | None = None,
+                 dt_internal: float = 1e-3) -> None:
+        self.params = params
+        self.plant = plant
+        self.dt_internal = float(dt_internal)
+        q0 = check_psi(psi0 if psi0 is not None else np.zeros(6))
+        a0 = actuators_from_psi(params, q0)
+        self._target = a0.copy()
+        self._motor = a0.copy()
+        self._output = a0.copy()
+        self._half_play = 0.5 * np.asarray(plant.backlash, float)
+        self._delta_hint = q0.copy()
+        self._time = 0.0
+        self._cache: tuple[Array, ArmFrames, Array] | None = None
+
+    # -- ActuatedArm ---------------------------------------------------------------------
+    @property
+    def time(self) -> float:
+        """Simulated time [s]."""
+        return self._time
+
+    def command(self, actuators: Array) -> None:
+        """Set actuator targets [rad, m, m, m, m, m]."""
+        a = np.asarray(actuators, float)
+        if a.shape != (6,) or not np.all(np.isfinite(a)):
+            raise InputError(f"actuator targets must be 6 finite numbers, got {a}")
+        self._target = a.copy()
+
+    def hold(self) -> None:
+        """Freeze the targets at the motors' current positions."""
+        self._target = self._motor.copy()
+
+    def advance(self, dt: float) -> None:
+        """Integrate motors (exact first-order step) and backlash for ``dt`` seconds."""
+        if dt <= 0:
+            return
+        n = max(1, int(math.ceil(dt / self.dt_internal - 1e-9)))
+        h = dt / n
+        tau = self.plant.actuator_tau
+        alpha = 1.0 if tau == 0 else 1.0 - math.exp(-h / tau)
+        for _ in range(n):
+            self._motor += alpha * (self._target - self._motor)
+            self._output = np.clip(self._output, self._motor - self._half_play, self._motor + self._half_play)
+        self._time += dt
+        self._cache = None
+
+    def measured_actuators(self) -> Array:
+        """Motor encoder positions (before backlash)."""
+        return self._motor.copy()
+
+    def true_shape(self) -> ArmShape:
+        """The true arm's shape now."""
+        psi, frames, stem = self._state()
+        return shape_from_frames(self.params, psi, frames, stem_points=stem)
+
+    # -- truth -----------------------------------------------------------------------------
+    @property
+    def true_psi(self) -> Array:
+        """Effective configuration of the true arm (after backlash, gains, offsets, load)."""
+        return self._state()[0].copy()
+
+    def true_tip(self) -> Array:
+        """True tip position in {w} [m]."""
+        return self._state()[1].tip.copy()
+
+    def _state(self) -> tuple[Array, ArmFrames, Array]:
+        if self._cache is None:
+            q = psi_from_actuators(self.params, self._output, self._delta_hint)
+            self._delta_hint = q
+            self._cache = self._bend(q)
+        return self._cache
+
+    def _chain(self, q: Array) -> tuple[ArmFrames, Array]:
+        p, P = self.params, self.plant
+        L1, L2 = p.segment_lengths
+        T_w_s = np.eye(4)
+        T_w_s[:3, :3] = rot_z(q[0])
+        theta_s = P.stem_coupling * q[2]
+        stem = np.array([T_w_s[:3, :3] @ segment_point(q[1], theta_s, q[3], s) for s in np.linspace(0, 1, 8)])
+        T_w_1b = T_w_s @ segment_transform(q[1], theta_s, q[3])
+        T_w_1e = T_w_1b @ segment_transform(L1, q[2], q[3])
+        T_w_2b = T_w_1e @ _tz(p.rigid_length)
+        T_w_2e = T_w_2b @ segment_transform(L2, q[4], q[5])
+        T_w_m = T_w_2e @ _tz(p.marker_offset)
+        T_w_tip = T_w_m @ _tz(p.tip_offset)
+        return ArmFrames(T_w_1b, T_w_1e, T_w_2b, T_w_2e, T_w_m, T_w_tip), stem
+
+    def _bend(self, q_out: Array) -> tuple[Array, ArmFrames, Array]:
+        P = self.plant
+        q = q_out.copy()
+        for t in range(2):
+            q[2 + 2 * t] *= P.bend_gain[t]
+            q[3 + 2 * t] += P.plane_offset[t]
+        frames, stem = self._chain(q)
+        F = np.asarray(P.tip_force, float)
+        if np.any(F != 0.0):
+            for t, T_base in ((0, frames.T_world_1b), (1, frames.T_world_2b)):
+                M = np.cross(frames.tip - T_base[:3, 3], F)
+                m_loc = T_base[:3, :3].T @ M
+                th, de = _add_bend(q[2 + 2 * t], q[3 + 2 * t], m_loc[:2] / P.segment_stiffness[t])
+                q[2 + 2 * t], q[3 + 2 * t] = th, de
+            frames, stem = self._chain(q)
+        return q, frames, stem

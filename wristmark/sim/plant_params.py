@@ -1,0 +1,78 @@
+"""How the simulated true arm differs from the model (DESIGN.md "Plant file"); SI units.
+
+Every key is optional; zero (or one, for gains) means ideal.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from wristmark.models.config_io import from_mapping, load_yaml
+from wristmark.models.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class PlantParams:
+    """Error model of the true arm.
+
+    bend_gain: theta_true = g_t theta_cmd per segment [-]. plane_offset: delta_true =
+    delta_cmd + o_t [rad]. stem_coupling: the exposed stem (length d) bends by zeta * theta1 in
+    segment 1's plane [-]. backlash: dead-band per actuator [rad, m, m, m, m, m].
+    actuator_tau: first-order lag of every actuator [s]. tip_force: constant force at the tip
+    in {w} [N]. segment_stiffness: bending stiffness turning load moments into bend [N m/rad].
+    camera_offset: [x, y, z, rx, ry, rz] (metres; rotation vector, rad) expressed in {ll}: the
+    simulated camera truly sits at world_T_left @ T(offset) while the host believes world_T_left.
+    """
+
+    bend_gain: tuple[float, float] = (1.0, 1.0)
+    plane_offset: tuple[float, float] = (0.0, 0.0)
+    stem_coupling: float = 0.0
+    backlash: tuple[float, float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    actuator_tau: float = 0.0
+    tip_force: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    segment_stiffness: tuple[float, float] = (0.40, 0.15)
+    camera_offset: tuple[float, float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+    def validate(self) -> None:
+        """Raise ConfigError naming the offending key."""
+        for i, g in enumerate(self.bend_gain):
+            if not 0.5 <= g <= 1.5:
+                raise ConfigError(f"'bend_gain[{i}]' must be in [0.5, 1.5], got {g}")
+        for i, o in enumerate(self.plane_offset):
+            if abs(o) > 0.5:
+                raise ConfigError(f"'plane_offset[{i}]' must be within +-0.5 rad, got {o}")
+        if not 0.0 <= self.stem_coupling <= 1.0:
+            raise ConfigError(f"'stem_coupling' must be in [0, 1], got {self.stem_coupling}")
+        for i, b in enumerate(self.backlash):
+            if b < 0:
+                raise ConfigError(f"'backlash[{i}]' must be >= 0, got {b}")
+        if self.actuator_tau < 0:
+            raise ConfigError(f"'actuator_tau' must be >= 0 s, got {self.actuator_tau}")
+        for i, k in enumerate(self.segment_stiffness):
+            if k <= 0:
+                raise ConfigError(f"'segment_stiffness[{i}]' must be > 0 N*m/rad, got {k}")
+
+        if math.hypot(*self.camera_offset[:3]) > 0.05:
+            raise ConfigError(f"'camera_offset' translation must be within 0.05 m (metres, not mm), "
+                              f"got {list(self.camera_offset[:3])}")
+        if math.hypot(*self.camera_offset[3:]) > 0.5:
+            raise ConfigError(f"'camera_offset' rotation vector must be within 0.5 rad, "
+                              f"got {list(self.camera_offset[3:])}")
+
+    def camera_offset_transform(self) -> NDArray[np.float64]:
+        """T(offset): 4x4 pose of the true {ll} in the believed {ll} [m]."""
+        T = np.eye(4)
+        T[:3, :3] = Rotation.from_rotvec(self.camera_offset[3:]).as_matrix()
+        T[:3, 3] = self.camera_offset[:3]
+        return T
+
+    @classmethod
+    def load(cls, path: str | Path) -> PlantParams:
+        """Load and validate a plant file."""
+        return from_mapping(cls, load_yaml(path), str(path))

@@ -1,0 +1,109 @@
+"""Everything a simulated-bench run needs, loaded and validated in one place, and the pieces
+of the bench wired for the servo loop: the true arm, its rendered frames (or the truth-noise
+option), the tip sensor and the ground-truth observer."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from wristmark.cvs.camera import StereoCamera
+from wristmark.models.config_files import CONFIG_DIR, default_config
+from wristmark.models.config_io import to_mapping
+from wristmark.models.plant_interface import ActuatedArm
+from wristmark.rig.actuator_link import DirectLink
+from wristmark.rig.frame_feed import FrameFeed, SynchronousFeed
+from wristmark.rig.loop_setup import LoopSetup, config_paths, load_loop_setup
+from wristmark.rig.servo_loop import ServoLoop
+from wristmark.rig.tip_sensors import TipSensor, VisionTipSensor
+from wristmark.sim.optical_tracker import OpticalTracker
+from wristmark.sim.plant import TruePlant
+from wristmark.sim.plant_params import PlantParams
+from wristmark.sim.rendered_source import RenderedStereoSource
+from wristmark.sim.truth import SimulatedTruth
+from wristmark.sim.truth_sensor import NoisyTruthSensor, TruthClockSource
+from wristmark.solvers.controller import make_controller
+
+Array = NDArray[np.float64]
+__all__ = ["CONFIG_DIR", "SimSetup", "default_config", "load_setup", "make_measurement", "make_plant",
+           "make_truth", "make_direct_loop"]
+
+
+@dataclass
+class SimSetup(LoopSetup):
+    """A :class:`rig.loop_setup.LoopSetup` plus the plant file of the simulated true arm."""
+
+    plant: PlantParams = field(default_factory=PlantParams)
+
+    @property
+    def true_camera(self) -> StereoCamera:
+        """Where the simulated endoscope truly is: the calibration's world_T_left @ T(camera_offset)."""
+        if not any(self.plant.camera_offset) or self.camera.T_world_left is None:
+            return self.camera
+        W = np.asarray(self.camera.T_world_left, float) @ self.plant.camera_offset_transform()
+        return dataclasses.replace(self.camera, T_world_left=W)
+
+    @property
+    def render_camera(self) -> StereoCamera:
+        """The true camera (renders the images) at the rig's image scale."""
+        return self._scaled(self.true_camera)
+
+    def describe(self) -> dict[str, Any]:
+        """Everything as plain data for config.json."""
+        return {**super().describe(), "plant": to_mapping(self.plant)}
+
+
+def load_setup(
+    robot: str | Path | None = None,
+    marker: str | Path | None = None,
+    camera: str | Path | None = None,
+    plant: str | Path | None = None,
+    rig: str | Path | None = None,
+    controller: str | Path | None = None,
+) -> SimSetup:
+    """Load every configuration (None -> the file in configs/), validated."""
+    base = load_loop_setup(robot=robot, marker=marker, camera=camera, rig=rig, controller=controller)
+    plant_path = config_paths(plant=plant)["plant"]
+    return SimSetup(params=base.params, marker=base.marker, camera=base.camera, rig=base.rig,
+                    controller=base.controller, sources={**base.sources, "plant": str(plant_path)},
+                    plant=PlantParams.load(plant_path))
+
+
+def make_measurement(setup: SimSetup, arm: ActuatedArm, clock: Callable[[], float],
+                     seed: int) -> tuple[FrameFeed, TipSensor]:
+    """The frames and the tip sensor the rig config asks for: rendered frames of ``arm`` stamped
+    with ``clock`` and the marker tracker (vision, the default), or the truth-noise option."""
+    if setup.rig.sensor == "truth-noise":
+        return SynchronousFeed(TruthClockSource(clock)), NoisyTruthSensor(arm, setup.rig.truth_noise_rms, seed)
+    source = RenderedStereoSource(arm, setup.render_camera, setup.marker, clock, noise=setup.rig.render_noise,
+                                  seed=seed)
+    return SynchronousFeed(source), VisionTipSensor(setup.tracking_camera, setup.marker)
+
+
+def make_truth(setup: SimSetup, arm: ActuatedArm, seed: int) -> SimulatedTruth:
+    """The ground-truth observer of ``arm`` (optical tracker seeded ``seed + 7``)."""
+    return SimulatedTruth(arm, OpticalTracker(setup.rig.tracker_rms, seed=seed + 7))
+
+
+def make_plant(setup: SimSetup, psi0: Array) -> TruePlant:
+    """A fresh simulated true arm resting at configuration psi0 (commanded)."""
+    return TruePlant(setup.params, setup.plant, psi0=np.asarray(psi0, float), dt_internal=setup.rig.plant_dt)
+
+
+def make_direct_loop(setup: SimSetup, psi0: Array, closed_loop: bool, seed: int = 0) -> ServoLoop:
+    """An in-process servo loop on a fresh plant, started (settled) at psi0."""
+    plant = make_plant(setup, psi0)
+    link = DirectLink(plant)
+    frames, sensor = make_measurement(setup, plant, lambda: link.time, seed) if closed_loop else (None, None)
+    loop = ServoLoop(
+        setup.params, setup.rig, link, frames=frames, sensor=sensor, truth=make_truth(setup, plant, seed),
+        controller=make_controller(setup.params, setup.controller) if closed_loop else None,
+    )
+    loop.start_at(psi0)
+    return loop

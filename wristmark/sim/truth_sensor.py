@@ -1,0 +1,47 @@
+"""The simulated bench's explicit fast option (``sensor: truth-noise``): the true tip plus noise.
+
+It is not vision: :class:`TruthClockSource` hands out empty frames that only carry their
+capture time, and :class:`NoisyTruthSensor` reads the true arm at that instant (simulated time
+stands still while the loop processes a frame). It exists for fast tests and sweeps and never
+runs unless asked for; the hardware path cannot use it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from wristmark.cvs.frames import StereoFrame
+from wristmark.models.plant_interface import ActuatedArm
+from wristmark.rig.tip_sensors import TipMeasurement
+from wristmark.sim.rendered_source import OnDemandSource
+
+Array = NDArray[np.float64]
+_EMPTY = np.zeros((1, 1), np.uint8)
+
+
+class TruthClockSource(OnDemandSource):
+    """Frames without pixels (1x1), stamped with ``clock()`` [s]: the instants of the truth."""
+
+    def __init__(self, clock: Callable[[], float], name: str = "truth-noise") -> None:
+        super().__init__(clock, name)
+
+    def read(self) -> StereoFrame:
+        """An empty frame stamped now."""
+        return self._frame(float(self.clock()), _EMPTY, _EMPTY)
+
+
+class NoisyTruthSensor:
+    """The true tip of ``arm`` plus isotropic Gaussian noise of 3D RMS ``rms`` [m]."""
+
+    def __init__(self, arm: ActuatedArm, rms: float, seed: int = 0) -> None:
+        self.arm = arm
+        self._sigma = rms / np.sqrt(3.0)
+        self._rng = np.random.default_rng(seed)
+
+    def measure(self, frame: StereoFrame, axis_hint_world: Array | None = None) -> TipMeasurement:
+        """True tip + noise at the frame's instant; never fails (the hint is not needed)."""
+        p = self.arm.true_shape().tip + self._rng.normal(0.0, self._sigma, 3)
+        return TipMeasurement(True, p, t_capture=frame.t_capture, frame_index=frame.index)

@@ -1,0 +1,262 @@
+"""The virtual lab: one process plays the actuator box and the stereo endoscope, so that a host
+sees only what it would see in a lab, serial bytes and a video stream (DESIGN.md "The virtual lab").
+
+:class:`VirtualLab` drives the simulated true arm from an actuator-box emulator on a new pty
+(protocol v1, wall clock) and, in a camera thread, renders that arm in wall-clock time at up to
+``fps`` frames per second (fewer where rendering cannot keep up; frame starts are at least one
+period apart) and publishes each stereo pair side by side as a JPEG of an MJPEG stream on
+loopback (:class:`rig.mjpeg_server.MjpegServer`). Each frame's capture instant is the emulator
+clock's ``time.monotonic()`` when the arm was sampled; ``truth_out`` logs it with the true tip
+in {w} [m] (CSV header ``t,tip_x,tip_y,tip_z``), one row per published frame.
+
+Each JPEG also carries its capture instant (cvs.jpeg_stamp, a COM segment decoders ignore):
+valid only because both processes read one machine's monotonic clock, and not something a real
+camera needs (a host stamps a real camera's frames at arrival, or maps the device's own
+timestamps). With it, the host's capture-to-command latency includes the frame's transport
+(rendering, JPEG encoding, the loopback hop, decoding), which the host logs apart; without it
+(any other MJPEG sender) the transport is hidden in a frame that looks fresh on arrival.
+:attr:`VirtualLab.stats` reports what the camera side spends per frame.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+
+from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera
+from wristmark.cvs.marker import MarkerModel
+from wristmark.models.errors import InputError
+from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark.rig.mjpeg_server import MjpegServer
+from wristmark.rig.realtime_priority import check_realtime_priority, request_realtime_priority
+from wristmark.sim.actuator_emulator import ActuatorEmulator
+from wristmark.sim.locked_arm import LockedArm
+from wristmark.sim.plant import TruePlant
+from wristmark.sim.plant_params import PlantParams
+from wristmark.sim.render import StereoRenderer
+from wristmark.sim.render_settings import noise_preset
+
+TRUTH_HEADER = "t,tip_x,tip_y,tip_z"
+FIRST_FRAME_TIMEOUT_S = 60.0  # [s] the first render compiles nothing (numba caches) but a loaded host is slow
+
+
+@dataclass(frozen=True)
+class LabCamera:
+    """The virtual endoscope: fps [1/s] at most; image_scale of the calibrated size; render noise
+    preset and seed; JPEG quality (1-100); host and TCP port of the stream (0: any free port)."""
+
+    fps: float = 30.0
+    image_scale: float = 1.0
+    noise: str = "default"
+    seed: int = 0
+    jpeg_quality: int = 90
+    host: str = "127.0.0.1"
+    port: int = 0
+
+    def validate(self) -> None:
+        """InputError naming the bad option."""
+        if not (np.isfinite(self.fps) and self.fps > 0):
+            raise InputError(f"--fps must be > 0, got {self.fps}")
+        if not (np.isfinite(self.image_scale) and 0 < self.image_scale <= 1):
+            raise InputError(f"--image-scale must be in (0, 1], got {self.image_scale}")
+        if not 1 <= self.jpeg_quality <= 100:
+            raise InputError(f"JPEG quality must be in 1..100, got {self.jpeg_quality}")
+        if self.host not in ("127.0.0.1", "localhost", "::1"):
+            raise InputError(f"the virtual lab serves on loopback only, not {self.host!r}")
+
+
+@dataclass
+class CameraStats:
+    """What the camera thread did: frames published, render and JPEG-encode times [ms]."""
+
+    frames: int = 0
+    render_ms: list[float] = field(default_factory=list)
+    encode_ms: list[float] = field(default_factory=list)
+    t_first: float = float("nan")
+    t_last: float = float("nan")
+
+    def summary(self) -> dict[str, Any]:
+        """Counts, achieved rate [1/s] and median times [ms]."""
+        span = self.t_last - self.t_first
+        return {"frames": self.frames, "fps": (self.frames - 1) / span if self.frames > 1 and span > 0 else None,
+                "render_ms_median": float(np.median(self.render_ms)) if self.render_ms else None,
+                "encode_ms_median": float(np.median(self.encode_ms)) if self.encode_ms else None}
+
+
+class VirtualLab:
+    """The actuator box on a pty and the endoscope on an MJPEG stream, around one simulated arm.
+
+    rt_priority: run every thread of the lab (actuator box, camera, renderer, stream server)
+    under ``SCHED_FIFO`` at this priority (:mod:`rig.realtime_priority`), as firmware and a camera
+    are not starved by the host's other work; all of them, since a normal thread holding
+    Python's GIL would stall the real-time ones (priority inversion). The caller's thread keeps
+    its own scheduling.
+    emulator_factory: ``(arm, params, watchdog_s=...) -> ActuatorEmulator`` (tests record packets).
+    """
+
+    def __init__(self, params: RobotParams, plant: PlantParams, calibration: StereoCamera, marker: MarkerModel,
+                 camera: LabCamera | None = None, psi0: Any = None, watchdog_s: float = 0.25,
+                 truth_out: str | Path | None = None, rt_priority: int | None = None,
+                 emulator_factory: Callable[..., ActuatorEmulator] | None = None) -> None:
+        self.options = camera or LabCamera()
+        self.options.validate()
+        if calibration.T_world_left is None:
+            raise InputError("the virtual lab's calibration needs 'world_T_left' (camera pose in {w})")
+        if any(plant.camera_offset):  # the endoscope truly sits at world_T_left @ T(camera_offset)
+            W = np.asarray(calibration.T_world_left, float) @ plant.camera_offset_transform()
+            calibration = dataclasses.replace(calibration, T_world_left=W)
+        cam = calibration if self.options.image_scale == 1.0 else scaled_stereo_camera(calibration,
+                                                                                     self.options.image_scale)
+        self.arm = LockedArm(TruePlant(params, plant, psi0=np.asarray(psi0 if psi0 is not None else HOME_PSI, float)))
+        if rt_priority is not None:
+            check_realtime_priority(rt_priority)
+        self.rt_priority = rt_priority
+        factory = emulator_factory or ActuatorEmulator
+        self.emulator = factory(self.arm, params, watchdog_s=watchdog_s)
+        self.renderer = StereoRenderer(cam, marker, noise_preset(self.options.noise), seed=self.options.seed)
+        self.truth_path = Path(truth_out) if truth_out else None
+        self.stats = CameraStats()
+        self.server: MjpegServer | None = None
+        self.pty_path = ""
+        self._truth: IO[str] | None = None
+        self._stop = threading.Event()
+        self._frozen = threading.Event()
+        self._first = threading.Event()
+        self._start_error: Exception | None = None
+        self._thread: threading.Thread | None = None
+        self.error = ""
+
+    @property
+    def url(self) -> str:
+        """The stream's URL (after :meth:`start`)."""
+        return self.server.url if self.server is not None else ""
+
+    def start(self) -> tuple[str, str]:
+        """Open the pty and the stream, start the camera; returns (pty path, stream URL). The
+        first frame is published before this returns."""
+        if self.truth_path is not None:
+            self.truth_path.parent.mkdir(parents=True, exist_ok=True)
+            self._truth = open(self.truth_path, "w", buffering=1)
+            self._truth.write(TRUTH_HEADER + "\n")
+        launcher = threading.Thread(target=self._start_threads, name="virtual-lab-start")
+        launcher.start()  # the lab's threads inherit the launcher's scheduling, not the caller's
+        launcher.join()
+        if self._start_error is not None:
+            self.stop()
+            raise self._start_error
+        if not self._first.wait(FIRST_FRAME_TIMEOUT_S) or self.error:  # a frame from the first client on
+            self.stop()
+            raise InputError(self.error or "the virtual endoscope rendered no frame within "
+                             f"{FIRST_FRAME_TIMEOUT_S:g} s")
+        return self.pty_path, self.url
+
+    def _start_threads(self) -> None:
+        try:
+            if self.rt_priority is not None:
+                request_realtime_priority(self.rt_priority)
+            self.server = MjpegServer(self.options.host, self.options.port)
+            self.pty_path = self.emulator.serve_pty()
+            self._thread = threading.Thread(target=self._run_camera, name="virtual-endoscope", daemon=True)
+            self._thread.start()
+        except Exception as e:  # noqa: BLE001 - handed to start(), which raises it in the caller's thread
+            self._start_error = e
+
+    def _frame(self) -> float:
+        """Sample the arm, render, publish, log the truth; returns the capture instant [s]."""
+        assert self.server is not None
+        t, shape = self.emulator.sample_arm()
+        r0 = time.perf_counter()
+        pair = self.renderer.render(shape)
+        r1 = time.perf_counter()
+        self.server.publish_image(np.hstack([pair.left, pair.right]), self.options.jpeg_quality, t_capture=t)
+        r2 = time.perf_counter()
+        st = self.stats
+        st.frames += 1
+        st.render_ms.append(1e3 * (r1 - r0))
+        st.encode_ms.append(1e3 * (r2 - r1))
+        st.t_first = t if st.frames == 1 else st.t_first
+        st.t_last = t
+        if self._truth is not None:
+            x, y, z = (float(v) for v in shape.tip)
+            self._truth.write(f"{t:.6f},{x:.9g},{y:.9g},{z:.9g}\n")
+        return t
+
+    def freeze_camera(self) -> None:
+        """Stop publishing frames while the stream stays open (a stalled camera; fault injection)."""
+        self._frozen.set()
+
+    def _run_camera(self) -> None:
+        period = 1.0 / self.options.fps
+        t_next = time.monotonic()
+        while not self._stop.is_set():
+            wait = t_next - time.monotonic()
+            if wait > 0 and self._stop.wait(wait):
+                return
+            if self._frozen.is_set():
+                t_next = time.monotonic() + period
+                continue
+            try:
+                t = self._frame()
+            except Exception as e:  # noqa: BLE001 - the camera dies with one line; the stream then stalls
+                self.error = f"virtual endoscope stopped: {type(e).__name__}: {e}"
+                self._first.set()
+                return
+            self._first.set()
+            t_next = t + period
+
+    def stop(self) -> None:
+        """Stop the camera, the stream and the emulator; close the truth file (idempotent)."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(5.0)
+            self._thread = None
+        if self.server is not None:
+            self.server.close()
+        self.emulator.stop()
+        if self._truth is not None:
+            self._truth.close()
+            self._truth = None
+
+    def __enter__(self) -> VirtualLab:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+
+def read_truth_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """(t (N,) [s], tip (N, 3) in {w} [m]) from a ``--truth-out`` file."""
+    with open(path) as f:
+        header = f.readline().strip()
+        if header != TRUTH_HEADER:
+            raise InputError(f"{path}: not a virtual-lab truth file (header {header!r}, expected {TRUTH_HEADER!r})")
+        data = np.loadtxt(f, delimiter=",", ndmin=2)
+    if data.size == 0:
+        return np.zeros(0), np.zeros((0, 3))
+    return data[:, 0], data[:, 1:4]
+
+
+def true_tip_errors(log_csv: str | Path, truth_csv: str | Path, phase: str = "servo") -> np.ndarray:
+    """|true tip - desired tip| [m] of each cycle of ``phase`` in a servo run's log.csv, the true
+    tip interpolated from the lab's ``--truth-out`` at the cycle's ``t_wall`` (one machine, one
+    monotonic clock); NaN for cycles outside the truth's time span."""
+    from wristmark.rig.run_log import read_log_csv
+
+    log = read_log_csv(log_csv)
+    t, tip = read_truth_csv(truth_csv)
+    sel = np.array([p == phase for p in log["phase"]], bool)
+    t_wall = np.asarray(log["t_wall"], float)[sel]
+    p_des = np.stack([np.asarray(log[f"p_des_{a}"], float)[sel] for a in "xyz"], axis=1)
+    if t.size < 2:
+        return np.full(len(t_wall), np.nan)
+    p_true = np.stack([np.interp(t_wall, t, tip[:, i]) for i in range(3)], axis=1)
+    err = np.linalg.norm(p_true - p_des, axis=1)
+    err[(t_wall < t[0]) | (t_wall > t[-1])] = np.nan
+    return err

@@ -1,0 +1,186 @@
+"""The controller interface, its configuration, and the registry of kinds.
+
+A controller turns the commanded configuration psi_cmd, the measured tip p_meas and the desired
+tip p_des (+ its velocity v_des) into the next commanded configuration (paper eq. 21:
+psi <- psi + psi_dot dt), always within the joint and velocity limits.
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from wristmark.models.config_io import from_mapping, load_yaml
+from wristmark.models.errors import ConfigError
+from wristmark.models.kinematics import check_psi, tip_jacobian
+from wristmark.models.limits import clamp_psi, clamp_velocity, psi_bounds
+from wristmark.models.robot_params import RobotParams
+from wristmark.solvers.backlash_compensation import BacklashInverse, CommandCompensator
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    """Controller settings (configs/controller.yaml, under 'controller:'); SI units.
+
+    kind: "paper" (eq. 17-21) or "qp" (velocity-bounded QP). dt: servo cycle [s].
+    paper: v_xlim constant tip speed [m/s]; gamma [m^2/s^2-free, eq. 20 damping]; xi threshold on
+    the smallest singular value; saturate_near_target: use min(v_xlim, |dp|/dt) instead of the
+    paper's constant speed; lock_saturated_joints: re-solve eq. 19-20 without a joint the step
+    would push through its limit (not in the paper). qp: kp feedback gain [1/s]; max_correction_speed [m/s];
+    feed_forward: add the desired velocity; damping: weight of ||S psi_dot||^2 relative to the
+    tip-velocity error (S converts rad to tip metres, ``lever`` [m/rad]); orientation_weight:
+    weight [m^2/rad^2] on keeping the tip frame's orientation (0 = position only); ki: integral
+    gain on the tip error [1/s^2] (0 = none), its velocity capped at integral_speed_limit [m/s]
+    (solvers/tip_integral.py). Both kinds: backlash_compensation turns on the dead-band inversion
+    of solvers/backlash_compensation.py: backlash_play_max [rad, m, m, m, m, m] (actuators phi,
+    d, s1a, s1b, s2a, s2b) bounds the play it may assume, the estimate starts at backlash_start
+    x that bound and (backlash_learning) is learnt at every reversal over backlash_window [s]
+    either side at backlash_learning_rate per reversal; backlash_fraction of the estimate is
+    inverted; backlash_hysteresis x the bound is how far the command must come back before its
+    direction counts as reversed.
+    """
+
+    kind: str = "qp"
+    dt: float = 0.060
+    v_xlim: float = 0.020
+    gamma: float = 1e-6
+    xi: float = 1e-3
+    saturate_near_target: bool = False
+    lock_saturated_joints: bool = True
+    kp: float = 8.0
+    max_correction_speed: float = 0.02
+    feed_forward: bool = True
+    damping: float = 1e-3
+    lever: float = 0.05
+    orientation_weight: float = 1e-3
+    qp_solver: str = "daqp"
+    ki: float = 0.0
+    integral_speed_limit: float = 0.003
+    backlash_compensation: bool = False
+    backlash_play_max: tuple[float, ...] = (0.012, 0.0002, 0.00016, 0.00016, 0.00016, 0.00016)
+    backlash_start: float = 0.25
+    backlash_fraction: float = 0.5
+    backlash_hysteresis: float = 0.1
+    backlash_learning: bool = True
+    backlash_window: float = 0.4
+    backlash_learning_rate: float = 0.3
+
+    def validate(self) -> None:
+        """Raise ConfigError naming the offending key."""
+        for k in ("dt", "v_xlim", "gamma", "xi", "max_correction_speed", "damping", "lever"):
+            if getattr(self, k) <= 0:
+                raise ConfigError(f"'{k}' must be > 0, got {getattr(self, k)}")
+        for k in ("kp", "orientation_weight", "ki", "integral_speed_limit", "backlash_hysteresis", "backlash_window"):
+            if getattr(self, k) < 0:
+                raise ConfigError(f"'{k}' must be >= 0, got {getattr(self, k)}")
+        if len(self.backlash_play_max) != 6 or min(self.backlash_play_max) < 0:
+            raise ConfigError(f"'backlash_play_max' must be 6 values >= 0, got {list(self.backlash_play_max)}")
+        for k in ("backlash_start", "backlash_fraction", "backlash_learning_rate"):
+            if not 0.0 <= getattr(self, k) <= 1.0:
+                raise ConfigError(f"'{k}' must be in [0, 1], got {getattr(self, k)}")
+        if self.qp_solver not in ("daqp", "qpoases"):
+            raise ConfigError(f"'qp_solver' must be daqp or qpoases, got {self.qp_solver!r}")
+
+    @classmethod
+    def load(cls, path: str | Path) -> ControllerConfig:
+        """Load from YAML (a 'controller:' mapping, or the mapping itself)."""
+        data = load_yaml(path)
+        if set(data) == {"controller"}:
+            data = data["controller"] or {}
+        return from_mapping(cls, data, str(path))
+
+
+@dataclass(frozen=True)
+class ControlStep:
+    """One controller step: next psi (in limits), psi_dot (in limits), commanded tip velocity."""
+
+    psi_next: Array
+    psi_dot: Array
+    v_tip_cmd: Array
+    status: str
+    solve_time_us: float
+
+
+class Controller(abc.ABC):
+    """Base of every controller kind."""
+
+    def __init__(self, params: RobotParams, config: ControllerConfig) -> None:
+        self.params = params
+        self.config = config
+        self.compensator: CommandCompensator | None = None
+        if config.backlash_compensation:
+            inverse = BacklashInverse(np.asarray(config.backlash_play_max, float), config.backlash_hysteresis,
+                                      start=config.backlash_start, fraction=config.backlash_fraction,
+                                      learn=config.backlash_learning, window=config.backlash_window,
+                                      rate=config.backlash_learning_rate)
+            self.compensator = CommandCompensator(params, inverse)
+
+    def reset(self) -> None:
+        """Forget the internal state (integral, backlash directions) before a new run."""
+        if self.compensator is not None:
+            self.compensator.reset()
+
+    def path_rates(self, psi: Array, v_tip: Array) -> Array:
+        """Joint rates [rad/s, m/s] for a tip velocity ``v_tip`` [m/s] in {w} with no error and no
+        limits (default: eq. 19, the 6x6 Jacobian's pseudo-inverse with zero angular rate); also
+        maps a tip displacement [m] to joint displacements."""
+        from wristmark.solvers.paper_controller import sr_pseudo_inverse
+
+        J = tip_jacobian(self.params, psi)
+        return sr_pseudo_inverse(J, self.config.gamma, self.config.xi) @ np.concatenate([v_tip, np.zeros(3)])
+
+    @abc.abstractmethod
+    def velocity(self, psi: Array, p_meas: Array, p_des: Array, v_des: Array | None,
+                 dt: float) -> tuple[Array, Array, str]:
+        """psi_dot [rad/s, m/s], commanded tip velocity [m/s] and a status word."""
+
+    def step(self, psi_cmd: Array, p_meas_world: Array, p_des_world: Array,
+             v_des_world: Array | None, dt: float) -> ControlStep:
+        """Next commanded configuration from the measured and desired tip in {w} [m].
+
+        With backlash compensation the controller works on the nominal configuration behind
+        ``psi_cmd`` and returns the compensated one; the returned step is within the joint and
+        velocity limits either way."""
+        import time
+
+        psi_in = clamp_psi(self.params, check_psi(psi_cmd))
+        comp = self.compensator
+        psi = psi_in if comp is None else comp.nominal(psi_in)
+        t0 = time.perf_counter()
+        psi_dot, v_tip, status = self.velocity(psi, np.asarray(p_meas_world, float),
+                                               np.asarray(p_des_world, float),
+                                               None if v_des_world is None else np.asarray(v_des_world, float), dt)
+        us = 1e6 * (time.perf_counter() - t0)
+        psi_dot = clamp_velocity(self.params, np.nan_to_num(psi_dot))
+        lo, hi = psi_bounds(self.params)
+        nxt = np.clip(psi + psi_dot * dt, lo, hi)
+        if comp is not None:
+            nominal = nxt
+            path = None if v_des_world is None else self.path_rates(psi, np.asarray(v_des_world, float))
+            out_dot = clamp_velocity(self.params, (comp.compensate(nominal, dt, path) - psi_in) / dt)
+            nxt = clamp_psi(self.params, np.clip(psi_in + out_dot * dt, lo, hi))
+            comp.commit(nominal, nxt)
+        psi_dot = (nxt - psi_in) / dt
+        return ControlStep(clamp_psi(self.params, nxt), psi_dot, v_tip, status, us)
+
+
+CONTROLLER_KINDS = ("paper", "qp")
+
+
+def make_controller(params: RobotParams, config: ControllerConfig) -> Controller:
+    """Build the controller ``config.kind``; an unknown kind lists the valid ones."""
+    if config.kind == "paper":
+        from wristmark.solvers.paper_controller import PaperController
+
+        return PaperController(params, config)
+    if config.kind == "qp":
+        from wristmark.solvers.qp_controller import QpController
+
+        return QpController(params, config)
+    raise ConfigError(f"unknown controller kind {config.kind!r}; valid kinds: {', '.join(CONTROLLER_KINDS)}")

@@ -1,0 +1,115 @@
+"""Velocity-bounded QP controller formulated in CasADi (kind "qp").
+
+    minimise    || Jv psi_dot - v_ref ||^2 + w_o || Jw psi_dot ||^2 + lambda || S psi_dot ||^2
+    subject to  lo <= psi_dot <= hi
+
+v_ref = v_des (feed-forward) + sat(kp (p_des - p_meas), max_correction_speed) + v_i [m/s], v_i the
+clamped integral ki sum(e dt) of solvers/tip_integral.py (ki = 0: none); Jv, Jw the
+linear / angular rows of the 6x6 tip Jacobian in {w}; S = diag(lever, 1, lever, ...) turns
+joint rates into tip-scale metres so one damping weight fits rad and m; the box folds in the
+velocity limits and psi + psi_dot dt inside the joint limits. The QP is built once as a CasADi
+conic (daqp by default) inside one Function with a single packed input
+[H (36, column-major), g (6), lo (6), hi (6)], called through a buffer (NOTES.md: ~1 us overhead).
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+from numpy.typing import NDArray
+
+from wristmark.models.kinematics import tip_jacobian
+from wristmark.models.limits import psi_bounds
+from wristmark.models.robot_params import RobotParams
+from wristmark.solvers.controller import Controller, ControllerConfig
+from wristmark.solvers.tip_integral import TipErrorIntegral
+
+Array = NDArray[np.float64]
+_N_IN = 36 + 6 + 6 + 6
+
+
+class BoxQp:
+    """min 1/2 x'Hx + g'x  s.t. lo <= x <= hi (6 variables), CasADi conic through a buffer."""
+
+    def __init__(self, solver: str = "daqp") -> None:
+        x = ca.MX.sym("packed", _N_IN)
+        H = ca.reshape(x[:36], 6, 6)
+        opts = {"printLevel": "none"} if solver == "qpoases" else {}
+        conic = ca.conic("box_qp", solver, {"h": ca.Sparsity.dense(6, 6), "a": ca.Sparsity(0, 6)}, opts)
+        sol = conic(h=H, g=x[36:42], lbx=x[42:48], ubx=x[48:54])
+        self.function = ca.Function("box_qp_packed", [x], [ca.densify(sol["x"])])
+        self._in = np.zeros(_N_IN)
+        self._out = np.zeros(6)
+        self._buf, self._eval = self.function.buffer()
+        self._buf.set_arg(0, memoryview(self._in))  # type: ignore[arg-type, call-arg]
+        self._buf.set_res(0, memoryview(self._out))  # type: ignore[arg-type, call-arg]
+
+    def solve(self, H: Array, g: Array, lo: Array, hi: Array) -> Array:
+        """Minimiser x (6,)."""
+        self._in[:36] = np.asarray(H, float).ravel(order="F")
+        self._in[36:42] = g
+        self._in[42:48] = lo
+        self._in[48:54] = hi
+        self._eval()
+        return self._out.copy()
+
+
+class QpController(Controller):
+    """Feed-forward + saturated proportional feedback, velocity- and joint-bounded."""
+
+    def __init__(self, params: RobotParams, config: ControllerConfig) -> None:
+        super().__init__(params, config)
+        self.qp = BoxQp(config.qp_solver)
+        lev = config.lever
+        self._S2 = np.diag([lev, 1.0, lev, lev, lev, lev]) ** 2
+        self._vmax = np.asarray(params.max_velocity, float)
+        self._lo, self._hi = psi_bounds(params)
+        self.integral = TipErrorIntegral(config.ki, config.integral_speed_limit)
+
+    def reset(self) -> None:
+        """Zero the integral and the backlash state."""
+        super().reset()
+        self.integral.reset()
+
+    def _hessian(self, J: Array) -> Array:
+        cfg = self.config
+        Jv, Jw = J[:3], J[3:]
+        return 2.0 * (Jv.T @ Jv + cfg.orientation_weight * Jw.T @ Jw + cfg.damping * self._S2)
+
+    def path_rates(self, psi: Array, v_tip: Array) -> Array:
+        """The QP's unconstrained psi_dot [rad/s, m/s] for a tip velocity ``v_tip`` [m/s] in {w}."""
+        J = tip_jacobian(self.params, psi)
+        return np.asarray(np.linalg.solve(self._hessian(J), 2.0 * J[:3].T @ v_tip), float)
+
+    def reference_velocity(self, p_meas: Array, p_des: Array, v_des: Array | None,
+                           dt: float = 0.0) -> Array:
+        """v_ref = v_des + sat(kp (p_des - p_meas)) + v_i [m/s]; ``dt`` [s] advances the integral."""
+        cfg = self.config
+        err = p_des - p_meas
+        fb = cfg.kp * err
+        n = float(np.linalg.norm(fb))
+        saturated = n > cfg.max_correction_speed
+        if saturated:
+            fb *= cfg.max_correction_speed / n
+        if dt > 0.0:
+            fb = fb + self.integral.update(err, dt, saturated)
+        if cfg.feed_forward and v_des is not None:
+            fb = fb + v_des
+        return fb
+
+    def velocity(self, psi: Array, p_meas: Array, p_des: Array, v_des: Array | None,
+                 dt: float) -> tuple[Array, Array, str]:
+        """Solve the QP for psi_dot."""
+        v_ref = self.reference_velocity(p_meas, p_des, v_des, dt)
+        J = tip_jacobian(self.params, psi)
+        H = self._hessian(J)
+        g = -2.0 * J[:3].T @ v_ref
+        with np.errstate(invalid="ignore"):
+            lo = np.maximum(-self._vmax, (self._lo - psi) / dt)
+            hi = np.minimum(self._vmax, (self._hi - psi) / dt)
+        lo = np.minimum(lo, 0.0)
+        hi = np.maximum(hi, 0.0)
+        x = self.qp.solve(H, g, lo, hi)
+        if not np.all(np.isfinite(x)):
+            return np.zeros(6), v_ref, "qp-failed"
+        return x, v_ref, "ok"

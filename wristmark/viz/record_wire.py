@@ -1,0 +1,61 @@
+"""Fixed-size binary form of a servo cycle for the live view's pipe (one record = one write of
+RECORD_SIZE bytes, below PIPE_BUF, so writes are atomic and never interleave).
+
+Layout (little-endian): t [s], phase (24 bytes UTF-8, NUL-padded), p_des, p_cmd, p_est (NaN:
+no estimate), p_true [m, {w}], psi_cmd, psi_true [rad, m].
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    from wristmark.rig.run_log import CycleRecord
+
+Array = NDArray[np.float64]
+
+_FORMAT = struct.Struct("<d24s24d")
+_HEAD = struct.Struct("<d24s")
+RECORD_SIZE = _FORMAT.size
+_NAN3 = (math.nan, math.nan, math.nan)
+
+
+@dataclass
+class WireRecord:
+    """What the live view draws of one cycle; positions in {w} [m]."""
+
+    t: float
+    phase: str
+    p_des: Array
+    p_cmd: Array
+    p_est: Array | None
+    p_true: Array
+    psi_cmd: Array
+    psi_true: Array
+
+
+def encode(rec: CycleRecord) -> bytes:
+    """RECORD_SIZE bytes of one cycle (~3 us)."""
+    est = _NAN3 if rec.p_est is None else rec.p_est
+    values = np.concatenate((rec.p_des, rec.p_cmd, est, rec.p_true, rec.psi_cmd, rec.psi_true), dtype="<f8")
+    if values.shape != (24,):
+        raise ValueError(f"cycle record has malformed vectors ({values.shape[0]} numbers, expected 24)")
+    return _HEAD.pack(float(rec.t), rec.phase.encode("utf-8")[:24]) + values.tobytes()
+
+
+def decode(data: bytes) -> WireRecord:
+    """The record of RECORD_SIZE bytes written by :func:`encode`."""
+    t, phase, *v = _FORMAT.unpack(data)
+    a = np.array(v, float)
+    est = a[6:9]
+    return WireRecord(
+        t=t, phase=phase.rstrip(b"\0").decode("utf-8", errors="replace"),
+        p_des=a[0:3], p_cmd=a[3:6], p_est=est if np.all(np.isfinite(est)) else None,
+        p_true=a[9:12], psi_cmd=a[12:18], psi_true=a[18:24],
+    )

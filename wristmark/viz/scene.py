@@ -1,0 +1,295 @@
+"""The 3D scene of the bench in Meshcat: the arm from the generated URDF (through Pinocchio's
+MeshcatVisualizer), its commanded configuration as a translucent ghost, the wrist marker's
+checker sleeve, the stereo endoscope with both view frustums, the four tip spheres and their
+trails. Frames: {w} world (the incision, z along the stem), {wm} marker; metres.
+
+Scene tree (under ``/meshcat/wristmark``, shifted so the framed target is the orbit origin):
+``arm/visuals/*`` true arm, ``ghost/visuals/*`` commanded arm, ``marker/{black,white}``,
+``tips/<kind>``, ``trails/<kind>``, ``endoscope/{shaft,left_frustum,right/frustum}``,
+``grid``, ``world_axes``. ``<kind>`` is one of style.TIP_KINDS.
+
+One frame of the scene is a :class:`SceneState`; :meth:`ArmScene.node_poses` turns it into
+node poses that a live view sends at once and a replay records as animation key frames.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Protocol
+
+import meshcat
+import meshcat.geometry as mg
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from wristmark.cvs.camera import StereoCamera
+from wristmark.cvs.marker import MarkerModel
+from wristmark.models.arm_shape import arm_shape
+from wristmark.models.constant_curvature import rot_z, segment_transform
+from wristmark.models.kinematics import check_psi, forward_kinematics
+from wristmark.models.pinocchio_model import PinocchioArm
+from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark.models.urdf import MATERIALS
+from wristmark.viz import shapes
+from wristmark.viz.framing import CameraView, frame_points
+from wristmark.viz.style import (
+    BACKGROUND_BOTTOM,
+    BACKGROUND_TOP,
+    GHOST_COLOR,
+    GHOST_OPACITY,
+    GHOST_RADIUS_SCALE,
+    GRID_COLOR,
+    LEFT_FRUSTUM_COLOR,
+    RIGHT_FRUSTUM_COLOR,
+    TIP_KINDS,
+    TIP_STYLES,
+    TRAIL_OPACITY,
+    hex_color,
+)
+
+if TYPE_CHECKING:
+    from wristmark.rig.loop_setup import LoopSetup
+
+Array = NDArray[np.float64]
+
+ROOT = "wristmark"
+HIDDEN_SCALE = 1e-6  # [-] scale of a node that has nothing to show (e.g. no vision estimate)
+CAMERA_NODE = "/Cameras/default/rotated/<object>"
+
+
+class CycleLike(Protocol):
+    """What a frame needs of a servo cycle (rig.run_log.CycleRecord, viz.record_wire.WireRecord)."""
+
+    t: float
+    phase: str
+    p_des: Array
+    p_cmd: Array
+    p_est: Array | None
+    p_true: Array
+    psi_cmd: Array
+    psi_true: Array
+
+
+@dataclass(frozen=True)
+class SceneConfig:
+    """What the scene draws: robot and marker geometry, the stereo endoscope (None: not drawn)
+    and the true arm's stem coupling [-] (plant file), so psi_true draws the true arm exactly."""
+
+    params: RobotParams = field(default_factory=RobotParams)
+    marker: MarkerModel = field(default_factory=MarkerModel)
+    camera: StereoCamera | None = None
+    stem_coupling: float = 0.0
+    links_per_segment: int = 6  # pseudo-rigid links drawn per segment
+
+    @classmethod
+    def from_setup(cls, setup: LoopSetup) -> SceneConfig:
+        """The scene of a loop's setup; a simulated bench's (sim.setup.SimSetup) also gives the
+        true arm's stem coupling (hardware: none known, 0)."""
+        plant = getattr(setup, "plant", None)
+        return cls(setup.params, setup.marker, setup.camera, float(getattr(plant, "stem_coupling", 0.0)))
+
+
+@dataclass
+class SceneState:
+    """One frame: the true arm at ``psi_true`` (NaN: draw ``psi_cmd``), the ghost at
+    ``psi_cmd`` and the tips in {w} [m] keyed by style.TIP_KINDS (None or NaN: hidden)."""
+
+    psi_true: Array
+    psi_cmd: Array
+    tips: dict[str, Array | None]
+    t: float = 0.0
+    phase: str = ""
+
+    @classmethod
+    def from_record(cls, rec: CycleLike) -> SceneState:
+        """The frame of one servo cycle (rig.run_log.CycleRecord or alike)."""
+        return cls(
+            psi_true=np.asarray(rec.psi_true, float),
+            psi_cmd=np.asarray(rec.psi_cmd, float),
+            tips={"desired": rec.p_des, "commanded": rec.p_cmd, "estimated": rec.p_est, "true": rec.p_true},
+            t=float(rec.t),
+            phase=rec.phase,
+        )
+
+    @classmethod
+    def at_rest(cls, params: RobotParams, psi: object = HOME_PSI) -> SceneState:
+        """The arm resting at ``psi`` (default: home) with the model's tip as desired/commanded/true."""
+        q = check_psi(psi)
+        tip = forward_kinematics(params, q).tip
+        return cls(q.copy(), q.copy(), {"desired": tip, "commanded": tip, "estimated": None, "true": tip})
+
+
+def _finite(p: object) -> Array | None:
+    if p is None:
+        return None
+    a = np.asarray(p, float).reshape(-1)
+    return a if a.shape == (3,) and np.all(np.isfinite(a)) else None
+
+
+class _ArmNodes:
+    """One arm (true or ghost) drawn from the URDF's visuals through Pinocchio's visualizer."""
+
+    def __init__(self, vis: meshcat.Visualizer, arm: PinocchioArm, name: str, drop_sleeve: bool,
+                 color: list[float] | None, radius_scale: float) -> None:
+        from pinocchio.visualize import MeshcatVisualizer
+
+        self.arm = arm
+        sleeve = np.array(MATERIALS["sleeve"])
+        gm = pin.GeometryModel()
+        for g in arm.visual_model.geometryObjects:
+            is_sleeve = arm.model.frames[g.parentFrame].name == "marker" and np.allclose(g.meshColor, sleeve)
+            if not (drop_sleeve and is_sleeve):
+                gm.addGeometryObject(g)
+        self.geometry = gm
+        self.geometry_data = gm.createData()
+        self.viz = MeshcatVisualizer(arm.model, None, gm)
+        self.viz.initViewer(viewer=vis)
+        self.viz.loadViewerModel(rootNodeName=f"{ROOT}/{name}", visual_color=color)
+        self.paths = [f"{ROOT}/{name}/visuals/{g.name}" for g in gm.geometryObjects]
+        self.scale = np.diag([radius_scale, radius_scale, 1.0, 1.0])  # URDF cylinders lie along z
+
+    def poses(self, psi: Array, correction: Array | None = None) -> list[tuple[str, Array]]:
+        """(node path, 4x4 pose in {w}) of every visual at psi; ``correction`` premultiplies."""
+        q = self.arm.q_from_psi(psi)
+        pin.forwardKinematics(self.arm.model, self.arm.data, q)
+        pin.updateGeometryPlacements(self.arm.model, self.arm.data, self.geometry, self.geometry_data)
+        out = []
+        for path, M in zip(self.paths, self.geometry_data.oMg):
+            T = M.homogeneous @ self.scale
+            out.append((path, T if correction is None else correction @ T))
+        return out
+
+
+class ArmScene:
+    """Builds the scene in a Meshcat visualizer and computes the node poses of each frame."""
+
+    def __init__(self, vis: meshcat.Visualizer, config: SceneConfig | None = None,
+                 view: CameraView | None = None) -> None:
+        self.vis = vis
+        self.config = config if config is not None else SceneConfig()
+        cfg = self.config
+        self._true_arm = PinocchioArm(cfg.params, cfg.links_per_segment, cfg.marker)
+        self._ghost_arm = PinocchioArm(cfg.params, cfg.links_per_segment, cfg.marker)
+        self.view = view if view is not None else self.frame_on([SceneState.at_rest(cfg.params)])
+        self._build()
+
+    # -- construction ------------------------------------------------------------------------
+    def _build(self) -> None:
+        vis, cfg = self.vis, self.config
+        vis[ROOT].delete()
+        vis["/Grid"].set_property("visible", False)
+        vis["/Axes"].set_property("visible", False)
+        vis["/Background"].set_property("top_color", list(BACKGROUND_TOP))
+        vis["/Background"].set_property("bottom_color", list(BACKGROUND_BOTTOM))
+        self.set_view(self.view)
+        vis[f"{ROOT}/grid"].set_object(shapes.line_segments(shapes.floor_grid(), GRID_COLOR, 1.0))
+        vis[f"{ROOT}/world_axes"].set_object(mg.triad(0.01))
+        self._arm = _ArmNodes(vis, self._true_arm, "arm", drop_sleeve=True, color=None, radius_scale=1.0)
+        self._ghost = _ArmNodes(vis, self._ghost_arm, "ghost", drop_sleeve=False,
+                                color=[*GHOST_COLOR, GHOST_OPACITY], radius_scale=GHOST_RADIUS_SCALE)
+        black, white = shapes.checker_sleeve(cfg.marker)
+        mat_black, mat_white = shapes.sleeve_materials()
+        vis[f"{ROOT}/marker/black"].set_object(black, mat_black)
+        vis[f"{ROOT}/marker/white"].set_object(white, mat_white)
+        for kind in TIP_KINDS:
+            # Drawn in the transparent pass without depth test: always visible, even inside the
+            # gripper or behind the arm (the true tip is at the jaws' end).
+            st = TIP_STYLES[kind]
+            mat = mg.MeshPhongMaterial(color=hex_color(st.color), opacity=st.opacity, transparent=True,
+                                       reflectivity=0.2, depthTest=False)
+            vis[f"{ROOT}/tips/{kind}"].set_object(mg.Sphere(st.radius), mat)
+        self._build_endoscope()
+
+    def _build_endoscope(self) -> None:
+        cam = self.config.camera
+        if cam is None or cam.T_world_left is None:
+            return
+        vis = self.vis
+        vis[f"{ROOT}/endoscope"].set_transform(np.asarray(cam.T_world_left, float))
+        geom, mat, T = shapes.endoscope_shaft()
+        c_right = -np.asarray(cam.R, float).T @ np.asarray(cam.T, float)  # right centre in {ll}
+        vis[f"{ROOT}/endoscope/shaft"].set_object(geom, mat)
+        vis[f"{ROOT}/endoscope/shaft"].set_transform(shapes.translation(c_right / 2.0) @ T)
+        vis[f"{ROOT}/endoscope/left_frustum"].set_object(
+            shapes.line_segments(shapes.frustum_lines(cam.left.K, cam.image_size), LEFT_FRUSTUM_COLOR))
+        T_left_right = np.linalg.inv(np.asarray(cam.T_world_left, float)) @ shapes.world_T_right(cam)
+        vis[f"{ROOT}/endoscope/right"].set_transform(T_left_right)
+        vis[f"{ROOT}/endoscope/right/frustum"].set_object(
+            shapes.line_segments(shapes.frustum_lines(cam.right.K, cam.image_size), RIGHT_FRUSTUM_COLOR))
+
+    def set_view(self, view: CameraView) -> None:
+        """Point the browser's camera: shift the scene so ``view.target`` is the orbit origin."""
+        self.view = view
+        self.vis[ROOT].set_transform(view.scene_shift())
+        self.vis[CAMERA_NODE].set_property("position", view.threejs_position())
+
+    def frame_on(self, states: Iterable[SceneState], max_states: int = 200) -> CameraView:
+        """A view framed on the arm of (up to ``max_states`` of) ``states``, their tips, the
+        incision and the endoscope's lenses."""
+        states = list(states)
+        step = max(1, len(states) // max_states)
+        pts = [np.zeros(3)]
+        for s in states[::step]:
+            psi = s.psi_true if np.all(np.isfinite(s.psi_true)) else s.psi_cmd
+            pts += list(arm_shape(self.config.params, psi, 6).centreline)
+        for s in states:
+            pts += [p for p in (_finite(s.tips.get(k)) for k in TIP_KINDS) if p is not None]
+        cam = self.config.camera
+        if cam is not None and cam.T_world_left is not None:
+            pts.append(np.asarray(cam.T_world_left, float)[:3, 3])
+        return frame_points(np.array(pts))
+
+    # -- frames ------------------------------------------------------------------------------
+    def stem_correction(self, psi: Array) -> Array:
+        """Pose change of {1b} (and all that follows) when the exposed stem (length d) bends by
+        stem_coupling * theta1 in segment 1's plane, as the simulated true arm does."""
+        zeta = self.config.stem_coupling
+        if zeta == 0.0:
+            return np.eye(4)
+        phi, d, th1, de1 = (float(v) for v in psi[:4])
+        Rz = np.eye(4)
+        Rz[:3, :3] = rot_z(phi)
+        nominal = Rz.copy()
+        nominal[2, 3] = d
+        bent = Rz @ segment_transform(d, zeta * th1, de1)
+        return np.asarray(bent @ np.linalg.inv(nominal))
+
+    def node_poses(self, state: SceneState) -> list[tuple[str, Array]]:
+        """(node path relative to /meshcat, 4x4 pose in {w}) of every moving node at ``state``;
+        hidden tips get a vanishing scale."""
+        psi_cmd = check_psi(state.psi_cmd)
+        psi_true = np.asarray(state.psi_true, float)
+        if psi_true.shape == (6,) and np.all(np.isfinite(psi_true)):
+            C = self.stem_correction(psi_true)
+        else:  # true configuration unknown (hardware, accuracy runs): the arm as commanded
+            psi_true, C = psi_cmd, np.eye(4)
+        poses = self._arm.poses(psi_true, C)
+        poses += self._ghost.poses(psi_cmd)
+        poses.append((f"{ROOT}/marker", C @ self._true_arm.frame_pose("marker", psi_true)))
+        for kind in TIP_KINDS:
+            p = _finite(state.tips.get(kind))
+            T = np.eye(4)
+            if p is None:
+                T[:3, :3] *= HIDDEN_SCALE
+            else:
+                T[:3, 3] = p
+            poses.append((f"{ROOT}/tips/{kind}", T))
+        return poses
+
+    def show(self, state: SceneState) -> None:
+        """Send the poses of ``state`` to the visualizer (one set_transform per node)."""
+        for path, T in self.node_poses(state):
+            self.vis[path].set_transform(T)
+
+    def set_trails(self, trails: Mapping[str, Array], opacity: float = TRAIL_OPACITY) -> None:
+        """Replace the trail lines: (N, 3) points in {w} [m] per tip kind (missing: cleared)."""
+        for kind in TIP_KINDS:
+            P = np.asarray(trails.get(kind, np.zeros((0, 3))), float).reshape(-1, 3)
+            P = P[np.all(np.isfinite(P), axis=1)]
+            node = self.vis[f"{ROOT}/trails/{kind}"]
+            if len(P) < 2:
+                node.delete()
+            else:
+                node.set_object(shapes.polyline(P, TIP_STYLES[kind].color, opacity))

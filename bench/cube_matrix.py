@@ -28,7 +28,7 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from wristmark.rig.commands.option_types import positive_float  # noqa: E402
+from wristmark.cli.option_types import positive_float  # noqa: E402
 from wristmark.sim.experiments import PAPER_CUBE, run_cube  # noqa: E402
 from wristmark.sim.plant_params import PlantParams  # noqa: E402
 from wristmark.sim.setup import SimSetup, default_config, load_setup  # noqa: E402

@@ -15,7 +15,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from wristmark.rig.commands.option_types import int_in, seed_int  # noqa: E402
+from wristmark.cli.option_types import int_in, seed_int  # noqa: E402
 
 OUT = Path(__file__).resolve().parents[1] / "tests" / "data" / "heldout_plants"
 

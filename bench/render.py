@@ -21,13 +21,13 @@ import cv2
 import numpy as np
 
 import wristmark.sim.render as render_module
+from wristmark.cli.render import PSI_SPREAD
 from wristmark.cvs.calibration_io import load_calibration
 from wristmark.cvs.camera import scaled_stereo_camera
-from wristmark.cvs.marker import MarkerModel
 from wristmark.models.arm_shape import arm_shape
 from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import RobotParams
-from wristmark.rig.commands.render import PSI_SPREAD
 from wristmark.sim.render import StereoRenderer
 from wristmark.sim.render_settings import noise_preset
 from wristmark.sim.visibility import random_visible_psi

@@ -22,9 +22,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from wristmark.cli import servo as S  # noqa: E402
 from wristmark.rig import protocol as P  # noqa: E402
 from wristmark.rig.actuator_link import DirectLink  # noqa: E402
-from wristmark.rig.commands import servo as S  # noqa: E402
 from wristmark.rig.servo_summary import summarize  # noqa: E402
 from wristmark.sim.servo_bench import open_sim_session  # noqa: E402
 from wristmark.sim.setup import load_setup  # noqa: E402

@@ -33,13 +33,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from wristmark.cli.option_types import int_in, positive_float  # noqa: E402
 from wristmark.cvs.calibration_io import load_calibration  # noqa: E402
 from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera  # noqa: E402
-from wristmark.cvs.marker import MarkerModel  # noqa: E402
 from wristmark.cvs.marker_tracker import MarkerTracker  # noqa: E402
 from wristmark.cvs.open_source import SourceOptions, open_stereo_source  # noqa: E402
 from wristmark.models.config_files import CONFIG_DIR
-from wristmark.rig.commands.option_types import int_in, positive_float  # noqa: E402
+from wristmark.models.marker import MarkerModel  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -35,7 +35,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from wristmark.rig.commands.option_types import positive_float  # noqa: E402
+from wristmark.cli.option_types import positive_float  # noqa: E402
 from wristmark.rig.realtime_priority import realtime_priority_allowed  # noqa: E402
 
 WRISTMARK = [sys.executable, "-m", "wristmark"]
@@ -123,7 +123,7 @@ def in_process_run(scale: float, duration: float) -> dict[str, Any]:
     """The same cube on the in-process bench (pty emulator, simulated clock)."""
     import dataclasses
 
-    from wristmark.rig.commands import servo as S
+    from wristmark.cli import servo as S
     from wristmark.rig.servo_summary import summarize
     from wristmark.sim.servo_bench import open_sim_session
     from wristmark.sim.setup import load_setup

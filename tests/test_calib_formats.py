@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 import yaml
 
+from wristmark.cli.main import main
 from wristmark.cvs.calibration_io import load_calibration
 from wristmark.models.errors import ConfigError
-from wristmark.rig.cli import main
 
 K_L = [[1380.0, 0.0, 959.5], [0.0, 1381.0, 539.5], [0.0, 0.0, 1.0]]
 K_R = [[1383.0, 0.0, 962.0], [0.0, 1382.0, 537.0], [0.0, 0.0, 1.0]]

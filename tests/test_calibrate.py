@@ -11,8 +11,8 @@ import cv2
 import numpy as np
 import pytest
 
+from wristmark.cli.main import main
 from wristmark.cvs.calibration_io import load_calibration
-from wristmark.rig.cli import main
 
 PHOTOS = Path(__file__).resolve().parent / "data" / "opencv_stereo"
 NAMES = sorted(p.stem[4:] for p in PHOTOS.glob("left*.jpg"))

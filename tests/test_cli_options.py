@@ -1,6 +1,6 @@
 """Every numeric option of every command is validated where it is parsed (issue 17, item 3).
 
-The options are found from the argparse parsers of all commands in ``rig.cli.COMMANDS``, so
+The options are found from the argparse parsers of all commands in ``wristmark.cli.main.COMMANDS``, so
 options added later are covered too. Bad values (NaN, +-inf, zero, negative, huge) end with
 exit status 2 and one line on stderr; values the parser accepts run normally: never exit 1,
 never a traceback, never a NaN in a result.
@@ -22,7 +22,7 @@ import pytest
 from hypothesis import HealthCheck, assume, event, given, settings
 from hypothesis import strategies as st
 
-from wristmark.rig import cli
+from wristmark.cli import main as cli
 
 # A value-taking option whose metavar or help names one of these is numeric even without a type.
 NUMERIC_METAVARS = {"S", "N", "PX", "F", "Q", "X", "Y", "Z", "HZ", "FPS", "M", "MM", "DEG", "RAD", "KB"}
@@ -154,9 +154,9 @@ def test_numeric_options_are_found() -> None:
 
 
 def test_every_numeric_option_uses_a_validated_type() -> None:
-    """Each numeric option's type is one of rig/commands/option_types.py (it names its range)."""
+    """Each numeric option's type is one of cli/option_types.py (it names its range)."""
     bare = [f"{cmd} {_name(a)}" for cmd, a in NUMERIC if not hasattr(a.type, "validated_range")]
-    assert not bare, "numeric options without a validated type (use rig/commands/option_types.py): " + ", ".join(bare)
+    assert not bare, "numeric options without a validated type (use cli/option_types.py): " + ", ".join(bare)
 
 
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -268,7 +268,7 @@ def test_closed_pipe_ends_quietly(tmp_path: Path) -> None:
         "r, w = os.pipe()\n"
         "os.close(r)\n"  # the reader is gone before anything is written
         "os.dup2(w, 1)\n"
-        "from wristmark.rig import cli\n"
+        "from wristmark.cli import main as cli\n"
         "sys.exit(cli.main(['fk', '--psi', '0', '0.04', '0.7', '0', '0.9', '0', '--json']))\n"
     )
     p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60,

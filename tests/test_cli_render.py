@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from wristmark.cli.main import main
 from wristmark.models.robot_params import HOME_PSI
-from wristmark.rig.cli import main
 from wristmark.sim.dataset import load_dataset
 
 

@@ -18,11 +18,11 @@ import numpy as np
 import pytest
 from test_serial_link import PARAMS, PLANT, RecordingEmulator
 
+from wristmark.cli import servo as S
 from wristmark.models.errors import InputError
 from wristmark.models.robot_params import HOME_PSI
 from wristmark.rig import protocol as P
 from wristmark.rig.actuator_link import DirectLink
-from wristmark.rig.commands import servo as S
 from wristmark.rig.realtime_priority import realtime_priority_allowed
 from wristmark.rig.servo_summary import summarize
 from wristmark.rig.tip_sensors import TipMeasurement

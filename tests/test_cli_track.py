@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from wristmark.rig.cli import main
+from wristmark.cli.main import main
 from wristmark.sim.dataset import load_dataset
 
 

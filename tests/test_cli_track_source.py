@@ -11,10 +11,10 @@ import cv2
 import numpy as np
 import pytest
 
+from wristmark.cli.main import main
 from wristmark.cvs.calibration_io import load_calibration, save_calibration
 from wristmark.cvs.camera import scaled_stereo_camera
 from wristmark.models.config_files import CONFIG_DIR
-from wristmark.rig.cli import main
 from wristmark.sim.motion_video import render_motion, write_stereo_video
 
 ROOT = Path(__file__).resolve().parents[1]

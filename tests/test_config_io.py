@@ -8,10 +8,10 @@ from pathlib import Path
 
 import pytest
 
-from wristmark.cvs.marker import MarkerModel
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.config_io import from_mapping, load_config, load_yaml, save_yaml, to_mapping
 from wristmark.models.errors import ConfigError, WristmarkError
+from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import RobotParams
 
 CONFIGS = CONFIG_DIR

@@ -23,10 +23,10 @@ from wristmark.cvs.corner_detector import (
     htm_refine,
     quadric_subpixel,
 )
-from wristmark.cvs.marker import MarkerModel
 from wristmark.cvs.marker_tracker import MarkerTracker, TrackerSettings
 from wristmark.models.arm_shape import arm_shape
 from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import RobotParams
 from wristmark.sim.render import RenderedPair, StereoRenderer
 from wristmark.sim.render_settings import noise_preset

@@ -11,10 +11,10 @@ import pytest
 
 from wristmark.cvs.calibration_io import load_calibration
 from wristmark.cvs.camera import scaled_stereo_camera
-from wristmark.cvs.marker import MarkerModel
 from wristmark.models.arm_shape import arm_shape
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.errors import InputError
+from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.sim.dataset import DatasetWriter, load_dataset
 from wristmark.sim.render import StereoRenderer

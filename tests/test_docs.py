@@ -9,8 +9,8 @@ import shlex
 import subprocess
 from pathlib import Path
 
+from wristmark.cli import main as cli
 from wristmark.models.config_files import CONFIG_DIR
-from wristmark.rig import cli
 
 ROOT = Path(__file__).resolve().parents[1]
 USER_FILES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md")),

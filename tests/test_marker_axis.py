@@ -14,11 +14,11 @@ import pytest
 
 from wristmark.cvs.calibration_io import load_calibration
 from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera
-from wristmark.cvs.marker import MarkerModel
 from wristmark.cvs.marker_axis import AxisEvidenceSettings, axis_evidence
 from wristmark.cvs.marker_tracker import MarkerTracker
 from wristmark.models.arm_shape import arm_shape
 from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import RobotParams
 from wristmark.sim.render import RenderedPair, StereoRenderer
 from wristmark.sim.render_settings import RenderSettings

@@ -13,12 +13,12 @@ import pytest
 
 from wristmark.cvs.calibration_io import load_calibration
 from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera
-from wristmark.cvs.marker import MarkerModel
 from wristmark.cvs.marker_code import CODE_WORDS, coded_marker, window_margin
 from wristmark.cvs.marker_tracker import MarkerTracker, TrackResult
 from wristmark.models.arm_shape import ArmShape, arm_shape
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.errors import ConfigError
+from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.sim.render import RenderedPair, StereoRenderer
 from wristmark.sim.render_settings import RenderSettings

@@ -12,10 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from wristmark.cvs.marker import MarkerModel
+from wristmark.cli.main import main
 from wristmark.cvs.marker_print import page_size
 from wristmark.models.config_files import CONFIG_DIR
-from wristmark.rig.cli import main
+from wristmark.models.marker import MarkerModel
 from wristmark.sim.render_arm import Sleeve, pack_sleeve
 from wristmark.sim.render_raycast import sleeve_dark
 

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from wristmark.cvs.calibration_io import load_calibration
-from wristmark.cvs.marker import MarkerModel
 from wristmark.cvs.marker_tracker import MarkerTracker, kabsch
 from wristmark.cvs.stereo_match import match_corners
 from wristmark.models.arm_shape import arm_shape
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.errors import InputError
+from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import RobotParams
 from wristmark.sim.render import RenderedPair, StereoRenderer
 from wristmark.sim.render_settings import RenderSettings

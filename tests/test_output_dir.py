@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from wristmark.rig import cli
+from wristmark.cli import main as cli
 from wristmark.rig.output_dir import OutputExistsError, claim_outputs, link_latest, new_run_dir
 
 ROOT = Path(__file__).resolve().parents[1]

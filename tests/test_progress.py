@@ -9,7 +9,7 @@ import json
 import re
 from pathlib import Path
 
-from wristmark.rig import cli
+from wristmark.cli import main as cli
 
 BAR = re.compile(r"^(?P<desc>[^:|]+(?:: [^:|]+)*): +\d+%\|[^|]*\| (?P<n>\d+)/(?P<total>\d+)")
 

@@ -13,11 +13,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from wristmark.cli.main import main
 from wristmark.cvs.calibration_io import save_calibration
 from wristmark.cvs.camera import scaled_stereo_camera
 from wristmark.cvs.registration_io import load_registration
 from wristmark.models.config_files import CONFIG_DIR
-from wristmark.rig.cli import main
 from wristmark.sim.plant_params import PlantParams
 from wristmark.sim.setup import load_setup
 from wristmark.solvers.registration import transform_error

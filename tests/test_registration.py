@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 import yaml
 
+from wristmark.cli.main import main
 from wristmark.cvs.registration_io import Registration, load_registration, save_registration
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.errors import ConfigError, InputError
 from wristmark.models.robot_params import RobotParams
-from wristmark.rig.cli import main
 from wristmark.rig.registration_poses import APPROACH, choose_poses
 from wristmark.rig.registration_run import Observation, motion_sign, registration_poses
 from wristmark.solvers.registration import ArmCorrection, RegistrationPose, solve_registration, transform_error
@@ -38,7 +38,7 @@ def _observations(arm: ArmCorrection, W: np.ndarray, n: int = 10) -> list[Observ
     from wristmark.cvs.camera import StereoCamera
 
     cam: StereoCamera = load_calibration(CONFIGS / "camera.yaml")
-    from wristmark.cvs.marker import MarkerModel
+    from wristmark.models.marker import MarkerModel
 
     poses = choose_poses(PARAMS, n, cam, MarkerModel())
     out = []
@@ -210,8 +210,8 @@ def test_track_with_registration_reports_the_world_tip(tmp_path: Path, capsys: p
 
 def test_approach_offset_keeps_limits() -> None:
     from wristmark.cvs.calibration_io import load_calibration
-    from wristmark.cvs.marker import MarkerModel
     from wristmark.models.limits import within_limits
+    from wristmark.models.marker import MarkerModel
 
     poses = choose_poses(PARAMS, 24, load_calibration(CONFIGS / "camera.yaml"), MarkerModel())
     assert len(poses) == 24

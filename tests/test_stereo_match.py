@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from wristmark.cvs.calibration_io import load_calibration
-from wristmark.cvs.marker import MarkerModel
 from wristmark.cvs.stereo_match import StereoRectifier, chain_indices, match_corners
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.errors import InputError
+from wristmark.models.marker import MarkerModel
 
 CAM = load_calibration(CONFIG_DIR / "camera.yaml")
 MARKER = MarkerModel()

@@ -8,9 +8,9 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from wristmark.cvs.calibration_io import load_calibration
-from wristmark.cvs.marker import MarkerModel
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.errors import InputError
+from wristmark.models.marker import MarkerModel
 from wristmark.solvers.homography_init import homography_pose
 from wristmark.solvers.stereo_pose import PoseSettings, StereoPoseSolver
 

@@ -17,8 +17,8 @@ from pathlib import Path
 import pytest
 import yaml
 
+from wristmark.cli.main import main
 from wristmark.models.config_files import CONFIG_DIR
-from wristmark.rig.cli import main
 
 ROOT = Path(__file__).resolve().parent.parent
 METRICS = ("open_mean_mm", "open_max_mm", "closed_mean_mm", "closed_max_mm", "ratio", "closed_rms_mm",

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 from wristmark.cvs.calibration_io import load_calibration
-from wristmark.cvs.marker import MarkerModel
 from wristmark.cvs.marker_tracker import MarkerTracker, TrackResult
 from wristmark.models.arm_shape import arm_shape
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.ik import solve_tip_ik
 from wristmark.models.kinematics import tip_position
+from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.sim.render import RenderedPair, StereoRenderer
 from wristmark.sim.render_settings import RenderSettings, noise_preset

@@ -10,8 +10,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from wristmark.cvs.marker import MarkerModel
 from wristmark.models.errors import ConfigError, InputError
+from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import RobotParams
 from wristmark.models.urdf import FRAME_NAMES, MATERIALS, chord_length, generate_urdf, write_urdf
 

@@ -26,7 +26,7 @@ import pytest
 from PIL import Image
 from test_viz_scene import fake_records, make_fake_run
 
-from wristmark.rig.cli import main
+from wristmark.cli.main import main
 from wristmark.sim.setup import load_setup
 from wristmark.viz.framing import CameraView
 from wristmark.viz.replay import load_run

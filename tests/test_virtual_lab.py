@@ -20,8 +20,8 @@ import numpy as np
 import pytest
 from test_serial_link import PARAMS, PLANT
 
+from wristmark.cli import servo as S
 from wristmark.rig import protocol as P
-from wristmark.rig.commands import servo as S
 from wristmark.rig.metrics import error_stats
 from wristmark.rig.realtime_priority import realtime_priority_allowed
 from wristmark.rig.servo_summary import summarize
@@ -58,7 +58,7 @@ class NoSim(importlib.abc.MetaPathFinder):
             raise ImportError("the hardware path imported " + name)
         return None
 sys.meta_path.insert(0, NoSim())
-from wristmark.rig.cli import main
+from wristmark.cli.main import main
 rc = main(sys.argv[1:])
 loaded = sorted(m for m in sys.modules if m == "wristmark.sim" or m.startswith("wristmark.sim."))
 if loaded:
@@ -192,11 +192,11 @@ def check_recording(path: Path, res: dict) -> None:
 def test_hardware_path_modules_never_import_the_simulated_bench() -> None:
     code = """
 import sys
-import wristmark.rig.commands.servo as servo, wristmark.rig.hardware_session, wristmark.rig.servo_loop
+import wristmark.cli.servo as servo, wristmark.rig.hardware_session, wristmark.rig.servo_loop
 import wristmark.rig.actuator_driver, wristmark.rig.serial_link, wristmark.rig.protocol, wristmark.rig.frame_feed
 import wristmark.rig.tip_sensors, wristmark.rig.servo_summary, wristmark.cvs.marker_tracker, wristmark.cvs.open_source
 import wristmark.cvs.frame_source_stream, wristmark.cvs.frame_source_v4l2, wristmark.solvers.controller
-from wristmark.rig.cli import build_parser
+from wristmark.cli.main import build_parser
 args = build_parser("servo").parse_args(["servo", "--serial", "/dev/null", "--camera", "http://127.0.0.1:1/x"])
 servo.check_link_options(args)
 setup = servo.build_setup(args)

@@ -16,10 +16,10 @@ import umsgpack
 from meshcat.commands import SetTransform
 from meshcat.path import Path as MeshcatPath
 
+from wristmark.cli.main import main
 from wristmark.models.actuation import actuators_from_psi
 from wristmark.models.kinematics import forward_kinematics
 from wristmark.models.robot_params import HOME_PSI
-from wristmark.rig.cli import main
 from wristmark.rig.run_log import CycleRecord, RunLog, write_json
 from wristmark.sim.plant import TruePlant
 from wristmark.sim.setup import load_setup

@@ -2,7 +2,7 @@
 
 import sys
 
-from wristmark.rig.cli import main
+from wristmark.cli.main import main
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -15,9 +15,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera
-from wristmark.cvs.marker import MarkerModel
 from wristmark.cvs.marker_tracker import TrackResult
 from wristmark.models.errors import InputError
+from wristmark.models.marker import MarkerModel
 
 Array = NDArray[np.float64]
 VIDEO_FOURCC = {".mp4": "mp4v", ".avi": "MJPG", ".mkv": "MJPG"}

@@ -22,8 +22,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.cvs.camera import Camera, StereoCamera
-from wristmark.cvs.marker import MarkerModel
 from wristmark.cvs.marker_cells import sample_camera_points
+from wristmark.models.marker import MarkerModel
 
 Array = NDArray[np.float64]
 

@@ -20,7 +20,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from wristmark.cvs.marker import MarkerCode, MarkerModel
+from wristmark.models.marker import MarkerCode, MarkerModel
 
 IntArray = NDArray[np.int_]
 # 12 columns; per column the bands from the lowest z to the highest ('1' = dark)

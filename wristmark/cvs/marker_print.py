@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from wristmark.cvs.marker import MarkerModel
+from wristmark.models.marker import MarkerModel
 
 Rect = tuple[float, float, float, float]  # x0, z0, width, height [m]
 MARGIN = 0.005  # page margin around the sleeve [m]

@@ -6,7 +6,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera
-from wristmark.cvs.marker import MarkerModel
+from wristmark.models.marker import MarkerModel
 
 Array = NDArray[np.float64]
 

@@ -15,10 +15,10 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from wristmark.cvs.marker import MarkerModel
 from wristmark.models.constant_curvature import f_g
 from wristmark.models.errors import InputError, WristmarkError
 from wristmark.models.kinematics import ArmFrames, check_psi
+from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import RobotParams
 from wristmark.models.urdf import FRAME_NAMES, generate_urdf
 

@@ -21,8 +21,8 @@ import math
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-from wristmark.cvs.marker import MarkerModel
 from wristmark.models.errors import ConfigError, InputError
+from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import RobotParams
 
 ROOT_LINK = "incision"

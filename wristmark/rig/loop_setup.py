@@ -16,10 +16,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera
-from wristmark.cvs.marker import MarkerModel
 from wristmark.models.config_files import default_config
 from wristmark.models.config_io import to_mapping
 from wristmark.models.errors import ConfigError
+from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import RobotParams
 from wristmark.rig.rig_config import RigConfig
 from wristmark.solvers.controller import ControllerConfig

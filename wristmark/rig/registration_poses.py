@@ -14,12 +14,12 @@ from numpy.typing import NDArray
 from scipy.stats import qmc
 
 from wristmark.cvs.camera import StereoCamera
-from wristmark.cvs.marker import MarkerModel
 from wristmark.cvs.marker_view import marker_in_view
 from wristmark.models.errors import InputError
 from wristmark.models.ik import solve_tip_ik
 from wristmark.models.kinematics import forward_kinematics, tip_position
 from wristmark.models.limits import within_limits
+from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import HOME_PSI, RobotParams
 
 Array = NDArray[np.float64]

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera
 from wristmark.cvs.frames import StereoFrame
-from wristmark.cvs.marker import MarkerModel
+from wristmark.models.marker import MarkerModel
 
 Array = NDArray[np.float64]
 

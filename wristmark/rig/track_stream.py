@@ -21,8 +21,8 @@ from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera
 from wristmark.cvs.frames import StereoFrame, StereoSource, frames
-from wristmark.cvs.marker import MarkerModel
 from wristmark.cvs.marker_tracker import MarkerTracker, TrackResult
+from wristmark.models.marker import MarkerModel
 
 
 @dataclass

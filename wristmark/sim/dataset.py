@@ -15,9 +15,9 @@ from numpy.typing import NDArray
 
 from wristmark.cvs.calibration_io import load_calibration, save_calibration
 from wristmark.cvs.camera import StereoCamera
-from wristmark.cvs.marker import MarkerModel
 from wristmark.models.config_io import save_yaml, to_mapping
 from wristmark.models.errors import InputError
+from wristmark.models.marker import MarkerModel
 from wristmark.sim.render import CornerTruth, RenderedPair
 
 Array = NDArray[np.float64]

@@ -17,9 +17,9 @@ from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera
 from wristmark.cvs.frame_layout import join_stereo
-from wristmark.cvs.marker import MarkerModel
 from wristmark.models.arm_shape import arm_shape
 from wristmark.models.errors import InputError
+from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.sim.render import RenderedPair, StereoRenderer
 from wristmark.sim.render_settings import noise_preset

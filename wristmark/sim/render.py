@@ -23,9 +23,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.cvs.camera import Camera, StereoCamera
-from wristmark.cvs.marker import MarkerModel
 from wristmark.models.arm_shape import ArmShape
 from wristmark.models.errors import InputError
+from wristmark.models.marker import MarkerModel
 from wristmark.sim.render_arm import METAL, TUBE, Capsule, RayMap, Sleeve, plan_arm, render_arm
 from wristmark.sim.render_background import stereo_backgrounds
 from wristmark.sim.render_optics import blur_radius, grow_box, optics_signal, optics_signal_box, vignetting_map

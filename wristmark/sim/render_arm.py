@@ -20,8 +20,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.cvs.camera import Camera
-from wristmark.cvs.marker import MarkerModel
 from wristmark.models.errors import InputError
+from wristmark.models.marker import MarkerModel
 from wristmark.sim.render_culling import NEAR, cull_tiles
 from wristmark.sim.render_raycast import CAPSULE_COLS, SLEEVE_COLS, TILE, raycast_tiles
 

@@ -14,7 +14,7 @@ Packed primitives (float64 rows, built by :mod:`sim.render_arm`):
   cylinder from a to b of radius r with spherical ends where cap_a / cap_b are non-zero;
 - sleeve (SLEEVE_COLS): ``R(9, row-major: {wm} in the camera) o(3) (camera centre in {wm})
   radius row_height columns beta z_lo z_hi``: the side z_lo < z < z_hi of the cylinder of
-  ``radius`` around z_wm with the colours of :meth:`cvs.marker.MarkerModel.is_black` (the
+  ``radius`` around z_wm with the colours of :meth:`models.marker.MarkerModel.is_black` (the
   checker rows |z| < row_height, then the dark ``patches`` rows ``a0 a1 z0 z1`` [rad, m], white
   elsewhere), and its two flat end rings (black), facing outwards.
 

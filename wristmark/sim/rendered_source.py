@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera
 from wristmark.cvs.frames import StereoFrame
-from wristmark.cvs.marker import MarkerModel
+from wristmark.models.marker import MarkerModel
 from wristmark.models.plant_interface import ActuatedArm
 from wristmark.sim.render import RenderedPair, StereoRenderer
 from wristmark.sim.render_settings import noise_preset

@@ -59,7 +59,7 @@ def _load_robot(path: Path) -> dict[str, Any]:
 
 
 def _load_marker(path: Path) -> dict[str, Any]:
-    from wristmark.cvs.marker import MarkerModel
+    from wristmark.models.marker import MarkerModel
 
     return to_mapping(MarkerModel.load(path))
 
@@ -125,7 +125,7 @@ class ExperimentOptions:
     """The options of ``wristmark experiment``, read from its own parser."""
 
     def __init__(self) -> None:
-        from wristmark.rig.commands import experiment
+        from wristmark.cli import experiment
 
         self.parser = _RaisingParser(prog="wristmark experiment", add_help=False)
         experiment.add_arguments(self.parser)

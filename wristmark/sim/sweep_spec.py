@@ -12,7 +12,7 @@ every seed (fastest). Keys are ``wristmark experiment`` options or dotted config
 (sim.sweep_keys). Paths in file options are taken relative to the current folder, like every
 wristmark option, and made absolute. Every trial is checked before any runs: its command line
 by ``wristmark experiment``'s own parser, its configuration by loading it as the experiment
-will (:func:`rig.commands.experiment.check_args`); the first bad one is a one-line SpecError.
+will (:func:`wristmark.cli.experiment.check_args`); the first bad one is a one-line SpecError.
 """
 
 from __future__ import annotations
@@ -27,9 +27,9 @@ from typing import Any
 
 import numpy as np
 
+from wristmark.cli.option_types import SEED_MAX
 from wristmark.models.config_io import load_yaml
 from wristmark.models.errors import ConfigError
-from wristmark.rig.commands.option_types import SEED_MAX
 from wristmark.sim.sweep_keys import (
     FILE_OPTIONS,
     NAMESPACES,
@@ -266,7 +266,7 @@ def _expand(options: ExperimentOptions, fixed: dict[str, Any], points: list[dict
 
 def _validate(options: ExperimentOptions, experiment: str, trials: list[Trial]) -> None:
     """Parse and load every trial as ``wristmark experiment`` would, before any runs."""
-    from wristmark.rig.commands.experiment import check_args
+    from wristmark.cli.experiment import check_args
 
     checked: set[str] = set()
     with tempfile.TemporaryDirectory(prefix="wristmark-sweep-") as tmp:

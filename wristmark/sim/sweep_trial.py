@@ -1,7 +1,7 @@
 """One sweep trial: a ``wristmark experiment`` run in this process, from its options and seed.
 
 The trial writes its changed configuration files and runs the command line itself
-(:func:`rig.cli.main`), so a trial and ``wristmark experiment`` share one code path and
+(:func:`wristmark.cli.main.main`), so a trial and ``wristmark experiment`` share one code path and
 ``TRIAL_DIR/command.txt`` reproduces it by hand. Its output goes to ``TRIAL_DIR/output.txt``,
 the run folder to ``TRIAL_DIR/run``, the result JSON to ``TRIAL_DIR/result.json``. Whatever
 happens (a safe stop, a bad value, an exception) the trial returns a row with its status:
@@ -63,8 +63,8 @@ def warm_up() -> str:
     """Pin the threads and import what a trial needs (run on every worker before the trials, so
     that a trial's wall time is its own); the worker's name."""
     pin_threads()
-    import wristmark.rig.cli  # noqa: F401
-    import wristmark.rig.commands.experiment  # noqa: F401
+    import wristmark.cli.experiment  # noqa: F401
+    import wristmark.cli.main  # noqa: F401
     import wristmark.sim.experiments  # noqa: F401
 
     return worker_name()
@@ -117,7 +117,7 @@ def run_trial(job: TrialJob) -> dict[str, Any]:
 
 def _run_cli(argv: list[str], log: Path) -> tuple[int, str]:
     """``wristmark ARGV`` in this process; (exit code, stderr). stdout+stderr go to ``log``."""
-    from wristmark.rig.cli import main
+    from wristmark.cli.main import main
 
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):

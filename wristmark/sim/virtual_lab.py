@@ -31,8 +31,8 @@ from typing import IO, Any
 import numpy as np
 
 from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera
-from wristmark.cvs.marker import MarkerModel
 from wristmark.models.errors import InputError
+from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.rig.mjpeg_server import MjpegServer
 from wristmark.rig.realtime_priority import check_realtime_priority, request_realtime_priority

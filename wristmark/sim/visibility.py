@@ -6,11 +6,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera
-from wristmark.cvs.marker import MarkerModel
 from wristmark.cvs.marker_view import marker_in_view
 from wristmark.models.arm_shape import ArmShape, arm_shape
 from wristmark.models.errors import InputError
 from wristmark.models.limits import clamp_psi
+from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import HOME_PSI, RobotParams
 
 Array = NDArray[np.float64]

@@ -30,8 +30,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.cvs.camera import Camera, StereoCamera
-from wristmark.cvs.marker import MarkerModel
 from wristmark.models.errors import ConfigError, InputError
+from wristmark.models.marker import MarkerModel
 
 Array = NDArray[np.float64]
 _HEAD = 9 + 3 + 10 + 10 + 12  # pose start, two cameras, stereo extrinsics

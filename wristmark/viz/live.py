@@ -233,9 +233,9 @@ def start_live_view(setup: LoopSetup | None = None, *, config: SceneConfig | Non
         raise WristmarkError(f"trail length must be >= 0 s, got {trail_seconds}")
     if config is None:
         if setup is None:
-            from wristmark.sim.setup import load_setup
+            from wristmark.rig.loop_setup import load_loop_setup
 
-            setup = load_setup()
+            setup = load_loop_setup()
         config = SceneConfig.from_setup(setup)
     server = MeshcatServer.start(title=title, host=host, stream=stream)
     image_path = Path(tempfile.mkdtemp(prefix="wristmark-live-")) / "left.png" if config.camera is not None else None

@@ -25,9 +25,9 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from wristmark.cvs.camera import Camera, StereoCamera
-from wristmark.cvs.marker import MarkerModel
 from wristmark.models.config_io import from_mapping
 from wristmark.models.errors import ConfigError, InputError
+from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.rig.run_log import COLUMNS, read_log_csv
 from wristmark.viz import shapes
@@ -74,7 +74,7 @@ def scene_config_from_run(run_dir: Path) -> SceneConfig:
     """The scene of the configuration recorded in ``run_dir/config.json`` (missing parts: the
     project's configs/)."""
     from wristmark.cvs.calibration_io import load_calibration
-    from wristmark.sim.setup import default_config
+    from wristmark.models.config_files import default_config
 
     path = run_dir / "config.json"
     data: dict[str, Any] = {}

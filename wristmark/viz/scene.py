@@ -25,10 +25,10 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera
-from wristmark.cvs.marker import MarkerModel
 from wristmark.models.arm_shape import arm_shape
 from wristmark.models.constant_curvature import rot_z, segment_transform
 from wristmark.models.kinematics import check_psi, forward_kinematics
+from wristmark.models.marker import MarkerModel
 from wristmark.models.pinocchio_model import PinocchioArm
 from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.models.urdf import MATERIALS

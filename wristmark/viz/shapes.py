@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera
-from wristmark.cvs.marker import MarkerModel
+from wristmark.models.marker import MarkerModel
 from wristmark.viz.style import ENDOSCOPE_COLOR, MARKER_BLACK, MARKER_WHITE, RGB, hex_color
 
 Array = NDArray[np.float64]

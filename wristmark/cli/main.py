@@ -1,4 +1,4 @@
-"""The ``wristmark`` command line: a thin dispatcher over ``rig/commands/<name>.py``.
+"""The ``wristmark`` command line: a thin dispatcher over ``cli/<name>.py``.
 
 Each command module defines ``add_arguments(parser)`` and ``run(args) -> int``; it is imported
 only when its command runs, so ``wristmark fk`` does not pay for OpenCV or Meshcat. Errors that
@@ -62,7 +62,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     for name, help_text in COMMANDS.items():
         p = sub.add_parser(name, help=help_text, description=help_text)
         if name == command:
-            module = importlib.import_module(f"wristmark.rig.commands.{name}")
+            module = importlib.import_module(f"wristmark.cli.{name}")
             module.add_arguments(p)
     return parser
 
@@ -79,7 +79,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.command is None:
             parser.print_help()
             return 2
-        module = importlib.import_module(f"wristmark.rig.commands.{args.command}")
+        module = importlib.import_module(f"wristmark.cli.{args.command}")
         status = int(module.run(args) or 0)
         sys.stdout.flush()  # a closed pipe shows here, not at interpreter exit
         return status

@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from wristmark.cli.option_types import int_in, positive_float
 from wristmark.models.errors import InputError
-from wristmark.rig.commands.option_types import int_in, positive_float
 from wristmark.rig.output_dir import claim_outputs
 
 Pair = tuple[str, NDArray[np.uint8], NDArray[np.uint8]]

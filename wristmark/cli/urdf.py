@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 
+from wristmark.cli.option_types import MAX_LINKS, int_in
 from wristmark.models.errors import InputError
-from wristmark.rig.commands.option_types import MAX_LINKS, int_in
 from wristmark.rig.output_dir import add_force_argument, claim_outputs
 
 
@@ -26,7 +26,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from wristmark.cvs.marker import MarkerModel
+    from wristmark.models.marker import MarkerModel
     from wristmark.models.robot_params import RobotParams
     from wristmark.models.urdf import write_urdf
 

@@ -12,7 +12,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from wristmark.rig.commands.option_types import int_in
+from wristmark.cli.option_types import int_in
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

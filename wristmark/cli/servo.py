@@ -32,8 +32,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from wristmark.models.errors import InputError
-from wristmark.rig.commands.option_types import (
+from wristmark.cli.option_types import (
     MAX_BAUD,
     MAX_DURATION_S,
     MAX_HOLD_S,
@@ -46,7 +45,8 @@ from wristmark.rig.commands.option_types import (
     nonnegative_float,
     positive_float,
 )
-from wristmark.rig.commands.setup_args import add_registration_argument, add_setup_arguments, setup_from_args
+from wristmark.cli.setup_args import add_registration_argument, add_setup_arguments, setup_from_args
+from wristmark.models.errors import InputError
 from wristmark.rig.output_dir import add_force_argument, claim_outputs
 from wristmark.rig.run_log import write_json
 from wristmark.rig.servo_session import (

@@ -10,9 +10,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from wristmark.models.config_files import default_config
-from wristmark.models.errors import InputError
-from wristmark.rig.commands.option_types import (
+from wristmark.cli.option_types import (
     MAX_BLUR_PX,
     MAX_IMAGE_SCALE,
     MAX_PAIRS,
@@ -23,6 +21,8 @@ from wristmark.rig.commands.option_types import (
     nonnegative_float,
     seed_int,
 )
+from wristmark.models.config_files import default_config
+from wristmark.models.errors import InputError
 from wristmark.rig.output_dir import add_force_argument, claim_outputs
 
 Array = NDArray[np.float64]
@@ -84,9 +84,9 @@ def read_psi_file(path: str | Path) -> list[Array]:
 def run(args: argparse.Namespace) -> int:
     from wristmark.cvs.calibration_io import load_calibration
     from wristmark.cvs.camera import scaled_stereo_camera
-    from wristmark.cvs.marker import MarkerModel
     from wristmark.models.arm_shape import arm_shape
     from wristmark.models.limits import check_limits
+    from wristmark.models.marker import MarkerModel
     from wristmark.models.robot_params import RobotParams
     from wristmark.sim.dataset import DatasetWriter
     from wristmark.sim.render import StereoRenderer

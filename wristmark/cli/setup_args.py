@@ -11,8 +11,7 @@ import argparse
 import dataclasses
 from typing import TYPE_CHECKING, Any
 
-from wristmark.models.errors import ConfigError, InputError
-from wristmark.rig.commands.option_types import (
+from wristmark.cli.option_types import (
     MAX_CONTROL_DT,
     MAX_IMAGE_SCALE,
     MIN_CONTROL_DT,
@@ -21,6 +20,7 @@ from wristmark.rig.commands.option_types import (
     nonnegative_float,
     seed_int,
 )
+from wristmark.models.errors import ConfigError, InputError
 
 if TYPE_CHECKING:
     from wristmark.rig.loop_setup import LoopSetup

@@ -19,10 +19,10 @@ from types import FrameType
 
 import numpy as np
 
+from wristmark.cli.option_types import MAX_TIMEOUT_S, PSI_ABS_MAX, float_in, int_in, positive_float, seed_int
 from wristmark.models.config_files import default_config
 from wristmark.models.errors import InputError
 from wristmark.models.robot_params import HOME_PSI, RobotParams
-from wristmark.rig.commands.option_types import MAX_TIMEOUT_S, PSI_ABS_MAX, float_in, int_in, positive_float, seed_int
 
 DEFAULT_PLANT = default_config("plant.yaml")
 
@@ -103,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
 def _serve_lab(args: argparse.Namespace, params: RobotParams, plant: object, psi0: np.ndarray,
                done: threading.Event) -> int:
     from wristmark.cvs.calibration_io import load_calibration
-    from wristmark.cvs.marker import MarkerModel
+    from wristmark.models.marker import MarkerModel
     from wristmark.rig.loop_setup import default_config
     from wristmark.sim.virtual_lab import LabCamera, VirtualLab
 

@@ -17,8 +17,8 @@ import sys
 import time
 from types import FrameType
 
+from wristmark.cli.option_types import MAX_FRAMES, MAX_HOLD_S, int_in, nonnegative_float
 from wristmark.models.errors import InputError
-from wristmark.rig.commands.option_types import MAX_FRAMES, MAX_HOLD_S, int_in, nonnegative_float
 from wristmark.rig.output_dir import add_force_argument, claim_outputs
 from wristmark.viz.web_hosts import add_host_argument
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 import argparse
 import json
 
+from wristmark.cli.option_types import PSI_ABS_MAX, float_in
 from wristmark.models.kinematics import check_psi, forward_kinematics, tip_jacobian
 from wristmark.models.robot_params import RobotParams
-from wristmark.rig.commands.option_types import PSI_ABS_MAX, float_in
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

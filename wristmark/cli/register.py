@@ -18,9 +18,9 @@ from typing import Any
 
 import numpy as np
 
+from wristmark.cli.option_types import float_in, int_in, positive_float, seed_int
 from wristmark.models.config_files import default_config
 from wristmark.models.errors import InputError
-from wristmark.rig.commands.option_types import float_in, int_in, positive_float, seed_int
 from wristmark.rig.output_dir import claim_outputs
 
 REPLY_TIMEOUT_S = 0.2  # [s] per attempt at a reply from the actuator box (3 retries)
@@ -80,9 +80,9 @@ def _observe_sim(args: argparse.Namespace, progress: bool) -> tuple[Any, list, d
 
 def _observe_hardware(args: argparse.Namespace, progress: bool) -> tuple[Any, list, dict[str, Any]]:
     from wristmark.cvs.calibration_io import load_calibration
-    from wristmark.cvs.marker import MarkerModel
     from wristmark.cvs.marker_tracker import MarkerTracker
     from wristmark.cvs.registration_io import apply_registration
+    from wristmark.models.marker import MarkerModel
     from wristmark.models.robot_params import RobotParams
     from wristmark.rig.actuator_driver import ActuatorDriver
     from wristmark.rig.registration_hardware import HardwareRegistrationRig

@@ -24,8 +24,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from wristmark.cvs.marker import MarkerModel
     from wristmark.cvs.marker_print import write_pdf, write_svg
+    from wristmark.models.marker import MarkerModel
 
     out = Path(args.out)
     kind = out.suffix.lower()

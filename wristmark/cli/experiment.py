@@ -9,8 +9,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from wristmark.models.errors import ConfigError
-from wristmark.rig.commands.option_types import (
+from wristmark.cli.option_types import (
     MAX_DURATION_S,
     MAX_POSITIONS,
     MAX_TIP_FORCE_N,
@@ -19,7 +18,8 @@ from wristmark.rig.commands.option_types import (
     nonnegative_float,
     positive_float,
 )
-from wristmark.rig.commands.setup_args import add_registration_argument, add_setup_arguments, setup_from_args
+from wristmark.cli.setup_args import add_registration_argument, add_setup_arguments, setup_from_args
+from wristmark.models.errors import ConfigError
 from wristmark.rig.output_dir import add_force_argument, claim_outputs, link_latest, new_run_dir
 from wristmark.rig.run_log import write_json
 from wristmark.viz.web_hosts import add_host_argument

@@ -36,9 +36,9 @@ from typing import Any
 
 import numpy as np
 
+from wristmark.cli.option_types import MAX_RMS_PX, float_in, int_in, positive_float
 from wristmark.cvs.frames import StereoFrame
 from wristmark.models.errors import InputError
-from wristmark.rig.commands.option_types import MAX_RMS_PX, float_in, int_in, positive_float
 
 DEFAULT_TIMEOUT_S = 5.0
 
@@ -186,10 +186,10 @@ def _topics(text: str | None) -> tuple[str, str]:
 
 def run(args: argparse.Namespace) -> int:
     from wristmark.cvs.calibration_io import load_calibration
-    from wristmark.cvs.marker import MarkerModel
     from wristmark.cvs.marker_tracker import MarkerTracker
     from wristmark.cvs.open_source import SourceOptions, open_stereo_source
     from wristmark.cvs.registration_io import apply_registration
+    from wristmark.models.marker import MarkerModel
 
     def fields(res: Any) -> dict[str, Any]:
         out = result_fields(res)

@@ -1,0 +1,2 @@
+"""The ``wristmark`` command line: ``main`` dispatches to one module per subcommand
+(``add_arguments`` + ``run``). It is the top layer: it may import every other package."""

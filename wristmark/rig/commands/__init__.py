@@ -1,1 +1,0 @@
-"""Subcommands of the wristmark command line, one module each (add_arguments + run)."""

@@ -20,6 +20,7 @@ if TYPE_CHECKING:
     from wristmark.cvs.frame_layout import join_stereo, split_stereo
     from wristmark.cvs.frame_source_images import ImagePairSource, open_image_folder, open_image_pairs
     from wristmark.cvs.frames import FrameSourceError, StereoFrame, StereoSource
+    from wristmark.cvs.frames import frames as iter_frames
     from wristmark.cvs.marker_tracker import MarkerTracker, TrackerSettings, TrackResult
     from wristmark.cvs.open_source import SourceOptions, open_stereo_source
     from wristmark.cvs.registration_io import Registration, apply_registration, load_registration, save_registration

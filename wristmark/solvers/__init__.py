@@ -14,7 +14,7 @@ if TYPE_CHECKING:
     from wristmark.solvers.controller import Controller, ControllerConfig, ControlStep, make_controller
     from wristmark.solvers.paper_controller import PaperController
     from wristmark.solvers.qp_controller import QpController
-    from wristmark.solvers.registration import RegistrationPose, RegistrationResult, solve_registration
+    from wristmark.solvers.registration import RegistrationPose, RegistrationResult, solve_registration, transform_error
     from wristmark.solvers.stereo_pose import MarkerPose, PoseSettings, StereoPoseSolver
 else:
     from wristmark._lazy import attach

@@ -39,14 +39,14 @@ API = {
         "AnnotationWriter", "BoardSpec", "Camera", "FrameSourceError", "ImagePairSource",
         "MarkerCornerDetector", "MarkerTracker", "Registration", "SourceOptions", "StereoCalibration",
         "StereoCamera", "StereoFrame", "StereoSource", "TrackResult", "TrackerSettings", "annotate_pair",
-        "apply_registration", "calibrate_stereo", "detect_views", "detect_xcorners", "join_stereo",
-        "load_calibration", "load_registration", "open_image_folder", "open_image_pairs",
+        "apply_registration", "calibrate_stereo", "detect_views", "detect_xcorners", "iter_frames",
+        "join_stereo", "load_calibration", "load_registration", "open_image_folder", "open_image_pairs",
         "open_stereo_source", "save_calibration", "save_registration", "scaled_stereo_camera", "split_stereo",
     ],
     "wristmark.solvers": [
         "ControlStep", "Controller", "ControllerConfig", "MarkerPose", "PaperController", "PoseSettings",
         "QpController", "RegistrationPose", "RegistrationResult", "StereoPoseSolver", "make_controller",
-        "solve_registration",
+        "solve_registration", "transform_error",
     ],
     "wristmark.rig": [
         "ActuatorDriver", "ActuatorError", "ActuatorLink", "CameraStalledError", "CycleRecord", "DirectLink",

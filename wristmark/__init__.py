@@ -57,5 +57,4 @@ if TYPE_CHECKING:
 else:
     from wristmark._lazy import attach
 
-    __getattr__, __dir__, __all__ = attach(__name__, __file__)
-    __all__ = ["__version__", *__all__]
+    __getattr__, __dir__ = attach(__name__, __file__, extra=("__version__",))

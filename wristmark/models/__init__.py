@@ -27,4 +27,4 @@ if TYPE_CHECKING:
 else:
     from wristmark._lazy import attach
 
-    __getattr__, __dir__, __all__ = attach(__name__, __file__)
+    __getattr__, __dir__ = attach(__name__, __file__)

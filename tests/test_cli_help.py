@@ -125,3 +125,9 @@ def test_image_scale_is_a_validated_factor() -> None:
             assert getattr(a.type, "__name__", "") == "number", name  # cli.option_types, never bare float
             with pytest.raises(argparse.ArgumentTypeError):
                 a.type("0")  # type: ignore[misc]
+
+
+def test_render_takes_image_scale_like_every_command() -> None:
+    for flag in ("--image-scale", "--scale"):  # --scale: its old name
+        args = build_parser("render").parse_args(["render", "--out", "x", flag, "0.5"])
+        assert args.scale == 0.5

@@ -55,8 +55,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="JPEG round trip at quality Q (1-100)")
     p.add_argument("--motion-blur", type=nonnegative_float(MAX_BLUR_PX), default=None, metavar="PX",
                    help="linear motion blur length [px]")
-    p.add_argument("--scale", type=float_in(MIN_IMAGE_SCALE, MAX_IMAGE_SCALE), default=1.0,
-                   help="image scale factor of the camera (e.g. 0.5)")
+    p.add_argument("--image-scale", "--scale", dest="scale", type=float_in(MIN_IMAGE_SCALE, MAX_IMAGE_SCALE),
+                   default=1.0, metavar="F", help="render at F x the calibrated size (default 1; --scale: old name)")
     add_json_flag(p, "a summary")
     set_example(p, "wristmark render --out runs/tour/demo --pairs 5 --seed 1")
     add_force_argument(p)

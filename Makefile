@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: setup run test lint typecheck pytest bench browser clean
+.PHONY: setup run test lint typecheck pytest bench browser clean examples
 
 setup: $(STAMP)
 
@@ -24,7 +24,7 @@ browser:
 	bash scripts/ensure-chromium.sh
 
 lint: setup
-	$(VENV)/bin/ruff check wristmark tests bench
+	$(VENV)/bin/ruff check wristmark tests bench examples
 
 typecheck: setup
 	$(VENV)/bin/mypy wristmark
@@ -33,6 +33,10 @@ pytest: setup browser
 	$(PY) -m pytest
 
 test: lint typecheck pytest
+
+# The examples of the public API (examples/*.py), each in its fast mode as CI runs them.
+examples: setup
+	for e in examples/*.py; do echo "== $$e"; $(PY) $$e --fast || exit 1; done
 
 bench: setup
 	mkdir -p runs/bench

@@ -9,18 +9,20 @@ import dataclasses
 import json
 from pathlib import Path
 
+from wristmark.cli.common_options import add_config_option, add_json_flag, set_example
 from wristmark.models.errors import InputError
 from wristmark.rig.output_dir import claim_outputs
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("action", choices=("convert", "show"), help="convert: write the project's YAML; show: summary")
-    p.add_argument("--calib", required=True, metavar="SPEC",
-                   help="calibration: YAML, OpenCV .yml/.xml, ROS LEFT.yaml,RIGHT.yaml, or Kalibr camchain")
-    p.add_argument("--out", metavar="C.yaml", help="convert: output file (the project's calibration YAML)")
+    add_config_option(p, "--calib", required=True)
+    p.add_argument("--out", metavar="FILE.yaml", help="output file (convert): the project's calibration YAML")
     p.add_argument("--force", action="store_true", help="convert: overwrite an existing --out")
-    p.add_argument("--registration", metavar="FILE", help="set world_T_left from a registration file")
-    p.add_argument("--json", action="store_true", help="show: print the summary as JSON")
+    add_config_option(p, "--registration")
+    add_json_flag(p, "the summary (show)")
+    set_example(p, "wristmark calib convert --calib left.yaml,right.yaml --out calib.yaml",
+                "wristmark calib show --calib calib.yaml")
 
 
 def run(args: argparse.Namespace) -> int:

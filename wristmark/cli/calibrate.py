@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from wristmark.cli.common_options import add_json_flag, set_example
 from wristmark.cli.option_types import int_in, positive_float
 from wristmark.models.errors import InputError
 from wristmark.rig.output_dir import claim_outputs
@@ -34,14 +35,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--layout", choices=("sbs", "tb"), default="sbs",
                    help="--source: how one frame holds both views (side by side, top-bottom)")
     p.add_argument("--every", type=int_in(1, 10000), default=1, metavar="K", help="--source: use every K-th frame")
-    p.add_argument("--out", required=True, metavar="C.yaml", help="calibration file to write (project YAML)")
+    p.add_argument("--out", required=True, metavar="FILE.yaml", help="output file: the calibration (project YAML)")
     p.add_argument("--force", action="store_true", help="overwrite an existing --out")
     p.add_argument("--report", metavar="DIR", help="write DIR/report.md with per-view errors and pictures")
     p.add_argument("--outlier-floor", type=positive_float(100.0), default=0.5, metavar="PX",
                    help="views are dropped as outliers only above this RMS [px] (default 0.5)")
     p.add_argument("--fix-k3", action="store_true", help="keep k3 = 0 (few views, or a weakly distorting lens)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
+    add_json_flag(p)
+    set_example(p, "wristmark calibrate --board chessboard:9x6:0.0025 left_1.png right_1.png left_2.png "
+                   "right_2.png left_3.png right_3.png --out calib.yaml --report calib_report",
+                "wristmark calibrate --board chessboard:9x6:0.0025 --source calib_video.avi --out calib.yaml")
 
 
 def _file_pairs(paths: list[Path]) -> Iterator[Pair]:

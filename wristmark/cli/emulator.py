@@ -19,6 +19,7 @@ from types import FrameType
 
 import numpy as np
 
+from wristmark.cli.common_options import add_config_option, set_example
 from wristmark.cli.option_types import MAX_TIMEOUT_S, PSI_ABS_MAX, float_in, int_in, positive_float, seed_int
 from wristmark.models.config_files import default_config
 from wristmark.models.errors import InputError
@@ -29,8 +30,8 @@ DEFAULT_PLANT = default_config("plant.yaml")
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--pty", action="store_true", help="serve on a new pseudo-terminal (the only transport)")
-    p.add_argument("--plant", help="plant file of the simulated true arm (default configs/plant.yaml)")
-    p.add_argument("--robot", help="robot YAML (default: the reference robot)")
+    add_config_option(p, "--plant")
+    add_config_option(p, "--robot")
     p.add_argument("--watchdog", type=positive_float(MAX_TIMEOUT_S), default=0.25, metavar="S",
                    help="watchdog timeout [s] (default 0.25, as protocol v1 specifies)")
     p.add_argument("--psi0", nargs=6, type=float_in(-PSI_ABS_MAX, PSI_ABS_MAX), metavar="X",
@@ -46,13 +47,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                      help="frames per second at most (default 30; fewer where rendering cannot keep up)")
     cam.add_argument("--truth-out", metavar="CSV",
                      help="log each frame's capture time and true tip (t,tip_x,tip_y,tip_z)")
-    cam.add_argument("--image-scale", type=float_in(0.05, 1.0), default=1.0, metavar="S",
-                     help="render at S x the calibrated size (default 1)")
-    cam.add_argument("--calib", metavar="YAML",
-                     help="the endoscope's calibration and pose (default configs/camera.yaml)")
-    cam.add_argument("--marker", metavar="YAML", help="marker file (default configs/marker.yaml)")
+    cam.add_argument("--image-scale", type=float_in(0.05, 1.0), default=1.0, metavar="F",
+                     help="render at F x the calibrated size (default 1)")
+    add_config_option(cam, "--calib", note="the endoscope's calibration and pose")
+    add_config_option(cam, "--marker")
     cam.add_argument("--jpeg-quality", type=int_in(1, 100), default=90, metavar="Q", help="JPEG quality (default 90)")
     cam.add_argument("--seed", type=seed_int(), default=0, help="render noise seed (default 0)")
+    set_example(p, "wristmark emulator --pty", "wristmark emulator --pty --camera-port 0 --fps 30 --image-scale 0.35 "
+                "--truth-out truth.csv")
 
 
 def _camera_options_without_port(args: argparse.Namespace) -> list[str]:

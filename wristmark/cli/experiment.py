@@ -9,6 +9,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from wristmark.cli.common_options import JSON_FILE_HELP, set_example
 from wristmark.cli.option_types import (
     MAX_DURATION_S,
     MAX_POSITIONS,
@@ -31,9 +32,12 @@ if TYPE_CHECKING:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("name", choices=("cube", "point", "accuracy", "load"), help="which experiment")
-    p.add_argument("--json", metavar="OUT", help="write the result JSON to OUT")
+    p.add_argument("--json", metavar="FILE.json", help=JSON_FILE_HELP.format(what="the result"))
     p.add_argument("--out", metavar="DIR",
-                   help="run folder, empty unless --force (default: a new runs/<name>-<time>, linked as runs/latest)")
+                   help="output folder: the run folder, empty unless --force (default: a new runs/<name>-<time>, "
+                        "linked as runs/latest)")
+    set_example(p, "wristmark experiment cube --json runs/tour/cube.json",
+                "wristmark experiment cube --plant configs/plant_misplaced_camera.yaml --registration reg.yaml")
     add_force_argument(p)
     add_setup_arguments(p)
     add_registration_argument(p)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from wristmark.cli.common_options import add_config_option, add_json_flag, set_example
 from wristmark.cli.option_types import PSI_ABS_MAX, float_in
 from wristmark.models.kinematics import check_psi, forward_kinematics, tip_jacobian
 from wristmark.models.robot_params import RobotParams
@@ -14,8 +15,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--psi", nargs=6, type=float_in(-PSI_ABS_MAX, PSI_ABS_MAX), required=True,
                    metavar=("PHI", "D", "THETA1", "DELTA1", "THETA2", "DELTA2"),
                    help="configuration [rad, m, rad, rad, rad, rad]")
-    p.add_argument("--robot", help="robot YAML (default: the reference robot)")
-    p.add_argument("--json", action="store_true", help="print JSON on stdout")
+    add_config_option(p, "--robot")
+    add_json_flag(p, "the tip, the marker pose and the Jacobian")
+    set_example(p, "wristmark fk --psi 0 0.04 0.7 0 0.9 0 --json")
 
 
 def run(args: argparse.Namespace) -> int:

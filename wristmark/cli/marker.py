@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from wristmark.cli.common_options import add_config_option, set_example
 from wristmark.models.errors import InputError
 from wristmark.rig.output_dir import claim_outputs
 
@@ -18,9 +19,11 @@ from wristmark.rig.output_dir import claim_outputs
 def add_arguments(p: argparse.ArgumentParser) -> None:
     sub = p.add_subparsers(dest="action", required=True, metavar="ACTION")
     pr = sub.add_parser("print", help="write the unrolled sleeve at 1:1 (SVG or PDF)")
-    pr.add_argument("--marker", required=True, help="marker YAML (DESIGN.md; configs/marker_coded.yaml)")
-    pr.add_argument("--out", required=True, help="output file: .svg or .pdf")
+    add_config_option(pr, "--marker", required=True, note="e.g. configs/marker_coded.yaml")
+    pr.add_argument("--out", required=True, metavar="FILE.pdf", help="output file: .svg or .pdf")
     pr.add_argument("--force", action="store_true", help="overwrite an existing --out")
+    set_example(pr, "wristmark marker print --marker configs/marker_coded.yaml --out runs/tour/sleeve.pdf")
+    set_example(p, "wristmark marker print --marker configs/marker_coded.yaml --out runs/tour/sleeve.pdf")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from wristmark.cli.common_options import add_config_option, add_json_flag, set_example
 from wristmark.cli.option_types import float_in, int_in, positive_float, seed_int
 from wristmark.models.config_files import default_config
 from wristmark.models.errors import InputError
@@ -27,15 +28,15 @@ REPLY_TIMEOUT_S = 0.2  # [s] per attempt at a reply from the actuator box (3 ret
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", required=True, metavar="REG.yaml", help="registration file to write")
+    p.add_argument("--out", required=True, metavar="FILE.yaml", help="output file: the registration to write")
     p.add_argument("--force", action="store_true", help="overwrite an existing --out")
     p.add_argument("--poses", type=int_in(4, 500), default=12, metavar="N",
                    help="configurations to visit (each twice, from either side; default 12)")
-    p.add_argument("--calib", metavar="SPEC", help="stereo calibration (default configs/camera.yaml)")
-    p.add_argument("--registration", metavar="FILE", help="start from this registration's world_T_left")
-    p.add_argument("--robot", metavar="YAML", help="robot file (default configs/robot.yaml)")
-    p.add_argument("--marker", metavar="YAML", help="marker file (default configs/marker.yaml)")
-    p.add_argument("--plant", metavar="YAML", help="simulated bench: plant file (default configs/plant.yaml)")
+    add_config_option(p, "--calib")
+    add_config_option(p, "--registration", note="the start of the search")
+    add_config_option(p, "--robot")
+    add_config_option(p, "--marker")
+    add_config_option(p, "--plant")
     p.add_argument("--image-scale", type=positive_float(1.0), metavar="F",
                    help="simulated bench: render at F x the calibrated size")
     p.add_argument("--seed", type=seed_int(), default=0, help="pose choice and render noise seed")
@@ -47,8 +48,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--log", metavar="DIR", help="write the observations to DIR/registration_log.csv")
     p.add_argument("--rigid-arm", action="store_true",
                    help="trust the arm model: do not estimate its bend gains, stem coupling and backlash")
-    p.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
+    add_json_flag(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    set_example(p, "wristmark register --plant configs/plant_misplaced_camera.yaml --out reg.yaml",
+                "wristmark register --serial /dev/ttyACM0 --camera /dev/video0 --calib calib.yaml --out reg.yaml "
+                "--log reglog")
 
 
 def _observe_sim(args: argparse.Namespace, progress: bool) -> tuple[Any, list, dict[str, Any]]:

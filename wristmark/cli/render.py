@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from wristmark.cli.common_options import add_config_option, add_json_flag, set_example
 from wristmark.cli.option_types import (
     MAX_BLUR_PX,
     MAX_IMAGE_SCALE,
@@ -32,12 +33,13 @@ MAX_TRIES = 400  # random draws per pair before giving up
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", required=True, help="dataset folder to write (created; must be empty unless --force)")
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="output folder: the dataset to write (created; must be empty unless --force)")
     p.add_argument("--pairs", type=int_in(1, MAX_PAIRS), default=None, help="number of random pairs (default 10)")
     p.add_argument("--seed", type=seed_int(), default=0, help="random seed (configurations, background, noise)")
-    p.add_argument("--calib", help="stereo calibration YAML or OpenCV file (default: configs/camera.yaml)")
-    p.add_argument("--marker", help="marker YAML (default: the reference marker)")
-    p.add_argument("--robot", help="robot YAML (default: the reference robot)")
+    add_config_option(p, "--calib")
+    add_config_option(p, "--marker")
+    add_config_option(p, "--robot")
     p.add_argument(
         "--psi",
         nargs=6,
@@ -53,9 +55,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="JPEG round trip at quality Q (1-100)")
     p.add_argument("--motion-blur", type=nonnegative_float(MAX_BLUR_PX), default=None, metavar="PX",
                    help="linear motion blur length [px]")
-    p.add_argument("--scale", type=float_in(MIN_IMAGE_SCALE, MAX_IMAGE_SCALE), default=1.0,
-                   help="image scale factor of the camera (e.g. 0.5)")
-    p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
+    p.add_argument("--image-scale", "--scale", dest="scale", type=float_in(MIN_IMAGE_SCALE, MAX_IMAGE_SCALE),
+                   default=1.0, metavar="F", help="render at F x the calibrated size (default 1; --scale: old name)")
+    add_json_flag(p, "a summary")
+    set_example(p, "wristmark render --out runs/tour/demo --pairs 5 --seed 1")
     add_force_argument(p)
 
 

@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from wristmark.cli.common_options import JSON_FILE_HELP, set_example
 from wristmark.cli.option_types import (
     MAX_BAUD,
     MAX_DURATION_S,
@@ -105,8 +106,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help=f"run only the first S seconds of the trajectory (point: default {POINT_HOLD_S:g})")
     p.add_argument("--settle", type=nonnegative_float(MAX_SETTLE_S), metavar="S",
                    help="closed-loop approach to the start [s] (rig file)")
-    p.add_argument("--json", metavar="OUT", help="write the result JSON to OUT")
-    p.add_argument("--out", metavar="DIR", help="write config.json, log.csv, result.json to DIR (empty unless --force)")
+    p.add_argument("--json", metavar="FILE.json", help=JSON_FILE_HELP.format(what="the result"))
+    p.add_argument("--out", metavar="DIR",
+                   help="output folder: config.json, log.csv, result.json (empty unless --force)")
     add_force_argument(p)
     add_registration_argument(p)
     add_setup_arguments(p)
@@ -115,6 +117,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--view-hold", type=nonnegative_float(MAX_HOLD_S), default=0.0, metavar="S",
                    help="with --view: keep serving the view S seconds after the run (Ctrl-C ends it)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    set_example(p, "wristmark servo --trajectory cube --duration 10 --out runs/servo",
+                "wristmark servo --serial /dev/pts/3 --camera http://127.0.0.1:41234/stream.mjpg --image-scale 0.35 "
+                "--duration 20 --out runs/lab")
 
 
 # -- command line ------------------------------------------------------------------------------

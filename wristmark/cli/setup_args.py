@@ -11,6 +11,7 @@ import argparse
 import dataclasses
 from typing import TYPE_CHECKING, Any
 
+from wristmark.cli.common_options import add_config_option
 from wristmark.cli.option_types import (
     MAX_CONTROL_DT,
     MAX_IMAGE_SCALE,
@@ -30,13 +31,13 @@ SIM_ONLY = ("plant", "latency", "sensor")  # options that only the simulated ben
 
 def add_setup_arguments(p: argparse.ArgumentParser) -> None:
     """Configuration files and loop/controller overrides."""
-    p.add_argument("--plant", help="plant file: how the simulated true arm differs (default configs/plant.yaml)")
+    add_config_option(p, "--plant")
     p.add_argument("--controller", metavar="NAME", help="controller kind (paper, qp, ...)")
     p.add_argument("--controller-config", metavar="YAML", help="controller file (default configs/controller.yaml)")
     p.add_argument("--rig", metavar="YAML", help="rig/loop file (default configs/rig.yaml)")
-    p.add_argument("--robot", metavar="YAML", help="robot file (default configs/robot.yaml)")
-    p.add_argument("--calib", metavar="YAML", help="stereo calibration (default configs/camera.yaml)")
-    p.add_argument("--marker", metavar="YAML", help="marker file (default configs/marker.yaml)")
+    add_config_option(p, "--robot")
+    add_config_option(p, "--calib")
+    add_config_option(p, "--marker")
     p.add_argument("--dt", type=float_in(MIN_CONTROL_DT, MAX_CONTROL_DT), metavar="S",
                    help="control cycle [s] (paper: 0.060)")
     p.add_argument("--latency", type=nonnegative_float(MAX_CONTROL_DT), metavar="S",
@@ -50,8 +51,7 @@ def add_setup_arguments(p: argparse.ArgumentParser) -> None:
 
 def add_registration_argument(p: argparse.ArgumentParser) -> None:
     """``--registration FILE``: the host's world_T_left from a registration file (wristmark register)."""
-    p.add_argument("--registration", metavar="FILE",
-                   help="registration file (wristmark register): overrides the calibration's world_T_left")
+    add_config_option(p, "--registration")
 
 
 def setup_from_args(args: argparse.Namespace, simulated: bool = True, **rig_overrides: Any) -> Any:

@@ -12,13 +12,15 @@ import argparse
 import sys
 from pathlib import Path
 
+from wristmark.cli.common_options import set_example
 from wristmark.cli.option_types import int_in
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("spec", metavar="SPEC.yaml", help="the sweep: experiment, set, grid, random, seeds")
     p.add_argument("--out", metavar="DIR", required=True,
-                   help="sweep folder: results.csv, summary.md, plots/, trials/ (same SPEC: resumes)")
+                   help="output folder: results.csv, summary.md, plots/, trials/ (same SPEC: resumes)")
+    set_example(p, "wristmark sweep configs/sweeps/latency_backlash.yaml --out runs/latency_backlash")
     where = p.add_mutually_exclusive_group()
     where.add_argument("--workers", type=int_in(1, 1024), metavar="N",
                        help="start a local cluster of N single-threaded worker processes (default: the cores)")

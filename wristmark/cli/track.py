@@ -36,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from wristmark.cli.common_options import add_config_option, add_json_flag, set_example
 from wristmark.cli.option_types import MAX_RMS_PX, float_in, int_in, positive_float
 from wristmark.cvs.frames import StereoFrame
 from wristmark.models.errors import InputError
@@ -59,11 +60,9 @@ size_type.__name__ = "size"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--calib", required=True, help="stereo calibration (YAML of docs/formats.md or OpenCV FileStorage)")
-    p.add_argument("--marker", help="marker YAML (default: the reference marker)")
-    p.add_argument("--registration", metavar="FILE",
-                   help="registration file (wristmark register): overrides the calibration's world_T_left; "
-                   "the JSON then also has tip_world, in {w} and metres")
+    add_config_option(p, "--calib", required=True)
+    add_config_option(p, "--marker")
+    add_config_option(p, "--registration", note="the JSON then also has tip_world, in {w} and metres")
     p.add_argument("images", nargs="*", metavar="LEFT RIGHT", help="stereo pairs: left and right image paths")
     p.add_argument("--source", metavar="SPEC", help="frame source instead of image pairs: DIR, VIDEO, LEFT,RIGHT, "
                    "/dev/videoN, device:N, http://..., rtsp://..., FILE.mcap, BAGDIR")
@@ -114,7 +113,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "arm entering from the left); default: 'direction ambiguous' unless the code, --axis-hint, a consistent "
         "previous pair or the image beyond the tip decides",
     )
-    p.add_argument("--json", action="store_true", help="one JSON object per frame and line on stdout")
+    add_json_flag(p, "one object per frame and line")
+    set_example(p, "wristmark track --calib runs/tour/demo/calib.yaml runs/tour/demo/pair_00_left.png "
+                   "runs/tour/demo/pair_00_right.png --json --axis-hint 1 0 0",
+                "wristmark track --source stereo.avi --calib calib.yaml --json")
 
 
 def _round(a: Any, nd: int) -> Any:

@@ -5,13 +5,14 @@ from __future__ import annotations
 import argparse
 import json
 
+from wristmark.cli.common_options import add_config_option, add_json_flag, set_example
 from wristmark.cli.option_types import MAX_LINKS, int_in
 from wristmark.models.errors import InputError
 from wristmark.rig.output_dir import add_force_argument, claim_outputs
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", required=True, metavar="FILE", help="URDF file to write")
+    p.add_argument("--out", required=True, metavar="FILE.urdf", help="output file: the URDF to write")
     p.add_argument(
         "--links",
         type=int_in(1, MAX_LINKS),
@@ -19,9 +20,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="N",
         help="pseudo-rigid links per segment (default 8; exact for every N)",
     )
-    p.add_argument("--robot", metavar="ROBOT.yaml", help="robot YAML (default: reference robot)")
-    p.add_argument("--marker", metavar="MARKER.yaml", help="marker YAML (default: reference)")
-    p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
+    add_config_option(p, "--robot")
+    add_config_option(p, "--marker")
+    add_json_flag(p, "a summary")
+    set_example(p, "wristmark urdf --out runs/tour/arm.urdf --links 8")
     add_force_argument(p)
 
 

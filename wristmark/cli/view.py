@@ -17,6 +17,7 @@ import sys
 import time
 from types import FrameType
 
+from wristmark.cli.common_options import add_config_option, add_json_flag, set_example
 from wristmark.cli.option_types import MAX_FRAMES, MAX_HOLD_S, int_in, nonnegative_float
 from wristmark.models.errors import InputError
 from wristmark.rig.output_dir import add_force_argument, claim_outputs
@@ -32,12 +33,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-frames", type=int_in(2, MAX_FRAMES), default=None, metavar="N",
                    help="key frames of a replay at most (longer runs are decimated; default 1000)")
     p.add_argument("--no-play", action="store_true", help="served replay: do not start playing")
-    p.add_argument("--robot", metavar="YAML", help="home view: robot file (default configs/robot.yaml)")
-    p.add_argument("--marker", metavar="YAML", help="home view: marker file")
-    p.add_argument("--calib", metavar="YAML", help="home view: stereo calibration")
-    p.add_argument("--json", action="store_true", help="print the URL or the written file as JSON")
+    add_config_option(p, "--robot", note="home view only")
+    add_config_option(p, "--marker", note="home view only")
+    add_config_option(p, "--calib", note="home view only")
+    add_json_flag(p, "the URL or the written file")
     add_force_argument(p)
     add_host_argument(p)
+    set_example(p, "wristmark view runs/latest", "wristmark view --snapshot runs/tour/view.html")
 
 
 def _stop_on_sigterm(signum: int, frame: FrameType | None) -> None:

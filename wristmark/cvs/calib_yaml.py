@@ -72,6 +72,6 @@ def calibration_mapping(cam: StereoCamera) -> dict[str, Any]:
 
 
 def save_calibration(path: str | Path, cam: StereoCamera) -> None:
-    """Validate ``cam`` and write it as DESIGN.md's calibration YAML."""
+    """Validate ``cam`` and write it as the project's calibration YAML (docs/formats.md)."""
     validated(cam, str(path))
     save_yaml(path, calibration_mapping(cam))

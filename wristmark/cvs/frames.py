@@ -44,7 +44,8 @@ class StereoFrame:
 
 @runtime_checkable
 class StereoSource(Protocol):
-    """Anything that hands out stereo frames (see the module docstring for the contract)."""
+    """Anything that hands out stereo frames (:class:`StereoFrame`: pixels, capture time [s]; see the
+    module docstring for the contract)."""
 
     name: str
 

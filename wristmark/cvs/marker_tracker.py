@@ -178,7 +178,8 @@ def kabsch(P_model: Array, P_obs: Array) -> Array:
 
 
 class MarkerTracker:
-    """Stereo tip tracker for one calibration and marker; keeps ROI state between pairs."""
+    """Stereo tip tracker for one calibration and marker; keeps ROI state between pairs. Poses in
+    {ll} [m]; the tip also in {w} when the calibration has ``world_T_left``."""
 
     def __init__(self, camera: StereoCamera, marker: MarkerModel, settings: TrackerSettings | None = None) -> None:
         self.settings = settings or TrackerSettings()

@@ -42,7 +42,7 @@ def check_transform(W: Array, key: str, src: str) -> Array:
 
 
 def load_registration(path: str | Path) -> Registration:
-    """Read and validate a registration file."""
+    """Read and validate a registration file (world_T_left: pose of {ll} in {w}, 4x4 [m])."""
     src = str(path)
     data = load_yaml(path)
     unknown = sorted(set(data) - KEYS)

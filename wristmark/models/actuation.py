@@ -43,7 +43,7 @@ def actuators_from_psi(params: RobotParams, psi: object) -> Array:
 
 
 def psi_from_actuators(params: RobotParams, a: object, delta_hint: object = None) -> Array:
-    """Configuration psi from actuator coordinates.
+    """Configuration psi [rad, m, rad, rad, rad, rad] from actuator coordinates [rad, m, m, m, m, m].
 
     At theta = 0 the bending-plane angle is undefined; it is then taken from ``delta_hint``
     (a psi whose delta entries are used), else 0.
@@ -61,7 +61,8 @@ def psi_from_actuators(params: RobotParams, a: object, delta_hint: object = None
 
 
 def actuator_jacobian(params: RobotParams, psi: object) -> Array:
-    """6x6 d(actuators)/d(psi) at psi."""
+    """6x6 d(actuators)/d(psi) at psi [rad, m, rad, rad, rad, rad]: rows follow the actuators
+    [rad, m, m, m, m, m], columns follow psi."""
     q = check_psi(psi)
     J = np.eye(6)
     for t in range(2):

@@ -72,5 +72,5 @@ def shape_from_frames(
 
 
 def arm_shape(params: RobotParams, psi: object, samples_per_segment: int = 24) -> ArmShape:
-    """Nominal (model) shape of the arm at configuration psi."""
+    """Nominal (model) shape of the arm in {w} [m] at configuration psi [rad, m, rad, rad, rad, rad]."""
     return shape_from_frames(params, psi, forward_kinematics(params, psi), None, samples_per_segment)

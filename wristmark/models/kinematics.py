@@ -106,7 +106,7 @@ def _chain(params: RobotParams, q: list[float]) -> list[tuple[Rot, Vec]]:
 
 
 def forward_kinematics(params: RobotParams, psi: object) -> ArmFrames:
-    """All frames of the chain in {w} for configuration ``psi``."""
+    """All frames of the chain in {w} [m] for configuration ``psi`` [rad, m, rad, rad, rad, rad]."""
     T = _homogeneous_stack(_chain(params, check_psi(psi).tolist()))
     return ArmFrames(T[0], T[1], T[2], T[3], T[4], T[5])
 

@@ -41,7 +41,7 @@ def normalize_psi(psi: object) -> Array:
 
 
 def clamp_psi(params: RobotParams, psi: object) -> Array:
-    """Normalize psi and clamp it into the joint limits."""
+    """Normalize psi [rad, m, rad, rad, rad, rad] and clamp it into the joint limits of ``params``."""
     q = normalize_psi(psi)
     lo, hi = psi_bounds(params)
     return np.clip(q, lo, hi)
@@ -66,7 +66,8 @@ def check_limits(params: RobotParams, psi: object) -> Array:
 
 
 def clamp_velocity(params: RobotParams, psi_dot: object) -> Array:
-    """Scale psi_dot uniformly so every component respects max_velocity (keeps direction)."""
+    """Scale psi_dot [rad/s, m/s, rad/s, ...] uniformly so every component respects max_velocity
+    (keeps direction)."""
     v = np.asarray(psi_dot, dtype=float)
     vmax = np.asarray(params.max_velocity)
     ratio = float(np.max(np.abs(v) / vmax))

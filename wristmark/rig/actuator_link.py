@@ -19,7 +19,8 @@ Array = NDArray[np.float64]
 
 
 class ActuatorLink(Protocol):
-    """The servo loop's view of the actuators and of time."""
+    """The servo loop's view of the actuators and of time: configurations psi [rad, m, rad, rad,
+    rad, rad], time [s]."""
 
     @property
     def time(self) -> float:
@@ -43,7 +44,7 @@ class ActuatorLink(Protocol):
 
 
 class DirectLink:
-    """In-process link to a simulated arm."""
+    """In-process link to a simulated arm (no bytes): psi [rad, m, ...], the arm's own time [s]."""
 
     def __init__(self, arm: ActuatedArm) -> None:
         self.arm = arm

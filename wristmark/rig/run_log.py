@@ -78,7 +78,7 @@ def _num(x: float, fmt: str) -> str:
 
 @dataclass
 class RunLog:
-    """All cycles of one or more phases of a run."""
+    """All cycles of one or more phases of a run (:class:`CycleRecord`: {w} [m], [s])."""
 
     records: list[CycleRecord] = field(default_factory=list)
 

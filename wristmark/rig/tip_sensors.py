@@ -45,7 +45,7 @@ class TipMeasurement:
 
 
 class TipSensor(Protocol):
-    """Anything that measures the tip of the arm in a stereo frame."""
+    """Anything that measures the tip of the arm in {w} [m] from a stereo frame."""
 
     def measure(self, frame: StereoFrame, axis_hint_world: Array | None = None) -> TipMeasurement:
         """Measure the tip in ``frame``; ``axis_hint_world``: the expected direction of the

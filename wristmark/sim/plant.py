@@ -43,7 +43,8 @@ def _add_bend(theta: float, delta: float, dv: Array) -> tuple[float, float]:
 
 
 class TruePlant:
-    """Simulated true arm implementing :class:`models.plant_interface.ActuatedArm`."""
+    """Simulated true arm implementing :class:`models.plant_interface.ActuatedArm`: commanded psi
+    [rad, m, ...] in, true shape in {w} [m] out, integrated in steps of ``dt_internal`` [s]."""
 
     def __init__(self, params: RobotParams, plant: PlantParams, psi0: Array | None = None,
                  dt_internal: float = 1e-3) -> None:

@@ -108,7 +108,8 @@ class ControlStep:
 
 
 class Controller(abc.ABC):
-    """Base of every controller kind."""
+    """Base of every controller kind: each step maps psi [rad, m, ...], the desired tip and its
+    velocity in {w} [m, m/s] and the measured tip in {w} [m] to the next psi within the limits."""
 
     def __init__(self, params: RobotParams, config: ControllerConfig) -> None:
         self.params = params

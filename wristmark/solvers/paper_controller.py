@@ -34,7 +34,8 @@ def sr_pseudo_inverse(J: Array, gamma: float, xi: float) -> Array:
 
 
 class PaperController(Controller):
-    """Constant-speed resolved-rate control, exactly the paper's eq. 17-21."""
+    """Constant-speed resolved-rate control, exactly the paper's eq. 17-21 (tip in {w} [m], speed
+    ``v_xlim`` [m/s])."""
 
     def velocity(self, psi: Array, p_meas: Array, p_des: Array, v_des: Array | None,
                  dt: float) -> tuple[Array, Array, str]:

@@ -55,7 +55,8 @@ class BoxQp:
 
 
 class QpController(Controller):
-    """Feed-forward + saturated proportional feedback, velocity- and joint-bounded."""
+    """Feed-forward + saturated proportional feedback, velocity- and joint-bounded (tip in {w} [m],
+    tip velocity [m/s], joint velocities [rad/s, m/s])."""
 
     def __init__(self, params: RobotParams, config: ControllerConfig) -> None:
         super().__init__(params, config)

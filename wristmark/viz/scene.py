@@ -163,7 +163,8 @@ class _ArmNodes:
 
 
 class ArmScene:
-    """Builds the scene in a Meshcat visualizer and computes the node poses of each frame."""
+    """Builds the scene in a Meshcat visualizer and computes the node poses of each frame (in {w},
+    [m])."""
 
     def __init__(self, vis: meshcat.Visualizer, config: SceneConfig | None = None,
                  view: CameraView | None = None) -> None:

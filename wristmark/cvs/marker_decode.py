@@ -33,7 +33,7 @@ from wristmark.cvs.marker_cells import cell_darkness, sample_sleeve
 from wristmark.cvs.marker_code import hypotheses
 from wristmark.models.errors import ConfigError
 from wristmark.models.marker import MarkerModel
-from wristmark.solvers.stereo_pose import HALF_TURN_X
+from wristmark.cvs.stereo_pose import HALF_TURN_X
 
 Array = NDArray[np.float64]
 IntArray = NDArray[np.int_]

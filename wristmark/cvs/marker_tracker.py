@@ -43,8 +43,8 @@ from wristmark.cvs.marker_decode import CodeDecoder, CodeReading, CodeReadSettin
 from wristmark.cvs.stereo_match import StereoMatch, StereoRectifier, match_corners
 from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
-from wristmark.solvers.homography_init import homography_pose
-from wristmark.solvers.stereo_pose import MarkerPose, PoseSettings, StereoPoseSolver
+from wristmark.cvs.homography_init import homography_pose
+from wristmark.cvs.stereo_pose import MarkerPose, PoseSettings, StereoPoseSolver
 
 Array = NDArray[np.float64]
 IntArray = NDArray[np.int_]

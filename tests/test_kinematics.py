@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from reference_chain import chain
 from scipy.spatial.transform import Rotation
 
 from wristmark.models.errors import InputError
@@ -20,6 +19,7 @@ from wristmark.models.kinematics import (
     tip_position,
 )
 from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark_testing.reference_chain import chain
 
 PARAMS = RobotParams()
 SEEDED = settings(max_examples=60, derandomize=True, deadline=None)

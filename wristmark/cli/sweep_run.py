@@ -25,10 +25,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from wristmark.models.errors import InputError
 from wristmark.cli.sweep_keys import format_value
 from wristmark.cli.sweep_spec import SweepSpec
 from wristmark.cli.sweep_trial import THREAD_ENV, TrialJob, metric_columns, one_line, run_trial, warm_up
+from wristmark.models.errors import InputError
 
 if TYPE_CHECKING:
     from distributed import Client

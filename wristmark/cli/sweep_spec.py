@@ -28,8 +28,6 @@ from typing import Any
 import numpy as np
 
 from wristmark.cli.option_types import SEED_MAX
-from wristmark.models.config_io import load_yaml
-from wristmark.models.errors import ConfigError
 from wristmark.cli.sweep_keys import (
     FILE_OPTIONS,
     NAMESPACES,
@@ -41,6 +39,8 @@ from wristmark.cli.sweep_keys import (
     split_dotted,
     write_configs,
 )
+from wristmark.models.config_io import load_yaml
+from wristmark.models.errors import ConfigError
 
 TOP_KEYS = ("experiment", "set", "grid", "random", "seeds")
 RANDOM_KEYS = ("n", "seed", "ranges")

@@ -72,6 +72,16 @@ def test_frames_match_independent_chain(psi: np.ndarray) -> None:
     np.testing.assert_array_equal(tip_position(PARAMS, psi), fr.tip)
 
 
+@SEEDED
+@given(psis, st.one_of(st.floats(-0.5, 0.5), st.sampled_from([1e-9, 0.3])))
+def test_bent_stem_matches_independent_chain(psi: np.ndarray, bend: float) -> None:
+    """The chain the simulated arm and the viewer use: the stem bent by ``stem_bend``."""
+    fr = forward_kinematics(PARAMS, psi, stem_bend=bend)
+    ref = chain(lengths_of(PARAMS), psi, stem_bend=bend)
+    for key, attr in NAMES.items():
+        np.testing.assert_allclose(getattr(fr, attr), ref[key], rtol=0, atol=1e-14)
+
+
 def test_other_robot_geometry_matches_independent_chain() -> None:
     p = RobotParams(
         segment_lengths=(0.07, 0.031), rigid_length=0.0, marker_offset=0.011, tip_offset=0.0

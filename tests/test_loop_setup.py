@@ -72,3 +72,19 @@ def test_the_experiment_command_refuses_a_cycle_mismatch_in_one_line(tmp_path: P
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert f"{ctrl}: 'dt'" in err[-1] and str(rig) in err[-1]
     assert not (tmp_path / "run" / "log.csv").exists()
+
+
+def test_the_run_record_camera_is_the_calibration_mapping_and_reads_back() -> None:
+    """config.json's camera is written and read by the calibration's own mapping functions."""
+    import numpy as np
+
+    from wristmark.cvs.calibration_io import calibration_from_mapping, calibration_mapping
+
+    setup = load_loop_setup()
+    recorded = setup.describe()["camera"]
+    assert recorded == calibration_mapping(setup.camera)
+    back = calibration_from_mapping(recorded, "config.json")
+    assert back.image_size == setup.camera.image_size
+    for a, b in ((back.left.K, setup.camera.left.K), (back.right.dist, setup.camera.right.dist),
+                 (back.R, setup.camera.R), (back.T, setup.camera.T), (back.T_world_left, setup.camera.T_world_left)):
+        np.testing.assert_array_equal(a, b)

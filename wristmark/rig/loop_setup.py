@@ -67,20 +67,15 @@ class LoopSetup:
 
     def describe(self) -> dict[str, Any]:
         """Everything as plain data for config.json."""
-        cam = self.camera
+        from wristmark.cvs.calibration_io import calibration_mapping
+
         return {
             "sources": self.sources,
             "robot": to_mapping(self.params),
             "marker": to_mapping(self.marker),
             "rig": to_mapping(self.rig),
             "controller": to_mapping(self.controller),
-            "camera": {
-                "image_size": list(cam.image_size),
-                "left": {"K": np.asarray(cam.left.K).tolist(), "dist": np.asarray(cam.left.dist).tolist()},
-                "right": {"K": np.asarray(cam.right.K).tolist(), "dist": np.asarray(cam.right.dist).tolist()},
-                "R": np.asarray(cam.R).tolist(), "T": np.asarray(cam.T).tolist(),
-                "world_T_left": None if cam.T_world_left is None else np.asarray(cam.T_world_left).tolist(),
-            },
+            "camera": calibration_mapping(self.camera),
             "registration_world_T_left": None if self.registration is None else np.asarray(self.registration).tolist(),
         }
 

@@ -127,7 +127,6 @@ def test_the_independent_checkers_share_nothing_with_the_library() -> None:
                      else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
             shared += [f"wristmark_testing/{path.name}:{node.lineno} imports {n}" for n in names
                        if n.split(".")[0] == "wristmark"]
-    for path in sorted(PACKAGE.rglob("*.py")):
-        text = path.read_text()
-        shared += [f"wristmark/{path.relative_to(PACKAGE)} imports wristmark_testing"] if "wristmark_testing" in text else []
+    shared += [f"wristmark/{path.relative_to(PACKAGE)} imports wristmark_testing"
+               for path in sorted(PACKAGE.rglob("*.py")) if "wristmark_testing" in path.read_text()]
     assert not shared, "\n".join(shared)

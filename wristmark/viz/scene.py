@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING
 
 import meshcat
 import meshcat.geometry as mg
@@ -50,25 +50,14 @@ from wristmark.viz.style import (
 
 if TYPE_CHECKING:
     from wristmark.rig.loop_setup import LoopSetup
+    from wristmark.rig.run_log import CycleRecord
+    from wristmark.viz.record_wire import WireRecord
 
 Array = NDArray[np.float64]
 
 ROOT = "wristmark"
 HIDDEN_SCALE = 1e-6  # [-] scale of a node that has nothing to show (e.g. no vision estimate)
 CAMERA_NODE = "/Cameras/default/rotated/<object>"
-
-
-class CycleLike(Protocol):
-    """What a frame needs of a servo cycle (rig.run_log.CycleRecord, viz.record_wire.WireRecord)."""
-
-    t: float
-    phase: str
-    p_des: Array
-    p_cmd: Array
-    p_est: Array | None
-    p_true: Array
-    psi_cmd: Array
-    psi_true: Array
 
 
 @dataclass(frozen=True)
@@ -102,8 +91,8 @@ class SceneState:
     phase: str = ""
 
     @classmethod
-    def from_record(cls, rec: CycleLike) -> SceneState:
-        """The frame of one servo cycle (rig.run_log.CycleRecord or alike)."""
+    def from_record(cls, rec: CycleRecord | WireRecord) -> SceneState:
+        """The frame of one servo cycle (as logged, or as the live view receives it)."""
         return cls(
             psi_true=np.asarray(rec.psi_true, float),
             psi_cmd=np.asarray(rec.psi_cmd, float),

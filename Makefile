@@ -24,7 +24,7 @@ browser:
 	bash scripts/ensure-chromium.sh
 
 lint: setup
-	$(VENV)/bin/ruff check wristmark tests bench examples
+	$(VENV)/bin/ruff check wristmark wristmark_testing tests bench examples
 
 typecheck: setup
 	$(VENV)/bin/mypy wristmark

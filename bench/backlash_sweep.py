@@ -18,9 +18,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from cube_matrix import cube_setup, summary  # noqa: E402  (the script folder bench/ is on sys.path)
 
-from bench.cube_matrix import cube_setup, summary  # noqa: E402
 from wristmark.cli.option_types import nonnegative_float, positive_float, seed_int  # noqa: E402
 from wristmark.sim.experiments import run_cube  # noqa: E402
 from wristmark.sim.plant_params import PlantParams  # noqa: E402

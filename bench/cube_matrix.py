@@ -26,8 +26,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
 from wristmark.cli.option_types import positive_float  # noqa: E402
 from wristmark.sim.experiments import PAPER_CUBE, run_cube  # noqa: E402
 from wristmark.sim.plant_params import PlantParams  # noqa: E402

@@ -8,12 +8,9 @@ setting was tuned on. Ranges bracket configs/plant.yaml and configs/plant_unseen
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from wristmark.cli.option_types import int_in, seed_int  # noqa: E402
 

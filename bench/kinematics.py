@@ -10,14 +10,10 @@ from __future__ import annotations
 import argparse
 import json
 import platform
-import sys
 import time
 from collections.abc import Callable
-from pathlib import Path
 
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from wristmark.models.kinematics import forward_kinematics, tip_jacobian, tip_position  # noqa: E402
 from wristmark.models.pinocchio_model import PinocchioArm  # noqa: E402

@@ -10,12 +10,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from wristmark.models.actuation import actuators_from_psi  # noqa: E402
 from wristmark.models.config_files import CONFIG_DIR

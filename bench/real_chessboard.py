@@ -22,8 +22,6 @@ from typing import Any
 import cv2
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
 from wristmark.cvs.corner_detector import BOARD_SETTINGS, assemble_grid, detect_xcorners  # noqa: E402
 
 PATTERN = (9, 6)

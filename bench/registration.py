@@ -31,8 +31,6 @@ from typing import Any
 import cv2
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
 from wristmark.cvs.marker_tracker import MarkerTracker  # noqa: E402
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.rig.registration_poses import choose_poses  # noqa: E402

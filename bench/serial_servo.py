@@ -15,12 +15,8 @@ import argparse
 import dataclasses
 import json
 import platform
-import sys
-from pathlib import Path
 
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from wristmark.cli import servo as S  # noqa: E402
 from wristmark.rig import protocol as P  # noqa: E402

@@ -20,13 +20,11 @@ import csv
 import json
 import os
 import statistics
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
 
 
 def machine_load() -> dict:
@@ -56,9 +54,9 @@ def machine_load() -> dict:
 
 
 def main() -> None:
-    from wristmark.sim.sweep_run import run_sweep
-    from wristmark.sim.sweep_spec import load_spec
-    from wristmark.sim.sweep_trial import TrialJob, run_trial, warm_up
+    from wristmark.cli.sweep_run import run_sweep
+    from wristmark.cli.sweep_spec import load_spec
+    from wristmark.cli.sweep_trial import TrialJob, run_trial, warm_up
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--trials", type=int, default=8)

@@ -1,4 +1,4 @@
-"""Benchmark ``wristmark track`` on stereo sets from the independent renderer (tests/independent_render.py).
+"""Benchmark ``wristmark track`` on stereo sets from the independent renderer (wristmark_testing/independent_render.py).
 
 Renders N pairs (default 20, 1920x1080) into a temporary folder (or ``--keep DIR``), runs
 ``wristmark track --json`` on them in a subprocess and prints JSON: success rate, tip error mean / max [mm]
@@ -21,11 +21,10 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))
+from wristmark_testing import independent_dataset_check as check
+from wristmark_testing import independent_render as render
 
-import independent_dataset_check as check  # noqa: E402
-import independent_render as render  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -66,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
             score.pop("rows")
         summary = {
             "dataset": str(out) if a.keep else None,
-            "renderer": "tests/independent_render.py",
+            "renderer": "wristmark_testing/independent_render.py",
             "seed": a.seed,
             "image_size": info["image_size"],
             "columns": a.columns,

@@ -40,14 +40,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
 from wristmark.cli.main import main as cli_main  # noqa: E402
 from wristmark.cvs.corner_detector import MarkerCornerDetector  # noqa: E402
+from wristmark.cvs.homography_init import homography_pose  # noqa: E402
 from wristmark.cvs.marker_tracker import MarkerTracker, TrackerSettings  # noqa: E402
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.sim.dataset import StereoDataset, load_dataset  # noqa: E402
-from wristmark.solvers.homography_init import homography_pose  # noqa: E402
 
 
 def _corner_errors(det: np.ndarray, truth: list) -> list[float]:

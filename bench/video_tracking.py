@@ -31,8 +31,6 @@ from typing import Any
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
 from wristmark.cli.option_types import int_in, positive_float  # noqa: E402
 from wristmark.cvs.calibration_io import load_calibration  # noqa: E402
 from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera  # noqa: E402

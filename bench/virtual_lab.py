@@ -33,7 +33,6 @@ from typing import Any
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
 from wristmark.cli.option_types import positive_float  # noqa: E402
 from wristmark.rig.realtime_priority import realtime_priority_allowed  # noqa: E402
@@ -154,7 +153,6 @@ def main() -> int:
                                        "load_avg_1min_at_start": os.getloadavg()[0]},
                            "realtime_priority": rt}
     if not a.skip_video:
-        sys.path.insert(0, str(ROOT / "bench"))
         import video_tracking
 
         out["video_tracking"] = video_tracking.run()

@@ -37,15 +37,16 @@ API = {
     ],
     "wristmark.cvs": [
         "AnnotationWriter", "BoardSpec", "Camera", "FrameSourceError", "ImagePairSource",
-        "MarkerCornerDetector", "MarkerTracker", "Registration", "SourceOptions", "StereoCalibration",
-        "StereoCamera", "StereoFrame", "StereoSource", "TrackResult", "TrackerSettings", "annotate_pair",
+        "MarkerCornerDetector", "MarkerPose", "MarkerTracker", "PoseSettings", "Registration", "SourceOptions",
+        "StereoCalibration", "StereoCamera", "StereoFrame", "StereoPoseSolver", "StereoSource", "TrackResult",
+        "TrackerSettings", "annotate_pair",
         "apply_registration", "calibrate_stereo", "detect_views", "detect_xcorners", "iter_frames",
         "join_stereo", "load_calibration", "load_registration", "open_image_folder", "open_image_pairs",
         "open_stereo_source", "save_calibration", "save_registration", "scaled_stereo_camera", "split_stereo",
     ],
     "wristmark.solvers": [
-        "ControlStep", "Controller", "ControllerConfig", "MarkerPose", "PaperController", "PoseSettings",
-        "QpController", "RegistrationPose", "RegistrationResult", "StereoPoseSolver", "make_controller",
+        "ControlStep", "Controller", "ControllerConfig", "PaperController",
+        "QpController", "RegistrationPose", "RegistrationResult", "make_controller",
         "solve_registration", "transform_error",
     ],
     "wristmark.rig": [
@@ -63,12 +64,12 @@ API = {
     "wristmark.sim": [
         "ActuatorEmulator", "OpticalTracker", "PlantParams", "RenderSettings", "RenderedPair",
         "SimRegistrationRig", "SimSetup", "StereoDataset", "StereoRenderer", "TruePlant", "VirtualLab",
-        "load_dataset", "load_setup", "load_spec", "motion_psi", "noise_preset", "render_motion",
-        "run_accuracy", "run_cube", "run_load", "run_point", "run_sweep", "true_tip_errors",
+        "load_dataset", "load_setup", "motion_psi", "noise_preset", "render_motion",
+        "run_accuracy", "run_cube", "run_load", "run_point", "true_tip_errors",
         "write_stereo_video",
     ],
     "wristmark.cli": [
-        "COMMANDS", "build_parser", "run_cli",
+        "COMMANDS", "build_parser", "load_spec", "run_cli", "run_sweep",
     ],
 }
 HEAVY = ("cv2", "casadi", "meshcat", "dask", "distributed", "numba", "pinocchio", "wristmark.sim")

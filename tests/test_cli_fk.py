@@ -9,11 +9,11 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
-from reference_chain import chain
 
 from wristmark.cli.main import COMMANDS
 from wristmark.models.kinematics import tip_jacobian
 from wristmark.models.robot_params import RobotParams
+from wristmark_testing.reference_chain import chain
 
 ROOT = Path(__file__).resolve().parent.parent
 PARAMS = RobotParams()

@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from reference_chain import segment, segment_eq1
 from scipy.spatial.transform import Rotation
 
 from wristmark.models.constant_curvature import (
@@ -20,6 +19,7 @@ from wristmark.models.constant_curvature import (
     segment_pose,
     segment_transform,
 )
+from wristmark_testing.reference_chain import segment, segment_eq1
 
 SEEDED = settings(max_examples=80, derandomize=True, deadline=None)
 lengths = st.floats(0.005, 0.2)

@@ -1,8 +1,8 @@
 """`wristmark render` output checked against DESIGN.md's dataset contract by an independent checker.
 
-The checker (tests/independent_dataset_check.py) uses only numpy / opencv / yaml / json. Here it runs on
+The checker (wristmark_testing/independent_dataset_check.py) uses only numpy / opencv / yaml / json. Here it runs on
 a small set written by the CLI (subprocess), on corrupted copies (it must catch each corruption) and on a
-set from the independent renderer (tests/independent_render.py), which must obey the same contract.
+set from the independent renderer (wristmark_testing/independent_render.py), which must obey the same contract.
 """
 
 from __future__ import annotations
@@ -19,10 +19,8 @@ import cv2
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-import independent_dataset_check as chk  # noqa: E402
-import independent_render as ind  # noqa: E402
+from wristmark_testing import independent_dataset_check as chk
+from wristmark_testing import independent_render as ind
 
 ROOT = Path(__file__).resolve().parents[1]
 WRISTMARK = ROOT / ".venv" / "bin" / "wristmark"

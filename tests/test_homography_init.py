@@ -7,9 +7,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from wristmark.cvs.camera import Camera
+from wristmark.cvs.homography_init import homography_dlt, homography_pose, pose_from_homography, undistorted_pixels
 from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
-from wristmark.solvers.homography_init import homography_dlt, homography_pose, pose_from_homography, undistorted_pixels
 
 K = np.array([[1380.0, 0, 959.5], [0, 1380.0, 539.5], [0, 0, 1]])
 CAM = Camera(K, np.array([-0.25, 0.08, 0.001, -0.0005, 0.0]))

@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from reference_chain import chain
 from scipy.spatial.transform import Rotation
 
 from wristmark.models.errors import InputError
@@ -20,6 +19,7 @@ from wristmark.models.kinematics import (
     tip_position,
 )
 from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark_testing.reference_chain import chain
 
 PARAMS = RobotParams()
 SEEDED = settings(max_examples=60, derandomize=True, deadline=None)
@@ -70,6 +70,16 @@ def test_frames_match_independent_chain(psi: np.ndarray) -> None:
         np.testing.assert_array_equal(T[3], [0, 0, 0, 1])
     np.testing.assert_array_equal(fr.tip, fr.T_world_tip[:3, 3])
     np.testing.assert_array_equal(tip_position(PARAMS, psi), fr.tip)
+
+
+@SEEDED
+@given(psis, st.one_of(st.floats(-0.5, 0.5), st.sampled_from([1e-9, 0.3])))
+def test_bent_stem_matches_independent_chain(psi: np.ndarray, bend: float) -> None:
+    """The chain the simulated arm and the viewer use: the stem bent by ``stem_bend``."""
+    fr = forward_kinematics(PARAMS, psi, stem_bend=bend)
+    ref = chain(lengths_of(PARAMS), psi, stem_bend=bend)
+    for key, attr in NAMES.items():
+        np.testing.assert_allclose(getattr(fr, attr), ref[key], rtol=0, atol=1e-14)
 
 
 def test_other_robot_geometry_matches_independent_chain() -> None:

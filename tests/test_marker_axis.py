@@ -16,6 +16,7 @@ from wristmark.cvs.calibration_io import load_calibration
 from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera
 from wristmark.cvs.marker_axis import AxisEvidenceSettings, axis_evidence
 from wristmark.cvs.marker_tracker import MarkerTracker
+from wristmark.cvs.stereo_pose import HALF_TURN_X
 from wristmark.models.arm_shape import arm_shape
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.marker import MarkerModel
@@ -23,7 +24,6 @@ from wristmark.models.robot_params import RobotParams
 from wristmark.sim.render import RenderedPair, StereoRenderer
 from wristmark.sim.render_settings import RenderSettings
 from wristmark.sim.visibility import random_visible_psi
-from wristmark.solvers.stereo_pose import HALF_TURN_X
 
 CAM = scaled_stereo_camera(load_calibration(CONFIG_DIR / "camera.yaml"), 0.5)
 MARKER = MarkerModel()

@@ -187,11 +187,9 @@ def test_independent_renderer_draws_the_code_and_track_reads_it(tmp_path: Path) 
     full rotation within 1 degree, or roll_known false without ids."""
     import json
     import subprocess
-    import sys
 
-    sys.path.insert(0, str(ROOT / "tests"))
-    import independent_dataset_check as chk
-    import independent_render as ind
+    from wristmark_testing import independent_dataset_check as chk
+    from wristmark_testing import independent_render as ind
 
     out = tmp_path / "coded"
     ind.render_dataset(out, pairs=3, seed=151, scale=0.6, look=ind.Look(direction="random"),

@@ -1,5 +1,5 @@
 """Which way the reference sleeve points, on stereo sets the tracker has never seen (the independent
-renderer, tests/independent_render.py): unrelated poses given to ``wristmark track`` as one sequence,
+renderer, wristmark_testing/independent_render.py): unrelated poses given to ``wristmark track`` as one sequence,
 the tip pointing either way at random, with and without the arm's body behind the sleeve.
 
 The reported bug: 16 unrelated pairs, one came back ok with the tip 30 mm off (the previous pair's
@@ -16,10 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-import independent_dataset_check as chk  # noqa: E402
-import independent_render as ind  # noqa: E402
+from wristmark_testing import independent_dataset_check as chk
+from wristmark_testing import independent_render as ind
 
 ROOT = Path(__file__).resolve().parents[1]
 WRISTMARK = ROOT / ".venv" / "bin" / "wristmark"

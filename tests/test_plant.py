@@ -13,6 +13,7 @@ from wristmark.models.plant_interface import ActuatedArm
 from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.sim.plant import TruePlant
 from wristmark.sim.plant_params import PlantParams
+from wristmark_testing.reference_chain import chain
 
 PARAMS = RobotParams()
 HOME = np.array(HOME_PSI)
@@ -188,3 +189,25 @@ def test_true_shape_consistent() -> None:
     shape = plant.true_shape()
     np.testing.assert_allclose(shape.tip, plant.true_tip(), atol=1e-15)
     np.testing.assert_allclose(shape.centreline[0], [0.0, 0.0, 0.0], atol=1e-15)
+
+
+def test_every_error_source_keeps_the_models_chain_on_random_psi() -> None:
+    """Gains, offsets, stem coupling and load change psi (and bend the stem), never the chain: the
+    true frames are the model's chain (models.kinematics) at the true psi with the stem bent by
+    stem_coupling x theta1, and an independent 4x4 chain agrees, to 1e-12 m."""
+    rng = np.random.default_rng(7)
+    plant_params = PlantParams(bend_gain=(0.9, 1.1), plane_offset=(0.05, -0.1), stem_coupling=0.2,
+                               tip_force=(0.05, -0.03, 0.02))
+    plant = TruePlant(PARAMS, plant_params, psi0=HOME)
+    lengths = {"L1": PARAMS.segment_lengths[0], "L2": PARAMS.segment_lengths[1], "Lr": PARAMS.rigid_length,
+               "lm": PARAMS.marker_offset, "lt": PARAMS.tip_offset}
+    for _ in range(10):
+        plant.command(actuators_from_psi(PARAMS, _random_psi(rng)))
+        plant.advance(0.01)
+        q, frames = plant.true_psi, plant.true_shape().frames
+        bend = 0.2 * q[2]
+        _frames_close(frames, forward_kinematics(PARAMS, q, stem_bend=bend), 1e-12)
+        ref = chain(lengths, q, stem_bend=bend)
+        for key, T in (("1b", frames.T_world_1b), ("2e", frames.T_world_2e), ("marker", frames.T_world_marker),
+                       ("tip", frames.T_world_tip)):
+            np.testing.assert_allclose(T, ref[key], rtol=0, atol=1e-12)

@@ -8,11 +8,11 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from wristmark.cvs.calibration_io import load_calibration
+from wristmark.cvs.homography_init import homography_pose
+from wristmark.cvs.stereo_pose import PoseSettings, StereoPoseSolver
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
-from wristmark.solvers.homography_init import homography_pose
-from wristmark.solvers.stereo_pose import PoseSettings, StereoPoseSolver
 
 CAM = load_calibration(CONFIG_DIR / "camera.yaml")
 MARKER = MarkerModel()

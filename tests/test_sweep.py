@@ -245,8 +245,8 @@ def test_a_safe_stop_and_an_error_are_rows_not_a_crashed_sweep(tmp_path: Path) -
 
 
 def test_a_trial_that_fails_returns_an_error_row(tmp_path: Path) -> None:
-    from wristmark.sim.sweep_spec import load_spec
-    from wristmark.sim.sweep_trial import TrialJob, run_trial
+    from wristmark.cli.sweep_spec import load_spec
+    from wristmark.cli.sweep_trial import TrialJob, run_trial
 
     spec = tmp_path / "far.yaml"
     write_yaml(spec, {"experiment": "point", "set": {"sensor": "truth-noise", "duration": 1.0},
@@ -261,7 +261,7 @@ def test_a_trial_that_fails_returns_an_error_row(tmp_path: Path) -> None:
 
 
 def test_trials_expand_grid_random_and_seeds_in_order(tmp_path: Path) -> None:
-    from wristmark.sim.sweep_spec import load_spec
+    from wristmark.cli.sweep_spec import load_spec
 
     spec = tmp_path / "mix.yaml"
     write_yaml(spec, {
@@ -329,7 +329,7 @@ def test_an_unreachable_scheduler_is_one_line(tmp_path: Path, spec_file: Path) -
 
 
 def test_the_fingerprint_follows_the_configuration_files_a_trial_reads(tmp_path: Path) -> None:
-    from wristmark.sim.sweep_spec import load_spec
+    from wristmark.cli.sweep_spec import load_spec
 
     plant = tmp_path / "plant.yaml"
     plant.write_text((CONFIG_DIR / "plant.yaml").read_text())
@@ -349,8 +349,8 @@ def test_the_fingerprint_follows_the_configuration_files_a_trial_reads(tmp_path:
 ])
 def test_accuracy_and_load_trials_fill_their_metrics(experiment: str, options: dict, filled: tuple[str, ...],
                                                      tmp_path: Path) -> None:
-    from wristmark.sim.sweep_spec import load_spec
-    from wristmark.sim.sweep_trial import TrialJob, metric_columns, run_trial
+    from wristmark.cli.sweep_spec import load_spec
+    from wristmark.cli.sweep_trial import TrialJob, metric_columns, run_trial
 
     spec = tmp_path / "s.yaml"
     write_yaml(spec, {"experiment": experiment, "set": {"sensor": "truth-noise", **options}})

@@ -1,6 +1,6 @@
 """`wristmark track` on stereo sets it has never seen, from the independent renderer.
 
-tests/independent_render.py (numpy / opencv only, written from DESIGN.md) draws its own stereo endoscope
+wristmark_testing/independent_render.py (numpy / opencv only, written from DESIGN.md) draws its own stereo endoscope
 (fx 1200-1500 px, 4-6 mm baseline, k1 in [-0.3, -0.15] with k2, p1, p2, a small rotation between the
 eyes), ray-casts the marker sleeve on a plain tube before a textured tissue plane and adds optics blur,
 gamma and shot + read noise. The tracker (subprocess, `--json`) must find the marker in nearly every pair
@@ -15,10 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-import independent_dataset_check as chk  # noqa: E402
-import independent_render as ind  # noqa: E402
+from wristmark_testing import independent_dataset_check as chk
+from wristmark_testing import independent_render as ind
 
 ROOT = Path(__file__).resolve().parents[1]
 WRISTMARK = ROOT / ".venv" / "bin" / "wristmark"

@@ -18,6 +18,7 @@ from meshcat.path import Path as MeshcatPath
 
 from wristmark.cli.main import main
 from wristmark.models.actuation import actuators_from_psi
+from wristmark.models.errors import ConfigError
 from wristmark.models.kinematics import forward_kinematics
 from wristmark.models.robot_params import HOME_PSI
 from wristmark.rig.run_log import CycleRecord, RunLog, write_json
@@ -109,6 +110,30 @@ def test_true_arm_matches_the_simulated_plant_with_stem_coupling() -> None:
     assert f"{ROOT}/arm/visuals/marker_0" not in poses  # the checker sleeve replaces the URDF's
 
 
+def test_viewer_poses_are_the_models_chain_on_random_psi() -> None:
+    """The drawn marker and the stem correction come from the model's chain with the stem bent as
+    the simulated arm bends it (models.kinematics), to 1e-12 m, and agree with the plant's frames."""
+    setup = load_setup()
+    zeta = setup.plant.stem_coupling
+    vis, _ = recording_visualizer()
+    scene = ArmScene(vis, SceneConfig.from_setup(setup))
+    rng = np.random.default_rng(11)
+    plant = TruePlant(setup.params, setup.plant, psi0=np.asarray(HOME_PSI))
+    for _ in range(5):
+        psi_cmd = np.asarray(HOME_PSI) + rng.uniform(-1, 1, 6) * [0.5, 0.01, 0.3, 2.0, 0.4, 2.0]
+        plant.command(actuators_from_psi(setup.params, psi_cmd))
+        plant.advance(0.5)
+        psi = plant.true_psi
+        bent = forward_kinematics(setup.params, psi, stem_bend=zeta * psi[2])
+        poses = poses_of(scene, SceneState(psi, psi_cmd, {}))
+        np.testing.assert_allclose(poses[f"{ROOT}/marker"], bent.T_world_marker, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(poses[f"{ROOT}/marker"], plant.true_shape().frames.T_world_marker, rtol=0,
+                                   atol=1e-12)
+        straight = forward_kinematics(setup.params, psi)
+        np.testing.assert_allclose(scene.stem_correction(psi) @ straight.T_world_tip, bent.T_world_tip, rtol=0,
+                                   atol=1e-12)
+
+
 def test_tips_are_placed_or_hidden() -> None:
     vis, _ = recording_visualizer()
     scene = ArmScene(vis, SceneConfig(camera=None))
@@ -181,6 +206,22 @@ def test_replay_loads_a_run_and_animates_every_node(tmp_path: Path) -> None:
     scale = next(t for t in est["clip"]["tracks"] if t["name"] == ".scale")
     assert scale["keys"][0]["value"][0] == HIDDEN_SCALE and scale["keys"][-1]["value"][0] == 1.0
     assert any(b"set_animation" in c for c in window.commands())
+
+
+def test_replay_reads_the_recorded_camera_with_the_calibration_reader(tmp_path: Path) -> None:
+    """A run's config.json camera goes through the calibration's own reader: a malformed one is
+    refused in one line naming config.json and the key."""
+    from wristmark.cvs.calibration_io import calibration_mapping
+    from wristmark.viz.replay import scene_config_from_run
+
+    run = make_fake_run(tmp_path / "run", cycles=2)
+    camera = scene_config_from_run(run).camera
+    assert camera is not None and calibration_mapping(camera) == calibration_mapping(load_setup().camera)
+    cfg = json.loads((run / "config.json").read_text())
+    del cfg["camera"]["left"]["dist"]
+    (run / "config.json").write_text(json.dumps(cfg))
+    with pytest.raises(ConfigError, match=r"config.json 'camera': missing key 'left.dist'"):
+        scene_config_from_run(run)
 
 
 def test_accuracy_run_replays_its_positions(tmp_path: Path) -> None:

@@ -23,7 +23,8 @@ from wristmark.cli.common_options import add_config_option, set_example
 from wristmark.cli.option_types import MAX_TIMEOUT_S, PSI_ABS_MAX, float_in, int_in, positive_float, seed_int
 from wristmark.models.config_files import default_config
 from wristmark.models.errors import InputError
-from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark.models.marker import MarkerModel
+from wristmark.models.robot_params import HOME_PSI, RobotParams, load_robot
 
 DEFAULT_PLANT = default_config("plant.yaml")
 
@@ -74,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--watchdog must be > 0 s, got {args.watchdog}")
     if args.camera_port is None and _camera_options_without_port(args):
         raise InputError(f"{', '.join(_camera_options_without_port(args))} need --camera-port PORT")
-    params = RobotParams.load(args.robot) if args.robot else RobotParams()
+    params = load_robot(args.robot, MarkerModel.load(args.marker or default_config("marker.yaml")))
     plant_path = Path(args.plant) if args.plant else DEFAULT_PLANT
     plant = PlantParams.load(plant_path) if plant_path.exists() or args.plant else PlantParams()
     psi0 = np.array(args.psi0 if args.psi0 else HOME_PSI, dtype=float)

@@ -87,7 +87,7 @@ def _observe_hardware(args: argparse.Namespace, progress: bool) -> tuple[Any, li
     from wristmark.cvs.marker_tracker import MarkerTracker
     from wristmark.cvs.registration_io import apply_registration
     from wristmark.models.marker import MarkerModel
-    from wristmark.models.robot_params import RobotParams
+    from wristmark.models.robot_params import load_robot
     from wristmark.rig.actuator_driver import ActuatorDriver
     from wristmark.rig.registration_hardware import HardwareRegistrationRig
     from wristmark.rig.registration_poses import choose_poses
@@ -98,8 +98,8 @@ def _observe_hardware(args: argparse.Namespace, progress: bool) -> tuple[Any, li
     from wristmark.cvs.open_source import SourceOptions, open_stereo_source
     calib = args.calib or str(default_config("camera.yaml"))
     cam = apply_registration(load_calibration(calib), args.registration)
-    params = RobotParams.load(args.robot) if args.robot else RobotParams()
     marker = MarkerModel.load(args.marker) if args.marker else MarkerModel()
+    params = load_robot(args.robot, marker)
     poses = choose_poses(params, args.poses, cam, marker, seed=args.seed)
     source = open_stereo_source(args.camera, SourceOptions(image_size=cam.image_size))
     try:
@@ -122,7 +122,8 @@ def run(args: argparse.Namespace) -> int:
     import cv2
 
     from wristmark.cvs.registration_io import Registration, save_registration
-    from wristmark.models.robot_params import RobotParams
+    from wristmark.models.marker import MarkerModel
+    from wristmark.models.robot_params import load_robot
     from wristmark.rig.registration_log import read_log, write_log
     from wristmark.rig.registration_run import registration_poses
     from wristmark.solvers.registration import solve_registration, transform_error
@@ -138,7 +139,7 @@ def run(args: argparse.Namespace) -> int:
     progress = not args.no_progress
     extra: dict[str, Any] = {}
     if args.from_log:
-        params = RobotParams.load(args.robot) if args.robot else RobotParams()
+        params = load_robot(args.robot, MarkerModel.load(args.marker) if args.marker else MarkerModel())
         obs = read_log(args.from_log)
     elif args.serial:
         params, obs, extra = _observe_hardware(args, progress)

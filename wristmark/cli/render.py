@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
     from wristmark.models.arm_shape import arm_shape
     from wristmark.models.limits import check_limits
     from wristmark.models.marker import MarkerModel
-    from wristmark.models.robot_params import RobotParams
+    from wristmark.models.robot_params import load_robot
     from wristmark.sim.dataset import DatasetWriter
     from wristmark.sim.render import StereoRenderer
     from wristmark.sim.render_settings import RenderSettings, noise_preset
@@ -122,7 +122,7 @@ def run(args: argparse.Namespace) -> int:
     if args.scale != 1.0:
         camera = scaled_stereo_camera(camera, args.scale)
     marker = MarkerModel.load(args.marker) if args.marker else MarkerModel()
-    params = RobotParams.load(args.robot) if args.robot else RobotParams()
+    params = load_robot(args.robot, marker)
 
     given: list[Array] = [np.asarray(q, float) for q in (args.psi or [])]
     if args.psi_file:

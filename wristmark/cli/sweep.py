@@ -1,6 +1,6 @@
 """``wristmark sweep SPEC.yaml --out DIR [--workers N | --scheduler ADDRESS]``: many seeded
 experiment runs over a grid and/or random samples of options and configuration keys, on
-dask.distributed (DESIGN.md "Sweeps"; the SPEC: sim/sweep_spec.py).
+dask.distributed (DESIGN.md "Sweeps"; the SPEC: cli/sweep_spec.py).
 
 Every trial is checked before any starts (a bad SPEC: one line, exit 2). ``DIR/results.csv``
 gains a row as each trial finishes; run the same command again to finish an interrupted sweep.
@@ -30,9 +30,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from wristmark.sim.sweep_report import summary_table
-    from wristmark.sim.sweep_run import RESULTS, columns, read_rows, run_sweep
-    from wristmark.sim.sweep_spec import load_spec
+    from wristmark.cli.sweep_report import summary_table
+    from wristmark.cli.sweep_run import RESULTS, columns, read_rows, run_sweep
+    from wristmark.cli.sweep_spec import load_spec
 
     spec = load_spec(args.spec)
     out = Path(args.out)

@@ -29,13 +29,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from wristmark.models.marker import MarkerModel
-    from wristmark.models.robot_params import RobotParams
+    from wristmark.models.robot_params import load_robot
     from wristmark.models.urdf import write_urdf
 
     if args.links < 1:
         raise InputError(f"--links must be >= 1, got {args.links}")
-    params = RobotParams.load(args.robot) if args.robot else RobotParams()
     marker = MarkerModel.load(args.marker) if args.marker else None
+    params = load_robot(args.robot, marker or MarkerModel())
     claim_outputs(files=[args.out], force=args.force)
     path = write_urdf(args.out, params, args.links, marker)
     if args.json:

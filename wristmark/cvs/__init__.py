@@ -25,6 +25,7 @@ if TYPE_CHECKING:
     from wristmark.cvs.open_source import SourceOptions, open_stereo_source
     from wristmark.cvs.registration_io import Registration, apply_registration, load_registration, save_registration
     from wristmark.cvs.stereo_calibration import StereoCalibration, calibrate_stereo, detect_views
+    from wristmark.cvs.stereo_pose import MarkerPose, PoseSettings, StereoPoseSolver
 else:
     from wristmark._lazy import attach
 

@@ -38,7 +38,8 @@ def _camera(data: Any, name: str, src: str) -> Camera:
 
 
 def from_yaml_mapping(data: dict[str, Any], src: str) -> StereoCamera:
-    """A validated StereoCamera from DESIGN.md's mapping (``src`` names the file in errors)."""
+    """A validated StereoCamera from DESIGN.md's mapping (``src`` names the file in errors): the
+    one mapping -> camera function (calibration files, run records' config.json, replay)."""
     unknown = sorted(set(data) - YAML_KEYS)
     if unknown:
         raise ConfigError(f"{src}: unknown key '{unknown[0]}' (valid keys: {', '.join(sorted(YAML_KEYS))})")
@@ -58,7 +59,9 @@ def from_yaml_mapping(data: dict[str, Any], src: str) -> StereoCamera:
 
 
 def calibration_mapping(cam: StereoCamera) -> dict[str, Any]:
-    """The calibration as DESIGN.md's YAML mapping (plain lists, SI units)."""
+    """The calibration as DESIGN.md's YAML mapping (plain lists, SI units): the one camera ->
+    mapping function (calibration files, run records' config.json); :func:`from_yaml_mapping`
+    reads it back."""
     out: dict[str, Any] = {
         "image_size": [int(cam.image_size[0]), int(cam.image_size[1])],
         "left": {"K": np.asarray(cam.left.K, float).tolist(), "dist": np.asarray(cam.left.dist, float).tolist()},

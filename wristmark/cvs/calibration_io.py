@@ -24,7 +24,9 @@ from wristmark.cvs.camera import StereoCamera
 from wristmark.models.config_io import check_file_size, load_yaml
 from wristmark.models.errors import ConfigError
 
-__all__ = ["load_calibration", "calibration_mapping", "save_calibration", "validated"]
+__all__ = ["load_calibration", "calibration_mapping", "calibration_from_mapping", "save_calibration", "validated"]
+
+calibration_from_mapping = from_yaml_mapping  # DESIGN.md's calibration mapping -> validated StereoCamera
 
 
 def _existing(path: Path) -> Path:

@@ -31,9 +31,9 @@ from numpy.typing import NDArray
 from wristmark.cvs.camera import StereoCamera
 from wristmark.cvs.marker_cells import cell_darkness, sample_sleeve
 from wristmark.cvs.marker_code import hypotheses
+from wristmark.cvs.stereo_pose import HALF_TURN_X
 from wristmark.models.errors import ConfigError
 from wristmark.models.marker import MarkerModel
-from wristmark.solvers.stereo_pose import HALF_TURN_X
 
 Array = NDArray[np.float64]
 IntArray = NDArray[np.int_]

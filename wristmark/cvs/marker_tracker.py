@@ -38,13 +38,13 @@ from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera
 from wristmark.cvs.gray_image import to_gray
+from wristmark.cvs.homography_init import homography_pose
 from wristmark.cvs.marker_axis import AxisEvidenceSettings, axis_evidence, axis_evidence_strict
 from wristmark.cvs.marker_decode import CodeDecoder, CodeReading, CodeReadSettings
 from wristmark.cvs.stereo_match import StereoMatch, StereoRectifier, match_corners
+from wristmark.cvs.stereo_pose import MarkerPose, PoseSettings, StereoPoseSolver
 from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
-from wristmark.solvers.homography_init import homography_pose
-from wristmark.solvers.stereo_pose import MarkerPose, PoseSettings, StereoPoseSolver
 
 Array = NDArray[np.float64]
 IntArray = NDArray[np.int_]

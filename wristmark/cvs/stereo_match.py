@@ -9,7 +9,7 @@ one image missed is bridged by the other, even two in a row). Without polarities
 corners are sorted by rectified y, consecutive corners get consecutive relative indices, and
 the two chains are aligned by the index offset that pairs the most corners. In both, a step of
 2 where the polarity does not alternate (a corner missed in both images). Indices are
-relative: the absolute roll about z_wm is unknown (module doc of solvers.stereo_pose); the
+relative: the absolute roll about z_wm is unknown (module doc of cvs.stereo_pose); the
 polarity fixes their parity (even index <=> polarity +1 in the left chain).
 """
 

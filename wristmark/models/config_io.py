@@ -82,6 +82,18 @@ def load_yaml(path: str | Path) -> dict[str, Any]:
     return data
 
 
+def load_section(path: str | Path, name: str) -> dict[str, Any]:
+    """The YAML mapping of ``path``, or the mapping under its only key ``name`` (``robot:``,
+    ``controller:``, ...): both layouts of a configuration file."""
+    data = load_yaml(path)
+    if set(data) == {name}:
+        inner = data[name] or {}
+        if not isinstance(inner, dict):
+            raise ConfigError(f"{path}: '{name}' must be a mapping of keys to values")
+        return inner
+    return data
+
+
 def save_yaml(path: str | Path, data: dict[str, Any]) -> None:
     """Write ``data`` (plain Python types) as block-style YAML."""
     Path(path).write_text(yaml.safe_dump(data, sort_keys=False, default_flow_style=None))

@@ -3,6 +3,8 @@
 Naming: ``T_a_b`` is the 4x4 pose of frame {b} in frame {a} (it maps b-coordinates to a).
 Chain: {w} -> Rz(phi) Tz(d) -> {1b} -> seg 1 -> {1e} -> Tz(L_r) -> {2b} -> seg 2 -> {2e}
 -> Tz(l_marker) -> {wm} -> Tz(tip_offset) -> tip. psi = [phi, d, theta1, delta1, theta2, delta2].
+This is the one implementation of the chain: the simulated true arm (sim/plant.py) and the
+viewer (viz/scene.py) call it too, passing ``stem_bend`` where the exposed stem bends.
 
 Speed: the chain is evaluated on plain Python floats (rotations as row-major 9-tuples) and
 copied into numpy once per call; numpy calls on 3x3/4x4 arrays cost more than the arithmetic.
@@ -90,13 +92,15 @@ def _homogeneous_stack(poses: list[tuple[Rot, Vec]]) -> Array:
 _LAST_ROW = (0.0, 0.0, 0.0, 1.0)
 
 
-def _chain(params: RobotParams, q: list[float]) -> list[tuple[Rot, Vec]]:
+def _chain(params: RobotParams, q: list[float], stem_bend: float = 0.0) -> list[tuple[Rot, Vec]]:
     """Poses in {w} of {1b}, {1e}, {2b}, {2e}, {wm}, tip as plain floats (see _compose)."""
     phi, d, th1, de1, th2, de2 = q
     L1, L2 = params.segment_lengths
     c, s = math.cos(phi), math.sin(phi)
     R1b: Rot = (c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0)
     p1b: Vec = (0.0, 0.0, d)
+    if stem_bend != 0.0:  # the exposed stem: an arc of length d bent in segment 1's plane
+        R1b, p1b = _compose(R1b, (0.0, 0.0, 0.0), *segment_pose(d, stem_bend, de1))
     R1e, p1e = _compose(R1b, p1b, *segment_pose(L1, th1, de1))
     p2b = _along_z(R1e, p1e, params.rigid_length)
     R2e, p2e = _compose(R1e, p2b, *segment_pose(L2, th2, de2))
@@ -105,9 +109,11 @@ def _chain(params: RobotParams, q: list[float]) -> list[tuple[Rot, Vec]]:
     return [(R1b, p1b), (R1e, p1e), (R1e, p2b), (R2e, p2e), (R2e, pm), (R2e, ptip)]
 
 
-def forward_kinematics(params: RobotParams, psi: object) -> ArmFrames:
-    """All frames of the chain in {w} [m] for configuration ``psi`` [rad, m, rad, rad, rad, rad]."""
-    T = _homogeneous_stack(_chain(params, check_psi(psi).tolist()))
+def forward_kinematics(params: RobotParams, psi: object, stem_bend: float = 0.0) -> ArmFrames:
+    """All frames of the chain in {w} [m] for configuration ``psi`` [rad, m, rad, rad, rad, rad].
+    ``stem_bend`` [rad]: the exposed stem (incision to {1b}, length d) bent as a constant-curvature
+    arc in segment 1's plane (delta1), as the simulated true arm's stem coupling does; 0 (the model): straight."""
+    T = _homogeneous_stack(_chain(params, check_psi(psi).tolist(), float(stem_bend)))
     return ArmFrames(T[0], T[1], T[2], T[3], T[4], T[5])
 
 

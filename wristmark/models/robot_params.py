@@ -3,24 +3,27 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from wristmark.models.config_io import from_mapping, load_yaml
+from wristmark.models.config_io import from_mapping, load_section
 from wristmark.models.errors import ConfigError
+from wristmark.models.marker import MarkerModel
 
 
 @dataclass(frozen=True)
 class RobotParams:
     """Reference continuum arm. Lengths [m], angles [rad], velocities [rad/s or m/s].
 
-    psi = [phi, d, theta1, delta1, theta2, delta2].
+    psi = [phi, d, theta1, delta1, theta2, delta2]. ``tip_offset`` ({wm} -> tip) belongs to the
+    marker (DESIGN.md: the marker file's ``tip_offset``): :func:`load_robot` copies it from the
+    marker, and a robot file need not (and the shipped one does not) state it.
     """
 
     segment_lengths: tuple[float, float] = (0.100, 0.020)  # L1, L2 [m]
     rigid_length: float = 0.010  # L_r, {1e} -> {2b} [m]
     marker_offset: float = 0.005  # l_marker, {2e} -> {wm} [m]
-    tip_offset: float = 0.015  # {wm} -> tip [m] (paper: 15 mm)
+    tip_offset: float = 0.015  # {wm} -> tip [m] (paper: 15 mm): the marker's, see load_robot
     phi_range: tuple[float, float] = (-math.pi, math.pi)  # [rad]
     d_range: tuple[float, float] = (0.0, 0.150)  # [m]
     theta_max: tuple[float, float] = (math.pi / 2, 2 * math.pi / 3)  # [rad], theta_t in [0, max]
@@ -51,10 +54,24 @@ class RobotParams:
     @classmethod
     def load(cls, path: str | Path) -> RobotParams:
         """Load from YAML; the file may be the robot mapping itself or hold it under 'robot'."""
-        data = load_yaml(path)
-        if set(data) == {"robot"}:
-            data = data["robot"]
-        return from_mapping(cls, data, str(path))
+        return from_mapping(cls, load_section(path, "robot"), str(path))
+
+    def with_marker(self, marker: MarkerModel) -> RobotParams:
+        """These parameters carrying ``marker``'s tip offset [m]."""
+        return replace(self, tip_offset=marker.tip_offset)
+
+
+def load_robot(path: str | Path | None, marker: MarkerModel) -> RobotParams:
+    """The robot of the YAML file ``path`` (None: the reference arm) with ``marker``'s tip offset,
+    the one definition of it. A robot file that states a different ``tip_offset`` is refused,
+    naming the file to fix (ConfigError)."""
+    if path is None:
+        return RobotParams().with_marker(marker)
+    params = RobotParams.load(path)
+    if "tip_offset" in load_section(path, "robot") and params.tip_offset != marker.tip_offset:
+        raise ConfigError(f"{path}: 'tip_offset' ({params.tip_offset} m) disagrees with the marker's "
+                          f"({marker.tip_offset} m): the tip offset belongs to the marker file; remove it from {path}")
+    return params.with_marker(marker)
 
 
 # Home configuration: the workspace centre (cube centre) is the tip here; the default camera

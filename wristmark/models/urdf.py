@@ -170,6 +170,14 @@ def _add_segment(
     return end
 
 
+def _add_rigid_tube(b: _UrdfBuilder, link_name: str, length: float, r: float) -> None:
+    """A rigid tube of ``length`` [m] and radius ``r`` [m] drawn along z from the origin of link
+    ``link_name`` (the rigid link after segment 1, the marker offset after segment 2)."""
+    link = b.robot.find(f"link[@name='{link_name}']")
+    if link is not None and length > 0:
+        b.shape(link, "rigid", _cylinder(r, length), (0.0, 0.0, length / 2.0))
+
+
 def generate_urdf(
     params: RobotParams, links_per_segment: int = 8, marker: MarkerModel | None = None
 ) -> str:
@@ -202,26 +210,12 @@ def generate_urdf(
     b.joint("d", "prismatic", "stem", "seg1_base", axis=(0, 0, 1), limits=params.d_range)
 
     end1 = _add_segment(b, 1, "seg1_base", L1, params.theta_max[0], links_per_segment, r)
-    end1_link = b.robot.find(f"link[@name='{end1}']")
-    if end1_link is not None and params.rigid_length > 0:
-        b.shape(
-            end1_link,
-            "rigid",
-            _cylinder(r, params.rigid_length),
-            (0.0, 0.0, params.rigid_length / 2.0),
-        )
+    _add_rigid_tube(b, end1, params.rigid_length, r)
     b.link("seg2_base")
     b.joint("rigid_link", "fixed", end1, "seg2_base", xyz=(0.0, 0.0, params.rigid_length))
 
     end2 = _add_segment(b, 2, "seg2_base", L2, params.theta_max[1], links_per_segment, r)
-    end2_link = b.robot.find(f"link[@name='{end2}']")
-    if end2_link is not None and params.marker_offset > 0:
-        b.shape(
-            end2_link,
-            "rigid",
-            _cylinder(r, params.marker_offset),
-            (0.0, 0.0, params.marker_offset / 2.0),
-        )
+    _add_rigid_tube(b, end2, params.marker_offset, r)
     mlink = b.link("marker")
     b.joint("marker_mount", "fixed", end2, "marker", xyz=(0.0, 0.0, params.marker_offset))
     b.shape(mlink, "sleeve", _cylinder(mk.radius, 2.0 * mk.row_height), (0.0, 0.0, 0.0))

@@ -17,10 +17,10 @@ from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera
 from wristmark.models.config_files import default_config
-from wristmark.models.config_io import to_mapping
+from wristmark.models.config_io import load_section, to_mapping
 from wristmark.models.errors import ConfigError
 from wristmark.models.marker import MarkerModel
-from wristmark.models.robot_params import RobotParams
+from wristmark.models.robot_params import RobotParams, load_robot
 from wristmark.rig.rig_config import RigConfig
 from wristmark.solvers.controller import ControllerConfig
 
@@ -67,20 +67,15 @@ class LoopSetup:
 
     def describe(self) -> dict[str, Any]:
         """Everything as plain data for config.json."""
-        cam = self.camera
+        from wristmark.cvs.calibration_io import calibration_mapping
+
         return {
             "sources": self.sources,
             "robot": to_mapping(self.params),
             "marker": to_mapping(self.marker),
             "rig": to_mapping(self.rig),
             "controller": to_mapping(self.controller),
-            "camera": {
-                "image_size": list(cam.image_size),
-                "left": {"K": np.asarray(cam.left.K).tolist(), "dist": np.asarray(cam.left.dist).tolist()},
-                "right": {"K": np.asarray(cam.right.K).tolist(), "dist": np.asarray(cam.right.dist).tolist()},
-                "R": np.asarray(cam.R).tolist(), "T": np.asarray(cam.T).tolist(),
-                "world_T_left": None if cam.T_world_left is None else np.asarray(cam.T_world_left).tolist(),
-            },
+            "camera": calibration_mapping(self.camera),
             "registration_world_T_left": None if self.registration is None else np.asarray(self.registration).tolist(),
         }
 
@@ -102,11 +97,23 @@ def load_loop_setup(robot: str | Path | None = None, marker: str | Path | None =
     cam = load_calibration(paths["camera"])
     if cam.T_world_left is None:
         raise ConfigError(f"{paths['camera']}: the servo loop needs 'world_T_left' (camera pose in {{w}})")
+    the_marker = MarkerModel.load(paths["marker"])
+    loop = RigConfig.load(paths["rig"])
     return LoopSetup(
-        params=RobotParams.load(paths["robot"]),
-        marker=MarkerModel.load(paths["marker"]),
+        params=load_robot(paths["robot"], the_marker),
+        marker=the_marker,
         camera=cam,
-        rig=RigConfig.load(paths["rig"]),
-        controller=ControllerConfig.load(paths["controller"]),
+        rig=loop,
+        controller=controller_with_cycle(ControllerConfig.load(paths["controller"]), loop, paths),
         sources={k: str(v) for k, v in paths.items()},
     )
+
+
+def controller_with_cycle(controller: ControllerConfig, rig: RigConfig, paths: dict[str, Path]) -> ControllerConfig:
+    """The controller running at the loop's cycle: the servo cycle [s] is defined once, by the rig
+    file's ``control_dt``. A controller file that states a different ``dt`` is refused, naming it."""
+    if "dt" in load_section(paths["controller"], "controller") and controller.dt != rig.control_dt:
+        raise ConfigError(f"{paths['controller']}: 'dt' ({controller.dt} s) disagrees with 'control_dt' "
+                          f"({rig.control_dt} s) of {paths['rig']}: the cycle time belongs to the loop; set "
+                          f"'dt' to {rig.control_dt} or remove it from {paths['controller']}")
+    return dataclasses.replace(controller, dt=rig.control_dt)

@@ -2,7 +2,7 @@
 
 The true arm (``TruePlant`` with a ``PlantParams`` file), its stereo endoscope images
 (``StereoRenderer``), the optical tracker that measures ground truth, the actuator-box emulator,
-the virtual lab (emulator + MJPEG camera), the experiments and sweeps, and the setup that wires
+the virtual lab (emulator + MJPEG camera), the experiments, and the setup that wires
 them together (``load_setup``). Frames: {w} the robot base, {ll} the left camera; units SI.
 The hardware path (``wristmark servo --serial --camera``) never imports this package.
 
@@ -23,8 +23,6 @@ if TYPE_CHECKING:
     from wristmark.sim.render import RenderedPair, StereoRenderer
     from wristmark.sim.render_settings import RenderSettings, noise_preset
     from wristmark.sim.setup import SimSetup, load_setup
-    from wristmark.sim.sweep_run import run_sweep
-    from wristmark.sim.sweep_spec import load_spec
     from wristmark.sim.virtual_lab import VirtualLab, true_tip_errors
 else:
     from wristmark._lazy import attach

@@ -20,19 +20,13 @@ from numpy.typing import NDArray
 
 from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
 from wristmark.models.arm_shape import ArmShape, shape_from_frames
-from wristmark.models.constant_curvature import rot_z, segment_point, segment_transform
+from wristmark.models.constant_curvature import rot_z, segment_point
 from wristmark.models.errors import InputError
-from wristmark.models.kinematics import ArmFrames, check_psi
+from wristmark.models.kinematics import ArmFrames, check_psi, forward_kinematics
 from wristmark.models.robot_params import RobotParams
 from wristmark.sim.plant_params import PlantParams
 
 Array = NDArray[np.float64]
-
-
-def _tz(z: float) -> Array:
-    T = np.eye(4)
-    T[2, 3] = z
-    return T
 
 
 def _add_bend(theta: float, delta: float, dv: Array) -> tuple[float, float]:
@@ -119,19 +113,12 @@ class TruePlant:
         return self._cache
 
     def _chain(self, q: Array) -> tuple[ArmFrames, Array]:
-        p, P = self.params, self.plant
-        L1, L2 = p.segment_lengths
-        T_w_s = np.eye(4)
-        T_w_s[:3, :3] = rot_z(q[0])
-        theta_s = P.stem_coupling * q[2]
-        stem = np.array([T_w_s[:3, :3] @ segment_point(q[1], theta_s, q[3], s) for s in np.linspace(0, 1, 8)])
-        T_w_1b = T_w_s @ segment_transform(q[1], theta_s, q[3])
-        T_w_1e = T_w_1b @ segment_transform(L1, q[2], q[3])
-        T_w_2b = T_w_1e @ _tz(p.rigid_length)
-        T_w_2e = T_w_2b @ segment_transform(L2, q[4], q[5])
-        T_w_m = T_w_2e @ _tz(p.marker_offset)
-        T_w_tip = T_w_m @ _tz(p.tip_offset)
-        return ArmFrames(T_w_1b, T_w_1e, T_w_2b, T_w_2e, T_w_m, T_w_tip), stem
+        """The model's chain (models.kinematics) with the stem bent by stem_coupling x theta1, and
+        points along the bent stem."""
+        theta_s = self.plant.stem_coupling * q[2]
+        R_w_s = rot_z(q[0])
+        stem = np.array([R_w_s @ segment_point(q[1], theta_s, q[3], s) for s in np.linspace(0, 1, 8)])
+        return forward_kinematics(self.params, q, stem_bend=theta_s), stem
 
     def _bend(self, q_out: Array) -> tuple[Array, ArmFrames, Array]:
         P = self.plant

@@ -236,6 +236,96 @@ def _flush(
 
 
 @jit
+def _centre_rays(xy: F64, prim: I64, p0: int, p1: int, caps: F64, sleeve: F64, pat: F64, mats: F64, gain: float,
+                 flat: bool, tu: int, tv: int, rays: F64, best: F64, who: I64, surf: I64, keys: I64,
+                 crad: F64) -> int:
+    """Adaptive supersampling's first pass: one ray through the centre of every pixel of the tile
+    at (tu, tv) and of a 1 px ring around it; ``keys`` the surface hit (-1: miss), ``crad`` its
+    radiance. Returns the rays cast."""
+    count = 0
+    for c0 in range(0, RING * RING, BATCH):
+        n = min(BATCH, RING * RING - c0)
+        for i in range(n):
+            a, b = (c0 + i) // RING, (c0 + i) % RING
+            rays[0, i], rays[1, i], rays[2, i] = _ray(xy, tu + b - 1.0, tv + a - 1.0)
+        trace(prim, p0, p1, caps, sleeve, rays[0], rays[1], rays[2], n, best, who, surf)
+        for i in range(n):
+            a, b = (c0 + i) // RING, (c0 + i) % RING
+            keys[a, b] = -1
+            if who[i] >= 0:
+                keys[a, b], crad[a, b, 0], crad[a, b, 1], crad[a, b, 2] = _shade(
+                    rays[0, i], rays[1, i], rays[2, i], best[i], who[i], surf[i], caps, sleeve, pat, mats,
+                    gain, flat)
+        count += n
+    return count
+
+
+@jit
+def _keep_smooth_centres(need: NDArray[np.bool_], keys: I64, crad: F64, out: NDArray[np.float32], tu: int, tv: int,
+                         u0: int, v0: int) -> None:
+    """Pixels whose 3 x 3 centre rays hit the same surface (or all miss) with nearly linear
+    shading take their centre ray's radiance and need no supersampling."""
+    for p in range(TILE * TILE):
+        if not need[p]:
+            continue
+        pv, pu = p // TILE, p % TILE
+        k0 = keys[pv + 1, pu + 1]
+        same = True
+        for a in range(3):
+            for b in range(3):
+                same = same and keys[pv + a, pu + b] == k0
+        if same and k0 >= 0:  # and the shading is nearly linear across the pixel
+            for c in range(3):
+                ctr = 2.0 * crad[pv + 1, pu + 1, c]
+                fuu = crad[pv + 1, pu, c] + crad[pv + 1, pu + 2, c] - ctr
+                fvv = crad[pv, pu + 1, c] + crad[pv + 2, pu + 1, c] - ctr
+                same = same and abs(fuu) + abs(fvv) <= CURVATURE
+        if same:
+            need[p] = False
+            if k0 >= 0:
+                for c in range(3):
+                    out[tv + pv - v0, tu + pu - u0, c] = crad[pv + 1, pu + 1, c]
+
+
+@jit
+def _supersample(xy: F64, prim: I64, p0: int, p1: int, caps: F64, sleeve: F64, pat: F64, mats: F64, gain: float,
+                 flat: bool, tu: int, tv: int, ss: int, need: NDArray[np.bool_], out: NDArray[np.float32], u0: int,
+                 v0: int, rays: F64, pix: I64, best: F64, who: I64, surf: I64, acc: F64, cnt: I64) -> int:
+    """Full ss x ss supersampling of the tile's pixels that ``need`` it, blended over ``out`` (a
+    missing sample keeps the background). Returns the rays cast."""
+    inv = 1.0 / ss
+    count = 0
+    acc[:] = 0.0
+    cnt[:] = 0
+    n = 0
+    for p in range(TILE * TILE):
+        if not need[p]:
+            continue
+        v, u = tv + p // TILE, tu + p % TILE
+        for sy in range(ss):
+            fv = v - 0.5 + (sy + 0.5) * inv
+            for sx in range(ss):
+                rays[0, n], rays[1, n], rays[2, n] = _ray(xy, u - 0.5 + (sx + 0.5) * inv, fv)
+                pix[n] = p
+                n += 1
+                if n == BATCH:
+                    _flush(n, rays, pix, prim, p0, p1, caps, sleeve, pat, mats, gain, flat, best, who, surf, acc,
+                           cnt)
+                    count += n
+                    n = 0
+    _flush(n, rays, pix, prim, p0, p1, caps, sleeve, pat, mats, gain, flat, best, who, surf, acc, cnt)
+    count += n
+    nss = ss * ss
+    for p in range(TILE * TILE):
+        if need[p] and cnt[p] > 0:
+            o = out[tv + p // TILE - v0, tu + p % TILE - u0]
+            miss = nss - cnt[p]
+            for c in range(3):
+                o[c] = (acc[p, c] + miss * o[c]) / nss
+    return count
+
+
+@jit
 def raycast_tiles(
     xy: F64, tiles: I64, ptr: I64, prim: I64, caps: F64, sleeve: F64, pat: F64, mats: F64, gain: float,
     flat: bool, adaptive: bool, out: NDArray[np.float32], u0: int, v0: int,
@@ -262,72 +352,15 @@ def raycast_tiles(
     keys, crad = np.empty((RING, RING), np.int64), np.empty((RING, RING, 3))
     for t in range(tiles.shape[0]):
         ss = tiles[t, 2]
-        inv = 1.0 / ss
         p0, p1 = ptr[t], ptr[t + 1]
         tv, tu = tiles[t, 0] * TILE, tiles[t, 1] * TILE
         for p in range(TILE * TILE):
             v, u = tv + p // TILE, tu + p % TILE
             need[p] = 0 <= v - v0 < h and 0 <= u - u0 < w
-        if adaptive and ss > 1:  # centre rays of the tile and of a 1 px ring around it
-            for c0 in range(0, RING * RING, BATCH):
-                n = min(BATCH, RING * RING - c0)
-                for i in range(n):
-                    a, b = (c0 + i) // RING, (c0 + i) % RING
-                    rays[0, i], rays[1, i], rays[2, i] = _ray(xy, tu + b - 1.0, tv + a - 1.0)
-                trace(prim, p0, p1, caps, sleeve, rays[0], rays[1], rays[2], n, best, who, surf)
-                for i in range(n):
-                    a, b = (c0 + i) // RING, (c0 + i) % RING
-                    keys[a, b] = -1
-                    if who[i] >= 0:
-                        keys[a, b], crad[a, b, 0], crad[a, b, 1], crad[a, b, 2] = _shade(
-                            rays[0, i], rays[1, i], rays[2, i], best[i], who[i], surf[i], caps, sleeve, pat, mats,
-                            gain, flat)
-                count += n
-            for p in range(TILE * TILE):
-                if not need[p]:
-                    continue
-                pv, pu = p // TILE, p % TILE
-                k0 = keys[pv + 1, pu + 1]
-                same = True
-                for a in range(3):
-                    for b in range(3):
-                        same = same and keys[pv + a, pu + b] == k0
-                if same and k0 >= 0:  # and the shading is nearly linear across the pixel
-                    for c in range(3):
-                        ctr = 2.0 * crad[pv + 1, pu + 1, c]
-                        fuu = crad[pv + 1, pu, c] + crad[pv + 1, pu + 2, c] - ctr
-                        fvv = crad[pv, pu + 1, c] + crad[pv + 2, pu + 1, c] - ctr
-                        same = same and abs(fuu) + abs(fvv) <= CURVATURE
-                if same:
-                    need[p] = False
-                    if k0 >= 0:
-                        for c in range(3):
-                            out[tv + pv - v0, tu + pu - u0, c] = crad[pv + 1, pu + 1, c]
-        acc[:] = 0.0
-        cnt[:] = 0
-        n = 0
-        for p in range(TILE * TILE):  # full supersampling of the pixels that need it
-            if not need[p]:
-                continue
-            v, u = tv + p // TILE, tu + p % TILE
-            for sy in range(ss):
-                fv = v - 0.5 + (sy + 0.5) * inv
-                for sx in range(ss):
-                    rays[0, n], rays[1, n], rays[2, n] = _ray(xy, u - 0.5 + (sx + 0.5) * inv, fv)
-                    pix[n] = p
-                    n += 1
-                    if n == BATCH:
-                        _flush(n, rays, pix, prim, p0, p1, caps, sleeve, pat, mats, gain, flat, best, who, surf, acc,
-                               cnt)
-                        count += n
-                        n = 0
-        _flush(n, rays, pix, prim, p0, p1, caps, sleeve, pat, mats, gain, flat, best, who, surf, acc, cnt)
-        count += n
-        nss = ss * ss
-        for p in range(TILE * TILE):
-            if need[p] and cnt[p] > 0:
-                o = out[tv + p // TILE - v0, tu + p % TILE - u0]
-                miss = nss - cnt[p]
-                for c in range(3):
-                    o[c] = (acc[p, c] + miss * o[c]) / nss
+        if adaptive and ss > 1:
+            count += _centre_rays(xy, prim, p0, p1, caps, sleeve, pat, mats, gain, flat, tu, tv, rays, best, who,
+                                  surf, keys, crad)
+            _keep_smooth_centres(need, keys, crad, out, tu, tv, u0, v0)
+        count += _supersample(xy, prim, p0, p1, caps, sleeve, pat, mats, gain, flat, tu, tv, ss, need, out, u0, v0,
+                              rays, pix, best, who, surf, acc, cnt)
     return count

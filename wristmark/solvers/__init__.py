@@ -1,7 +1,7 @@
-"""CasADi formulations: the stereo reprojection pose solve, the controllers (``paper``, ``qp``)
-and the registration solve.
+"""The controllers (``paper``, ``qp``) and the registration solve (the stereo pose solve is the
+tracker's last stage, in :mod:`wristmark.cvs`).
 
-Frames: the pose solve works in {ll} (the left camera), the controllers in {w} (the robot base);
+Frames: the controllers work in {w} (the robot base);
 units SI ([m], [rad], [s]).
 
 The names below are imported on first use (``wristmark/_lazy.py``): ``import wristmark.solvers``
@@ -15,7 +15,6 @@ if TYPE_CHECKING:
     from wristmark.solvers.paper_controller import PaperController
     from wristmark.solvers.qp_controller import QpController
     from wristmark.solvers.registration import RegistrationPose, RegistrationResult, solve_registration, transform_error
-    from wristmark.solvers.stereo_pose import MarkerPose, PoseSettings, StereoPoseSolver
 else:
     from wristmark._lazy import attach
 

@@ -27,12 +27,12 @@ from wristmark.viz.frame_pane import show_frame
 from wristmark.viz.record_wire import RECORD_SIZE, WireRecord, decode
 from wristmark.viz.scene import ROOT, ArmScene, SceneConfig, SceneState
 from wristmark.viz.style import TIP_KINDS
+from wristmark.viz.view_priority import lower_priority
 from wristmark.viz.viewer_client import ZmqWindow
 
 STATUS_PERIOD = 0.2  # [s] between status-line updates
 TRAIL_MAX = 4000  # cycles kept for the trails
 TRAIL_POINTS = 200  # points per trail line at most
-VIEW_NICENESS = 5  # added to the nice value of the view's processes
 
 
 def _read_exact(fd: int, n: int) -> bytes:
@@ -182,14 +182,6 @@ def serve(fd: int, drawer: Drawer) -> None:
         drawer.show_image()
 
 
-def _lower_priority() -> None:
-    """The view is best effort: under CPU contention the servo loop goes first."""
-    try:
-        os.nice(VIEW_NICENESS)
-    except OSError:
-        pass
-
-
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the drawing process."""
     ap = argparse.ArgumentParser(description=__doc__)
@@ -199,7 +191,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--image", help="PNG file of the latest left camera image (written by the loop's process)")
     ap.add_argument("--image-rate", type=float, default=2.0, help="camera images shown per second at most [Hz]")
     args = ap.parse_args(argv)
-    _lower_priority()
+    lower_priority()
     fd = sys.stdin.buffer.fileno()
     (size,) = np.frombuffer(_read_exact(fd, 8), "<u8")
     config = pickle.loads(_read_exact(fd, int(size)))

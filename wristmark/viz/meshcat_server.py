@@ -29,10 +29,10 @@ from meshcat.servers.zmqserver import ZMQWebSocketBridge
 
 from wristmark.viz import command_tree
 from wristmark.viz.page import served_page
+from wristmark.viz.view_priority import lower_priority
 from wristmark.viz.web_hosts import listen_addresses
 
 PAGE_PATH = "/wristmark"
-VIEW_NICENESS = 5  # added to the nice value of the view's processes
 
 
 class _PageHandler(tornado.web.RequestHandler):
@@ -135,14 +135,6 @@ def _silence_std_streams() -> None:
     os.dup2(devnull, 2)
 
 
-def _lower_priority() -> None:
-    """The view is best effort: under CPU contention the servo loop goes first."""
-    try:
-        os.nice(VIEW_NICENESS)
-    except OSError:
-        pass
-
-
 def main(argv: list[str] | None = None) -> int:
     """Run the server until the parent process exits (or SIGTERM/SIGINT)."""
     ap = argparse.ArgumentParser(description=__doc__)
@@ -152,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--parent", type=int, default=os.getppid(), help="exit when this pid is gone")
     ap.add_argument("--host", default=None, help="web server: also listen on this address (default: loopback only)")
     args = ap.parse_args(argv)
-    _lower_priority()
+    lower_priority()
     try:
         bridge = WristmarkBridge(served_page(args.title, args.controls, not args.no_status), web_host=args.host,
                                  host="127.0.0.1")

@@ -24,7 +24,6 @@ from meshcat.animation import Animation, AnimationClip, AnimationTrack
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from wristmark.cvs.camera import Camera, StereoCamera
 from wristmark.models.config_io import from_mapping
 from wristmark.models.errors import ConfigError, InputError
 from wristmark.models.marker import MarkerModel
@@ -54,26 +53,10 @@ class RunReplay:
 
 
 # -- loading ---------------------------------------------------------------------------------
-def _camera_from_mapping(d: Any, src: str) -> StereoCamera:
-    try:
-        W = d.get("world_T_left")
-        cam = StereoCamera(
-            (int(d["image_size"][0]), int(d["image_size"][1])),
-            Camera(np.array(d["left"]["K"], float), np.array(d["left"]["dist"], float)),
-            Camera(np.array(d["right"]["K"], float), np.array(d["right"]["dist"], float)),
-            np.array(d["R"], float), np.array(d["T"], float),
-            None if W is None else np.array(W, float),
-        )
-        cam.validate()
-    except (KeyError, TypeError, ValueError, IndexError) as e:
-        raise ConfigError(f"{src}: 'camera' is malformed ({type(e).__name__}: {e})") from None
-    return cam
-
-
 def scene_config_from_run(run_dir: Path) -> SceneConfig:
     """The scene of the configuration recorded in ``run_dir/config.json`` (missing parts: the
     project's configs/)."""
-    from wristmark.cvs.calibration_io import load_calibration
+    from wristmark.cvs.calibration_io import calibration_from_mapping, load_calibration
     from wristmark.models.config_files import default_config
 
     path = run_dir / "config.json"
@@ -90,7 +73,7 @@ def scene_config_from_run(run_dir: Path) -> SceneConfig:
               else RobotParams.load(default_config("robot.yaml")))
     marker = (from_mapping(MarkerModel, data["marker"], src, "marker.") if isinstance(data.get("marker"), dict)
               else MarkerModel.load(default_config("marker.yaml")))
-    camera = (_camera_from_mapping(data["camera"], src) if isinstance(data.get("camera"), dict)
+    camera = (calibration_from_mapping(data["camera"], f"{src} 'camera'") if isinstance(data.get("camera"), dict)
               else load_calibration(default_config("camera.yaml")))
     plant: dict[str, Any] = data["plant"] if isinstance(data.get("plant"), dict) else {}
     try:

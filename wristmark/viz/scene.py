@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING
 
 import meshcat
 import meshcat.geometry as mg
@@ -26,7 +26,6 @@ from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera
 from wristmark.models.arm_shape import arm_shape
-from wristmark.models.constant_curvature import rot_z, segment_transform
 from wristmark.models.kinematics import check_psi, forward_kinematics
 from wristmark.models.marker import MarkerModel
 from wristmark.models.pinocchio_model import PinocchioArm
@@ -51,25 +50,14 @@ from wristmark.viz.style import (
 
 if TYPE_CHECKING:
     from wristmark.rig.loop_setup import LoopSetup
+    from wristmark.rig.run_log import CycleRecord
+    from wristmark.viz.record_wire import WireRecord
 
 Array = NDArray[np.float64]
 
 ROOT = "wristmark"
 HIDDEN_SCALE = 1e-6  # [-] scale of a node that has nothing to show (e.g. no vision estimate)
 CAMERA_NODE = "/Cameras/default/rotated/<object>"
-
-
-class CycleLike(Protocol):
-    """What a frame needs of a servo cycle (rig.run_log.CycleRecord, viz.record_wire.WireRecord)."""
-
-    t: float
-    phase: str
-    p_des: Array
-    p_cmd: Array
-    p_est: Array | None
-    p_true: Array
-    psi_cmd: Array
-    psi_true: Array
 
 
 @dataclass(frozen=True)
@@ -103,8 +91,8 @@ class SceneState:
     phase: str = ""
 
     @classmethod
-    def from_record(cls, rec: CycleLike) -> SceneState:
-        """The frame of one servo cycle (rig.run_log.CycleRecord or alike)."""
+    def from_record(cls, rec: CycleRecord | WireRecord) -> SceneState:
+        """The frame of one servo cycle (as logged, or as the live view receives it)."""
         return cls(
             psi_true=np.asarray(rec.psi_true, float),
             psi_cmd=np.asarray(rec.psi_cmd, float),
@@ -243,19 +231,19 @@ class ArmScene:
         return frame_points(np.array(pts))
 
     # -- frames ------------------------------------------------------------------------------
+    def _stem_bend(self, psi: Array) -> float:
+        """Bend [rad] of the exposed stem: stem_coupling x theta1, as the simulated true arm."""
+        return float(self.config.stem_coupling * psi[2])
+
     def stem_correction(self, psi: Array) -> Array:
         """Pose change of {1b} (and all that follows) when the exposed stem (length d) bends by
-        stem_coupling * theta1 in segment 1's plane, as the simulated true arm does."""
-        zeta = self.config.stem_coupling
-        if zeta == 0.0:
+        stem_coupling * theta1 in segment 1's plane, as the simulated true arm does (both from
+        the model's chain, models.kinematics)."""
+        if self.config.stem_coupling == 0.0:
             return np.eye(4)
-        phi, d, th1, de1 = (float(v) for v in psi[:4])
-        Rz = np.eye(4)
-        Rz[:3, :3] = rot_z(phi)
-        nominal = Rz.copy()
-        nominal[2, 3] = d
-        bent = Rz @ segment_transform(d, zeta * th1, de1)
-        return np.asarray(bent @ np.linalg.inv(nominal))
+        params = self.config.params
+        bent = forward_kinematics(params, psi, stem_bend=self._stem_bend(psi)).T_world_1b
+        return np.asarray(bent @ np.linalg.inv(forward_kinematics(params, psi).T_world_1b))
 
     def node_poses(self, state: SceneState) -> list[tuple[str, Array]]:
         """(node path relative to /meshcat, 4x4 pose in {w}) of every moving node at ``state``;
@@ -263,12 +251,12 @@ class ArmScene:
         psi_cmd = check_psi(state.psi_cmd)
         psi_true = np.asarray(state.psi_true, float)
         if psi_true.shape == (6,) and np.all(np.isfinite(psi_true)):
-            C = self.stem_correction(psi_true)
+            C, stem_bend = self.stem_correction(psi_true), self._stem_bend(psi_true)
         else:  # true configuration unknown (hardware, accuracy runs): the arm as commanded
-            psi_true, C = psi_cmd, np.eye(4)
+            psi_true, C, stem_bend = psi_cmd, np.eye(4), 0.0
         poses = self._arm.poses(psi_true, C)
         poses += self._ghost.poses(psi_cmd)
-        poses.append((f"{ROOT}/marker", C @ self._true_arm.frame_pose("marker", psi_true)))
+        poses.append((f"{ROOT}/marker", forward_kinematics(self.config.params, psi_true, stem_bend).T_world_marker))
         for kind in TIP_KINDS:
             p = _finite(state.tips.get(kind))
             T = np.eye(4)

@@ -23,8 +23,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from wristmark.sim.sweep_keys import write_configs
-from wristmark.sim.sweep_spec import Trial
+from wristmark.cli.sweep_keys import write_configs
+from wristmark.cli.sweep_spec import Trial
 
 # Library thread pools held to one thread: N workers on N cores must not fight over them.
 THREAD_ENV = {name: "1" for name in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS",

@@ -25,10 +25,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from wristmark.cli.sweep_keys import format_value
+from wristmark.cli.sweep_spec import SweepSpec
+from wristmark.cli.sweep_trial import THREAD_ENV, TrialJob, metric_columns, one_line, run_trial, warm_up
 from wristmark.models.errors import InputError
-from wristmark.sim.sweep_keys import format_value
-from wristmark.sim.sweep_spec import SweepSpec
-from wristmark.sim.sweep_trial import THREAD_ENV, TrialJob, metric_columns, one_line, run_trial, warm_up
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -158,7 +158,7 @@ def run_sweep(spec: SweepSpec, out: Path, workers: int | None = None, scheduler:
     """Run the trials of ``spec`` missing from ``out``; results.csv, then summary.md."""
     from tqdm import tqdm
 
-    from wristmark.sim.sweep_report import write_summary
+    from wristmark.cli.sweep_report import write_summary
 
     t0 = time.perf_counter()
     shown, out = out, out.resolve()

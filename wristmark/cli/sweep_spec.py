@@ -9,7 +9,7 @@ seeds: [0, 1]
 ```
 Trials, in order: every grid point (the first key varying slowest) x every random sample x
 every seed (fastest). Keys are ``wristmark experiment`` options or dotted configuration keys
-(sim.sweep_keys). Paths in file options are taken relative to the current folder, like every
+(cli.sweep_keys). Paths in file options are taken relative to the current folder, like every
 wristmark option, and made absolute. Every trial is checked before any runs: its command line
 by ``wristmark experiment``'s own parser, its configuration by loading it as the experiment
 will (:func:`wristmark.cli.experiment.check_args`); the first bad one is a one-line SpecError.
@@ -28,9 +28,7 @@ from typing import Any
 import numpy as np
 
 from wristmark.cli.option_types import SEED_MAX
-from wristmark.models.config_io import load_yaml
-from wristmark.models.errors import ConfigError
-from wristmark.sim.sweep_keys import (
+from wristmark.cli.sweep_keys import (
     FILE_OPTIONS,
     NAMESPACES,
     ExperimentOptions,
@@ -41,6 +39,8 @@ from wristmark.sim.sweep_keys import (
     split_dotted,
     write_configs,
 )
+from wristmark.models.config_io import load_yaml
+from wristmark.models.errors import ConfigError
 
 TOP_KEYS = ("experiment", "set", "grid", "random", "seeds")
 RANDOM_KEYS = ("n", "seed", "ranges")

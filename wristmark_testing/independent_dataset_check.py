@@ -14,7 +14,7 @@ y down, z along the optical axis); ``X_right = R X_left + T``; pixel (0, 0) is t
 pixel; truth ``R, t`` is the pose of the marker frame {wm} in {ll}; corner i of the marker is
 ``[r cos(i beta), r sin(i beta), 0]`` in {wm}; ``uv`` are raw (distorted) pixels.
 
-Command line: ``python tests/independent_dataset_check.py DIR`` prints a JSON summary and exits 1 when
+Command line: ``python -m wristmark_testing.independent_dataset_check DIR`` prints a JSON summary and exits 1 when
 the dataset violates the contract.
 """
 
@@ -24,7 +24,7 @@ import json
 import math
 import re
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -312,7 +312,6 @@ def model_fit_errors(gray: np.ndarray, cam: Camera, marker: Marker, Rm: np.ndarr
     """
     out = np.full((len(idx), 2), np.nan)
     h_img, w_img = gray.shape
-    O = oversample
     margin = 4
     for j, (i, free) in enumerate(zip(idx, free_px)):
         half = int(min(np.floor(0.7 * free), MODEL_MAX_HALF))
@@ -322,70 +321,107 @@ def model_fit_errors(gray: np.ndarray, cam: Camera, marker: Marker, Rm: np.ndarr
         cu, cv_ = int(round(c_uv[0])), int(round(c_uv[1]))
         if not (half + margin <= cu < w_img - half - margin and half + margin <= cv_ < h_img - half - margin):
             continue
-        # fine grid over the window plus margin; fine sample (a, b) is at raw pixel position g0 + (a + 0.5) / O - 0.5
-        n_px = 2 * (half + margin) + 1
-        g0u, g0v = cu - half - margin - 0.5, cv_ - half - margin - 0.5
-        fa = g0u + (np.arange(n_px * O) + 0.5) / O
-        fb = g0v + (np.arange(n_px * O) + 0.5) / O
-        FU, FV = np.meshgrid(fa, fb)
-        uv = np.stack([FU.ravel(), FV.ravel()], axis=1)
-        nrm = cv2.undistortPoints(uv.reshape(-1, 1, 2), cam.K, cam.dist, criteria=UNDISTORT_CRITERIA).reshape(-1, 2)
-        d = np.concatenate([nrm, np.ones((len(nrm), 1))], axis=1) @ cam.R  # ray in {ll}: R^T [x, y, 1]
-        o_m = Rm.T @ (cam.centre_left - t)
-        d_m = d @ Rm
-        a2 = d_m[:, 0] ** 2 + d_m[:, 1] ** 2
-        b2 = 2 * (o_m[0] * d_m[:, 0] + o_m[1] * d_m[:, 1])
-        c2 = o_m[0] ** 2 + o_m[1] ** 2 - marker.radius**2
-        disc = b2 * b2 - 4 * a2 * c2
-        with np.errstate(invalid="ignore"):
-            s = (-b2 - np.sqrt(disc)) / (2 * a2)
-        P = o_m[None, :] + s[:, None] * d_m
-        ok = (disc > 0) & (s > 0) & (np.abs(P[:, 2]) < marker.row_height)
-        ang = np.mod(np.arctan2(np.where(ok, P[:, 1], 0.0), np.where(ok, P[:, 0], 1.0)), 2 * math.pi)
-        k = np.minimum((ang / marker.beta).astype(int), marker.columns - 1)
-        dark = (k % 2 == 0) == (P[:, 2] > 0)
-        tmpl = np.where(dark, 0.0, 1.0).astype(np.float32).reshape(n_px * O, n_px * O)
-        valid = ok.astype(np.float32).reshape(n_px * O, n_px * O)
-        tmpl = cv2.blur(tmpl, (O, O))  # integrate over one pixel
-        valid = cv2.blur(valid, (O, O))
-        win_u = np.arange(cu - half, cu + half + 1, dtype=float)
-        win_v = np.arange(cv_ - half, cv_ + half + 1, dtype=float)
-        WU, WV = np.meshgrid(win_u, win_v)
-        img = gray[cv_ - half:cv_ + half + 1, cu - half:cu + half + 1].astype(float).ravel()
-        # after the even O x O box, fine index a is centred at g0 + a / O: pixel centre p sits at (p - g0) * O
-        mu0 = ((WU - g0u) * O).astype(np.float32)
-        mv0 = ((WV - g0v) * O).astype(np.float32)
-        mask = cv2.remap(valid, mu0, mv0, cv2.INTER_LINEAR).ravel() > 0.999
-        if mask.mean() < 0.9:
-            continue
-        x = ((WU - cu) / half).ravel()[mask]
-        y = ((WV - cv_) / half).ravel()[mask]
-        poly = np.stack([np.ones_like(x), x, y, x * x, x * y, y * y], axis=1)
-        b_img = img[mask]
-        cache: dict[float, np.ndarray] = {}
-
-        def cost(par: np.ndarray, poly: np.ndarray = poly, b_img: np.ndarray = b_img, mask: np.ndarray = mask,
-                 tmpl: np.ndarray = tmpl, mu0: np.ndarray = mu0, mv0: np.ndarray = mv0,
-                 cache: dict[float, np.ndarray] = cache) -> float:
-            du, dv, sig = float(par[0]), float(par[1]), float(np.clip(par[2], 0.2, 3.0))
-            key = round(sig, 4)
-            if key not in cache:
-                cache[key] = cv2.GaussianBlur(tmpl, (0, 0), sig * O)
-            tb = cv2.remap(cache[key], mu0 + np.float32(du * O), mv0 + np.float32(dv * O), cv2.INTER_LINEAR)
-            tv = tb.ravel()[mask].astype(float)
-            A = np.concatenate([poly, poly * tv[:, None]], axis=1)
-            coef, *_ = np.linalg.lstsq(A, b_img, rcond=None)
-            r = b_img - A @ coef
-            return float(r @ r)
-
-        best = min((cost(np.array([0.0, 0.0, sg])), sg) for sg in (0.6, 0.9, 1.2, 1.6, 2.2))[1]
-        res = minimize(cost, np.array([0.0, 0.0, best]), method="Nelder-Mead",
-                       options={"xatol": 2e-4, "fatol": 1e-9, "maxiter": 400,
-                                "initial_simplex": np.array([[0, 0, best], [0.3, 0, best], [0, 0.3, best],
-                                                             [0, 0, best + 0.2]])})
-        if abs(res.x[0]) < margin - 1 and abs(res.x[1]) < margin - 1:
-            out[j] = [-res.x[0], -res.x[1]]
+        window = _Window(cu, cv_, half, margin, oversample)
+        tmpl, valid = ideal_pattern(cam, marker, Rm, t, window)
+        d = fit_offset(gray, window, tmpl, valid)
+        if d is not None:
+            out[j] = [-d[0], -d[1]]
     return out
+
+
+@dataclass(frozen=True)
+class _Window:
+    """A model-fit window: centre pixel (cu, cv), half-size and margin [px], oversampling factor."""
+
+    cu: int
+    cv: int
+    half: int
+    margin: int
+    O: int
+
+    @property
+    def n_px(self) -> int:
+        """Pixels per side of the window plus margin."""
+        return 2 * (self.half + self.margin) + 1
+
+    @property
+    def origin(self) -> tuple[float, float]:
+        """Raw pixel position of the fine grid's corner: fine sample (a, b) is at origin + (a + 0.5) / O - 0.5."""
+        return self.cu - self.half - self.margin - 0.5, self.cv - self.half - self.margin - 0.5
+
+
+def ideal_pattern(cam: Camera, marker: Marker, Rm: np.ndarray, t: np.ndarray,
+                  w: _Window) -> tuple[np.ndarray, np.ndarray]:
+    """The ideal two-level pattern (dark 0, white 1) over the window's fine grid, integrated over one
+    pixel, and the share of each pixel whose rays hit the checker rows (ray cast at the posed sleeve)."""
+    O, n_px = w.O, w.n_px
+    g0u, g0v = w.origin
+    fa = g0u + (np.arange(n_px * O) + 0.5) / O
+    fb = g0v + (np.arange(n_px * O) + 0.5) / O
+    FU, FV = np.meshgrid(fa, fb)
+    uv = np.stack([FU.ravel(), FV.ravel()], axis=1)
+    nrm = cv2.undistortPoints(uv.reshape(-1, 1, 2), cam.K, cam.dist, criteria=UNDISTORT_CRITERIA).reshape(-1, 2)
+    d = np.concatenate([nrm, np.ones((len(nrm), 1))], axis=1) @ cam.R  # ray in {ll}: R^T [x, y, 1]
+    o_m = Rm.T @ (cam.centre_left - t)
+    d_m = d @ Rm
+    a2 = d_m[:, 0] ** 2 + d_m[:, 1] ** 2
+    b2 = 2 * (o_m[0] * d_m[:, 0] + o_m[1] * d_m[:, 1])
+    c2 = o_m[0] ** 2 + o_m[1] ** 2 - marker.radius**2
+    disc = b2 * b2 - 4 * a2 * c2
+    with np.errstate(invalid="ignore"):
+        s = (-b2 - np.sqrt(disc)) / (2 * a2)
+    P = o_m[None, :] + s[:, None] * d_m
+    ok = (disc > 0) & (s > 0) & (np.abs(P[:, 2]) < marker.row_height)
+    ang = np.mod(np.arctan2(np.where(ok, P[:, 1], 0.0), np.where(ok, P[:, 0], 1.0)), 2 * math.pi)
+    k = np.minimum((ang / marker.beta).astype(int), marker.columns - 1)
+    dark = (k % 2 == 0) == (P[:, 2] > 0)
+    tmpl = np.where(dark, 0.0, 1.0).astype(np.float32).reshape(n_px * O, n_px * O)
+    valid = ok.astype(np.float32).reshape(n_px * O, n_px * O)
+    return cv2.blur(tmpl, (O, O)), cv2.blur(valid, (O, O))  # integrate over one pixel
+
+
+def fit_offset(gray: np.ndarray, w: _Window, tmpl: np.ndarray, valid: np.ndarray) -> np.ndarray | None:
+    """Offset d [px] of the template that best explains the image window as A(x) + G(x) template(x + d)
+    (quadratic A, G; Gaussian blur of fitted width); None where the window leaves the sleeve or the
+    fit runs off."""
+    O, half, cu, cv_ = w.O, w.half, w.cu, w.cv
+    g0u, g0v = w.origin
+    win_u = np.arange(cu - half, cu + half + 1, dtype=float)
+    win_v = np.arange(cv_ - half, cv_ + half + 1, dtype=float)
+    WU, WV = np.meshgrid(win_u, win_v)
+    img = gray[cv_ - half:cv_ + half + 1, cu - half:cu + half + 1].astype(float).ravel()
+    # after the even O x O box, fine index a is centred at g0 + a / O: pixel centre p sits at (p - g0) * O
+    mu0 = ((WU - g0u) * O).astype(np.float32)
+    mv0 = ((WV - g0v) * O).astype(np.float32)
+    mask = cv2.remap(valid, mu0, mv0, cv2.INTER_LINEAR).ravel() > 0.999
+    if mask.mean() < 0.9:
+        return None
+    x = ((WU - cu) / half).ravel()[mask]
+    y = ((WV - cv_) / half).ravel()[mask]
+    poly = np.stack([np.ones_like(x), x, y, x * x, x * y, y * y], axis=1)
+    b_img = img[mask]
+    cache: dict[float, np.ndarray] = {}
+
+    def cost(par: np.ndarray) -> float:
+        du, dv, sig = float(par[0]), float(par[1]), float(np.clip(par[2], 0.2, 3.0))
+        key = round(sig, 4)
+        if key not in cache:
+            cache[key] = cv2.GaussianBlur(tmpl, (0, 0), sig * O)
+        tb = cv2.remap(cache[key], mu0 + np.float32(du * O), mv0 + np.float32(dv * O), cv2.INTER_LINEAR)
+        tv = tb.ravel()[mask].astype(float)
+        A = np.concatenate([poly, poly * tv[:, None]], axis=1)
+        coef, *_ = np.linalg.lstsq(A, b_img, rcond=None)
+        r = b_img - A @ coef
+        return float(r @ r)
+
+    best = min((cost(np.array([0.0, 0.0, sg])), sg) for sg in (0.6, 0.9, 1.2, 1.6, 2.2))[1]
+    res = minimize(cost, np.array([0.0, 0.0, best]), method="Nelder-Mead",
+                   options={"xatol": 2e-4, "fatol": 1e-9, "maxiter": 400,
+                            "initial_simplex": np.array([[0, 0, best], [0.3, 0, best], [0, 0.3, best],
+                                                         [0, 0, best + 0.2]])})
+    if abs(res.x[0]) < w.margin - 1 and abs(res.x[1]) < w.margin - 1:
+        return np.asarray(res.x[:2], float)
+    return None
 
 
 def sample(gray: np.ndarray, uv: np.ndarray, half: float) -> float:
@@ -397,6 +433,22 @@ def sample(gray: np.ndarray, uv: np.ndarray, half: float) -> float:
 
 # ----------------------------------------------------------------------------------------------------------
 # the check
+
+
+@dataclass
+class _Tally:
+    """What the per-pair checks measure, gathered over the dataset."""
+
+    proj_err: float = 0.0
+    cos_err: float = 0.0
+    tip_err: float = 0.0
+    sub_err: list[np.ndarray] = field(default_factory=list)
+    fit_err: list[np.ndarray] = field(default_factory=list)
+    n_sub_skipped: int = 0
+    n_patch: int = 0
+    n_patch_wrong: int = 0
+    patch_ratio_min: float = math.inf
+    visible_counts: list[int] = field(default_factory=list)
 
 
 def check_dataset(folder: str | Path, seed: int = 0, model_fit: bool = True) -> dict[str, Any]:
@@ -426,157 +478,191 @@ def check_dataset(folder: str | Path, seed: int = 0, model_fit: bool = True) -> 
         summary["ok"] = False
         return summary
     size, left, right = calib
-    cams = {"left": left, "right": right}
     if numbers != list(range(len(truth))):
         errors.append(f"pairs on disk {numbers} != 0..{len(truth) - 1} from truth.json")
     summary.update(pairs=len(truth), image_size=list(size), columns=marker.columns)
 
     rng = np.random.default_rng(seed)
-    P = marker.corners()
+    tally = _Tally()
+    for idx, entry in enumerate(truth):
+        pose = _check_pose(entry, idx, marker, errors, tally)
+        if pose is None:
+            continue
+        for side, cam in (("left", left), ("right", right)):
+            _check_view(folder, idx, side, cam, size, marker, entry, pose, model_fit, rng, errors, tally)
+    _summarise(summary, tally, model_fit, errors)
+    summary["ok"] = not errors
+    return summary
+
+
+def _check_pose(entry: Any, idx: int, marker: Marker, errors: list[str],
+                tally: _Tally) -> tuple[np.ndarray, np.ndarray] | None:
+    """One truth.json entry's keys, pose (R, t of {wm} in {ll}) and tip; (R, t) or None."""
+    tag = f"truth[{idx}]"
+    if not isinstance(entry, dict):
+        errors.append(f"{tag}: not an object")
+        return None
+    missing = [k for k in ("pair", "R", "t", "tip", "corners_left", "corners_right") if k not in entry]
+    if missing:
+        errors.append(f"{tag}: missing {missing}")
+        return None
+    if entry["pair"] != idx:
+        errors.append(f"{tag}: pair = {entry['pair']!r}, expected {idx}")
+    Rm = _matrix(entry["R"], (3, 3), f"{tag}.R", errors)
+    t = _matrix(entry["t"], (3,), f"{tag}.t", errors)
+    tip = _matrix(entry["tip"], (3,), f"{tag}.tip", errors)
+    if Rm is None or t is None or tip is None:
+        return None
+    _check_rotation(Rm, f"{tag}.R", errors)
+    e = float(np.linalg.norm(tip - (t + Rm @ np.array([0.0, 0.0, marker.tip_offset]))))
+    tally.tip_err = max(tally.tip_err, e)
+    if e > TIP_TOL_M:
+        errors.append(f"{tag}: tip differs from t + R [0, 0, tip_offset] by {e:.3e} m")
+    if not 0.005 < t[2] < 1.0:
+        errors.append(f"{tag}: marker depth t_z = {t[2]} m is not in front of the camera")
+    return Rm, t
+
+
+def _check_view(folder: Path, idx: int, side: str, cam: Camera, size: tuple[int, int], marker: Marker,
+                entry: dict[str, Any], pose: tuple[np.ndarray, np.ndarray], model_fit: bool,
+                rng: np.random.Generator, errors: list[str], tally: _Tally) -> None:
+    """One side of one pair: the listed corners against the projection, then the image's pixels."""
+    Rm, t = pose
+    corners = _check_corners(entry[f"corners_{side}"], f"truth[{idx}].corners_{side}", cam, marker, Rm, t, errors,
+                             tally)
+    if corners is None:
+        return
+    uv_p, cv = corners
+    img_path = folder / f"pair_{idx:02d}_{side}.png"
+    if not img_path.is_file():
+        return
+    img = cv2.imread(str(img_path), cv2.IMREAD_UNCHANGED)
+    if img is None:
+        errors.append(f"{img_path.name}: unreadable")
+        return
+    if (img.shape[1], img.shape[0]) != size:
+        errors.append(f"{img_path.name}: size {img.shape[1]}x{img.shape[0]} != calibrated {size}")
+        return
+    if img.dtype not in (np.uint8, np.uint16):
+        errors.append(f"{img_path.name}: dtype {img.dtype}, expected 8 or 16 bit")
+    gray = to_gray(img)
+
+    # pixels agree with truth: cornerSubPix near each well-visible corner
+    good = np.flatnonzero(cv > SUBPIX_COS_MIN)
+    if good.size:
+        free = free_radius_px(cam, marker, Rm, t, good)
+        errs = subpix_errors(gray, uv_p[good], free, rng)
+        tally.sub_err.extend(errs[np.isfinite(errs[:, 0])])
+        tally.n_sub_skipped += int(np.sum(~np.isfinite(errs[:, 0])))
+        if model_fit:
+            errs = model_fit_errors(gray, cam, marker, Rm, t, good, free)
+            tally.fit_err.extend(errs[np.isfinite(errs[:, 0])])
+    _compare_patches(_sample_patches(gray, cam, size, marker, Rm, t), marker, img_path.name, errors, tally)
+
+
+def _check_corners(corners: Any, stag: str, cam: Camera, marker: Marker, Rm: np.ndarray, t: np.ndarray,
+                   errors: list[str], tally: _Tally) -> tuple[np.ndarray, np.ndarray] | None:
+    """The corners list ``corners`` of one side against the projection and the recomputed cos_view; (projected
+    uv, listed cos_view) or None when the list is malformed."""
     a = marker.beta * np.arange(marker.columns)
     N = np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], axis=1)
-    proj_err = cos_err = tip_err = 0.0
-    sub_err: list[np.ndarray] = []
-    fit_err: list[np.ndarray] = []
-    n_sub_skipped = 0
-    n_patch = n_patch_wrong = 0
-    patch_ratio_min = math.inf
-    visible_counts: list[int] = []
-    for idx, entry in enumerate(truth):
-        tag = f"truth[{idx}]"
-        if not isinstance(entry, dict):
-            errors.append(f"{tag}: not an object")
-            continue
-        missing = [k for k in ("pair", "R", "t", "tip", "corners_left", "corners_right") if k not in entry]
-        if missing:
-            errors.append(f"{tag}: missing {missing}")
-            continue
-        if entry["pair"] != idx:
-            errors.append(f"{tag}: pair = {entry['pair']!r}, expected {idx}")
-        Rm = _matrix(entry["R"], (3, 3), f"{tag}.R", errors)
-        t = _matrix(entry["t"], (3,), f"{tag}.t", errors)
-        tip = _matrix(entry["tip"], (3,), f"{tag}.tip", errors)
-        if Rm is None or t is None or tip is None:
-            continue
-        _check_rotation(Rm, f"{tag}.R", errors)
-        e = float(np.linalg.norm(tip - (t + Rm @ np.array([0.0, 0.0, marker.tip_offset]))))
-        tip_err = max(tip_err, e)
-        if e > TIP_TOL_M:
-            errors.append(f"{tag}: tip differs from t + R [0, 0, tip_offset] by {e:.3e} m")
-        if not 0.005 < t[2] < 1.0:
-            errors.append(f"{tag}: marker depth t_z = {t[2]} m is not in front of the camera")
-        X = t[None, :] + P @ Rm.T  # corners in {ll}
-        Nl = N @ Rm.T
-        for side, cam in cams.items():
-            corners = entry[f"corners_{side}"]
-            stag = f"{tag}.corners_{side}"
-            if not isinstance(corners, list) or len(corners) != marker.columns:
-                errors.append(f"{stag}: expected a list of {marker.columns} corners")
-                continue
-            try:
-                idxs = [c["index"] for c in corners]
-                uv = np.array([c["uv"] for c in corners], dtype=float)
-                cv = np.array([c["cos_view"] for c in corners], dtype=float)
-            except (KeyError, TypeError, ValueError):
-                errors.append(f"{stag}: entries need index, uv [u, v] and cos_view")
-                continue
-            if idxs != list(range(marker.columns)):
-                errors.append(f"{stag}: indices {idxs} are not 0..{marker.columns - 1} in order")
-                continue
-            if uv.shape != (marker.columns, 2) or not np.all(np.isfinite(uv)) or not np.all(np.abs(cv) <= 1 + 1e-12):
-                errors.append(f"{stag}: uv must be finite [u, v], cos_view in [-1, 1]")
-                continue
-            uv_p = project(cam, X)
-            e = float(np.abs(uv - uv_p).max())
-            proj_err = max(proj_err, e)
-            if e > PROJ_TOL_PX:
-                errors.append(f"{stag}: uv differ from the projection of the posed corners by up to {e:.3e} px")
-            cv_p = cos_view(cam, X, Nl)
-            e = float(np.abs(cv - cv_p).max())
-            cos_err = max(cos_err, e)
-            if e > COS_TOL:
-                errors.append(f"{stag}: cos_view differs from the recomputed cosine by up to {e:.3e}")
-            visible_counts.append(int(np.sum(cv > 0)))
+    X = t[None, :] + marker.corners() @ Rm.T  # corners in {ll}
+    if not isinstance(corners, list) or len(corners) != marker.columns:
+        errors.append(f"{stag}: expected a list of {marker.columns} corners")
+        return None
+    try:
+        idxs = [c["index"] for c in corners]
+        uv = np.array([c["uv"] for c in corners], dtype=float)
+        cv = np.array([c["cos_view"] for c in corners], dtype=float)
+    except (KeyError, TypeError, ValueError):
+        errors.append(f"{stag}: entries need index, uv [u, v] and cos_view")
+        return None
+    if idxs != list(range(marker.columns)):
+        errors.append(f"{stag}: indices {idxs} are not 0..{marker.columns - 1} in order")
+        return None
+    if uv.shape != (marker.columns, 2) or not np.all(np.isfinite(uv)) or not np.all(np.abs(cv) <= 1 + 1e-12):
+        errors.append(f"{stag}: uv must be finite [u, v], cos_view in [-1, 1]")
+        return None
+    uv_p = project(cam, X)
+    e = float(np.abs(uv - uv_p).max())
+    tally.proj_err = max(tally.proj_err, e)
+    if e > PROJ_TOL_PX:
+        errors.append(f"{stag}: uv differ from the projection of the posed corners by up to {e:.3e} px")
+    cv_p = cos_view(cam, X, N @ Rm.T)
+    e = float(np.abs(cv - cv_p).max())
+    tally.cos_err = max(tally.cos_err, e)
+    if e > COS_TOL:
+        errors.append(f"{stag}: cos_view differs from the recomputed cosine by up to {e:.3e}")
+    tally.visible_counts.append(int(np.sum(cv > 0)))
+    return uv_p, cv
 
-            img_path = folder / f"pair_{idx:02d}_{side}.png"
-            if not img_path.is_file():
-                continue
-            img = cv2.imread(str(img_path), cv2.IMREAD_UNCHANGED)
-            if img is None:
-                errors.append(f"{img_path.name}: unreadable")
-                continue
-            if (img.shape[1], img.shape[0]) != size:
-                errors.append(f"{img_path.name}: size {img.shape[1]}x{img.shape[0]} != calibrated {size}")
-                continue
-            if img.dtype not in (np.uint8, np.uint16):
-                errors.append(f"{img_path.name}: dtype {img.dtype}, expected 8 or 16 bit")
-            gray = to_gray(img)
 
-            # pixels agree with truth: cornerSubPix near each well-visible corner
-            good = np.flatnonzero(cv > SUBPIX_COS_MIN)
-            if good.size:
-                free = free_radius_px(cam, marker, Rm, t, good)
-                errs = subpix_errors(gray, uv_p[good], free, rng)
-                sub_err.extend(errs[np.isfinite(errs[:, 0])])
-                n_sub_skipped += int(np.sum(~np.isfinite(errs[:, 0])))
-                if model_fit:
-                    errs = model_fit_errors(gray, cam, marker, Rm, t, good, free)
-                    fit_err.extend(errs[np.isfinite(errs[:, 0])])
+def _sample_patches(gray: np.ndarray, cam: Camera, size: tuple[int, int], marker: Marker, Rm: np.ndarray,
+                    t: np.ndarray) -> dict[tuple[int, int], float]:
+    """Mean grey at the centre of every well-visible patch, keyed (row: 1 upper / -1 lower, column)."""
+    ac = marker.beta * (np.arange(marker.columns) + 0.5)
+    nc = np.stack([np.cos(ac), np.sin(ac), np.zeros_like(ac)], axis=1)
+    samples: dict[tuple[int, int], float] = {}
+    for row, zc in ((1, 0.5 * marker.row_height), (-1, -0.5 * marker.row_height)):
+        pc = np.stack([marker.radius * np.cos(ac), marker.radius * np.sin(ac), np.full_like(ac, zc)], 1)
+        Xc = t[None, :] + pc @ Rm.T
+        cvc = cos_view(cam, Xc, nc @ Rm.T)
+        uvc = project(cam, Xc)
+        # sampling half-size: 20 % of the projected half row height
+        hpx = np.linalg.norm(project(cam, Xc + Rm[:, 2] * (0.25 * marker.row_height)) - uvc, axis=1)
+        for k in np.flatnonzero(cvc > PATCH_COS_MIN):
+            u, v = uvc[k]
+            if 3 <= u <= size[0] - 4 and 3 <= v <= size[1] - 4:
+                samples[(row, int(k))] = sample(gray, uvc[k], 0.4 * hpx[k])
+    return samples
 
-            # patch colours: upper row patch k dark for even k, bright for odd k; lower row opposite
-            ac = marker.beta * (np.arange(marker.columns) + 0.5)
-            nc = np.stack([np.cos(ac), np.sin(ac), np.zeros_like(ac)], axis=1)
-            samples: dict[tuple[int, int], float] = {}
-            for row, zc in ((1, 0.5 * marker.row_height), (-1, -0.5 * marker.row_height)):
-                pc = np.stack([marker.radius * np.cos(ac), marker.radius * np.sin(ac), np.full_like(ac, zc)], 1)
-                Xc = t[None, :] + pc @ Rm.T
-                cvc = cos_view(cam, Xc, nc @ Rm.T)
-                uvc = project(cam, Xc)
-                # sampling half-size: 20 % of the projected half row height
-                hpx = np.linalg.norm(project(cam, Xc + Rm[:, 2] * (0.25 * marker.row_height)) - uvc, axis=1)
-                for k in np.flatnonzero(cvc > PATCH_COS_MIN):
-                    u, v = uvc[k]
-                    if 3 <= u <= size[0] - 4 and 3 <= v <= size[1] - 4:
-                        samples[(row, int(k))] = sample(gray, uvc[k], 0.4 * hpx[k])
-            # compare each sampled patch with its vertical neighbour and horizontal neighbours (same shading)
-            for (row, k), val in samples.items():
-                dark = (k % 2 == 0) == (row == 1)
-                for other in ((-row, k), (row, (k + 1) % marker.columns)):
-                    if other not in samples:
-                        continue
-                    row2, k2 = other
-                    dark2 = (k2 % 2 == 0) == (row2 == 1)
-                    if dark == dark2:
-                        continue
-                    lo, hi = (val, samples[other]) if dark else (samples[other], val)
-                    n_patch += 1
-                    ratio = (hi + 1.0) / (lo + 1.0)
-                    patch_ratio_min = min(patch_ratio_min, ratio)
-                    if ratio < PATCH_MIN_CONTRAST:
-                        n_patch_wrong += 1
-                        errors.append(f"{img_path.name}: patch {'upper' if row == 1 else 'lower'} {k} "
-                                      f"({'dark' if dark else 'bright'} expected, grey {val:.1f}) vs "
-                                      f"{'upper' if row2 == 1 else 'lower'} {k2} (grey {samples[other]:.1f})")
 
-    sub_vec = np.array(sub_err).reshape(-1, 2)
+def _compare_patches(samples: dict[tuple[int, int], float], marker: Marker, name: str, errors: list[str],
+                     tally: _Tally) -> None:
+    """Patch colours: upper row patch k dark for even k, bright for odd k; lower row opposite. Each
+    sampled patch is compared with its vertical and next horizontal neighbour (same shading)."""
+    for (row, k), val in samples.items():
+        dark = (k % 2 == 0) == (row == 1)
+        for other in ((-row, k), (row, (k + 1) % marker.columns)):
+            if other not in samples:
+                continue
+            row2, k2 = other
+            dark2 = (k2 % 2 == 0) == (row2 == 1)
+            if dark == dark2:
+                continue
+            lo, hi = (val, samples[other]) if dark else (samples[other], val)
+            tally.n_patch += 1
+            ratio = (hi + 1.0) / (lo + 1.0)
+            tally.patch_ratio_min = min(tally.patch_ratio_min, ratio)
+            if ratio < PATCH_MIN_CONTRAST:
+                tally.n_patch_wrong += 1
+                errors.append(f"{name}: patch {'upper' if row == 1 else 'lower'} {k} "
+                              f"({'dark' if dark else 'bright'} expected, grey {val:.1f}) vs "
+                              f"{'upper' if row2 == 1 else 'lower'} {k2} (grey {samples[other]:.1f})")
+
+
+def _summarise(summary: dict[str, Any], tally: _Tally, model_fit: bool, errors: list[str]) -> None:
+    """The measured numbers into ``summary``, and the dataset-wide tolerance checks into ``errors``."""
+    sub_vec = np.array(tally.sub_err).reshape(-1, 2)
     sub = np.linalg.norm(sub_vec, axis=1)
     bias = sub_vec.mean(axis=0) if sub.size else np.zeros(2)
-    fit_vec = np.array(fit_err).reshape(-1, 2)
+    fit_vec = np.array(tally.fit_err).reshape(-1, 2)
     fit = np.linalg.norm(fit_vec, axis=1)
     fit_bias = fit_vec.mean(axis=0) if fit.size else np.zeros(2)
+    visible = tally.visible_counts
     summary.update(
-        proj_err_max_px=proj_err,
-        cos_err_max=cos_err,
-        tip_err_max_m=tip_err,
-        visible_corners_min=min(visible_counts) if visible_counts else 0,
-        visible_corners_max=max(visible_counts) if visible_counts else 0,
+        proj_err_max_px=tally.proj_err,
+        cos_err_max=tally.cos_err,
+        tip_err_max_m=tally.tip_err,
+        visible_corners_min=min(visible) if visible else 0,
+        visible_corners_max=max(visible) if visible else 0,
         subpix={
             "n": int(sub.size),
             "rms_px": float(np.sqrt(np.mean(sub**2))) if sub.size else None,
             "median_px": float(np.median(sub)) if sub.size else None,
             "max_px": float(sub.max()) if sub.size else None,
             "bias_px": [float(bias[0]), float(bias[1])],
-            "skipped_near_features": n_sub_skipped,
+            "skipped_near_features": tally.n_sub_skipped,
         },
         model_fit={
             "n": int(fit.size),
@@ -584,8 +670,8 @@ def check_dataset(folder: str | Path, seed: int = 0, model_fit: bool = True) -> 
             "max_px": float(fit.max()) if fit.size else None,
             "bias_px": [float(fit_bias[0]), float(fit_bias[1])],
         },
-        patches={"pairs_compared": n_patch, "wrong": n_patch_wrong,
-                 "min_contrast": None if math.isinf(patch_ratio_min) else patch_ratio_min},
+        patches={"pairs_compared": tally.n_patch, "wrong": tally.n_patch_wrong,
+                 "min_contrast": None if math.isinf(tally.patch_ratio_min) else tally.patch_ratio_min},
         tolerances={"proj_px": PROJ_TOL_PX, "cos": COS_TOL, "tip_m": TIP_TOL_M, "subpix_rms_px": SUBPIX_RMS_TOL_PX,
                     "subpix_max_px": SUBPIX_MAX_TOL_PX,
                     "subpix_min_half_px": SUBPIX_MIN_HALF, "model_rms_px": MODEL_RMS_TOL_PX,
@@ -612,10 +698,8 @@ def check_dataset(folder: str | Path, seed: int = 0, model_fit: bool = True) -> 
             if float(np.linalg.norm(fit_bias)) > MODEL_BIAS_TOL_PX:
                 errors.append(f"image pattern vs truth (model fit) mean offset {fit_bias.round(3).tolist()} px "
                               f"(pixel-centre convention or frames?)")
-    if n_patch == 0:
+    if tally.n_patch == 0:
         errors.append("no visible patch pair to check the pattern colours")
-    summary["ok"] = not errors
-    return summary
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -710,7 +794,7 @@ def main(argv: list[str] | None = None) -> int:
     """Command line: check DIR, print the JSON summary, exit 1 on a violation (2 on bad usage)."""
     args = sys.argv[1:] if argv is None else argv
     if len(args) != 1:
-        print("usage: python tests/independent_dataset_check.py DIR", file=sys.stderr)
+        print("usage: python -m wristmark_testing.independent_dataset_check DIR", file=sys.stderr)
         return 2
     if not Path(args[0]).is_dir():
         print(f"error: {args[0]} is not a folder", file=sys.stderr)

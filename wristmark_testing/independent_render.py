@@ -20,7 +20,7 @@ the sleeve at a grazing angle are supersampled 4x4 (box filter). The background 
 light at the endoscope tip with inverse-square falloff; then Gaussian optics blur, vignetting, gamma,
 shot + read noise, 8-bit quantisation and an optional JPEG round trip.
 
-Command line: ``python tests/independent_render.py --out DIR [--pairs N] [--seed S] [--scale F]
+Command line: ``python -m wristmark_testing.independent_render --out DIR [--pairs N] [--seed S] [--scale F]
 [--columns C] [--radius M] [--jpeg Q] [--gray] [--direction right|left|random] [--glare] [--no-body]
 [--marker-file YAML]``.
 """

@@ -54,10 +54,12 @@ def segment(L: float, theta: float, delta: float) -> np.ndarray:
     return Rz(-delta) @ Ry(theta / 2.0) @ Tz(chord) @ Ry(theta / 2.0) @ Rz(delta)
 
 
-def chain(lengths: dict[str, float], psi: np.ndarray) -> dict[str, np.ndarray]:
-    """Frames in {w}: keys 1b, 1e, 2b, 2e, marker, tip."""
+def chain(lengths: dict[str, float], psi: np.ndarray, stem_bend: float = 0.0) -> dict[str, np.ndarray]:
+    """Frames in {w}: keys 1b, 1e, 2b, 2e, marker, tip. ``stem_bend`` [rad]: the exposed stem
+    (length d) bent as one more constant-curvature segment in segment 1's plane (the simulated
+    arm's stem coupling); 0: the straight stem Tz(d) of DESIGN.md."""
     phi, d, t1, d1, t2, d2 = (float(x) for x in psi)
-    out = {"1b": Rz(phi) @ Tz(d)}
+    out = {"1b": Rz(phi) @ (Tz(d) if stem_bend == 0.0 else segment(d, stem_bend, d1))}
     out["1e"] = out["1b"] @ segment(lengths["L1"], t1, d1)
     out["2b"] = out["1e"] @ Tz(lengths["Lr"])
     out["2e"] = out["2b"] @ segment(lengths["L2"], t2, d2)

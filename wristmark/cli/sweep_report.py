@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from wristmark.sim.sweep_keys import format_value
-from wristmark.sim.sweep_spec import SweepSpec
+from wristmark.cli.sweep_keys import format_value
+from wristmark.cli.sweep_spec import SweepSpec
 
 Row = dict[str, str]
 LOOP_METRICS = (("open_mean_mm", "open mean [mm]"), ("open_max_mm", "open max [mm]"),

@@ -63,8 +63,8 @@ class ControllerConfig:
     orientation_weight: float = 1e-3
     position_weight: float = 1.0
     pose_orientation_weight: float = 1e-3
-    kr: float = 4.0
-    max_angular_speed: float = 0.3
+    kr: float = 8.0  # [1/s], = kp: the same bandwidth as the position task
+    max_angular_speed: float = 0.5  # [rad/s]
     qp_solver: str = "daqp"
     ki: float = 0.0
     integral_speed_limit: float = 0.003

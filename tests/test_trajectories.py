@@ -121,3 +121,50 @@ def test_feedforward_integrates_to_the_led_path(preview: float, lead: float) -> 
     np.testing.assert_allclose(p0 + lead * v0 + steps.sum(axis=0), p1 + lead * v1, atol=1e-12)
     if lead == 0.0:  # without a lead the command never moves faster than the path
         assert np.linalg.norm(steps / dt, axis=1).max() <= SPEED * (1 + 1e-9)
+
+
+def test_orientation_modes_of_a_cube() -> None:
+    """none: no orientation; hold: the nominal tip frame at the start configuration, all along;
+    follow: the nominal tip frame of the position IK along the path; cut paths keep theirs."""
+    from wristmark.models.ik import solve_tip_ik
+    from wristmark.models.kinematics import forward_kinematics
+    from wristmark.models.robot_params import HOME_PSI, RobotParams
+    from wristmark.models.so3 import angle_between
+    from wristmark.rig.trajectories import workspace_centre
+
+    P = RobotParams()
+    traj = cube_trajectory(workspace_centre(P), SIZE, SPEED)
+    assert traj.sample_orientation(3.0) is None and traj.orientation_mode == "none"
+    psi0 = solve_tip_ik(P, traj.sample(0.0)[0], np.array(HOME_PSI)).psi
+    R0 = forward_kinematics(P, psi0).T_world_tip[:3, :3]
+    hold = traj.with_orientation("hold", P)
+    for t in (0.0, 2.5, 17.0, traj.duration + 1.0):
+        R, w = hold.sample_orientation(t)  # type: ignore[misc]
+        np.testing.assert_allclose(R, R0, atol=1e-12)
+        np.testing.assert_array_equal(w, np.zeros(3))
+    follow = traj.truncated(6.0).with_orientation("follow", P)
+    psi = psi0
+    turned = 0.0
+    for t in np.arange(0.0, 6.0, 0.05):
+        psi = solve_tip_ik(P, follow.sample(float(t))[0], psi).psi
+        R_ik = forward_kinematics(P, psi).T_world_tip[:3, :3]
+        R, _ = follow.sample_orientation(float(t))  # type: ignore[misc]
+        assert angle_between(R, R_ik) < 1e-6
+        turned = max(turned, angle_between(R, R0))
+    assert turned > np.deg2rad(1.0)  # the plan does turn the tool (so follow differs from hold)
+    # angular velocity: R(t + h) ~ Exp(w h) R(t) between samples
+    R1, w1 = follow.sample_orientation(2.02)  # type: ignore[misc]
+    R2, _ = follow.sample_orientation(2.03)  # type: ignore[misc]
+    from scipy.spatial.transform import Rotation
+
+    np.testing.assert_allclose(Rotation.from_rotvec(w1 * 0.01).as_matrix() @ R1, R2, atol=1e-9)
+    cut = hold.truncated(4.0)
+    assert cut.orientation_mode == "hold" and cut.duration == pytest.approx(4.0)
+
+
+def test_unknown_orientation_mode_lists_the_valid_ones() -> None:
+    from wristmark.models.errors import ConfigError
+    from wristmark.models.robot_params import RobotParams
+
+    with pytest.raises(ConfigError, match="none, hold, follow"):
+        cube_trajectory(CENTRE, SIZE, SPEED).with_orientation("keep", RobotParams())

@@ -21,6 +21,7 @@ from wristmark.cli.option_types import (
 )
 from wristmark.cli.setup_args import add_registration_argument, add_setup_arguments, setup_from_args
 from wristmark.models.errors import ConfigError
+from wristmark.rig.orientation_path import ORIENTATION_MODES
 from wristmark.rig.output_dir import add_force_argument, claim_outputs, link_latest, new_run_dir
 from wristmark.rig.run_log import write_json
 from wristmark.viz.web_hosts import add_host_argument
@@ -49,6 +50,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--positions", type=int_in(1, MAX_POSITIONS), default=40, help="accuracy: number of positions")
     p.add_argument("--forces", type=nonnegative_float(MAX_TIP_FORCE_N), nargs="+", default=[0.0, 0.1, 0.2, 0.3],
                    help="load: tip forces [N] to sweep")
+    p.add_argument("--orientation", choices=ORIENTATION_MODES, default="none",
+                   help="cube/point/load: the tip frame's orientation: none (position only, as the paper), hold "
+                        "(the start's), follow (the nominal model's along the path); needs --controller qp")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.add_argument("--view", action="store_true",
                    help="live 3D view in the browser (Meshcat; prints the URL to open)")
@@ -63,7 +67,13 @@ def check_args(args: argparse.Namespace) -> SimSetup:
         raise ConfigError(f"--forces must differ by 0.01 N at least (each writes force_X.XXN/), got {args.forces}")
     if args.point is not None and args.name != "point":
         raise ConfigError("--point needs the point experiment")
-    return setup_from_args(args)
+    if args.orientation != "none" and args.name == "accuracy":
+        raise ConfigError("--orientation needs the cube, point or load experiment")
+    setup = setup_from_args(args)
+    from wristmark.sim.experiments import check_orientation
+
+    check_orientation(setup, args.orientation)
+    return setup
 
 
 def run(args: argparse.Namespace) -> int:
@@ -109,11 +119,11 @@ def _run(args: argparse.Namespace, setup: SimSetup, out: Path, progress: bool,
 
     if args.name == "cube":
         res = experiments.run_cube(setup, out, progress=progress, duration=args.duration, on_cycle=on_cycle,
-                                   on_frame=on_frame)
+                                   on_frame=on_frame, orientation=args.orientation)
         print(experiments.cube_table(res))
     elif args.name == "point":
         res = experiments.run_point(setup, out, point=args.point, progress=progress, duration=args.duration,
-                                    on_cycle=on_cycle)
+                                    on_cycle=on_cycle, orientation=args.orientation)
         print(experiments.cube_table(res))
     elif args.name == "accuracy":
         res = experiments.run_accuracy(setup, out, n=args.positions, progress=progress)
@@ -122,7 +132,7 @@ def _run(args: argparse.Namespace, setup: SimSetup, out: Path, progress: bool,
               f"(paper: {res['paper']['mean_mm']} / {res['paper']['max_mm']} mm)")
     else:
         res = experiments.run_load(setup, out, args.forces, progress=progress, duration=args.duration,
-                                   on_cycle=on_cycle, on_frame=on_frame)
+                                   on_cycle=on_cycle, on_frame=on_frame, orientation=args.orientation)
         print((out / "results.md").read_text())
     return res
 

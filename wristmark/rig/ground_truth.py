@@ -23,11 +23,14 @@ def _nan(n: int) -> Array:
 @dataclass(frozen=True)
 class TruthSample:
     """The truth at one instant: true tip and its optical-tracker measurement in {w} [m], true
-    configuration psi [rad, m]; NaN where unknown."""
+    configuration psi [rad, m], the true tip frame's orientation and its tracker measurement in
+    {w} (3x3); NaN where unknown."""
 
     p_true: Array = field(default_factory=lambda: _nan(3))
     p_trk: Array = field(default_factory=lambda: _nan(3))
     psi_true: Array = field(default_factory=lambda: _nan(6))
+    R_true: Array = field(default_factory=lambda: np.full((3, 3), np.nan))
+    R_trk: Array = field(default_factory=lambda: np.full((3, 3), np.nan))
 
 
 NO_TRUTH = TruthSample()

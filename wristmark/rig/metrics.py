@@ -1,4 +1,5 @@
-"""Tracking-error metrics of a logged phase: errors, corner overshoot (reported in mm)."""
+"""Tracking-error metrics of a logged phase: errors, corner overshoot (reported in mm), and the
+tip frame's orientation errors (reported in deg)."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from wristmark.models.so3 import axis_angle_between
 from wristmark.rig.run_log import CycleRecord
 
 Array = NDArray[np.float64]
@@ -45,6 +47,44 @@ def tracking_errors(records: list[CycleRecord], which: str = "p_trk") -> Array:
         p = getattr(r, which)
         out.append(np.nan if p is None else float(np.linalg.norm(np.asarray(p) - r.p_des)))
     return np.asarray(out)
+
+
+def orientation_errors(records: list[CycleRecord], which: str = "R_trk") -> Array:
+    """Angle between the orientation ``which`` (R_trk tracker, R_true noise-free, R_est vision)
+    and the desired one per record [rad] (nan where either is unknown)."""
+    return np.asarray([r.orientation_error(which) for r in records])
+
+
+def axis_errors(records: list[CycleRecord], which: str = "R_trk") -> Array:
+    """Angle between the tip frame's z axis of ``which`` and the desired one per record [rad]
+    (what a reference sleeve, roll unknown, can hold); nan where either is unknown."""
+    out = []
+    for r in records:
+        R = getattr(r, which)
+        ok = r.R_des is not None and R is not None and bool(np.all(np.isfinite(R)))
+        out.append(axis_angle_between(np.asarray(r.R_des)[:, 2], np.asarray(R)[:, 2]) if ok else np.nan)
+    return np.asarray(out)
+
+
+def angle_stats_deg(errors_rad: Array) -> dict[str, float]:
+    """Mean and max [deg] of the finite angles [rad] (NaN when there are none)."""
+    e = np.rad2deg(np.asarray(errors_rad, float))
+    e = e[np.isfinite(e)]
+    if e.size == 0:
+        return {"mean_deg": float("nan"), "max_deg": float("nan")}
+    return {"mean_deg": float(e.mean()), "max_deg": float(e.max())}
+
+
+def orientation_summary(records: list[CycleRecord]) -> dict[str, float]:
+    """The result JSON's orientation fields of a phase [deg] (DESIGN.md names):
+    orientation_mean_deg / orientation_max_deg (tracker vs desired), the same noise-free
+    (orientation_true_*) and for the z axis alone (axis_*)."""
+    trk, true, axis = (angle_stats_deg(orientation_errors(records, "R_trk")),
+                       angle_stats_deg(orientation_errors(records, "R_true")),
+                       angle_stats_deg(axis_errors(records, "R_trk")))
+    return {"orientation_mean_deg": trk["mean_deg"], "orientation_max_deg": trk["max_deg"],
+            "orientation_true_mean_deg": true["mean_deg"], "orientation_true_max_deg": true["max_deg"],
+            "axis_mean_deg": axis["mean_deg"], "axis_max_deg": axis["max_deg"]}
 
 
 def estimate_errors(records: list[CycleRecord]) -> Array:

@@ -8,7 +8,11 @@ are empty without a ground-truth observer: on hardware), meas_ok, rejected, visi
 t_capture (the measured frame's capture time on the frames' clock [s], empty without a frame),
 latency_ms (capture -> command of the cycle's accepted measurement [ms], empty otherwise),
 transport_ms (capture -> the frame available to the loop [ms]: the part of the latency before
-the host could act; empty when unknown).
+the host could act; empty when unknown); then the tip frame's orientations in {w} as rotation
+vectors [rad]: rot_des_{x,y,z} (desired; empty when the trajectory asks for none), rot_est_{x,y,z}
+(measured by vision; empty when not measured), rot_true_{x,y,z}, rot_trk_{x,y,z} (6-DoF optical
+tracker), and orientation_error (angle between the tracker's and the desired orientation [rad];
+empty when either is missing).
 ``config.json`` holds every configuration used; ``result.json`` the metrics.
 """
 
@@ -24,6 +28,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from wristmark.models.so3 import angle_between, rotvec
+
 Array = NDArray[np.float64]
 
 _XYZ = ("x", "y", "z")
@@ -34,6 +40,8 @@ COLUMNS: tuple[str, ...] = (
     + tuple(f"psi_true_{i}" for i in range(6))
     + ("meas_ok", "rejected", "vision_ms", "ctrl_us", "t_capture", "latency_ms",
        "transport_ms")
+    + tuple(f"rot_{k}_{a}" for k in ("des", "est", "true", "trk") for a in _XYZ)
+    + ("orientation_error",)
 )
 
 
@@ -59,6 +67,18 @@ class CycleRecord:
     t_capture: float = math.nan
     latency_ms: float = math.nan
     transport_ms: float = math.nan
+    R_des: Array | None = None
+    R_est: Array | None = None
+    R_true: Array | None = None
+    R_trk: Array | None = None
+
+    def orientation_error(self, which: str = "R_trk") -> float:
+        """Angle [rad] between the orientation ``which`` (R_trk, R_true or R_est) and the
+        desired one; NaN when either is unknown."""
+        R = getattr(self, which)
+        if self.R_des is None or R is None or not np.all(np.isfinite(R)):
+            return math.nan
+        return angle_between(self.R_des, R)
 
     def row(self) -> list[Any]:
         """CSV row in COLUMNS order."""
@@ -68,6 +88,10 @@ class CycleRecord:
             vals += ["" if not math.isfinite(x) else f"{x:.9g}" for x in np.asarray(v, float)]
         vals += [int(self.meas_ok), int(self.rejected), f"{self.vision_ms:.3f}", f"{self.ctrl_us:.1f}",
                  _num(self.t_capture, "{:.6f}"), _num(self.latency_ms, "{:.3f}"), _num(self.transport_ms, "{:.3f}")]
+        for R in (self.R_des, self.R_est, self.R_true, self.R_trk):
+            ok = R is not None and bool(np.all(np.isfinite(R)))
+            vals += [f"{x:.9g}" for x in rotvec(R)] if ok and R is not None else ["", "", ""]
+        vals.append(_num(self.orientation_error(), "{:.9g}"))
         return vals
 
 

@@ -9,7 +9,8 @@ One cycle k at t_k = t0 + k dt on the loop's clock:
    previous accepted one, distance from the model's commanded tip); the controller computes the
    next commanded configuration, clamped to the joint and velocity limits; no frame, a lost or a
    rejected measurement holds the arm (the command unchanged). Open loop: the nominal model's
-   IK of the desired tip gives the command;
+   IK of the desired tip gives the command (pose IK when the trajectory asks for an orientation;
+   closed loop, the measured orientation then goes to the controller's orientation task);
 3. the command is sent: on the wall clock as soon as it is computed, on the simulated bench
    ``vision_latency`` after the capture (open loop: at once). The capture-to-command latency is
    measured from the frame's capture time.
@@ -32,6 +33,7 @@ from wristmark.models.errors import WristmarkError
 from wristmark.models.ik import solve_tip_ik
 from wristmark.models.kinematics import forward_kinematics, tip_position
 from wristmark.models.limits import clamp_psi, wrap_angle
+from wristmark.models.pose_ik import nominal_ik
 from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.rig.actuator_link import ActuatorLink
 from wristmark.rig.frame_feed import FrameFeed
@@ -41,7 +43,7 @@ from wristmark.rig.rig_config import RigConfig
 from wristmark.rig.run_log import CycleRecord, RunLog
 from wristmark.rig.tip_sensors import TipMeasurement, TipSensor
 from wristmark.rig.trajectories import Trajectory, feedforward_velocity
-from wristmark.solvers.controller import Controller
+from wristmark.solvers.controller import Controller, OrientationTask
 
 Array = NDArray[np.float64]
 NO_FRAME = "no new frame from the camera"
@@ -93,7 +95,8 @@ class CameraStalledError(MarkerLostError):
 @dataclass(frozen=True)
 class _CycleTarget:
     """What cycle k aims at: its time t [s], whether it settles, the desired tip p_des [m] and
-    feed-forward velocity v_des [m/s], and (open loop) the desired tip at the cycle's end."""
+    feed-forward velocity v_des [m/s], and (open loop) the desired tip at the cycle's end; the
+    desired tip-frame rotation R_des, R_next and angular velocity w_des [rad/s] (None: position only)."""
 
     k: int
     t: float
@@ -101,6 +104,9 @@ class _CycleTarget:
     p_des: Array
     v_des: Array
     p_next: Array
+    R_des: Array | None = None
+    w_des: Array | None = None
+    R_next: Array | None = None
 
 
 @dataclass
@@ -271,7 +277,9 @@ class ServoLoop:
         v_des = feedforward_velocity(traj, tau_raw, dt, self.rig.feedforward_preview, self.rig.feedforward_lead)
         # open loop commands a position reached over the coming cycle: aim at its end
         p_next = traj.sample(tau + dt)[0] if k >= n_settle - 1 else p_des
-        return _CycleTarget(k, t_k, k < n_settle, p_des, v_des, p_next)
+        o, o_next = traj.sample_orientation(tau), traj.sample_orientation(tau + dt if k >= n_settle - 1 else tau)
+        R, w, R_next = (None, None, None) if o is None or o_next is None else (o[0], o[1], o_next[0])
+        return _CycleTarget(k, t_k, k < n_settle, p_des, v_des, p_next, R, w, R_next)
 
     def _observe(self) -> TruthSample:
         return self.truth.observe() if self.truth is not None else NO_TRUTH
@@ -280,8 +288,7 @@ class ServoLoop:
     def _open_cycle(self, target: _CycleTarget, t_wall: float, phase: str) -> CycleRecord:
         truth = self._observe()
         assert self.psi_cmd is not None
-        ik = solve_tip_ik(self.params, target.p_next, self.psi_cmd)
-        self.psi_cmd = clamp_psi(self.params, ik.psi)
+        self.psi_cmd = clamp_psi(self.params, nominal_ik(self.params, target.p_next, target.R_next, self.psi_cmd))
         self._send(self.psi_cmd)
         return self._record(target, t_wall, phase, _Outcome(None, truth, False, False, 0.0), float("nan"))
 
@@ -347,7 +354,8 @@ class ServoLoop:
             return _Outcome(meas, truth, False, True, 0.0)
         memory.last_ok = p_est
         c0 = time.perf_counter()
-        step = self.controller.step(self.psi_cmd, p_est, target.p_des, target.v_des, self.rig.control_dt)
+        orient = OrientationTask.of(target.R_des, target.w_des, meas.R_world, meas.roll_known)
+        step = self.controller.step(self.psi_cmd, p_est, target.p_des, target.v_des, self.rig.control_dt, orient)
         ctrl_us = 1e6 * (time.perf_counter() - c0)
         self.psi_cmd = step.psi_next
         return _Outcome(meas, truth, True, False, ctrl_us)
@@ -392,4 +400,6 @@ class ServoLoop:
             t_capture=meas.t_capture if meas is not None else float("nan"), latency_ms=1000.0 * latency_s,
             transport_ms=1000.0 * (self.frames.last_arrival - meas.t_capture)
             if meas is not None and self.frames is not None and self.wall_clock else float("nan"),
+            R_des=target.R_des, R_est=meas.R_world if ok and meas is not None else None,
+            R_true=np.asarray(truth.R_true, float), R_trk=np.asarray(truth.R_trk, float),
         )

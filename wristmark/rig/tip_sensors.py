@@ -30,7 +30,10 @@ class TipMeasurement:
     clock: the host's ``time.monotonic()`` on hardware, simulated time on the simulated bench);
     ``ok`` False with a ``reason`` when there is none. time_ms: the tracking time [ms];
     corners_left: the detected corners in the left image's raw pixels (N, 2), for a viewer;
-    T_left_marker, tip_left: the marker pose (4x4 of {wm}) and the tip in {ll} [m], for a recorder."""
+    T_left_marker, tip_left: the marker pose (4x4 of {wm}) and the tip in {ll} [m], for a recorder;
+    R_world: the tip frame's orientation in {w} (3x3; = {wm}'s) when measured, roll_known: its roll
+    about z is known (a coded sleeve whose code was read), else only its z axis is meaningful (the
+    reference sleeve: roll modulo one column)."""
 
     ok: bool
     p_world: Array | None
@@ -42,6 +45,8 @@ class TipMeasurement:
     corners_left: Array | None = None
     T_left_marker: Array | None = None
     tip_left: Array | None = None
+    R_world: Array | None = None
+    roll_known: bool = False
 
 
 class TipSensor(Protocol):
@@ -83,6 +88,7 @@ class VisionTipSensor:
                                   frame_index=frame.index, corners_left=corners)
         W = self.T_world_left
         p = (np.asarray(res.tip_left, float).reshape(1, 3) @ W[:3, :3].T + W[:3, 3])[0]
-        return TipMeasurement(True, p, "", ms, float(res.rms_px), frame.t_capture, frame.index, corners,
-                              None if res.T_left_marker is None else np.asarray(res.T_left_marker, float),
-                              np.asarray(res.tip_left, float))
+        T = None if res.T_left_marker is None else np.asarray(res.T_left_marker, float)
+        return TipMeasurement(True, p, "", ms, float(res.rms_px), frame.t_capture, frame.index, corners, T,
+                              np.asarray(res.tip_left, float), None if T is None else W[:3, :3] @ T[:3, :3],
+                              bool(res.roll_known))

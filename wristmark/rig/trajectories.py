@@ -1,14 +1,18 @@
-"""Desired tip paths: the paper's cube (IV.C) and the incremental accuracy targets (IV.B)."""
+"""Desired tip paths: the paper's cube (IV.C) and the incremental accuracy targets (IV.B); a path
+may carry an orientation for the tip frame (rig/orientation_path.py: none | hold | follow)."""
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
+from typing import Self
 
 import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.models.kinematics import tip_position
 from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark.rig.orientation_path import OrientationPath, orientation_path
 
 Array = NDArray[np.float64]
 CUBE_SIZE = (0.040, 0.020, 0.040)  # [m] edges along x_w, y_w (depth from the camera), z_w (paper: 40 x 20 x 40 mm)
@@ -24,10 +28,27 @@ _CUBE_WALK = [(-1, -1, -1), (1, -1, -1), (1, 1, -1), (-1, 1, -1), (-1, -1, -1), 
 
 @dataclass(frozen=True)
 class Trajectory:
-    """Piecewise-linear path through ``waypoints`` (N,3) [m] at ``speed`` [m/s]."""
+    """Piecewise-linear path through ``waypoints`` (N,3) [m] at ``speed`` [m/s]; ``orientation``:
+    the tip frame's desired orientation along it (None: position only)."""
 
     waypoints: Array
     speed: float
+    orientation: OrientationPath | None = None
+
+    @property
+    def orientation_mode(self) -> str:
+        """none | hold | follow."""
+        return "none" if self.orientation is None else self.orientation.mode
+
+    def with_orientation(self, mode: str, params: RobotParams) -> Self:
+        """The same path asking for the orientation ``mode`` (none | hold | follow) of the tip frame."""
+        return dataclasses.replace(self, orientation=orientation_path(mode, params, lambda t: self.sample(t)[0],
+                                                                      self.duration))
+
+    def sample_orientation(self, t: float) -> tuple[Array, Array] | None:
+        """Desired tip-frame rotation (3x3) in {w} and angular velocity [rad/s] in {w} at time t
+        (None: the path asks for none)."""
+        return None if self.orientation is None else self.orientation.sample(t)
 
     @property
     def times(self) -> Array:
@@ -64,7 +85,8 @@ class Trajectory:
         k = int(np.searchsorted(ts, duration, side="right"))
         end = self.sample(duration)[0]
         pts = np.vstack([self.waypoints[:k], end]) if not np.isclose(ts[k - 1], duration) else self.waypoints[:k]
-        return Trajectory(pts, self.speed)
+        orient = None if self.orientation is None else self.orientation.shifted(duration)
+        return Trajectory(pts, self.speed, orient)
 
 
 def feedforward_velocity(traj: Trajectory, t: float, dt: float, preview: float, lead: float) -> Array:

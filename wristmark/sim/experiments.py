@@ -16,7 +16,8 @@ from wristmark.models.ik import solve_tip_ik
 from wristmark.models.kinematics import forward_kinematics
 from wristmark.models.robot_params import HOME_PSI
 from wristmark.rig import trajectories
-from wristmark.rig.metrics import corner_overshoot, error_stats, estimate_errors, tracking_errors
+from wristmark.rig.metrics import corner_overshoot, error_stats, estimate_errors, orientation_summary, tracking_errors
+from wristmark.rig.orientation_path import start_configuration
 from wristmark.rig.run_log import CycleRecord, RunLog, write_json
 from wristmark.rig.servo_loop import MarkerLostError, PhaseStats, ServoLoop
 from wristmark.rig.trajectories import CUBE_SIZE, CUBE_SPEED, Trajectory, accuracy_targets, cube_trajectory
@@ -47,6 +48,8 @@ def _phase_summary(log: RunLog, phase: str, traj: Trajectory) -> dict[str, Any]:
             "corners": int(over.size),
         },
     }
+    if traj.orientation is not None:
+        out.update(orientation_summary(recs))
     est = error_stats(estimate_errors(recs))
     if est.n:
         out["vision_vs_true"] = {"mean_mm": est.mean_mm, "max_mm": est.max_mm}
@@ -59,24 +62,35 @@ def _phase_summary(log: RunLog, phase: str, traj: Trajectory) -> dict[str, Any]:
 
 def run_cube(setup: SimSetup, out_dir: Path, progress: bool = True, seed: int | None = None,
              duration: float | None = None, on_cycle: Callable[[CycleRecord], None] | None = None,
-             on_frame: Callable[..., None] | None = None) -> dict[str, Any]:
+             on_frame: Callable[..., None] | None = None, orientation: str = "none") -> dict[str, Any]:
     """Cube trajectory open loop then closed loop on fresh plants; writes the run folder.
 
     ``duration`` [s] cuts the walk short (quick checks); None runs all 12 edges. ``on_cycle`` is
     called with every cycle's record, ``on_frame`` with every measured frame and its
-    measurement (e.g. a live 3D view)."""
+    measurement (e.g. a live 3D view). ``orientation``: none | hold | follow (rig/orientation_path.py)."""
     traj = cube_trajectory(workspace_centre(setup), CUBE_SIZE, CUBE_SPEED)
     if duration is not None:
         traj = traj.truncated(duration)
-    return run_open_closed(setup, traj, "cube", out_dir, progress, seed, on_cycle, on_frame)
+    return run_open_closed(setup, traj.with_orientation(check_orientation(setup, orientation), setup.params), "cube",
+                           out_dir, progress, seed, on_cycle, on_frame)
+
+
+def check_orientation(setup: SimSetup, orientation: str) -> str:
+    """``orientation`` if the setup's controller can control it (ConfigError otherwise: the paper's
+    controller is position-only, as the paper defines it)."""
+    if orientation != "none" and setup.controller.kind == "paper":
+        raise ConfigError(f"--orientation {orientation} needs --controller qp: the paper controller is "
+                          "position-only (eq. 17-21), as the paper defines it")
+    return orientation
 
 
 def run_point(setup: SimSetup, out_dir: Path, point: np.ndarray | None = None, progress: bool = True,
               seed: int | None = None, duration: float | None = None,
               on_cycle: Callable[[CycleRecord], None] | None = None,
-              on_frame: Callable[..., None] | None = None) -> dict[str, Any]:
+              on_frame: Callable[..., None] | None = None, orientation: str = "none") -> dict[str, Any]:
     """Hold ``point`` in {w} [m] (default: the workspace centre) for ``duration`` [s] (default
-    POINT_HOLD_S), open loop then closed loop on fresh plants; writes the run folder."""
+    POINT_HOLD_S), open loop then closed loop on fresh plants; writes the run folder.
+    ``orientation``: none | hold | follow (both hold the start's orientation on a point)."""
     from wristmark.rig.servo_session import POINT_HOLD_S, PointHold
 
     p = workspace_centre(setup) if point is None else np.asarray(point, float)
@@ -85,6 +99,7 @@ def run_point(setup: SimSetup, out_dir: Path, point: np.ndarray | None = None, p
         raise ConfigError(f"the point {np.round(1000 * p, 2).tolist()} mm is out of reach of the arm "
                           f"(IK misses it by {1000 * miss:.2f} mm)")
     traj = PointHold(np.array([p]), 1.0, hold=POINT_HOLD_S if duration is None else duration)
+    traj = traj.with_orientation(check_orientation(setup, orientation), setup.params)
     return run_open_closed(setup, traj, "point", out_dir, progress, seed, on_cycle, on_frame)
 
 
@@ -99,7 +114,7 @@ def run_open_closed(setup: SimSetup, traj: Trajectory, experiment: str, out_dir:
     out_dir.mkdir(parents=True, exist_ok=True)
     write_json(out_dir / "config.json", {"experiment": experiment, **setup.describe()})
     centre = workspace_centre(setup)
-    psi0 = solve_tip_ik(setup.params, traj.sample(0.0)[0], np.asarray(HOME_PSI)).psi
+    psi0 = start_configuration(setup.params, traj.sample(0.0)[0])
     log = RunLog()
     stats = {}
     open_loop = make_direct_loop(setup, psi0, closed_loop=False, seed=seed)
@@ -120,6 +135,7 @@ def run_open_closed(setup: SimSetup, traj: Trajectory, experiment: str, out_dir:
         "controller": setup.controller.kind,
         "control_dt_s": setup.rig.control_dt,
         "sensor": setup.rig.sensor,
+        "orientation": traj.orientation_mode,
         "open_loop": _phase_summary(log, "open_loop", traj),
         "closed_loop": _phase_summary(log, "closed_loop", traj),
         "paper": PAPER_CUBE,
@@ -160,6 +176,13 @@ def cube_table(res: dict[str, Any]) -> str:
         "cycles before each are not counted).",
         "",
     ]
+    if c.get("orientation_mean_deg") is not None:
+        lines += [f"Orientation ({res.get('orientation')}: angle between the optical tracker's and the desired tip "
+                  f"frame): open loop mean {o['orientation_mean_deg']:.2f} deg, "
+                  f"max {o['orientation_max_deg']:.2f} deg; "
+                  f"closed loop mean {c['orientation_mean_deg']:.2f} deg, max {c['orientation_max_deg']:.2f} deg "
+                  f"(z axis alone: closed loop mean {c['axis_mean_deg']:.2f} deg, max {c['axis_max_deg']:.2f} deg).",
+                  ""]
     if c.get("stopped"):
         lines += [f"**The closed loop stopped safely: {c['stopped']}** (statistics cover the cycles before).", ""]
     return "\n".join(lines)
@@ -211,8 +234,9 @@ def run_accuracy(setup: SimSetup, out_dir: Path, n: int = 40, progress: bool = T
 
 def run_load(setup: SimSetup, out_dir: Path, forces: list[float], progress: bool = True,
              duration: float | None = None, on_cycle: Callable[[CycleRecord], None] | None = None,
-             on_frame: Callable[..., None] | None = None) -> dict[str, Any]:
-    """Tip force swept (magnitude [N], direction -z_w, gravity-like): cube open vs closed loop."""
+             on_frame: Callable[..., None] | None = None, orientation: str = "none") -> dict[str, Any]:
+    """Tip force swept (magnitude [N], direction -z_w, gravity-like): cube open vs closed loop
+    (``orientation`` as in run_cube)."""
     from tqdm import tqdm
 
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -223,7 +247,7 @@ def run_load(setup: SimSetup, out_dir: Path, forces: list[float], progress: bool
         sweep.set_description(f"load: force {i + 1} of {len(forces)} ({f:.2f} N)")
         plant = dataclasses.replace(setup.plant, tip_force=(0.0, 0.0, -float(f)))
         res = run_cube(setup.with_changes(plant=plant), out_dir / f"force_{f:.2f}N", progress=progress,
-                       duration=duration, on_cycle=on_cycle, on_frame=on_frame)
+                       duration=duration, on_cycle=on_cycle, on_frame=on_frame, orientation=orientation)
         rows.append({"force_N": f, "open_loop": {k: res["open_loop"][k] for k in ("mean_mm", "max_mm")},
                      "closed_loop": {k: res["closed_loop"][k] for k in ("mean_mm", "max_mm", "stopped")},
                      "ratio": res["ratio"]})

@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 
 from wristmark.cvs.frames import StereoFrame
 from wristmark.models.plant_interface import ActuatedArm
+from wristmark.models.so3 import perturb
 from wristmark.rig.tip_sensors import TipMeasurement
 from wristmark.sim.rendered_source import OnDemandSource
 
@@ -34,14 +35,22 @@ class TruthClockSource(OnDemandSource):
 
 
 class NoisyTruthSensor:
-    """The true tip of ``arm`` plus isotropic Gaussian noise of 3D RMS ``rms`` [m]."""
+    """The true tip of ``arm`` plus isotropic Gaussian noise of 3D RMS ``rms`` [m], and the true
+    tip frame's orientation turned by a random rotation of RMS angle ``rotation_rms`` [rad]
+    (drawn from its own stream, so the position noise is the same with or without it)."""
 
-    def __init__(self, arm: ActuatedArm, rms: float, seed: int = 0) -> None:
+    def __init__(self, arm: ActuatedArm, rms: float, seed: int = 0, rotation_rms: float = np.deg2rad(0.2)) -> None:
         self.arm = arm
         self._sigma = rms / np.sqrt(3.0)
         self._rng = np.random.default_rng(seed)
+        self._rot_rng = np.random.default_rng([seed, 1])
+        self.rotation_rms = float(rotation_rms)
 
     def measure(self, frame: StereoFrame, axis_hint_world: Array | None = None) -> TipMeasurement:
-        """True tip + noise at the frame's instant; never fails (the hint is not needed)."""
-        p = self.arm.true_shape().tip + self._rng.normal(0.0, self._sigma, 3)
-        return TipMeasurement(True, p, t_capture=frame.t_capture, frame_index=frame.index)
+        """True tip + noise at the frame's instant, with the full orientation (roll known); never
+        fails (the hint is not needed)."""
+        shape = self.arm.true_shape()
+        p = shape.tip + self._rng.normal(0.0, self._sigma, 3)
+        R = perturb(shape.frames.T_world_tip[:3, :3], self._rot_rng, self.rotation_rms)
+        return TipMeasurement(True, p, t_capture=frame.t_capture, frame_index=frame.index, R_world=R,
+                              roll_known=True)

@@ -2,7 +2,9 @@
 
 A controller turns the commanded configuration psi_cmd, the measured tip p_meas and the desired
 tip p_des (+ its velocity v_des) into the next commanded configuration (paper eq. 21:
-psi <- psi + psi_dot dt), always within the joint and velocity limits.
+psi <- psi + psi_dot dt), always within the joint and velocity limits. An optional
+:class:`OrientationTask` adds the tip frame's desired and measured orientation (the ``qp`` kind
+only: the paper's controller is position-only as the paper defines it, and refuses one).
 """
 
 from __future__ import annotations
@@ -59,6 +61,10 @@ class ControllerConfig:
     damping: float = 1e-3
     lever: float = 0.05
     orientation_weight: float = 1e-3
+    position_weight: float = 1.0
+    pose_orientation_weight: float = 1e-3
+    kr: float = 8.0  # [1/s], = kp: the same bandwidth as the position task
+    max_angular_speed: float = 0.5  # [rad/s]
     qp_solver: str = "daqp"
     ki: float = 0.0
     integral_speed_limit: float = 0.003
@@ -73,10 +79,12 @@ class ControllerConfig:
 
     def validate(self) -> None:
         """Raise ConfigError naming the offending key."""
-        for k in ("dt", "v_xlim", "gamma", "xi", "max_correction_speed", "damping", "lever"):
+        for k in ("dt", "v_xlim", "gamma", "xi", "max_correction_speed", "damping", "lever", "position_weight",
+                  "max_angular_speed"):
             if getattr(self, k) <= 0:
                 raise ConfigError(f"'{k}' must be > 0, got {getattr(self, k)}")
-        for k in ("kp", "orientation_weight", "ki", "integral_speed_limit", "backlash_hysteresis", "backlash_window"):
+        for k in ("kp", "orientation_weight", "pose_orientation_weight", "kr", "ki", "integral_speed_limit",
+                  "backlash_hysteresis", "backlash_window"):
             if getattr(self, k) < 0:
                 raise ConfigError(f"'{k}' must be >= 0, got {getattr(self, k)}")
         if len(self.backlash_play_max) != 6 or min(self.backlash_play_max) < 0:
@@ -97,6 +105,28 @@ class ControllerConfig:
 
 
 @dataclass(frozen=True)
+class OrientationTask:
+    """The tip frame's orientation for one step, in {w}: desired rotation R_des (3x3) and angular
+    velocity w_des [rad/s]; the measured rotation R_meas (3x3); axis_only: only the measured z
+    axis is trusted (the reference sleeve, or a coded one whose code was not read): the task then
+    steers the axis direction (2 DoF) and leaves the roll about it free."""
+
+    R_des: Array
+    w_des: Array
+    R_meas: Array
+    axis_only: bool = False
+
+    @classmethod
+    def of(cls, R_des: Array | None, w_des: Array | None, R_meas: Array | None,
+           roll_known: bool) -> OrientationTask | None:
+        """The task, or None when no orientation is asked for or none was measured (the step is
+        then position only); axis only unless the measurement's roll is known."""
+        if R_des is None or w_des is None or R_meas is None:
+            return None
+        return cls(R_des, w_des, R_meas, axis_only=not roll_known)
+
+
+@dataclass(frozen=True)
 class ControlStep:
     """One controller step: next psi (in limits), psi_dot (in limits), commanded tip velocity."""
 
@@ -109,7 +139,10 @@ class ControlStep:
 
 class Controller(abc.ABC):
     """Base of every controller kind: each step maps psi [rad, m, ...], the desired tip and its
-    velocity in {w} [m, m/s] and the measured tip in {w} [m] to the next psi within the limits."""
+    velocity in {w} [m, m/s] and the measured tip in {w} [m] to the next psi within the limits.
+    ``supports_orientation``: the kind also takes an OrientationTask (rotations in {w})."""
+
+    supports_orientation = False
 
     def __init__(self, params: RobotParams, config: ControllerConfig) -> None:
         self.params = params
@@ -138,25 +171,30 @@ class Controller(abc.ABC):
 
     @abc.abstractmethod
     def velocity(self, psi: Array, p_meas: Array, p_des: Array, v_des: Array | None,
-                 dt: float) -> tuple[Array, Array, str]:
+                 dt: float, orientation: OrientationTask | None = None) -> tuple[Array, Array, str]:
         """psi_dot [rad/s, m/s], commanded tip velocity [m/s] and a status word."""
 
     def step(self, psi_cmd: Array, p_meas_world: Array, p_des_world: Array,
-             v_des_world: Array | None, dt: float) -> ControlStep:
-        """Next commanded configuration from the measured and desired tip in {w} [m].
+             v_des_world: Array | None, dt: float, orientation: OrientationTask | None = None) -> ControlStep:
+        """Next commanded configuration from the measured and desired tip in {w} [m] (and, for
+        a kind that supports it, the tip frame's orientation; ConfigError from one that does not).
 
         With backlash compensation the controller works on the nominal configuration behind
         ``psi_cmd`` and returns the compensated one; the returned step is within the joint and
         velocity limits either way."""
         import time
 
+        if orientation is not None and not self.supports_orientation:
+            raise ConfigError(f"the {self.config.kind!r} controller is position-only; orientation control "
+                              f"needs the qp controller")
         psi_in = clamp_psi(self.params, check_psi(psi_cmd))
         comp = self.compensator
         psi = psi_in if comp is None else comp.nominal(psi_in)
         t0 = time.perf_counter()
         psi_dot, v_tip, status = self.velocity(psi, np.asarray(p_meas_world, float),
                                                np.asarray(p_des_world, float),
-                                               None if v_des_world is None else np.asarray(v_des_world, float), dt)
+                                               None if v_des_world is None else np.asarray(v_des_world, float), dt,
+                                               orientation)
         us = 1e6 * (time.perf_counter() - t0)
         psi_dot = clamp_velocity(self.params, np.nan_to_num(psi_dot))
         lo, hi = psi_bounds(self.params)

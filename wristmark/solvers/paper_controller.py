@@ -11,6 +11,10 @@ would drive through its limit is locked (its Jacobian column zeroed) and eq. 19-
 for the others, so the remaining joints make up the motion it cannot give; off, the step is
 clipped to the limits afterwards and that part of the motion is lost (at the stem feed's
 lower end stop this left the tip 3-4 mm behind on the cube).
+
+Position only, as the paper defines it (w = 0 in eq. 19 is a zero angular *velocity*, not an
+orientation task): asked for an orientation, ``Controller.step`` refuses with a ConfigError,
+and the command line refuses ``--orientation hold|follow`` with ``--controller paper``.
 """
 
 from __future__ import annotations
@@ -20,7 +24,7 @@ from numpy.typing import NDArray
 
 from wristmark.models.kinematics import tip_jacobian
 from wristmark.models.limits import psi_bounds
-from wristmark.solvers.controller import Controller
+from wristmark.solvers.controller import Controller, OrientationTask
 
 Array = NDArray[np.float64]
 
@@ -38,7 +42,7 @@ class PaperController(Controller):
     ``v_xlim`` [m/s])."""
 
     def velocity(self, psi: Array, p_meas: Array, p_des: Array, v_des: Array | None,
-                 dt: float) -> tuple[Array, Array, str]:
+                 dt: float, orientation: OrientationTask | None = None) -> tuple[Array, Array, str]:
         """psi_dot from eq. 17-20 (v_des unused: the paper has no feed-forward)."""
         cfg = self.config
         dp = p_des - p_meas

@@ -1,7 +1,16 @@
 """Velocity-bounded QP controller formulated in CasADi (kind "qp").
 
-    minimise    || Jv psi_dot - v_ref ||^2 + w_o || Jw psi_dot ||^2 + lambda || S psi_dot ||^2
+    minimise    w_p || Jv psi_dot - v_ref ||^2 + (Jw psi_dot - w_ref)' W (Jw psi_dot - w_ref)
+                + lambda || S psi_dot ||^2
     subject to  lo <= psi_dot <= hi
+
+Position only (no orientation task): W = orientation_weight I and w_ref = 0 (the tip frame's
+rotation is merely damped). With an :class:`OrientationTask` (the pose task): W =
+pose_orientation_weight I and w_ref = w_des + sat(kr log(R_des R_meas^T), max_angular_speed)
+[rad/s] in {w}; when only the marker's axis z is known (the reference sleeve: roll modulo 30 deg)
+W = pose_orientation_weight (I - z z') + orientation_weight z z' and w_ref = (I - z z') (w_des +
+sat(kr e_axis)), e_axis the shortest turn of the measured axis onto the desired one: the axis
+direction (2 DoF) is controlled and the roll about it only damped, never steered by a guess.
 
 v_ref = v_des (feed-forward) + sat(kp (p_des - p_meas), max_correction_speed) + v_i [m/s], v_i the
 clamped integral ki sum(e dt) of solvers/tip_integral.py (ki = 0: none); Jv, Jw the
@@ -21,7 +30,8 @@ from numpy.typing import NDArray
 from wristmark.models.kinematics import tip_jacobian
 from wristmark.models.limits import psi_bounds
 from wristmark.models.robot_params import RobotParams
-from wristmark.solvers.controller import Controller, ControllerConfig
+from wristmark.models.so3 import axis_error, rotation_error
+from wristmark.solvers.controller import Controller, ControllerConfig, OrientationTask
 from wristmark.solvers.tip_integral import TipErrorIntegral
 
 Array = NDArray[np.float64]
@@ -54,9 +64,18 @@ class BoxQp:
         return self._out.copy()
 
 
+def saturate(v: Array, cap: float) -> Array:
+    """``v`` scaled down to norm ``cap`` when it is longer."""
+    n = float(np.linalg.norm(v))
+    return v * (cap / n) if n > cap else v
+
+
 class QpController(Controller):
     """Feed-forward + saturated proportional feedback, velocity- and joint-bounded (tip in {w} [m],
-    tip velocity [m/s], joint velocities [rad/s, m/s])."""
+    tip velocity [m/s], joint velocities [rad/s, m/s]); optionally a pose task (position and
+    orientation of the tip frame in {w})."""
+
+    supports_orientation = True
 
     def __init__(self, params: RobotParams, config: ControllerConfig) -> None:
         super().__init__(params, config)
@@ -72,26 +91,37 @@ class QpController(Controller):
         super().reset()
         self.integral.reset()
 
-    def _hessian(self, J: Array) -> Array:
+    def _hessian(self, J: Array, W: Array | None = None) -> Array:
         cfg = self.config
         Jv, Jw = J[:3], J[3:]
-        return 2.0 * (Jv.T @ Jv + cfg.orientation_weight * Jw.T @ Jw + cfg.damping * self._S2)
+        W = cfg.orientation_weight * np.eye(3) if W is None else W
+        return 2.0 * (cfg.position_weight * Jv.T @ Jv + Jw.T @ W @ Jw + cfg.damping * self._S2)
+
+    def orientation_reference(self, task: OrientationTask) -> tuple[Array, Array]:
+        """The orientation task's weight W (3x3) [m^2/rad^2] and reference angular velocity
+        w_ref [rad/s] in {w} (see the module docstring)."""
+        cfg = self.config
+        if not task.axis_only:
+            e = rotation_error(task.R_des, task.R_meas)
+            return cfg.pose_orientation_weight * np.eye(3), task.w_des + saturate(cfg.kr * e, cfg.max_angular_speed)
+        z = np.asarray(task.R_meas, float)[:, 2]
+        P = np.eye(3) - np.outer(z, z)
+        e = axis_error(np.asarray(task.R_des, float)[:, 2], z)
+        W = cfg.pose_orientation_weight * P + cfg.orientation_weight * np.outer(z, z)
+        return W, P @ (task.w_des + saturate(cfg.kr * e, cfg.max_angular_speed))
 
     def path_rates(self, psi: Array, v_tip: Array) -> Array:
         """The QP's unconstrained psi_dot [rad/s, m/s] for a tip velocity ``v_tip`` [m/s] in {w}."""
         J = tip_jacobian(self.params, psi)
-        return np.asarray(np.linalg.solve(self._hessian(J), 2.0 * J[:3].T @ v_tip), float)
+        return np.asarray(np.linalg.solve(self._hessian(J), 2.0 * self.config.position_weight * J[:3].T @ v_tip), float)
 
     def reference_velocity(self, p_meas: Array, p_des: Array, v_des: Array | None,
                            dt: float = 0.0) -> Array:
         """v_ref = v_des + sat(kp (p_des - p_meas)) + v_i [m/s]; ``dt`` [s] advances the integral."""
         cfg = self.config
         err = p_des - p_meas
-        fb = cfg.kp * err
-        n = float(np.linalg.norm(fb))
-        saturated = n > cfg.max_correction_speed
-        if saturated:
-            fb *= cfg.max_correction_speed / n
+        saturated = float(np.linalg.norm(cfg.kp * err)) > cfg.max_correction_speed
+        fb = saturate(cfg.kp * err, cfg.max_correction_speed)
         if dt > 0.0:
             fb = fb + self.integral.update(err, dt, saturated)
         if cfg.feed_forward and v_des is not None:
@@ -99,12 +129,17 @@ class QpController(Controller):
         return fb
 
     def velocity(self, psi: Array, p_meas: Array, p_des: Array, v_des: Array | None,
-                 dt: float) -> tuple[Array, Array, str]:
-        """Solve the QP for psi_dot."""
+                 dt: float, orientation: OrientationTask | None = None) -> tuple[Array, Array, str]:
+        """Solve the QP for psi_dot (the pose task when ``orientation`` is given)."""
         v_ref = self.reference_velocity(p_meas, p_des, v_des, dt)
         J = tip_jacobian(self.params, psi)
-        H = self._hessian(J)
-        g = -2.0 * J[:3].T @ v_ref
+        if orientation is None:
+            H = self._hessian(J)
+            g = -2.0 * self.config.position_weight * J[:3].T @ v_ref
+        else:
+            W, w_ref = self.orientation_reference(orientation)
+            H = self._hessian(J, W)
+            g = -2.0 * (self.config.position_weight * J[:3].T @ v_ref + J[3:].T @ W @ w_ref)
         with np.errstate(invalid="ignore"):
             lo = np.maximum(-self._vmax, (self._lo - psi) / dt)
             hi = np.minimum(self._vmax, (self._hi - psi) / dt)

@@ -115,7 +115,7 @@ def _cube(plant: str, compensation: bool, duration: float) -> dict:
     from wristmark.sim.experiments import run_cube
     from wristmark.sim.setup import default_config, load_setup
 
-    setup = load_setup(plant=default_config(plant))
+    setup = load_setup(plant=default_config(plant), controller=default_config("controller_backlash.yaml"))
     setup = setup.with_changes(rig=dataclasses.replace(setup.rig, sensor="truth-noise"),
                                controller=dataclasses.replace(setup.controller, backlash_compensation=compensation))
     with tempfile.TemporaryDirectory() as tmp:
@@ -123,8 +123,9 @@ def _cube(plant: str, compensation: bool, duration: float) -> dict:
 
 
 def test_compensation_lowers_the_max_on_an_unseen_arm() -> None:
-    """Short cube (truth-noise sensor) on configs/plant_unseen.yaml: the inversion, learning the
-    play online from its default bound, cuts the closed-loop max, measured here both ways."""
+    """Short cube (truth-noise sensor) on configs/plant_unseen.yaml with configs/controller_backlash.yaml
+    and its inversion turned off and on: the inversion, learning the play online from its bound,
+    cuts the closed-loop max, measured here both ways."""
     off, on = _cube("plant_unseen.yaml", False, 16.0), _cube("plant_unseen.yaml", True, 16.0)
     assert on["max_mm"] < 0.85 * off["max_mm"]
     assert on["mean_mm"] <= off["mean_mm"]

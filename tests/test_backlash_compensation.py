@@ -115,7 +115,7 @@ def _cube(plant: str, compensation: bool, duration: float) -> dict:
     from wristmark.sim.experiments import run_cube
     from wristmark.sim.setup import default_config, load_setup
 
-    setup = load_setup(plant=default_config(plant))
+    setup = load_setup(plant=default_config(plant), controller=default_config("controller_backlash.yaml"))
     setup = setup.with_changes(rig=dataclasses.replace(setup.rig, sensor="truth-noise"),
                                controller=dataclasses.replace(setup.controller, backlash_compensation=compensation))
     with tempfile.TemporaryDirectory() as tmp:
@@ -123,8 +123,9 @@ def _cube(plant: str, compensation: bool, duration: float) -> dict:
 
 
 def test_compensation_lowers_the_max_on_an_unseen_arm() -> None:
-    """Short cube (truth-noise sensor) on configs/plant_unseen.yaml: the inversion, learning the
-    play online from its default bound, cuts the closed-loop max, measured here both ways."""
+    """Short cube (truth-noise sensor) on configs/plant_unseen.yaml with configs/controller_backlash.yaml
+    and its inversion turned off and on: the inversion, learning the play online from its bound,
+    cuts the closed-loop max, measured here both ways."""
     off, on = _cube("plant_unseen.yaml", False, 16.0), _cube("plant_unseen.yaml", True, 16.0)
     assert on["max_mm"] < 0.85 * off["max_mm"]
     assert on["mean_mm"] <= off["mean_mm"]
@@ -135,3 +136,42 @@ def test_compensation_does_not_hurt_the_default_arm() -> None:
     off, on = _cube("plant.yaml", False, 16.0), _cube("plant.yaml", True, 16.0)
     assert on["mean_mm"] <= off["mean_mm"]
     assert on["max_mm"] <= 1.05 * off["max_mm"]
+
+
+def test_lead_bursts_at_a_flip_and_crosses_a_lagged_play_sooner() -> None:
+    """The offset's lead: one cycle of (1 + lead/dt) x the jump at a reversal, then the steady
+    offset; through a first-order motor lag (tau 70 ms) and a play the arm resumes following a
+    reversed command sooner than without the lead."""
+    dt, tau = 0.06, 0.07
+    inv = BacklashInverse(PLAY, hysteresis=0.1, start=1.0, fraction=1.0, learn=False, lead=0.03)
+    a = np.zeros(6)
+    for _ in range(3):
+        a = a + 0.5 * PLAY
+        inv.offset(a, dt)
+    np.testing.assert_allclose(inv.offset(a + 0.5 * PLAY, dt), PLAY / 2)  # steady: no burst
+    a = a + 0.5 * PLAY - 0.3 * PLAY
+    np.testing.assert_allclose(inv.offset(a, dt), -PLAY / 2 - 0.5 * PLAY)  # -b/2 + 0.03/0.06 x (-b)
+    np.testing.assert_allclose(inv.offset(a - 0.2 * PLAY, dt), -PLAY / 2)  # settled
+    assert np.all(inv.half >= PLAY / 2 * 2.0 - 1e-12)  # the bound on the offset covers the burst
+
+    def excess_lag_after_reversal(lead: float) -> float:
+        """Largest lag behind the reversed command beyond the motor's steady lag [x play]."""
+        inv = BacklashInverse(PLAY, hysteresis=0.1, start=1.0, fraction=1.0, learn=False, lead=lead)
+        y, m, err = np.zeros(6), np.zeros(6), []
+        alpha = 1.0 - np.exp(-dt / tau)
+        for k in range(60):
+            a = 4 * PLAY * (k if k < 30 else 60 - k) / 30.0  # up for 30 cycles, then back down
+            m = m + alpha * (a + inv.offset(a, dt) - m)
+            y = _play_operator(y, m, PLAY)
+            err.append(np.max(np.abs(y - a) / PLAY))
+        return max(err[30:45]) - err[25]
+
+    without = excess_lag_after_reversal(0.0)
+    assert without > 0.05 and excess_lag_after_reversal(0.03) < 0.5 * without
+
+
+def test_config_rejects_a_negative_lead() -> None:
+    from wristmark.models.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="backlash_lead"):
+        ControllerConfig(backlash_lead=-0.01).validate()

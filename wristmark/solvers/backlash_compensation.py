@@ -47,11 +47,21 @@ class BacklashInverse:
     towards it by ``rate`` per reversal, within [0, play_max]. Known bias: F_j also holds the
     loop's lag behind the path (output behind command by the path rate x the loop's delay),
     which turns round with the motion, so b_est = b + 2 |rate| x delay: the estimate errs high,
-    most on an arm with little play (docs/results.md, "Unseen arms")."""
+    most on an arm with little play (docs/results.md, "Unseen arms").
+
+    Lead (``lead`` [s], 0 = none): the motor follows its target through a first-order lag, so a
+    step of the offset by b at a reversal takes the lag's time constant to cross the play while
+    the arm stands still and the error grows. The offset sent is off + lead * d(off)/dt, i.e. on
+    the flip cycle the jump is (1 + lead / dt) times the steady one and the motor crosses the
+    play within about one cycle; the next cycle it settles on the steady offset. Assumes the
+    motor lag is of the order of lead (arms with a much faster motor see the burst as a short
+    push past the play)."""
 
     def __init__(self, play_max: Array, hysteresis: float, start: float = 0.5, fraction: float = 0.5,
-                 learn: bool = True, window: float = 0.4, rate: float = 0.3) -> None:
+                 learn: bool = True, window: float = 0.4, rate: float = 0.3, lead: float = 0.0) -> None:
         self.play_max = np.asarray(play_max, float)
+        self.lead = float(lead)
+        self._burst_gain = 1.0  # largest offset / the steady one (the lead's burst at a flip)
         self.hysteresis = float(hysteresis)
         self.start, self.fraction, self.learn = float(start), float(fraction), bool(learn)
         self.window, self.rate = float(window), float(rate)
@@ -60,7 +70,7 @@ class BacklashInverse:
     @property
     def half(self) -> Array:
         """Half the largest offset the inversion applies per actuator [rad, m, ...]."""
-        return 0.5 * self.fraction * self.play_max
+        return 0.5 * self.fraction * self.play_max * self._burst_gain
 
     def reset(self, keep_estimate: bool = False) -> None:
         """Forget the direction (no compensation until the command moves) and, unless
@@ -71,6 +81,7 @@ class BacklashInverse:
         self.extreme: Array | None = None
         self.time = 0.0
         self._fb = np.zeros(6)
+        self._off = np.zeros(6)
         self._history: list[tuple[float, Array]] = []
         self._open: list[tuple[int, float, float, float, float]] = []  # j, due, F before, dir, jump
 
@@ -98,7 +109,12 @@ class BacklashInverse:
             self._learn(flip, d, new)
         self.direction = new
         self.extreme = np.where(flip, a, self.extreme)
-        return self.direction * 0.5 * self.fraction * self.play
+        off = self.direction * 0.5 * self.fraction * self.play
+        # first-order lead on the offset: a flip drives the motor through the play in one burst
+        self._burst_gain = 1.0 + 2.0 * self.lead / dt if dt > 0.0 else 1.0
+        burst = off + self.lead / dt * (off - self._off) if self.lead > 0.0 and dt > 0.0 else off
+        self._off = off
+        return np.asarray(burst, float)
 
     def _learn(self, flip: Array, old: Array, new: Array) -> None:
         keep = []

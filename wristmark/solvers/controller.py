@@ -45,7 +45,8 @@ class ControllerConfig:
     x that bound and (backlash_learning) is learnt at every reversal over backlash_window [s]
     either side at backlash_learning_rate per reversal; backlash_fraction of the estimate is
     inverted; backlash_hysteresis x the bound is how far the command must come back before its
-    direction counts as reversed.
+    direction counts as reversed; backlash_lead [s] is a first-order lead on the inversion's
+    offset (a reversal drives the lagging motor through the play in a one-cycle burst; 0 = none).
     """
 
     kind: str = "qp"
@@ -76,6 +77,7 @@ class ControllerConfig:
     backlash_learning: bool = True
     backlash_window: float = 0.4
     backlash_learning_rate: float = 0.3
+    backlash_lead: float = 0.0
 
     def validate(self) -> None:
         """Raise ConfigError naming the offending key."""
@@ -84,7 +86,7 @@ class ControllerConfig:
             if getattr(self, k) <= 0:
                 raise ConfigError(f"'{k}' must be > 0, got {getattr(self, k)}")
         for k in ("kp", "orientation_weight", "pose_orientation_weight", "kr", "ki", "integral_speed_limit",
-                  "backlash_hysteresis", "backlash_window"):
+                  "backlash_hysteresis", "backlash_window", "backlash_lead"):
             if getattr(self, k) < 0:
                 raise ConfigError(f"'{k}' must be >= 0, got {getattr(self, k)}")
         if len(self.backlash_play_max) != 6 or min(self.backlash_play_max) < 0:
@@ -152,7 +154,7 @@ class Controller(abc.ABC):
             inverse = BacklashInverse(np.asarray(config.backlash_play_max, float), config.backlash_hysteresis,
                                       start=config.backlash_start, fraction=config.backlash_fraction,
                                       learn=config.backlash_learning, window=config.backlash_window,
-                                      rate=config.backlash_learning_rate)
+                                      rate=config.backlash_learning_rate, lead=config.backlash_lead)
             self.compensator = CommandCompensator(params, inverse)
 
     def reset(self) -> None:

@@ -13,6 +13,7 @@ import time
 
 from wristmark.rig.actuator_driver import ActuatorDriver, ActuatorError
 from wristmark.rig.frame_feed import LatestFrameFeed
+from wristmark.rig.heap_freeze import freeze_heap
 from wristmark.rig.loop_setup import LoopSetup
 from wristmark.rig.serial_link import SerialLink
 from wristmark.rig.servo_session import HW_TIMEOUT_S, LinkOptions, ServoSession
@@ -24,9 +25,11 @@ FIRST_FRAME_TIMEOUT_S = 10.0  # [s] longest wait for the camera's first frame be
 def open_hardware_session(setup: LoopSetup, options: LinkOptions, camera: str, camera_timeout: float = 2.0,
                           layout: str = "sbs") -> ServoSession:
     """Open the actuator box (PING, GET_STATE: not yet enabled) and the camera, and check the
-    camera's first frame against the calibration's image size (at the rig's image scale), all
-    before any motion command. camera_timeout: no new frame for this long ends the camera's
-    stream [s] (the loop holds the arm well before, after ``max_lost_cycles`` cycles without a frame)."""
+    camera's first frame against the calibration's image size (at the rig's image scale) and track
+    it once (the tracker's first, slow call), all before any motion command; then exempt the
+    start-up heap from garbage collection (:func:`rig.heap_freeze.freeze_heap`).
+    camera_timeout: no new frame for this long ends the camera's stream [s] (the loop holds the
+    arm well before, after ``max_lost_cycles`` cycles without a frame)."""
     from wristmark.cvs.frames import FrameSourceError, check_frame_size
     from wristmark.cvs.open_source import SourceOptions, open_stereo_source
 
@@ -50,7 +53,9 @@ def open_hardware_session(setup: LoopSetup, options: LinkOptions, camera: str, c
         if first is None:
             raise FrameSourceError(f"{camera}: no frame within {FIRST_FRAME_TIMEOUT_S:g} s")
         check_frame_size(first, cam.image_size, camera)
+        session.sensor.measure(first)  # loads the tracker's compiled kernels before any motion
     except BaseException:
         session.close()
         raise
+    freeze_heap()  # no full garbage collection of the start-up heap mid-run (rig.heap_freeze)
     return session

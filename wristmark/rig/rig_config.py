@@ -30,8 +30,11 @@ class RigConfig:
     it began before it takes the newest older one [s] (0: never wait); a cycle without any new
     frame holds the arm like a lost marker. image_scale: the simulated bench renders at this
     fraction of the calibrated resolution; on hardware, the camera delivers it (the calibration
-    is scaled to match). vision_latency, plant_dt, sensor, truth_noise_rms, render_noise,
-    tracker_rms and realtime concern the simulated bench only.
+    is scaled to match). delay_compensation: the controller gets the measured tip moved on by
+    the nominal model's predicted motion from the frame's capture to the command
+    (rig.delay_compensation; the model: the commands sent, through a first-order lag of
+    ``delay_compensation_tau`` [s] per actuator, 0 = at once). vision_latency, plant_dt, sensor,
+    truth_noise_rms, render_noise, tracker_rms and realtime concern the simulated bench only.
     """
 
     control_dt: float = 0.060
@@ -51,6 +54,8 @@ class RigConfig:
     seed: int = 0
     realtime: bool = False
     frame_wait: float = 0.04  # [s] wall clock: longest wait of a cycle for a fresh frame
+    delay_compensation: bool = True
+    delay_compensation_tau: float = 0.0  # [s] actuator lag assumed by the compensation's model
 
     def validate(self) -> None:
         """Raise ConfigError naming the offending key."""
@@ -58,7 +63,7 @@ class RigConfig:
             if getattr(self, k) <= 0:
                 raise ConfigError(f"'{k}' must be > 0, got {getattr(self, k)}")
         for k in ("vision_latency", "truth_noise_rms", "tracker_rms", "settle_time", "feedforward_preview",
-                  "feedforward_lead", "frame_wait"):
+                  "feedforward_lead", "frame_wait", "delay_compensation_tau"):
             if getattr(self, k) < 0:
                 raise ConfigError(f"'{k}' must be >= 0, got {getattr(self, k)}")
         if self.vision_latency >= self.control_dt:

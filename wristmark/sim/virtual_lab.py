@@ -34,6 +34,7 @@ from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera
 from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark.rig.heap_freeze import freeze_heap
 from wristmark.rig.mjpeg_server import MjpegServer
 from wristmark.rig.realtime_priority import check_realtime_priority, request_realtime_priority
 from wristmark.sim.actuator_emulator import ActuatorEmulator
@@ -155,6 +156,7 @@ class VirtualLab:
             self.stop()
             raise InputError(self.error or "the virtual endoscope rendered no frame within "
                              f"{FIRST_FRAME_TIMEOUT_S:g} s")
+        freeze_heap()  # a full collection would stop the box and the camera for ~0.1 s (rig.heap_freeze)
         return self.pty_path, self.url
 
     def _start_threads(self) -> None:

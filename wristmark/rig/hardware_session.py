@@ -13,7 +13,6 @@ import time
 
 from wristmark.rig.actuator_driver import ActuatorDriver, ActuatorError
 from wristmark.rig.frame_feed import LatestFrameFeed
-from wristmark.rig.heap_freeze import freeze_heap
 from wristmark.rig.loop_setup import LoopSetup
 from wristmark.rig.serial_link import SerialLink
 from wristmark.rig.servo_session import HW_TIMEOUT_S, LinkOptions, ServoSession
@@ -26,8 +25,7 @@ def open_hardware_session(setup: LoopSetup, options: LinkOptions, camera: str, c
                           layout: str = "sbs") -> ServoSession:
     """Open the actuator box (PING, GET_STATE: not yet enabled) and the camera, and check the
     camera's first frame against the calibration's image size (at the rig's image scale) and track
-    it once (the tracker's first, slow call), all before any motion command; then exempt the
-    start-up heap from garbage collection (:func:`rig.heap_freeze.freeze_heap`).
+    it once (the tracker's first, slow call), all before any motion command.
     camera_timeout: no new frame for this long ends the camera's stream [s] (the loop holds the
     arm well before, after ``max_lost_cycles`` cycles without a frame)."""
     from wristmark.cvs.frames import FrameSourceError, check_frame_size
@@ -57,5 +55,4 @@ def open_hardware_session(setup: LoopSetup, options: LinkOptions, camera: str, c
     except BaseException:
         session.close()
         raise
-    freeze_heap()  # no full garbage collection of the start-up heap mid-run (rig.heap_freeze)
     return session

@@ -21,6 +21,7 @@ timestamps). With it, the host's capture-to-command latency includes the frame's
 from __future__ import annotations
 
 import dataclasses
+import os
 import threading
 import time
 from collections.abc import Callable
@@ -34,9 +35,8 @@ from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera
 from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import HOME_PSI, RobotParams
-from wristmark.rig.heap_freeze import freeze_heap
 from wristmark.rig.mjpeg_server import MjpegServer
-from wristmark.rig.realtime_priority import check_realtime_priority, request_realtime_priority
+from wristmark.rig.realtime_priority import MAX_PRIORITY, check_realtime_priority, request_realtime_priority
 from wristmark.sim.actuator_emulator import ActuatorEmulator
 from wristmark.sim.locked_arm import LockedArm
 from wristmark.sim.plant import TruePlant
@@ -97,14 +97,18 @@ class VirtualLab:
     rt_priority: run every thread of the lab (actuator box, camera, renderer, stream server)
     under ``SCHED_FIFO`` at this priority (:mod:`rig.realtime_priority`), as firmware and a camera
     are not starved by the host's other work; all of them, since a normal thread holding
-    Python's GIL would stall the real-time ones (priority inversion). The caller's thread keeps
-    its own scheduling.
+    Python's GIL would stall the real-time ones (priority inversion). The actuator box's thread
+    runs one priority above the others, so that a renderer busy on every core never keeps it
+    from answering. render_rt: False keeps the camera's rendering (its thread and the renderer's)
+    at normal priority while the box and the stream server run in real time: for a renderer that
+    needs every core, which in real time would eat the machine's real-time budget and throttle the
+    host's loop. The caller's thread keeps its own scheduling.
     emulator_factory: ``(arm, params, watchdog_s=...) -> ActuatorEmulator`` (tests record packets).
     """
 
     def __init__(self, params: RobotParams, plant: PlantParams, calibration: StereoCamera, marker: MarkerModel,
                  camera: LabCamera | None = None, psi0: Any = None, watchdog_s: float = 0.25,
-                 truth_out: str | Path | None = None, rt_priority: int | None = None,
+                 truth_out: str | Path | None = None, rt_priority: int | None = None, render_rt: bool = True,
                  emulator_factory: Callable[..., ActuatorEmulator] | None = None) -> None:
         self.options = camera or LabCamera()
         self.options.validate()
@@ -117,8 +121,9 @@ class VirtualLab:
                                                                                      self.options.image_scale)
         self.arm = LockedArm(TruePlant(params, plant, psi0=np.asarray(psi0 if psi0 is not None else HOME_PSI, float)))
         if rt_priority is not None:
-            check_realtime_priority(rt_priority)
+            check_realtime_priority(min(MAX_PRIORITY, rt_priority + 1))
         self.rt_priority = rt_priority
+        self.render_rt = bool(render_rt)
         factory = emulator_factory or ActuatorEmulator
         self.emulator = factory(self.arm, params, watchdog_s=watchdog_s)
         self.renderer = StereoRenderer(cam, marker, noise_preset(self.options.noise), seed=self.options.seed)
@@ -156,15 +161,16 @@ class VirtualLab:
             self.stop()
             raise InputError(self.error or "the virtual endoscope rendered no frame within "
                              f"{FIRST_FRAME_TIMEOUT_S:g} s")
-        freeze_heap()  # a full collection would stop the box and the camera for ~0.1 s (rig.heap_freeze)
         return self.pty_path, self.url
 
     def _start_threads(self) -> None:
         try:
+            if self.rt_priority is not None:  # the box's thread one above the rest
+                request_realtime_priority(min(MAX_PRIORITY, self.rt_priority + 1))
+            self.pty_path = self.emulator.serve_pty()
             if self.rt_priority is not None:
                 request_realtime_priority(self.rt_priority)
             self.server = MjpegServer(self.options.host, self.options.port)
-            self.pty_path = self.emulator.serve_pty()
             self._thread = threading.Thread(target=self._run_camera, name="virtual-endoscope", daemon=True)
             self._thread.start()
         except Exception as e:  # noqa: BLE001 - handed to start(), which raises it in the caller's thread
@@ -195,6 +201,8 @@ class VirtualLab:
         self._frozen.set()
 
     def _run_camera(self) -> None:
+        if self.rt_priority is not None and not self.render_rt:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))  # this thread only
         period = 1.0 / self.options.fps
         t_next = time.monotonic()
         while not self._stop.is_set():

@@ -126,7 +126,7 @@ def _serve_lab(args: argparse.Namespace, params: RobotParams, plant: object, psi
         freeze_heap()  # a full collection would stop the box and the camera for ~0.1 s (rig.heap_freeze)
         print(path, flush=True)
         print(url, flush=True)
-        w, h = lab.renderer.camera.image_size
+        w, h = lab.camera.image_size
         print(f"virtual lab: actuator box (protocol v1) on {path}; stereo endoscope {2 * w}x{h} side by side at "
               f"up to {args.fps:g} fps on {url}; Ctrl-C to stop", file=sys.stderr, flush=True)
         while not done.wait(0.2):

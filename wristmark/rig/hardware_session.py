@@ -16,7 +16,7 @@ from wristmark.rig.frame_feed import LatestFrameFeed
 from wristmark.rig.loop_setup import LoopSetup
 from wristmark.rig.serial_link import SerialLink
 from wristmark.rig.servo_session import HW_TIMEOUT_S, LinkOptions, ServoSession
-from wristmark.rig.tip_sensors import VisionTipSensor
+from wristmark.rig.tip_sensors import DeadlineTipSensor, VisionTipSensor
 
 FIRST_FRAME_TIMEOUT_S = 10.0  # [s] longest wait for the camera's first frame before any motion
 
@@ -44,14 +44,16 @@ def open_hardware_session(setup: LoopSetup, options: LinkOptions, camera: str, c
         link.close()
         raise
     feed = LatestFrameFeed(source)
-    session = ServoSession(link, options, feed, VisionTipSensor(cam, setup.marker), port=options.port,
-                           camera=camera, wall_clock=True)
+    vision = VisionTipSensor(cam, setup.marker)
+    sensor = DeadlineTipSensor(vision, setup.rig.tracking_budget)  # no cycle outlasts the box's watchdog
+    session = ServoSession(link, options, feed, sensor, port=options.port, camera=camera, wall_clock=True)
+    session.on_close.append(sensor.close)
     try:
         first = feed.take(wait_until=time.monotonic() + FIRST_FRAME_TIMEOUT_S)
         if first is None:
             raise FrameSourceError(f"{camera}: no frame within {FIRST_FRAME_TIMEOUT_S:g} s")
         check_frame_size(first, cam.image_size, camera)
-        session.sensor.measure(first)  # loads the tracker's compiled kernels before any motion
+        vision.measure(first)  # loads the tracker's compiled kernels before any motion (no budget)
     except BaseException:
         session.close()
         raise

@@ -6,6 +6,7 @@ a stream that stalls mid-run holds the arm and stops safely."""
 from __future__ import annotations
 
 import dataclasses
+import gc
 import json
 import os
 import select
@@ -22,6 +23,7 @@ from test_serial_link import PARAMS, PLANT
 
 from wristmark.cli import servo as S
 from wristmark.rig import protocol as P
+from wristmark.rig.heap_freeze import freeze_heap
 from wristmark.rig.metrics import error_stats
 from wristmark.rig.realtime_priority import realtime_priority_allowed
 from wristmark.rig.servo_summary import summarize
@@ -235,6 +237,7 @@ def test_a_stream_stalling_mid_run_holds_the_arm_then_stops_safely(setup: SimSet
     pty, url = lab.start()
     emu = lab.emulator
     assert isinstance(emu, TargetRecorder)
+    freeze_heap()  # as `wristmark emulator` does: the box shares this (large) process's GIL with its collector
     try:
         proc = subprocess.Popen([sys.executable, "-m", "wristmark", "servo", "--serial", pty, "--camera", url,
                                  "--image-scale", str(SCALE), *RT_HOST, "--duration", "30", "--no-progress"],
@@ -252,6 +255,7 @@ def test_a_stream_stalling_mid_run_holds_the_arm_then_stops_safely(setup: SimSet
         moved = np.abs(emu.arm.measured_actuators() - held_at).max()
     finally:
         lab.stop()
+        gc.unfreeze()
     assert proc.returncode == 3, err
     lines = [ln for ln in err.splitlines() if ln.strip()]
     assert len(lines) == 1, err

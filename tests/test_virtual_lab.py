@@ -297,6 +297,8 @@ def test_the_box_runs_above_the_lab_and_rendering_can_stay_at_normal_priority(se
         assert render is not None and render.pid is not None and render.pid != os.getpid()
         rendering = os.sched_getscheduler(render.pid), os.sched_getparam(render.pid).sched_priority
         assert rendering == ((os.SCHED_FIFO, 10) if render_rt else (os.SCHED_OTHER, 0))
+        others = {int(t) for t in os.listdir(f"/proc/{render.pid}/task")} - {render.pid}
+        assert others and all(os.sched_getscheduler(t) == os.SCHED_OTHER for t in others)  # never both cores
         assert os.sched_getscheduler(0) == os.SCHED_OTHER  # the caller's thread keeps its scheduling
     finally:
         lab.stop()

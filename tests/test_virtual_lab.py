@@ -6,6 +6,7 @@ a stream that stalls mid-run holds the arm and stops safely."""
 from __future__ import annotations
 
 import dataclasses
+import gc
 import json
 import os
 import select
@@ -22,6 +23,7 @@ from test_serial_link import PARAMS, PLANT
 
 from wristmark.cli import servo as S
 from wristmark.rig import protocol as P
+from wristmark.rig.heap_freeze import freeze_heap
 from wristmark.rig.metrics import error_stats
 from wristmark.rig.realtime_priority import realtime_priority_allowed
 from wristmark.rig.servo_summary import summarize
@@ -235,6 +237,7 @@ def test_a_stream_stalling_mid_run_holds_the_arm_then_stops_safely(setup: SimSet
     pty, url = lab.start()
     emu = lab.emulator
     assert isinstance(emu, TargetRecorder)
+    freeze_heap()  # as `wristmark emulator` does: the box shares this (large) process's GIL with its collector
     try:
         proc = subprocess.Popen([sys.executable, "-m", "wristmark", "servo", "--serial", pty, "--camera", url,
                                  "--image-scale", str(SCALE), *RT_HOST, "--duration", "30", "--no-progress"],
@@ -252,6 +255,7 @@ def test_a_stream_stalling_mid_run_holds_the_arm_then_stops_safely(setup: SimSet
         moved = np.abs(emu.arm.measured_actuators() - held_at).max()
     finally:
         lab.stop()
+        gc.unfreeze()
     assert proc.returncode == 3, err
     lines = [ln for ln in err.splitlines() if ln.strip()]
     assert len(lines) == 1, err
@@ -265,3 +269,36 @@ def test_a_stream_stalling_mid_run_holds_the_arm_then_stops_safely(setup: SimSet
     assert len(after) >= 20 and len(distinct) <= 3, distinct
     assert t_end - t_freeze < 5.0  # stopped within the loop's lost-frame budget (25 cycles) and margin
     assert moved < 1e-5  # held
+
+
+@pytest.mark.parametrize("render_rt", [True, False])
+def test_the_box_runs_above_the_lab_and_rendering_can_stay_at_normal_priority(setup: SimSetup,
+                                                                              render_rt: bool) -> None:
+    """With --rt-priority N the actuator box's thread runs at N + 1 and the camera and stream at N;
+    the rendering, in a process of its own, at N, or at normal priority (--render-normal-priority)."""
+    from wristmark.models.errors import InputError
+
+    if not realtime_priority_allowed(11):  # then the lab refuses at once, naming what is missing
+        with pytest.raises(InputError, match="real-time priority"):
+            VirtualLab(PARAMS, PLANT, setup.camera, setup.marker, LabCamera(image_scale=0.25), rt_priority=10)
+        return
+    lab = VirtualLab(PARAMS, PLANT, setup.camera, setup.marker, LabCamera(fps=10.0, image_scale=0.25),
+                     rt_priority=10, render_rt=render_rt)
+    lab.start()
+    try:
+        def policy(thread: object) -> tuple[int, int]:
+            tid = thread.native_id  # type: ignore[attr-defined]
+            return os.sched_getscheduler(tid), os.sched_getparam(tid).sched_priority
+
+        assert policy(lab.emulator._thread) == (os.SCHED_FIFO, 11)
+        assert lab.server is not None and policy(lab.server._thread) == (os.SCHED_FIFO, 10)
+        assert policy(lab._thread) == (os.SCHED_FIFO, 10)
+        render = lab._render
+        assert render is not None and render.pid is not None and render.pid != os.getpid()
+        rendering = os.sched_getscheduler(render.pid), os.sched_getparam(render.pid).sched_priority
+        assert rendering == ((os.SCHED_FIFO, 10) if render_rt else (os.SCHED_OTHER, 0))
+        others = {int(t) for t in os.listdir(f"/proc/{render.pid}/task")} - {render.pid}
+        assert others and all(os.sched_getscheduler(t) == os.SCHED_OTHER for t in others)  # never both cores
+        assert os.sched_getscheduler(0) == os.SCHED_OTHER  # the caller's thread keeps its scheduling
+    finally:
+        lab.stop()

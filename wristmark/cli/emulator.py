@@ -40,7 +40,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--rt-priority", type=int_in(1, 99), metavar="N",
                    help="run every thread (serving, and with --camera-port rendering and streaming) under "
                         "SCHED_FIFO at priority N, as firmware and a camera are not starved by other work "
-                        "(needs root or CAP_SYS_NICE)")
+                        "(needs root or CAP_SYS_NICE); the actuator box's thread runs at N + 1")
+    p.add_argument("--render-normal-priority", action="store_true",
+                   help="with --rt-priority and --camera-port: render at normal priority (only the box and the "
+                        "stream in real time), for a renderer that needs every core")
     cam = p.add_argument_group("virtual endoscope (with --camera-port)")
     cam.add_argument("--camera-port", type=int_in(0, 65535), metavar="PORT",
                      help="also play the stereo endoscope: an MJPEG stream on 127.0.0.1:PORT (0: any free port)")
@@ -60,7 +63,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def _camera_options_without_port(args: argparse.Namespace) -> list[str]:
     given = [("--fps", args.fps != 30.0), ("--truth-out", args.truth_out), ("--image-scale", args.image_scale != 1.0),
-             ("--calib", args.calib), ("--marker", args.marker)]
+             ("--calib", args.calib), ("--marker", args.marker),
+             ("--render-normal-priority", args.render_normal_priority)]
     return [name for name, set_ in given if set_]
 
 
@@ -75,6 +79,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--watchdog must be > 0 s, got {args.watchdog}")
     if args.camera_port is None and _camera_options_without_port(args):
         raise InputError(f"{', '.join(_camera_options_without_port(args))} need --camera-port PORT")
+    if args.render_normal_priority and args.rt_priority is None:
+        raise InputError("--render-normal-priority needs --rt-priority N")
     params = load_robot(args.robot, MarkerModel.load(args.marker or default_config("marker.yaml")))
     plant_path = Path(args.plant) if args.plant else DEFAULT_PLANT
     plant = PlantParams.load(plant_path) if plant_path.exists() or args.plant else PlantParams()
@@ -107,6 +113,7 @@ def _serve_lab(args: argparse.Namespace, params: RobotParams, plant: object, psi
                done: threading.Event) -> int:
     from wristmark.cvs.calibration_io import load_calibration
     from wristmark.models.marker import MarkerModel
+    from wristmark.rig.heap_freeze import freeze_heap
     from wristmark.rig.loop_setup import default_config
     from wristmark.sim.virtual_lab import LabCamera, VirtualLab
 
@@ -115,12 +122,14 @@ def _serve_lab(args: argparse.Namespace, params: RobotParams, plant: object, psi
     camera = LabCamera(fps=args.fps, image_scale=args.image_scale, seed=args.seed, jpeg_quality=args.jpeg_quality,
                        port=args.camera_port)
     lab = VirtualLab(params, plant, calib, marker, camera, psi0=psi0, watchdog_s=args.watchdog,  # type: ignore[arg-type]
-                     truth_out=args.truth_out, rt_priority=args.rt_priority)
+                     truth_out=args.truth_out, rt_priority=args.rt_priority,
+                     render_rt=not args.render_normal_priority)
     try:
         path, url = lab.start()
+        freeze_heap()  # a full collection would stop the box and the camera for ~0.1 s (rig.heap_freeze)
         print(path, flush=True)
         print(url, flush=True)
-        w, h = lab.renderer.camera.image_size
+        w, h = lab.camera.image_size
         print(f"virtual lab: actuator box (protocol v1) on {path}; stereo endoscope {2 * w}x{h} side by side at "
               f"up to {args.fps:g} fps on {url}; Ctrl-C to stop", file=sys.stderr, flush=True)
         while not done.wait(0.2):

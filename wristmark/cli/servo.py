@@ -225,7 +225,11 @@ def open_session(setup: LoopSetup, psi0: Array, options: LinkOptions, args: argp
             from wristmark.rig.realtime_priority import request_realtime_priority
 
             request_realtime_priority(args.rt_priority)
-        return open_hardware_session(setup, options, args.camera, camera_timeout=args.camera_timeout)
+        from wristmark.rig.heap_freeze import freeze_heap
+
+        session = open_hardware_session(setup, options, args.camera, camera_timeout=args.camera_timeout)
+        freeze_heap()  # no full garbage collection of the start-up heap mid-run (rig.heap_freeze)
+        return session
     from wristmark.sim.servo_bench import open_sim_session
 
     return open_sim_session(setup, psi0, options, seed=setup.rig.seed)  # type: ignore[arg-type]

@@ -16,7 +16,7 @@ from wristmark.rig.frame_feed import LatestFrameFeed
 from wristmark.rig.loop_setup import LoopSetup
 from wristmark.rig.serial_link import SerialLink
 from wristmark.rig.servo_session import HW_TIMEOUT_S, LinkOptions, ServoSession
-from wristmark.rig.tip_sensors import VisionTipSensor
+from wristmark.rig.tip_sensors import DeadlineTipSensor, VisionTipSensor
 
 FIRST_FRAME_TIMEOUT_S = 10.0  # [s] longest wait for the camera's first frame before any motion
 
@@ -24,9 +24,10 @@ FIRST_FRAME_TIMEOUT_S = 10.0  # [s] longest wait for the camera's first frame be
 def open_hardware_session(setup: LoopSetup, options: LinkOptions, camera: str, camera_timeout: float = 2.0,
                           layout: str = "sbs") -> ServoSession:
     """Open the actuator box (PING, GET_STATE: not yet enabled) and the camera, and check the
-    camera's first frame against the calibration's image size (at the rig's image scale), all
-    before any motion command. camera_timeout: no new frame for this long ends the camera's
-    stream [s] (the loop holds the arm well before, after ``max_lost_cycles`` cycles without a frame)."""
+    camera's first frame against the calibration's image size (at the rig's image scale) and track
+    it once (the tracker's first, slow call), all before any motion command.
+    camera_timeout: no new frame for this long ends the camera's stream [s] (the loop holds the
+    arm well before, after ``max_lost_cycles`` cycles without a frame)."""
     from wristmark.cvs.frames import FrameSourceError, check_frame_size
     from wristmark.cvs.open_source import SourceOptions, open_stereo_source
 
@@ -43,13 +44,16 @@ def open_hardware_session(setup: LoopSetup, options: LinkOptions, camera: str, c
         link.close()
         raise
     feed = LatestFrameFeed(source)
-    session = ServoSession(link, options, feed, VisionTipSensor(cam, setup.marker), port=options.port,
-                           camera=camera, wall_clock=True)
+    vision = VisionTipSensor(cam, setup.marker)
+    sensor = DeadlineTipSensor(vision, setup.rig.tracking_budget)  # no cycle outlasts the box's watchdog
+    session = ServoSession(link, options, feed, sensor, port=options.port, camera=camera, wall_clock=True)
+    session.on_close.append(sensor.close)
     try:
         first = feed.take(wait_until=time.monotonic() + FIRST_FRAME_TIMEOUT_S)
         if first is None:
             raise FrameSourceError(f"{camera}: no frame within {FIRST_FRAME_TIMEOUT_S:g} s")
         check_frame_size(first, cam.image_size, camera)
+        vision.measure(first)  # loads the tracker's compiled kernels before any motion (no budget)
     except BaseException:
         session.close()
         raise

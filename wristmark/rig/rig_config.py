@@ -30,8 +30,14 @@ class RigConfig:
     it began before it takes the newest older one [s] (0: never wait); a cycle without any new
     frame holds the arm like a lost marker. image_scale: the simulated bench renders at this
     fraction of the calibrated resolution; on hardware, the camera delivers it (the calibration
-    is scaled to match). vision_latency, plant_dt, sensor, truth_noise_rms, render_noise,
-    tracker_rms and realtime concern the simulated bench only.
+    is scaled to match). delay_compensation: the controller gets the measured tip moved on by
+    the nominal model's predicted motion from the frame's capture to the command
+    (rig.delay_compensation; the model: the commands sent, through a first-order lag of
+    ``delay_compensation_tau`` [s] per actuator, 0 = at once). tracking_budget: on the wall
+    clock, how long a cycle waits for its frame's tracking before it holds the arm for that
+    cycle (rig.tip_sensors.DeadlineTipSensor; with ``frame_wait`` it keeps every cycle under the
+    actuator box's 250 ms watchdog). vision_latency, plant_dt, sensor,
+    truth_noise_rms, render_noise, tracker_rms and realtime concern the simulated bench only.
     """
 
     control_dt: float = 0.060
@@ -51,14 +57,17 @@ class RigConfig:
     seed: int = 0
     realtime: bool = False
     frame_wait: float = 0.04  # [s] wall clock: longest wait of a cycle for a fresh frame
+    delay_compensation: bool = True
+    delay_compensation_tau: float = 0.0  # [s] actuator lag assumed by the compensation's model
+    tracking_budget: float = 0.15  # [s] wall clock: longest wait of a cycle for its frame's tracking
 
     def validate(self) -> None:
         """Raise ConfigError naming the offending key."""
-        for k in ("control_dt", "plant_dt", "image_scale", "gate", "model_gate"):
+        for k in ("control_dt", "plant_dt", "image_scale", "gate", "model_gate", "tracking_budget"):
             if getattr(self, k) <= 0:
                 raise ConfigError(f"'{k}' must be > 0, got {getattr(self, k)}")
         for k in ("vision_latency", "truth_noise_rms", "tracker_rms", "settle_time", "feedforward_preview",
-                  "feedforward_lead", "frame_wait"):
+                  "feedforward_lead", "frame_wait", "delay_compensation_tau"):
             if getattr(self, k) < 0:
                 raise ConfigError(f"'{k}' must be >= 0, got {getattr(self, k)}")
         if self.vision_latency >= self.control_dt:
@@ -69,6 +78,9 @@ class RigConfig:
         if self.frame_wait >= self.control_dt:
             raise ConfigError(f"'frame_wait' ({self.frame_wait} s) must be shorter than 'control_dt' "
                               f"({self.control_dt} s)")
+        if self.frame_wait + self.tracking_budget > 0.2:
+            raise ConfigError(f"'frame_wait' + 'tracking_budget' ({self.frame_wait + self.tracking_budget:g} s) must "
+                              "not exceed 0.2 s: a cycle must stay well within the actuator box's 250 ms watchdog")
         if self.plant_dt > self.control_dt:
             raise ConfigError("'plant_dt' must not exceed 'control_dt'")
         if self.sensor not in SENSOR_KINDS:

@@ -36,6 +36,7 @@ from wristmark.models.limits import clamp_psi, wrap_angle
 from wristmark.models.pose_ik import nominal_ik
 from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.rig.actuator_link import ActuatorLink
+from wristmark.rig.delay_compensation import DelayCompensator
 from wristmark.rig.frame_feed import FrameFeed
 from wristmark.rig.ground_truth import NO_TRUTH, GroundTruth, TruthSample
 from wristmark.rig.progress import PhaseProgress
@@ -174,6 +175,7 @@ class ServoLoop:
         self.psi_cmd: Array | None = None
         self._wall0 = time.perf_counter()
         self._sim0 = self.t
+        self.delay = DelayCompensator(params, rig.delay_compensation_tau) if rig.delay_compensation else None
 
     # -- time and commands ----------------------------------------------------------------
     def _advance(self, t: float) -> None:
@@ -190,6 +192,8 @@ class ServoLoop:
 
     def _send(self, psi: Array) -> None:
         self.link.send_target(actuators_from_psi(self.params, psi))
+        if self.delay is not None:
+            self.delay.record(self._now(), psi)
 
     def start_at(self, psi: Array) -> None:
         """Move to ``psi`` and let the arm settle there (2 s).
@@ -353,6 +357,9 @@ class ServoLoop:
             memory.last_reason = "measurement rejected by the gates"
             return _Outcome(meas, truth, False, True, 0.0)
         memory.last_ok = p_est
+        if self.delay is not None:  # moved on to when this cycle's command goes out
+            t_cmd = self._now() if self.wall_clock else target.t + self.rig.vision_latency
+            p_est = self.delay.compensate(p_est, meas.t_capture, t_cmd)
         c0 = time.perf_counter()
         orient = OrientationTask.of(target.R_des, target.w_des, meas.R_world, meas.roll_known)
         step = self.controller.step(self.psi_cmd, p_est, target.p_des, target.v_des, self.rig.control_dt, orient)

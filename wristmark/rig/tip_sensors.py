@@ -92,3 +92,52 @@ class VisionTipSensor:
         return TipMeasurement(True, p, "", ms, float(res.rms_px), frame.t_capture, frame.index, corners, T,
                               np.asarray(res.tip_left, float), None if T is None else W[:3, :3] @ T[:3, :3],
                               bool(res.roll_known))
+
+
+class DeadlineTipSensor:
+    """Another sensor's measurement, given up after ``budget`` [s] so that a cycle never outlasts
+    the actuator box's watchdog.
+
+    The tracker usually takes milliseconds, but a frame that needs a search of the whole image
+    (the marker far from where the last frame had it, e.g. from a slow camera) took 368 ms once
+    on the loaded 2-core machine at 1080p, and the box's 250 ms watchdog then stopped the run. The
+    measurement runs in a worker thread (the tracker releases the GIL in OpenCV and numba); the
+    caller waits at most ``budget``, then gets a failed measurement (the loop holds the arm for
+    that cycle, as for a lost marker) while the worker finishes, so the tracker still learns
+    where the marker is for the next frame. A frame that comes while the worker is still busy
+    is not measured (failed too)."""
+
+    def __init__(self, inner: TipSensor, budget: float) -> None:
+        from concurrent.futures import ThreadPoolExecutor
+
+        if not budget > 0:
+            raise ValueError(f"budget must be > 0 s, got {budget}")
+        self.inner = inner
+        self.budget = float(budget)
+        self.late = 0  # measurements given up
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="tip-sensor")
+        self._busy: object = None
+
+    def measure(self, frame: StereoFrame, axis_hint_world: Array | None = None) -> TipMeasurement:
+        """The inner sensor's measurement, or a failed one when it takes longer than the budget
+        or the previous one is still running."""
+        from concurrent.futures import Future, TimeoutError
+
+        t0 = time.perf_counter()
+        busy = self._busy
+        if isinstance(busy, Future) and not busy.done():
+            return TipMeasurement(False, None, "tracker still busy with an earlier frame", 0.0,
+                                  t_capture=frame.t_capture, frame_index=frame.index)
+        job = self._pool.submit(self.inner.measure, frame, axis_hint_world)
+        self._busy = job
+        try:
+            return job.result(timeout=self.budget)
+        except TimeoutError:
+            self.late += 1
+            ms = 1000.0 * (time.perf_counter() - t0)
+            return TipMeasurement(False, None, f"tracking took longer than {1000 * self.budget:.0f} ms", ms,
+                                  t_capture=frame.t_capture, frame_index=frame.index)
+
+    def close(self) -> None:
+        """Let a running measurement finish and stop the worker."""
+        self._pool.shutdown(wait=True)

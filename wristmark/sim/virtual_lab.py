@@ -2,12 +2,13 @@
 sees only what it would see in a lab, serial bytes and a video stream (DESIGN.md "The virtual lab").
 
 :class:`VirtualLab` drives the simulated true arm from an actuator-box emulator on a new pty
-(protocol v1, wall clock) and, in a camera thread, renders that arm in wall-clock time at up to
+(protocol v1, wall clock) and, in a camera thread, samples that arm in wall-clock time at up to
 ``fps`` frames per second (fewer where rendering cannot keep up; frame starts are at least one
-period apart) and publishes each stereo pair side by side as a JPEG of an MJPEG stream on
-loopback (:class:`rig.mjpeg_server.MjpegServer`). Each frame's capture instant is the emulator
-clock's ``time.monotonic()`` when the arm was sampled; ``truth_out`` logs it with the true tip
-in {w} [m] (CSV header ``t,tip_x,tip_y,tip_z``), one row per published frame.
+period apart), has it rendered by a process of its own (:mod:`sim.render_process`) and
+publishes each stereo pair side by side as a JPEG of an MJPEG stream on loopback
+(:class:`rig.mjpeg_server.MjpegServer`). Each frame's capture instant is the emulator clock's
+``time.monotonic()`` when the arm was sampled; ``truth_out`` logs it with the true tip in {w}
+[m] (CSV header ``t,tip_x,tip_y,tip_z``), one row per published frame.
 
 Each JPEG also carries its capture instant (cvs.jpeg_stamp, a COM segment decoders ignore):
 valid only because both processes read one machine's monotonic clock, and not something a real
@@ -35,13 +36,12 @@ from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.rig.mjpeg_server import MjpegServer
-from wristmark.rig.realtime_priority import check_realtime_priority, request_realtime_priority
+from wristmark.rig.realtime_priority import MAX_PRIORITY, check_realtime_priority, request_realtime_priority
 from wristmark.sim.actuator_emulator import ActuatorEmulator
 from wristmark.sim.locked_arm import LockedArm
 from wristmark.sim.plant import TruePlant
 from wristmark.sim.plant_params import PlantParams
-from wristmark.sim.render import StereoRenderer
-from wristmark.sim.render_settings import noise_preset
+from wristmark.sim.render_process import RenderProcess
 
 TRUTH_HEADER = "t,tip_x,tip_y,tip_z"
 FIRST_FRAME_TIMEOUT_S = 60.0  # [s] the first render compiles nothing (numba caches) but a loaded host is slow
@@ -96,14 +96,18 @@ class VirtualLab:
     rt_priority: run every thread of the lab (actuator box, camera, renderer, stream server)
     under ``SCHED_FIFO`` at this priority (:mod:`rig.realtime_priority`), as firmware and a camera
     are not starved by the host's other work; all of them, since a normal thread holding
-    Python's GIL would stall the real-time ones (priority inversion). The caller's thread keeps
-    its own scheduling.
+    Python's GIL would stall the real-time ones (priority inversion). The actuator box's thread
+    runs one priority above the others. The rendering runs in a process of its own
+    (:mod:`sim.render_process`: it shares no GIL with the box), in real time at ``rt_priority``
+    too, or at normal priority with ``render_rt`` False: for a renderer that needs every core,
+    which in real time would eat the machine's real-time budget and throttle the host's loop.
+    The caller's thread keeps its own scheduling.
     emulator_factory: ``(arm, params, watchdog_s=...) -> ActuatorEmulator`` (tests record packets).
     """
 
     def __init__(self, params: RobotParams, plant: PlantParams, calibration: StereoCamera, marker: MarkerModel,
                  camera: LabCamera | None = None, psi0: Any = None, watchdog_s: float = 0.25,
-                 truth_out: str | Path | None = None, rt_priority: int | None = None,
+                 truth_out: str | Path | None = None, rt_priority: int | None = None, render_rt: bool = True,
                  emulator_factory: Callable[..., ActuatorEmulator] | None = None) -> None:
         self.options = camera or LabCamera()
         self.options.validate()
@@ -116,11 +120,14 @@ class VirtualLab:
                                                                                      self.options.image_scale)
         self.arm = LockedArm(TruePlant(params, plant, psi0=np.asarray(psi0 if psi0 is not None else HOME_PSI, float)))
         if rt_priority is not None:
-            check_realtime_priority(rt_priority)
+            check_realtime_priority(min(MAX_PRIORITY, rt_priority + 1))
         self.rt_priority = rt_priority
+        self.render_rt = bool(render_rt)
         factory = emulator_factory or ActuatorEmulator
         self.emulator = factory(self.arm, params, watchdog_s=watchdog_s)
-        self.renderer = StereoRenderer(cam, marker, noise_preset(self.options.noise), seed=self.options.seed)
+        self.camera = cam  # the endoscope as rendered (at the image scale)
+        self.marker = marker
+        self._render: RenderProcess | None = None
         self.truth_path = Path(truth_out) if truth_out else None
         self.stats = CameraStats()
         self.server: MjpegServer | None = None
@@ -145,6 +152,12 @@ class VirtualLab:
             self.truth_path.parent.mkdir(parents=True, exist_ok=True)
             self._truth = open(self.truth_path, "w", buffering=1)
             self._truth.write(TRUTH_HEADER + "\n")
+        try:
+            self._render = RenderProcess(self.camera, self.marker, self.options.noise, self.options.seed,
+                                         self.options.jpeg_quality, self.rt_priority if self.render_rt else None)
+        except BaseException:
+            self.stop()
+            raise
         launcher = threading.Thread(target=self._start_threads, name="virtual-lab-start")
         launcher.start()  # the lab's threads inherit the launcher's scheduling, not the caller's
         launcher.join()
@@ -159,10 +172,12 @@ class VirtualLab:
 
     def _start_threads(self) -> None:
         try:
+            if self.rt_priority is not None:  # the box's thread one above the rest
+                request_realtime_priority(min(MAX_PRIORITY, self.rt_priority + 1))
+            self.pty_path = self.emulator.serve_pty()
             if self.rt_priority is not None:
                 request_realtime_priority(self.rt_priority)
             self.server = MjpegServer(self.options.host, self.options.port)
-            self.pty_path = self.emulator.serve_pty()
             self._thread = threading.Thread(target=self._run_camera, name="virtual-endoscope", daemon=True)
             self._thread.start()
         except Exception as e:  # noqa: BLE001 - handed to start(), which raises it in the caller's thread
@@ -170,17 +185,14 @@ class VirtualLab:
 
     def _frame(self) -> float:
         """Sample the arm, render, publish, log the truth; returns the capture instant [s]."""
-        assert self.server is not None
+        assert self.server is not None and self._render is not None
         t, shape = self.emulator.sample_arm()
-        r0 = time.perf_counter()
-        pair = self.renderer.render(shape)
-        r1 = time.perf_counter()
-        self.server.publish_image(np.hstack([pair.left, pair.right]), self.options.jpeg_quality, t_capture=t)
-        r2 = time.perf_counter()
+        out = self._render.render_jpeg(shape)
+        self.server.publish(out.jpeg, t_capture=t)
         st = self.stats
         st.frames += 1
-        st.render_ms.append(1e3 * (r1 - r0))
-        st.encode_ms.append(1e3 * (r2 - r1))
+        st.render_ms.append(out.render_ms)
+        st.encode_ms.append(out.encode_ms)
         st.t_first = t if st.frames == 1 else st.t_first
         st.t_last = t
         if self._truth is not None:
@@ -219,6 +231,9 @@ class VirtualLab:
             self._thread = None
         if self.server is not None:
             self.server.close()
+        if self._render is not None:
+            self._render.close()
+            self._render = None
         self.emulator.stop()
         if self._truth is not None:
             self._truth.close()

@@ -256,7 +256,7 @@ def test_ctrl_c_holds_and_disables_the_device(lab: VirtualLab) -> None:
     time.sleep(0.3)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=20)
-    assert proc.returncode == 130
+    assert proc.returncode == 130, err
     assert "interrupted" in one_line(err)
     assert emu.received[-3:] == ["GetState", "SetTarget", "Disable"]
     assert not emu.enabled and not emu.watchdog_tripped  # disabled by the host, not by silence

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -45,3 +47,15 @@ def test_an_unknown_name_stays_missing(tmp_path: Path, monkeypatch: pytest.Monke
     assert find_config("elsewhere/robot.yaml") == Path("elsewhere/robot.yaml")  # only configs/ or a bare name
     with pytest.raises(ConfigError, match="not found"):
         load_yaml("configs/nope.yaml")
+
+
+def test_commands_find_the_shipped_files_from_any_folder(tmp_path: Path) -> None:
+    """README commands name configs/...; run from a folder without one they still work."""
+    out = tmp_path / "sleeve.svg"
+    p = subprocess.run([sys.executable, "-m", "wristmark", "marker", "print", "--marker", "configs/marker_coded.yaml",
+                        "--out", str(out)], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    assert out.read_text().lstrip().startswith("<") and "svg" in out.read_text()[:400]
+    p = subprocess.run([sys.executable, "-m", "wristmark", "marker", "print", "--marker", "configs/nope.yaml",
+                        "--out", str(tmp_path / "x.svg")], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert p.returncode == 2 and "configs/nope.yaml" in p.stderr and len(p.stderr.strip().splitlines()) == 1

@@ -12,6 +12,7 @@ import argparse
 from pathlib import Path
 
 from wristmark.cli.common_options import add_config_option, set_example
+from wristmark.models.config_files import find_config
 from wristmark.models.errors import InputError
 from wristmark.rig.output_dir import claim_outputs
 
@@ -38,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
         claim_outputs(files=[out])
     if not out.parent.is_dir():
         raise InputError(f"{out.parent}: folder not found")
-    marker_path = Path(args.marker)
+    marker_path = find_config(args.marker)  # a missing configs/NAME.yaml is the shipped file
     if not marker_path.is_file():
         raise InputError(f"{marker_path}: marker file not found")
     marker = MarkerModel.load(marker_path)

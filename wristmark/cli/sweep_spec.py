@@ -39,6 +39,7 @@ from wristmark.cli.sweep_keys import (
     split_dotted,
     write_configs,
 )
+from wristmark.models.config_files import find_config
 from wristmark.models.config_io import load_yaml
 from wristmark.models.errors import ConfigError
 
@@ -210,7 +211,8 @@ class _BaseConfigs:
 
     def digest(self, path: Path) -> str:
         if path not in self.digests:
-            self.digests[path] = hashlib.sha256(path.read_bytes()).hexdigest() if path.is_file() else "missing"
+            found = find_config(path)  # the file a trial will load (a missing configs/NAME.yaml is the shipped one)
+            self.digests[path] = hashlib.sha256(found.read_bytes()).hexdigest() if found.is_file() else "missing"
         return self.digests[path]
 
     def get(self, ns: str, path: Path, key: str) -> dict[str, Any]:

@@ -74,6 +74,8 @@ def main() -> None:
         "vision_error_mean_mm": closed["mean_mm"], "vision_error_max_mm": closed["max_mm"],
         "true_error_mean_mm": float(np.nanmean(true_mm)), "true_error_max_mm": float(np.nanmax(true_mm)),
         "latency_median_ms": result["latency"]["capture_to_command"]["median_ms"],
+        "cycles_lost": closed["lost"], "cycles_rejected": closed["rejected"],
+        "cycles_without_frame": closed["no_frame"],
     }))
 
 

@@ -9,7 +9,7 @@ import dataclasses
 import json
 from pathlib import Path
 
-from wristmark.cli.common_options import add_config_option, add_json_flag, set_example
+from wristmark.cli.common_options import add_config_option, add_force_argument, add_json_flag, set_example
 from wristmark.models.errors import InputError
 from wristmark.rig.output_dir import claim_outputs
 
@@ -18,7 +18,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("action", choices=("convert", "show"), help="convert: write the project's YAML; show: summary")
     add_config_option(p, "--calib", required=True)
     p.add_argument("--out", metavar="FILE.yaml", help="output file (convert): the project's calibration YAML")
-    p.add_argument("--force", action="store_true", help="convert: overwrite an existing --out")
+    add_force_argument(p)
     add_config_option(p, "--registration")
     add_json_flag(p, "the summary (show)")
     set_example(p, "wristmark calib convert --calib left.yaml,right.yaml --out calib.yaml",

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from wristmark.cli.common_options import add_json_flag, set_example
+from wristmark.cli.common_options import add_force_argument, add_json_flag, set_example
 from wristmark.cli.option_types import int_in, positive_float
 from wristmark.models.errors import InputError
 from wristmark.rig.output_dir import claim_outputs
@@ -36,7 +36,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="--source: how one frame holds both views (side by side, top-bottom)")
     p.add_argument("--every", type=int_in(1, 10000), default=1, metavar="K", help="--source: use every K-th frame")
     p.add_argument("--out", required=True, metavar="FILE.yaml", help="output file: the calibration (project YAML)")
-    p.add_argument("--force", action="store_true", help="overwrite an existing --out")
+    add_force_argument(p)
     p.add_argument("--report", metavar="DIR", help="write DIR/report.md with per-view errors and pictures")
     p.add_argument("--outlier-floor", type=positive_float(100.0), default=0.5, metavar="PX",
                    help="views are dropped as outliers only above this RMS [px] (default 0.5)")

@@ -9,7 +9,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from wristmark.cli.common_options import JSON_FILE_HELP, set_example
+from wristmark.cli.common_options import JSON_FILE_HELP, add_force_argument, add_host_argument, set_example
 from wristmark.cli.option_types import (
     MAX_DURATION_S,
     MAX_POSITIONS,
@@ -22,9 +22,8 @@ from wristmark.cli.option_types import (
 from wristmark.cli.setup_args import add_registration_argument, add_setup_arguments, setup_from_args
 from wristmark.models.errors import ConfigError
 from wristmark.rig.orientation_path import ORIENTATION_MODES
-from wristmark.rig.output_dir import add_force_argument, claim_outputs, link_latest, new_run_dir
+from wristmark.rig.output_dir import claim_outputs, link_latest, new_run_dir
 from wristmark.rig.run_log import write_json
-from wristmark.viz.web_hosts import add_host_argument
 
 if TYPE_CHECKING:
     from wristmark.rig.run_log import CycleRecord

@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from wristmark.cli.common_options import add_config_option, set_example
+from wristmark.cli.common_options import add_config_option, add_force_argument, set_example
 from wristmark.models.config_files import find_config
 from wristmark.models.errors import InputError
 from wristmark.rig.output_dir import claim_outputs
@@ -22,7 +22,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     pr = sub.add_parser("print", help="write the unrolled sleeve at 1:1 (SVG or PDF)")
     add_config_option(pr, "--marker", required=True, note="e.g. configs/marker_coded.yaml")
     pr.add_argument("--out", required=True, metavar="FILE.pdf", help="output file: .svg or .pdf")
-    pr.add_argument("--force", action="store_true", help="overwrite an existing --out")
+    add_force_argument(pr)
     set_example(pr, "wristmark marker print --marker configs/marker_coded.yaml --out runs/tour/sleeve.pdf")
     set_example(p, "wristmark marker print --marker configs/marker_coded.yaml --out runs/tour/sleeve.pdf")
 

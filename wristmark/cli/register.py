@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from wristmark.cli.common_options import add_config_option, add_json_flag, set_example
+from wristmark.cli.common_options import add_config_option, add_force_argument, add_json_flag, set_example
 from wristmark.cli.option_types import float_in, int_in, positive_float, seed_int
 from wristmark.models.config_files import default_config
 from wristmark.models.errors import InputError
@@ -29,7 +29,7 @@ REPLY_TIMEOUT_S = 0.2  # [s] per attempt at a reply from the actuator box (3 ret
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, metavar="FILE.yaml", help="output file: the registration to write")
-    p.add_argument("--force", action="store_true", help="overwrite an existing --out")
+    add_force_argument(p)
     p.add_argument("--poses", type=int_in(4, 500), default=12, metavar="N",
                    help="configurations to visit (each twice, from either side; default 12)")
     add_config_option(p, "--calib")

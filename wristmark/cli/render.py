@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from wristmark.cli.common_options import add_config_option, add_json_flag, set_example
+from wristmark.cli.common_options import add_config_option, add_force_argument, add_json_flag, set_example
 from wristmark.cli.option_types import (
     MAX_BLUR_PX,
     MAX_IMAGE_SCALE,
@@ -24,7 +24,7 @@ from wristmark.cli.option_types import (
 )
 from wristmark.models.config_files import default_config
 from wristmark.models.errors import InputError
-from wristmark.rig.output_dir import add_force_argument, claim_outputs
+from wristmark.rig.output_dir import claim_outputs
 
 Array = NDArray[np.float64]
 # Half-widths of the random psi draw around HOME_PSI: phi [rad], d [m], theta1, delta1, theta2, delta2 [rad].

@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from wristmark.cli.common_options import JSON_FILE_HELP, set_example
+from wristmark.cli.common_options import JSON_FILE_HELP, add_force_argument, add_host_argument, set_example
 from wristmark.cli.option_types import (
     MAX_BAUD,
     MAX_DURATION_S,
@@ -48,7 +48,8 @@ from wristmark.cli.option_types import (
 )
 from wristmark.cli.setup_args import add_registration_argument, add_setup_arguments, setup_from_args
 from wristmark.models.errors import InputError
-from wristmark.rig.output_dir import add_force_argument, claim_outputs
+from wristmark.rig.orientation_path import ORIENTATION_MODES, check_orientation_mode
+from wristmark.rig.output_dir import claim_outputs
 from wristmark.rig.run_log import write_json
 from wristmark.rig.servo_session import (
     HW_TIMEOUT_S,
@@ -62,7 +63,6 @@ from wristmark.rig.servo_session import (
 )
 from wristmark.rig.servo_summary import summarize
 from wristmark.rig.trajectories import Trajectory
-from wristmark.viz.web_hosts import add_host_argument
 
 if TYPE_CHECKING:
     from wristmark.rig.loop_setup import LoopSetup
@@ -100,6 +100,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         f"{SIM_TIMEOUT_S} simulated)")
     p.add_argument("--trajectory", choices=("cube", "point"), default="cube",
                    help="cube: the paper's cube walk (default); point: hold --point")
+    p.add_argument("--orientation", choices=ORIENTATION_MODES, default="none",
+                   help="the tip frame's orientation: none (position only, as the paper; default), hold (the "
+                        "start's, kept along the path) or follow (as the nominal model turns it); needs the qp "
+                        "controller and, for the roll, the coded marker")
     p.add_argument("--point", type=float_in(-MAX_POINT_M, MAX_POINT_M), nargs=3, metavar=("X", "Y", "Z"),
                    help="point to hold in {w} [m] (default: the workspace centre)")
     p.add_argument("--duration", type=positive_float(MAX_DURATION_S), metavar="S",
@@ -268,6 +272,8 @@ def run(args: argparse.Namespace) -> int:
     check_link_options(args)
     setup = build_setup(args)
     traj = build_trajectory(setup, args.trajectory, args.point, args.duration)
+    if check_orientation_mode(args.orientation, setup.controller.kind) != "none":
+        traj = traj.with_orientation(args.orientation, setup.params)
     psi0 = start_configuration(setup, traj)
     claim_outputs(dirs=[args.out], files=[args.json], force=args.force)  # after every option was validated
     kind = "serial" if args.serial else "direct" if args.direct else "emulator"
@@ -294,6 +300,8 @@ def run(args: argparse.Namespace) -> int:
     c = res["closed_loop"]
     errors = (f"closed-loop tip error mean {c['mean_mm']:.3f} mm, max {c['max_mm']:.3f} mm over {c['cycles']} "
               f"cycles ({c['errors_from']} vs desired)" if c["cycles"] else "no trajectory cycle ran")
+    if c["cycles"] and "orientation_mean_deg" in c:
+        errors += f"; orientation mean {c['orientation_mean_deg']:.2f} deg, max {c['orientation_max_deg']:.2f} deg"
     lat = res["latency"]["capture_to_command"]
     latency = f"; capture -> command median {lat['median_ms']:.1f} ms" if options.kind == "serial" and lat["n"] else ""
     print(f"servo ({res['trajectory']['kind']}, {traj.duration:.1f} s, controller {res['controller']}, "

@@ -17,11 +17,16 @@ import sys
 import time
 from types import FrameType
 
-from wristmark.cli.common_options import add_config_option, add_json_flag, set_example
+from wristmark.cli.common_options import (
+    add_config_option,
+    add_force_argument,
+    add_host_argument,
+    add_json_flag,
+    set_example,
+)
 from wristmark.cli.option_types import MAX_FRAMES, MAX_HOLD_S, int_in, nonnegative_float
 from wristmark.models.errors import InputError
-from wristmark.rig.output_dir import add_force_argument, claim_outputs
-from wristmark.viz.web_hosts import add_host_argument
+from wristmark.rig.output_dir import claim_outputs
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

@@ -28,6 +28,17 @@ ORIENTATION_MODES = ("none", "hold", "follow")
 FOLLOW_STEP_S = 0.05  # [s] sampling of the position-IK path that ``follow`` interpolates
 
 
+def check_orientation_mode(mode: str, controller_kind: str) -> str:
+    """``mode`` if it names an orientation mode the controller ``controller_kind`` can control
+    (ConfigError otherwise: the paper's controller is position-only, as the paper defines it)."""
+    if mode not in ORIENTATION_MODES:
+        raise ConfigError(f"orientation must be one of {', '.join(ORIENTATION_MODES)}, got {mode!r}")
+    if mode != "none" and controller_kind == "paper":
+        raise ConfigError(f"--orientation {mode} needs --controller qp: the paper controller is "
+                          "position-only (eq. 17-21), as the paper defines it")
+    return mode
+
+
 @dataclass(frozen=True)
 class OrientationPath:
     """Desired tip-frame orientations at ``times`` (N,) [s], slerp-interpolated, held at the ends."""

@@ -13,7 +13,6 @@ points ``runs/latest`` at it.
 
 from __future__ import annotations
 
-import argparse
 import os
 import shutil
 import time
@@ -27,12 +26,6 @@ LATEST = "latest"  # name of the link to the newest run folder
 
 class OutputExistsError(InputError):
     """An output folder is not empty or an output file exists, and --force was not given."""
-
-
-def add_force_argument(p: argparse.ArgumentParser) -> None:
-    """The ``--force`` option of a command that writes outputs."""
-    p.add_argument("--force", action="store_true",
-                   help="write into a non-empty output folder (emptied first) or over an existing output file")
 
 
 def _shown(names: list[str]) -> str:

@@ -15,7 +15,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.rig.loop_setup import LoopSetup
-from wristmark.rig.metrics import error_stats, estimate_errors, tracking_errors
+from wristmark.rig.metrics import (
+    angle_stats_deg,
+    error_stats,
+    estimate_errors,
+    orientation_errors,
+    orientation_summary,
+    tracking_errors,
+)
 from wristmark.rig.run_log import CycleRecord
 from wristmark.rig.servo_session import PointHold, ServoOutcome, ServoSession
 from wristmark.rig.trajectories import Trajectory
@@ -73,10 +80,24 @@ def closed_loop_errors(records: list[CycleRecord]) -> dict[str, Any]:
     return {**vis.as_dict(), "cycles": len(records), "errors_from": "vision estimate"}
 
 
+def orientation_errors_of(traj: Trajectory, records: list[CycleRecord]) -> dict[str, Any]:
+    """The orientation fields [deg] of a run whose path asks for an orientation (none otherwise):
+    the optical tracker's against the desired where there is ground truth, else the vision
+    estimate's (``orientation_from`` says which)."""
+    if traj.orientation is None:
+        return {}
+    if any(r.R_trk is not None for r in records):
+        return {**orientation_summary(records), "orientation_from": "optical tracker"}
+    vis = angle_stats_deg(orientation_errors(records, "R_est"))
+    return {"orientation_mean_deg": vis["mean_deg"], "orientation_max_deg": vis["max_deg"],
+            "orientation_from": "vision estimate"}
+
+
 def summarize(setup: LoopSetup, traj: Trajectory, session: ServoSession, out: ServoOutcome) -> dict[str, Any]:
     """The result JSON of a run (see the module docstring)."""
     recs = out.log.phase("servo")
-    closed = {**closed_loop_errors(recs), "lost": out.lost, "rejected": out.rejected, "no_frame": out.no_frame,
+    closed = {**closed_loop_errors(recs), **orientation_errors_of(traj, recs), "lost": out.lost,
+              "rejected": out.rejected, "no_frame": out.no_frame,
               "skipped": out.skipped}
     link: dict[str, Any] = {"kind": session.options.kind, "port": session.port,
                             "realtime": session.options.realtime or session.options.kind == "serial"}
@@ -94,7 +115,8 @@ def summarize(setup: LoopSetup, traj: Trajectory, session: ServoSession, out: Se
     kind = "point" if isinstance(traj, PointHold) else "cube"
     return {
         "command": "servo", "trajectory": {"kind": kind, "duration_s": traj.duration,
-                                           "waypoints_m": np.asarray(traj.waypoints).tolist()},
+                                           "waypoints_m": np.asarray(traj.waypoints).tolist(),
+                                           "orientation": traj.orientation_mode},
         "controller": setup.controller.kind, "control_dt_s": setup.rig.control_dt,
         "sensor": setup.rig.sensor if session.truth is not None else "vision (camera)",
         "closed_loop": closed,

@@ -15,22 +15,23 @@ from wristmark.models.errors import ConfigError
 from wristmark.models.ik import solve_tip_ik
 from wristmark.models.kinematics import forward_kinematics
 from wristmark.models.robot_params import HOME_PSI
-from wristmark.rig import trajectories
 from wristmark.rig.metrics import corner_overshoot, error_stats, estimate_errors, orientation_summary, tracking_errors
-from wristmark.rig.orientation_path import start_configuration
+from wristmark.rig.orientation_path import check_orientation_mode, start_configuration
 from wristmark.rig.run_log import CycleRecord, RunLog, write_json
 from wristmark.rig.servo_loop import MarkerLostError, PhaseStats, ServoLoop
-from wristmark.rig.trajectories import CUBE_SIZE, CUBE_SPEED, Trajectory, accuracy_targets, cube_trajectory
+from wristmark.rig.trajectories import (
+    CUBE_SIZE,
+    CUBE_SPEED,
+    Trajectory,
+    accuracy_targets,
+    cube_trajectory,
+    workspace_centre,
+)
 from wristmark.sim.setup import SimSetup, make_direct_loop, make_measurement, make_plant
 
 PAPER_CUBE = {"open_loop": {"mean_mm": 3.25, "max_mm": 8.40},
               "closed_loop": {"mean_mm": 0.82, "max_mm": 2.59}, "ratio": 0.2523}
 PAPER_ACCURACY = {"mean_mm": 0.67, "max_mm": 1.21}
-
-
-def workspace_centre(setup: SimSetup) -> np.ndarray:
-    """The cube's centre in {w}: the tip at the home configuration [m]."""
-    return trajectories.workspace_centre(setup.params)
 
 
 def _phase_summary(log: RunLog, phase: str, traj: Trajectory) -> dict[str, Any]:
@@ -68,7 +69,7 @@ def run_cube(setup: SimSetup, out_dir: Path, progress: bool = True, seed: int | 
     ``duration`` [s] cuts the walk short (quick checks); None runs all 12 edges. ``on_cycle`` is
     called with every cycle's record, ``on_frame`` with every measured frame and its
     measurement (e.g. a live 3D view). ``orientation``: none | hold | follow (rig/orientation_path.py)."""
-    traj = cube_trajectory(workspace_centre(setup), CUBE_SIZE, CUBE_SPEED)
+    traj = cube_trajectory(workspace_centre(setup.params), CUBE_SIZE, CUBE_SPEED)
     if duration is not None:
         traj = traj.truncated(duration)
     return run_open_closed(setup, traj.with_orientation(check_orientation(setup, orientation), setup.params), "cube",
@@ -78,10 +79,7 @@ def run_cube(setup: SimSetup, out_dir: Path, progress: bool = True, seed: int | 
 def check_orientation(setup: SimSetup, orientation: str) -> str:
     """``orientation`` if the setup's controller can control it (ConfigError otherwise: the paper's
     controller is position-only, as the paper defines it)."""
-    if orientation != "none" and setup.controller.kind == "paper":
-        raise ConfigError(f"--orientation {orientation} needs --controller qp: the paper controller is "
-                          "position-only (eq. 17-21), as the paper defines it")
-    return orientation
+    return check_orientation_mode(orientation, setup.controller.kind)
 
 
 def run_point(setup: SimSetup, out_dir: Path, point: np.ndarray | None = None, progress: bool = True,
@@ -93,7 +91,7 @@ def run_point(setup: SimSetup, out_dir: Path, point: np.ndarray | None = None, p
     ``orientation``: none | hold | follow (both hold the start's orientation on a point)."""
     from wristmark.rig.servo_session import POINT_HOLD_S, PointHold
 
-    p = workspace_centre(setup) if point is None else np.asarray(point, float)
+    p = workspace_centre(setup.params) if point is None else np.asarray(point, float)
     miss = solve_tip_ik(setup.params, p, np.asarray(HOME_PSI)).error
     if not miss <= 1e-4:
         raise ConfigError(f"the point {np.round(1000 * p, 2).tolist()} mm is out of reach of the arm "
@@ -113,7 +111,7 @@ def run_open_closed(setup: SimSetup, traj: Trajectory, experiment: str, out_dir:
     seed = setup.rig.seed if seed is None else seed
     out_dir.mkdir(parents=True, exist_ok=True)
     write_json(out_dir / "config.json", {"experiment": experiment, **setup.describe()})
-    centre = workspace_centre(setup)
+    centre = workspace_centre(setup.params)
     psi0 = start_configuration(setup.params, traj.sample(0.0)[0])
     log = RunLog()
     stats = {}
@@ -200,7 +198,7 @@ def run_accuracy(setup: SimSetup, out_dir: Path, n: int = 40, progress: bool = T
     seed = setup.rig.seed if seed is None else seed
     out_dir.mkdir(parents=True, exist_ok=True)
     write_json(out_dir / "config.json", {"experiment": "accuracy", **setup.describe()})
-    targets = accuracy_targets(workspace_centre(setup), n=n, seed=seed)
+    targets = accuracy_targets(workspace_centre(setup.params), n=n, seed=seed)
     psi = np.asarray(HOME_PSI, float)
     plant = make_plant(setup, psi)
     frames, sensor = make_measurement(setup, plant, lambda: plant.time, seed)

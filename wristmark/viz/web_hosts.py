@@ -55,9 +55,3 @@ def host_address(text: str) -> str:
             f"'{text}' is not an IP address (e.g. 127.0.0.1, the default, or 0.0.0.0 for every interface)"
         ) from None
 
-
-def add_host_argument(p: argparse.ArgumentParser) -> None:
-    """The ``--host ADDRESS`` option of the commands that serve the 3D view."""
-    p.add_argument("--host", type=host_address, metavar="ADDRESS",
-                   help="3D view: also listen on ADDRESS (e.g. 0.0.0.0: every interface; default: "
-                        "127.0.0.1 and ::1 only, nobody else can watch)")

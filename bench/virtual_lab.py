@@ -37,6 +37,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 
 from wristmark.cli.option_types import positive_float  # noqa: E402
+from wristmark.models.config_files import default_config  # noqa: E402
 from wristmark.rig.realtime_priority import realtime_priority_allowed  # noqa: E402
 
 WRISTMARK = [sys.executable, "-m", "wristmark"]
@@ -88,8 +89,10 @@ def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_r
     from wristmark.sim.virtual_lab import read_truth_csv, true_tip_errors
 
     truth = tmp / f"truth_{scale}.csv"
+    dense = tmp / f"truth_dense_{scale}.csv"
     emu = subprocess.Popen([*WRISTMARK, "emulator", "--pty", "--camera-port", "0", "--fps", f"{fps:.2f}",
                             "--image-scale", str(scale), "--jpeg-quality", "95", "--truth-out", str(truth),
+                            "--truth-dense-out", str(dense),
                             *(["--rt-priority", "10"] if rt else []),
                             *(["--render-normal-priority"] if rt and not rt_render else [])],
                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
@@ -107,19 +110,26 @@ def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_r
     if r.returncode != 0:
         return {"error": r.stderr.strip()}
     res = json.loads((tmp / f"res_{scale}.json").read_text())
-    err = error_stats(true_tip_errors(run_dir / "log.csv", truth))
+    err = error_stats(true_tip_errors(run_dir / "log.csv", dense))  # at the cycles' nominal instants
+    err_frames = error_stats(true_tip_errors(run_dir / "log.csv", truth))
+    err_wall = error_stats(true_tip_errors(run_dir / "log.csv", truth, at="t_wall"))
     t, _ = read_truth_csv(truth)
     lat = res["latency"]
     return {
         "fps_requested": round(fps, 1),
         "fps_rendered": round((len(t) - 1) / (t[-1] - t[0]), 1) if len(t) > 1 else None,
         "latency_ms": {k: {q: lat[k][q] for q in ("median_ms", "p95_ms", "max_ms")} for k in
-                       ("capture_to_command", "transport", "arrival_to_command", "tracking")},
+                       ("capture_to_command", "transport", "arrival_to_command", "arrival_to_ready", "tracking")},
+        "command_phase_ms": lat["command_phase_ms"],
         "frames": {"received": res["frames"]["received"], "dropped": res["frames"]["dropped"],
                    "cycles_without_a_new_frame": res["closed_loop"]["no_frame"]},
         "cycle_jitter_ms": res["timing"]["jitter_ms"], "cycles_skipped": res["closed_loop"]["skipped"],
         "link_overruns": res["link"]["overruns"],
         "true_tip_mm": {"mean": err.mean_mm, "max": err.max_mm, "cycles": err.n},
+        "true_tip_mm_variants": {  # the same run's error evaluated the earlier ways (decomposition)
+            "interpolated_between_frames": {"mean": err_frames.mean_mm, "max": err_frames.max_mm},
+            "between_frames_at_t_wall": {"mean": err_wall.mean_mm, "max": err_wall.max_mm}},
+        "closed_loop_reused": res["closed_loop"].get("reused"),
         "emulator": emu_err.decode(errors="replace").strip().splitlines()[-1:],
     }
 
@@ -156,7 +166,8 @@ def main() -> int:
                     help="the lab renders at most this rate (default 60: as fast as it can here)")
     ap.add_argument("--max-fps-rt", type=positive_float(240.0), default=10.0,
                     help="the lab's rendering gets real-time priority only if the renderer alone sustains 1.5 x this")
-    ap.add_argument("--rig", metavar="YAML", help="rig file of both loops (default the shipped configs/rig.yaml)")
+    ap.add_argument("--rig", metavar="YAML", default=str(default_config("rig_camera.yaml")),
+                    help="rig file of both loops (default the shipped configs/rig_camera.yaml)")
     ap.add_argument("--skip-in-process", action="store_true", help="run the lab only (no in-process reference)")
     a = ap.parse_args()
     rt = realtime_priority_allowed(20)
@@ -185,6 +196,7 @@ def main() -> int:
                 row["targets"] = {"true_tip_ratio": round(ratio, 3), "true_tip_within_20_percent": bool(ratio <= 1.2),
                                   "host_latency_beyond_transport_ms": host, "host_latency_met": bool(host <= 10.0)}
             out["virtual_lab"].append(row)
+    out["rig"] = a.rig
     out["machine"]["load_avg_1min_at_end"] = os.getloadavg()[0]
     print(json.dumps(out, indent=1, default=float))
     return 0

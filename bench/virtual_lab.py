@@ -39,6 +39,7 @@ ROOT = Path(__file__).resolve().parents[1]
 from wristmark.cli.option_types import positive_float  # noqa: E402
 from wristmark.models.config_files import default_config  # noqa: E402
 from wristmark.rig.realtime_priority import realtime_priority_allowed  # noqa: E402
+from wristmark.rig.rig_config import RigConfig  # noqa: E402
 
 WRISTMARK = [sys.executable, "-m", "wristmark"]
 
@@ -81,10 +82,11 @@ def _read_lines(proc: subprocess.Popen[bytes], n: int, timeout: float) -> list[s
 
 
 def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_render: bool,
-            rig: str | None = None) -> dict[str, Any]:
+            rig: str | None = None, dt: float | None = None) -> dict[str, Any]:
     """The virtual lab at up to ``fps`` and ``scale``: a cube of ``duration`` s on the hardware
     path (rt: the host loop and the lab's actuator box and stream under SCHED_FIFO; rt_render:
-    the lab's rendering too; rig: the host's rig file, default the shipped one)."""
+    the lab's rendering too; rig: the host's rig file, default the shipped one; dt: the host's
+    control cycle [s], default the rig file's)."""
     from wristmark.rig.metrics import error_stats
     from wristmark.sim.virtual_lab import read_truth_csv, true_tip_errors
 
@@ -102,7 +104,7 @@ def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_r
         r = subprocess.run([*WRISTMARK, "servo", "--serial", pty, "--camera", url, "--image-scale", str(scale),
                             "--duration", str(duration), "--no-progress", "--out", str(run_dir),
                             "--json", str(tmp / f"res_{scale}.json"), *(["--rt-priority", "20"] if rt else []),
-                            *(["--rig", rig] if rig else [])],
+                            *(["--rig", rig] if rig else []), *(["--dt", f"{dt:g}"] if dt else [])],
                            cwd=ROOT, capture_output=True, text=True, timeout=600)
     finally:
         emu.send_signal(signal.SIGTERM)
@@ -134,9 +136,9 @@ def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_r
     }
 
 
-def in_process_run(scale: float, duration: float, rig: str | None = None) -> dict[str, Any]:
+def in_process_run(scale: float, duration: float, rig: str | None = None, dt: float | None = None) -> dict[str, Any]:
     """The same cube on the in-process bench (pty emulator, simulated clock; rig: the rig file,
-    default the shipped one)."""
+    default the shipped one; dt: the control cycle [s], default the rig file's)."""
     import dataclasses
 
     from wristmark.cli import servo as S
@@ -147,14 +149,24 @@ def in_process_run(scale: float, duration: float, rig: str | None = None) -> dic
 
     setup = load_setup()
     base = RigConfig.load(rig) if rig else setup.rig
-    setup = setup.with_changes(rig=dataclasses.replace(base, image_scale=scale))
+    setup = setup.with_changes(rig=dataclasses.replace(base, image_scale=scale, **({"control_dt": dt} if dt else {})))
     traj = S.build_trajectory(setup, "cube", None, duration)
     psi0 = S.start_configuration(setup, traj)
     session = open_sim_session(setup, psi0, S.LinkOptions(kind="emulator"), seed=setup.rig.seed)
     out = S.run_servo(setup, traj, session, psi0, settle=setup.rig.settle_time)
     c = summarize(setup, traj, session, out)["closed_loop"]
     return {"true_tip_mm": {"mean": c["noise_free"]["mean_mm"], "max": c["noise_free"]["max_mm"],
-                            "cycles": c["cycles"]}, "latency_ms_modelled": 1000 * setup.rig.vision_latency}
+                            "cycles": c["cycles"]}, "latency_ms_modelled": 1000 * setup.rig.vision_latency,
+            "control_dt_s": setup.rig.control_dt}
+
+
+def camera_matched_cycle(renderer_fps: float, dt: float, share: float) -> float | None:
+    """The control cycle [s] for a camera slower than the loop: None when the lab, rendering at
+    ``share`` x its rate alone (the host's tracking takes the rest of the 2 cores), still gives
+    a frame every ``dt``; else the camera's period rounded up to 10 ms, so that the loop (as a
+    lab's loop on such an endoscope would) runs at the camera's rate."""
+    period = 1.0 / (share * renderer_fps)
+    return None if period <= dt else 0.01 * float(np.ceil(period / 0.01 - 1e-9))
 
 
 def main() -> int:
@@ -169,6 +181,10 @@ def main() -> int:
     ap.add_argument("--rig", metavar="YAML", default=str(default_config("rig_camera.yaml")),
                     help="rig file of both loops (default the shipped configs/rig_camera.yaml)")
     ap.add_argument("--skip-in-process", action="store_true", help="run the lab only (no in-process reference)")
+    ap.add_argument("--no-camera-matched", dest="camera_matched", action="store_false",
+                    help="keep the rig's cycle where the camera is slower (default: both loops at the camera's rate)")
+    ap.add_argument("--lab-share", type=positive_float(1.0), default=0.7,
+                    help="the lab's frame rate beside the host, as a share of the renderer's alone (default 0.7)")
     a = ap.parse_args()
     rt = realtime_priority_allowed(20)
     out: dict[str, Any] = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
@@ -186,10 +202,15 @@ def main() -> int:
             # time, its rendering only where the renderer does not need both cores (in real time
             # it would eat the machine's real-time budget and throttle the host's loop)
             rt_render = rt and sustained["fps"] >= 1.5 * a.max_fps_rt
-            lab = lab_run(scale, a.max_fps, a.duration, Path(tmp), rt, rt_render, a.rig)
+            base_dt = RigConfig.load(a.rig).control_dt
+            dt = camera_matched_cycle(sustained["fps"], base_dt, a.lab_share) if a.camera_matched else None
+            fps = a.max_fps if dt is None else min(a.max_fps, 1.25 / dt)  # a little faster than the loop
+            lab = lab_run(scale, fps, a.duration, Path(tmp), rt, rt_render, a.rig, dt)
             lab["lab_realtime_priority"] = {"box_and_stream": rt, "rendering": rt_render}
-            ref = None if a.skip_in_process else in_process_run(scale, a.duration, a.rig)
-            row: dict[str, Any] = {"image_scale": scale, "renderer": sustained, "lab": lab, "in_process": ref}
+            ref = None if a.skip_in_process else in_process_run(scale, a.duration, a.rig, dt)
+            row: dict[str, Any] = {"image_scale": scale, "renderer": sustained,
+                                   "control_dt_s": dt or base_dt, "camera_matched_cycle": dt is not None,
+                                   "lab": lab, "in_process": ref}
             if "true_tip_mm" in lab and ref is not None:
                 ratio = lab["true_tip_mm"]["mean"] / ref["true_tip_mm"]["mean"]
                 host = lab["latency_ms"]["arrival_to_command"]["median_ms"]

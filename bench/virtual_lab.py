@@ -7,14 +7,19 @@
 emulator (`wristmark emulator --pty --camera-port 0 --fps F`) in one process, the hardware path
 (`wristmark servo --serial PTY --camera URL`) in another, a cube of ``--duration`` s (default 20):
 capture-to-command latency (median, p95, max; split into the frame's transport and what the
-host adds), frames dropped, cycle jitter, and the true-tip error from ``--truth-out``; beside it
-the in-process run of the same plant, scale and trajectory (simulated clock, 45 ms latency).
+host adds; ``arrival_to_ready``: the host's own work before the cycle's command instant), frames
+dropped, cycle jitter, and the true-tip error from ``--truth-dense-out`` at each cycle's nominal
+instant (beside it, ``true_tip_mm_variants``: the frames' truth interpolated at the nominal
+instant and at ``t_wall``, the evaluation before); beside it the in-process run of the same plant,
+scale, rig file (default configs/rig_camera.yaml) and trajectory (simulated clock, 45 ms latency).
+``--camera-matched``: where the lab's camera (``--lab-share`` x the renderer's rate alone) is
+slower than the loop, both loops run at the camera's period (``control_dt_s`` in the JSON).
 Both processes run under SCHED_FIFO where the host allows it (rig/realtime_priority.py): the
 host's loop, the lab's actuator box and stream, and the lab's rendering where the renderer
 alone sustains 1.5 x ``--max-fps-rt``.
 Prints one JSON object. Targets (issue 11): host latency beyond the transport <= 10 ms
 (median); lab true-tip error within 20 % of the in-process run.
-Usage: .venv/bin/python bench/virtual_lab.py [--duration S] [--scales 1 0.5] [--skip-video]
+Usage: .venv/bin/python bench/virtual_lab.py [--duration S] [--scales 1 0.5] [--skip-video] [--camera-matched]
 """
 
 from __future__ import annotations
@@ -181,8 +186,9 @@ def main() -> int:
     ap.add_argument("--rig", metavar="YAML", default=str(default_config("rig_camera.yaml")),
                     help="rig file of both loops (default the shipped configs/rig_camera.yaml)")
     ap.add_argument("--skip-in-process", action="store_true", help="run the lab only (no in-process reference)")
-    ap.add_argument("--no-camera-matched", dest="camera_matched", action="store_false",
-                    help="keep the rig's cycle where the camera is slower (default: both loops at the camera's rate)")
+    ap.add_argument("--camera-matched", action="store_true",
+                    help="where the lab's camera is slower than the loop, run both loops at the camera's rate "
+                         "(default: the rig's cycle)")
     ap.add_argument("--lab-share", type=positive_float(1.0), default=0.7,
                     help="the lab's frame rate beside the host, as a share of the renderer's alone (default 0.7)")
     a = ap.parse_args()
@@ -214,8 +220,12 @@ def main() -> int:
             if "true_tip_mm" in lab and ref is not None:
                 ratio = lab["true_tip_mm"]["mean"] / ref["true_tip_mm"]["mean"]
                 host = lab["latency_ms"]["arrival_to_command"]["median_ms"]
+                work = lab["latency_ms"]["arrival_to_ready"]["median_ms"]
+                # the command then waits for its cycle's command instant (rig command_phase): the
+                # literal target (capture -> command <= transport + 10 ms) counts that wait too
                 row["targets"] = {"true_tip_ratio": round(ratio, 3), "true_tip_within_20_percent": bool(ratio <= 1.2),
-                                  "host_latency_beyond_transport_ms": host, "host_latency_met": bool(host <= 10.0)}
+                                  "host_latency_beyond_transport_ms": host, "host_latency_met": bool(host <= 10.0),
+                                  "host_work_after_arrival_ms": work, "host_work_met": bool(work <= 10.0)}
             out["virtual_lab"].append(row)
     out["rig"] = a.rig
     out["machine"]["load_avg_1min_at_end"] = os.getloadavg()[0]

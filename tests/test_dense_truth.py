@@ -38,6 +38,10 @@ def test_the_dense_truth_follows_the_box_clock_and_matches_the_arm(tmp_path: Pat
         clock.t += 0.0025 if k % 2 else 0.001  # polls 1 and 2.5 ms apart: logged at most every 4 ms
         t, shape = emu.sample_arm()  # what a frame shows at t
         samples.append((t, shape.tip))
+    lines = (tmp_path / "dense.csv").read_text().splitlines()
+    assert len(lines) == 2  # header and the first row: the box's thread does no file I/O ...
+    arm.flush()  # ... the camera thread writes the rows
+    assert len((tmp_path / "dense.csv").read_text().splitlines()) == 1 + arm.rows > 10
     arm.close()
     t, tip = read_truth_csv(tmp_path / "dense.csv")
     assert t[0] == pytest.approx(100.0) and len(t) == arm.rows

@@ -28,7 +28,8 @@ class DenseTruthArm(LockedArm):
 
     Call :meth:`start` with the emulator clock's time of the arm's current time (the two then
     advance together: the emulator advances the arm by exactly the time its clock ran) and the
-    CSV path; :meth:`close` flushes and closes the file."""
+    CSV path; rows are kept in memory by the box's thread (a file write could block it) and
+    written by :meth:`flush`; :meth:`close` flushes and closes the file."""
 
     def __init__(self, arm: LockedArm, min_interval: float = 0.004) -> None:
         super().__init__(arm.arm, arm.lock)
@@ -36,6 +37,7 @@ class DenseTruthArm(LockedArm):
         self._file: IO[str] | None = None
         self._offset = 0.0
         self._t_last = -np.inf
+        self._pending: list[str] = []
         self.rows = 0
 
     def start(self, t_clock_now: float, path: str | Path) -> None:
@@ -44,19 +46,29 @@ class DenseTruthArm(LockedArm):
         p.parent.mkdir(parents=True, exist_ok=True)
         with self.lock:
             self._offset = float(t_clock_now) - float(self.arm.time)
-            self._file = open(p, "w", buffering=1)  # line by line: readable while the lab runs
+            self._file = open(p, "w")
             self._file.write(TRUTH_HEADER + "\n")
             self._write()
+        self.flush()
 
     def _write(self) -> None:
-        assert self._file is not None
         t = self._offset + float(self.arm.time)
         true_tip = getattr(self.arm, "true_tip", None)  # TruePlant's: without the shape's points
         tip = true_tip() if callable(true_tip) else self.arm.true_shape().tip
         x, y, z = (float(v) for v in tip)
-        self._file.write(f"{t:.6f},{x:.9g},{y:.9g},{z:.9g}\n")
+        self._pending.append(f"{t:.6f},{x:.9g},{y:.9g},{z:.9g}\n")  # no file I/O in the box's thread
         self._t_last = t
         self.rows += 1
+
+    def flush(self) -> None:
+        """Write the rows logged so far to the file (from any thread but the box's: the lab's
+        camera thread after each frame, and :meth:`close`)."""
+        with self.lock:
+            rows, self._pending = self._pending, []
+            f = self._file
+        if f is not None and rows:
+            f.write("".join(rows))
+            f.flush()
 
     def advance(self, dt: float) -> None:
         """Advance by ``dt`` [s], then log the true tip when ``min_interval`` has passed."""
@@ -66,7 +78,8 @@ class DenseTruthArm(LockedArm):
                 self._write()
 
     def close(self) -> None:
-        """Stop logging (idempotent)."""
+        """Write what is pending and stop logging (idempotent)."""
+        self.flush()
         with self.lock:
             if self._file is not None:
                 self._file.close()

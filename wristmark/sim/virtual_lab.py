@@ -206,6 +206,8 @@ class VirtualLab:
         if self._truth is not None:
             x, y, z = (float(v) for v in shape.tip)
             self._truth.write(f"{t:.6f},{x:.9g},{y:.9g},{z:.9g}\n")
+        if self.dense_truth is not None:
+            self.dense_truth.flush()  # the box's thread only logs in memory
         return t
 
     def freeze_camera(self) -> None:

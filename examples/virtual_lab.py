@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -30,10 +31,12 @@ from wristmark.rig import LinkOptions, cube_trajectory, summarize_servo, workspa
 LAB_START_TIMEOUT_S = 120.0  # [s] for the lab's first two lines (it renders its first frame first)
 
 
-def start_lab(scale: float, truth_csv: Path) -> tuple[subprocess.Popen[str], str, str]:
-    """``wristmark emulator --pty --camera-port 0`` as its own process: (process, pty, stream URL)."""
+def start_lab(scale: float, truth_csv: Path, realtime: bool) -> tuple[subprocess.Popen[str], str, str]:
+    """``wristmark emulator --pty --camera-port 0`` as its own process: (process, pty, stream URL);
+    realtime: its actuator box, camera and stream under SCHED_FIFO (as firmware and a camera are)."""
     lab = subprocess.Popen([sys.executable, "-m", "wristmark", "emulator", "--pty", "--camera-port", "0",
-                            "--fps", "30", "--image-scale", str(scale), "--truth-out", str(truth_csv)],
+                            "--fps", "30", "--image-scale", str(scale), "--truth-out", str(truth_csv),
+                            *(["--rt-priority", "10"] if realtime else [])],
                            stdout=subprocess.PIPE, text=True)
     assert lab.stdout is not None
     pty, url = lab.stdout.readline().strip(), lab.stdout.readline().strip()  # line 1: the pty; line 2: the URL
@@ -43,21 +46,41 @@ def start_lab(scale: float, truth_csv: Path) -> tuple[subprocess.Popen[str], str
     return lab, pty, url
 
 
+def realtime_scheduling(priority: int, keep: bool = True) -> bool:
+    """Put this thread under SCHED_FIFO at ``priority`` if the host allows it (root, CAP_SYS_NICE
+    or an rtprio limit); whether it could. keep False: only try, and go back to normal scheduling."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except (AttributeError, OSError):  # not Linux, or not allowed: normal scheduling
+        return False
+    if not keep:
+        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    return True
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--fast", action="store_true", help="CI mode: 2 s of the cube, small images")
+    parser.add_argument("--rig", default="configs/rig_camera.yaml",
+                        help="the loop's rig file (default the shipped configs/rig_camera.yaml, for a camera)")
     args = parser.parse_args()
     duration, scale = (2.0, 0.3) if args.fast else (20.0, 0.35)
 
-    setup = load_loop_setup()  # robot, marker, calibration, rig and controller: the shipped files
+    setup = load_loop_setup(rig=args.rig)  # robot, marker, calibration, controller: the shipped files
     setup = setup.with_changes(rig=dataclasses.replace(setup.rig, image_scale=scale))  # the camera's resolution
     traj = cube_trajectory(workspace_centre(setup.params)).truncated(duration)
     psi0 = solve_tip_ik(setup.params, traj.sample(0.0)[0], np.asarray(HOME_PSI, float)).psi
 
     with tempfile.TemporaryDirectory() as tmp:
         truth_csv, log_csv = Path(tmp) / "truth.csv", Path(tmp) / "log.csv"
-        lab, pty, url = start_lab(scale, truth_csv)
+        # Real-time scheduling where the host allows it, for the lab and this loop alike: on a
+        # loaded machine at normal priority the loop loses whole cycles and the lab's frames come
+        # late, and the arm holds while the cube moves on (measured: docs/results.md).
+        realtime = realtime_scheduling(20, keep=False)
+        lab, pty, url = start_lab(scale, truth_csv, realtime)  # the lab asks for its own priorities
         try:
+            if realtime:
+                realtime_scheduling(20)  # before the session starts its threads: they inherit it
             session = open_hardware_session(setup, LinkOptions(kind="serial", port=pty), url)
             outcome = run_servo(setup, traj, session, psi0, settle=setup.rig.settle_time)
             result = summarize_servo(setup, traj, session, outcome)
@@ -75,7 +98,8 @@ def main() -> None:
         "true_error_mean_mm": float(np.nanmean(true_mm)), "true_error_max_mm": float(np.nanmax(true_mm)),
         "latency_median_ms": result["latency"]["capture_to_command"]["median_ms"],
         "cycles_lost": closed["lost"], "cycles_rejected": closed["rejected"],
-        "cycles_without_frame": closed["no_frame"],
+        "cycles_without_frame": closed["no_frame"], "cycles_reused": outcome.reused,
+        "cycles_skipped": outcome.skipped, "realtime_priority": realtime,
     }))
 
 

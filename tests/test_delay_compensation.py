@@ -175,15 +175,18 @@ def test_a_loop_with_a_long_known_latency_tracks_better_with_the_compensation(ta
     assert with_it < 0.75 * without, (with_it, without)
 
 
-def test_the_in_process_bench_latency_leaves_the_loop_unchanged() -> None:
-    """Capture at the cycle's start, command vision_latency later (< a cycle): no command is sent
-    in between, so the instant model predicts no motion and the run is bit-identical."""
+@pytest.mark.parametrize("tau", [0.0, 0.04])
+def test_the_in_process_bench_latency_leaves_the_loop_unchanged(tau: float) -> None:
+    """Capture at the cycle's start, command vision_latency later (< a cycle): the measurement is
+    compensated to the cycle's start, its own capture instant, so the model predicts no motion
+    (with or without the actuators' lag) and the run is bit-identical."""
     logs = []
     for compensate in (False, True):
         psi0 = solve_tip_ik(P, _line().sample(0)[0], np.array(HOME_PSI)).psi
         plant = TruePlant(P, PLANT, psi0=psi0)
         link = DirectLink(plant)
-        rig = RigConfig(sensor="truth-noise", settle_time=1.0, delay_compensation=compensate)
+        rig = RigConfig(sensor="truth-noise", settle_time=1.0, delay_compensation=compensate,
+                        delay_compensation_tau=tau)
         loop = ServoLoop(P, rig, link, frames=SynchronousFeed(TruthClockSource(_clock_of(link))),
                          sensor=NoisyTruthSensor(plant, 1e-4, seed=3),
                          controller=make_controller(P, ControllerConfig(kind="qp")))

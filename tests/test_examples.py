@@ -78,5 +78,6 @@ def test_virtual_lab_example(tmp_path: Path) -> None:
     assert out["stopped"] == ""
     assert out["link"].startswith("/dev/") and out["camera"].startswith("http://127.0.0.1:")
     assert out["cycles"] >= 20  # 2 s of the cube at the 60 ms cycle, plus settling
-    held = {k: out[k] for k in ("cycles_lost", "cycles_rejected", "cycles_without_frame")}  # shown on failure
+    held = {k: out[k] for k in ("cycles_lost", "cycles_rejected", "cycles_without_frame", "cycles_reused",
+                                "cycles_skipped", "realtime_priority")}  # shown on failure
     assert out["true_error_mean_mm"] < 2.0 and out["vision_error_mean_mm"] < 2.0, held

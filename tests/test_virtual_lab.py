@@ -22,10 +22,12 @@ import pytest
 from test_serial_link import PARAMS, PLANT
 
 from wristmark.cli import servo as S
+from wristmark.models.config_files import default_config
 from wristmark.rig import protocol as P
 from wristmark.rig.heap_freeze import freeze_heap
 from wristmark.rig.metrics import error_stats
 from wristmark.rig.realtime_priority import realtime_priority_allowed
+from wristmark.rig.rig_config import RigConfig
 from wristmark.rig.servo_summary import summarize
 from wristmark.sim.actuator_emulator import ActuatorEmulator
 from wristmark.sim.servo_bench import open_sim_session
@@ -41,6 +43,7 @@ ROOT = Path(__file__).resolve().parent.parent
 # ~24 fps in ~28 ms and keeps both within the 0.1 mm of the issue.
 SCALE = 0.35
 FPS = 30.0
+CAMERA_RIG = "configs/rig_camera.yaml"  # both loops: the delay compensation models the actuators' lag
 POINT_S, CUBE_S = 4.0, 6.0  # [s] trajectories of the end-to-end test
 
 
@@ -96,21 +99,24 @@ def read_lines(proc: subprocess.Popen[bytes], n: int, timeout: float) -> list[st
 @pytest.fixture(scope="module")
 def setup() -> SimSetup:
     s = load_setup()
-    return s.with_changes(rig=dataclasses.replace(s.rig, image_scale=SCALE))
+    return s.with_changes(rig=dataclasses.replace(RigConfig.load(default_config("rig_camera.yaml")), image_scale=SCALE))
 
 
 @pytest.fixture(scope="module")
-def lab_process(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, str, Path]]:
-    """`wristmark emulator --pty --camera-port 0` as its own process: (pty, url, truth CSV)."""
-    truth = tmp_path_factory.mktemp("lab") / "truth.csv"
+def lab_process(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, str, Path, Path]]:
+    """`wristmark emulator --pty --camera-port 0` as its own process: (pty, url, truth CSV of the
+    frames, dense truth CSV)."""
+    folder = tmp_path_factory.mktemp("lab")
+    truth, dense = folder / "truth.csv", folder / "truth_dense.csv"
     proc = subprocess.Popen(
         [sys.executable, "-m", "wristmark", "emulator", "--pty", "--camera-port", "0", "--fps", str(FPS),
-         "--image-scale", str(SCALE), "--jpeg-quality", "95", "--truth-out", str(truth), *RT_LAB],
+         "--image-scale", str(SCALE), "--jpeg-quality", "95", "--truth-out", str(truth),
+         "--truth-dense-out", str(dense), *RT_LAB],
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         pty, url = read_lines(proc, 2, timeout=60)
         assert pty.startswith("/dev/") and url.startswith("http://127.0.0.1:")
-        yield pty, url, truth
+        yield pty, url, truth, dense
     finally:
         proc.send_signal(signal.SIGTERM)
         try:
@@ -131,11 +137,12 @@ def in_process(setup: SimSetup, kind: str, duration: float) -> dict:
 
 
 @pytest.mark.parametrize(("kind", "duration"), [("point", POINT_S), ("cube", CUBE_S)])
-def test_virtual_lab_reaches_the_in_process_accuracy(lab_process: tuple[str, str, Path], setup: SimSetup,
+def test_virtual_lab_reaches_the_in_process_accuracy(lab_process: tuple[str, str, Path, Path], setup: SimSetup,
                                                      tmp_path: Path, kind: str, duration: float) -> None:
-    pty, url, truth = lab_process
+    pty, url, truth, dense = lab_process
     record = ["--record", str(tmp_path / "run.mcap"), "--record-jpeg"] if kind == "point" else []
-    r = hardware_servo("--serial", pty, "--camera", url, "--image-scale", str(SCALE), *RT_HOST, "--trajectory", kind,
+    r = hardware_servo("--serial", pty, "--camera", url, "--image-scale", str(SCALE), *RT_HOST, "--rig", CAMERA_RIG,
+                       "--trajectory", kind,
                        "--duration", str(duration), "--no-progress", "--out", str(tmp_path / "run"),
                        "--json", str(tmp_path / "res.json"), *record)
     assert r.returncode == 0, r.stderr
@@ -144,7 +151,9 @@ def test_virtual_lab_reaches_the_in_process_accuracy(lab_process: tuple[str, str
     res = json.loads((tmp_path / "res.json").read_text())
     assert res["stopped"] == "" and res["safe_stop"]["held_and_disabled"]
     assert res["closed_loop"]["errors_from"] == "vision estimate"  # the host knows no truth
-    lab = error_stats(true_tip_errors(tmp_path / "run" / "log.csv", truth))
+    lab = error_stats(true_tip_errors(tmp_path / "run" / "log.csv", dense))  # at the cycles' nominal instants
+    at_frames = true_tip_errors(tmp_path / "run" / "log.csv", truth)  # the frames' truth, interpolated
+    assert np.all(np.isfinite(at_frames)) and abs(float(np.mean(at_frames)) * 1e3 - lab.mean_mm) < 0.05
     ref = in_process(setup, kind, duration)["closed_loop"]["noise_free"]
     latency = res["latency"]["capture_to_command"]
     transport, host = res["latency"]["transport"], res["latency"]["arrival_to_command"]

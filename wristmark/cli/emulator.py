@@ -51,6 +51,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                      help="frames per second at most (default 30; fewer where rendering cannot keep up)")
     cam.add_argument("--truth-out", metavar="CSV",
                      help="log each frame's capture time and true tip (t,tip_x,tip_y,tip_z)")
+    cam.add_argument("--truth-dense-out", metavar="CSV",
+                     help="also log the true tip every ~4 ms of the box's clock (same columns), for errors "
+                          "evaluated at any instant rather than interpolated between frames")
     cam.add_argument("--image-scale", type=float_in(0.05, 1.0), default=1.0, metavar="F",
                      help="render at F x the calibrated size (default 1)")
     add_config_option(cam, "--calib", note="the endoscope's calibration and pose")
@@ -62,7 +65,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _camera_options_without_port(args: argparse.Namespace) -> list[str]:
-    given = [("--fps", args.fps != 30.0), ("--truth-out", args.truth_out), ("--image-scale", args.image_scale != 1.0),
+    given = [("--fps", args.fps != 30.0), ("--truth-out", args.truth_out), ("--truth-dense-out", args.truth_dense_out),
+             ("--image-scale", args.image_scale != 1.0),
              ("--calib", args.calib), ("--marker", args.marker),
              ("--render-normal-priority", args.render_normal_priority)]
     return [name for name, set_ in given if set_]
@@ -122,7 +126,7 @@ def _serve_lab(args: argparse.Namespace, params: RobotParams, plant: object, psi
     camera = LabCamera(fps=args.fps, image_scale=args.image_scale, seed=args.seed, jpeg_quality=args.jpeg_quality,
                        port=args.camera_port)
     lab = VirtualLab(params, plant, calib, marker, camera, psi0=psi0, watchdog_s=args.watchdog,  # type: ignore[arg-type]
-                     truth_out=args.truth_out, rt_priority=args.rt_priority,
+                     truth_out=args.truth_out, truth_dense_out=args.truth_dense_out, rt_priority=args.rt_priority,
                      render_rt=not args.render_normal_priority)
     try:
         path, url = lab.start()

@@ -61,7 +61,7 @@ from wristmark.rig.servo_session import (
     ServoSession,
     run_servo,
 )
-from wristmark.rig.servo_summary import summarize
+from wristmark.rig.servo_summary import percentiles_ms, summarize
 from wristmark.rig.trajectories import Trajectory
 
 if TYPE_CHECKING:
@@ -293,6 +293,10 @@ def run(args: argparse.Namespace) -> int:
             if view is not None:
                 view.close()
     res = summarize(setup, traj, session, out)
+    if session.wall_clock:  # the host's own work after a frame's arrival, before the command instant
+        res["latency"]["arrival_to_ready"] = percentiles_ms(np.asarray(out.ready_after_arrival_ms, float))
+        res["latency"]["command_phase_ms"] = 1000.0 * setup.rig.command_phase
+        res["closed_loop"]["reused"] = out.reused  # cycles without a frame driven by the last measurement
     if recorder is not None:
         res["recording"] = {"path": args.record, "cycles": recorder.cycles, "dropped_cycles": recorder.dropped,
                             "messages": recorder.bag.messages, "problem": recorder.error}

@@ -87,6 +87,8 @@ def setup_from_args(args: argparse.Namespace, simulated: bool = True, **rig_over
             changes["vision_latency"] = 0.75 * args.dt
         if setup.rig.frame_wait >= args.dt:
             changes["frame_wait"] = 0.5 * args.dt
+        if setup.rig.command_phase >= args.dt:
+            changes["command_phase"] = 0.75 * args.dt
     if args.latency is not None:
         changes["vision_latency"] = args.latency
     for key, value in (("sensor", args.sensor), ("image_scale", args.image_scale), ("seed", args.seed),

@@ -36,7 +36,14 @@ class RigConfig:
     ``delay_compensation_tau`` [s] per actuator, 0 = at once). tracking_budget: on the wall
     clock, how long a cycle waits for its frame's tracking before it holds the arm for that
     cycle (rig.tip_sensors.DeadlineTipSensor; with ``frame_wait`` it keeps every cycle under the
-    actuator box's 250 ms watchdog). vision_latency, plant_dt, sensor,
+    actuator box's 250 ms watchdog). command_phase: on the wall clock, a closed-loop cycle's
+    command goes out this long after the cycle began [s] (at once when it is ready later; 0: always
+    at once): a fixed instant in every cycle, so the arm's response to the command is the same in
+    each cycle whatever the frame's arrival and tracking time (the simulated bench sends it
+    ``vision_latency`` after the capture). reuse_measurement_age: on the wall clock, a cycle
+    without a new frame steps the controller with the last accepted measurement moved on by the
+    delay compensation when that is at most this old at the cycle's start [s] (0: such a cycle
+    holds the arm; a marker not found or rejected always holds it). vision_latency, plant_dt, sensor,
     truth_noise_rms, render_noise, tracker_rms and realtime concern the simulated bench only.
     """
 
@@ -60,6 +67,8 @@ class RigConfig:
     delay_compensation: bool = True
     delay_compensation_tau: float = 0.0  # [s] actuator lag assumed by the compensation's model
     tracking_budget: float = 0.15  # [s] wall clock: longest wait of a cycle for its frame's tracking
+    command_phase: float = 0.0  # [s] wall clock: a cycle's command goes out this long after its start
+    reuse_measurement_age: float = 0.0  # [s] wall clock: a cycle without a frame reuses a measurement this old
 
     def validate(self) -> None:
         """Raise ConfigError naming the offending key."""
@@ -67,7 +76,8 @@ class RigConfig:
             if getattr(self, k) <= 0:
                 raise ConfigError(f"'{k}' must be > 0, got {getattr(self, k)}")
         for k in ("vision_latency", "truth_noise_rms", "tracker_rms", "settle_time", "feedforward_preview",
-                  "feedforward_lead", "frame_wait", "delay_compensation_tau"):
+                  "feedforward_lead", "frame_wait", "delay_compensation_tau", "command_phase",
+                  "reuse_measurement_age"):
             if getattr(self, k) < 0:
                 raise ConfigError(f"'{k}' must be >= 0, got {getattr(self, k)}")
         if self.vision_latency >= self.control_dt:
@@ -77,6 +87,9 @@ class RigConfig:
             )
         if self.frame_wait >= self.control_dt:
             raise ConfigError(f"'frame_wait' ({self.frame_wait} s) must be shorter than 'control_dt' "
+                              f"({self.control_dt} s)")
+        if self.command_phase >= self.control_dt:
+            raise ConfigError(f"'command_phase' ({self.command_phase} s) must be shorter than 'control_dt' "
                               f"({self.control_dt} s)")
         if self.frame_wait + self.tracking_budget > 0.2:
             raise ConfigError(f"'frame_wait' + 'tracking_budget' ({self.frame_wait + self.tracking_budget:g} s) must "

@@ -11,9 +11,11 @@ One cycle k at t_k = t0 + k dt on the loop's clock:
    rejected measurement holds the arm (the command unchanged). Open loop: the nominal model's
    IK of the desired tip gives the command (pose IK when the trajectory asks for an orientation;
    closed loop, the measured orientation then goes to the controller's orientation task);
-3. the command is sent: on the wall clock as soon as it is computed, on the simulated bench
-   ``vision_latency`` after the capture (open loop: at once). The capture-to-command latency is
-   measured from the frame's capture time.
+3. the command is sent: on the wall clock ``command_phase`` after the cycle's nominal start (at
+   once when it is computed later), so every command takes effect at the same instant of its
+   cycle, as on the simulated bench, where it goes out ``vision_latency`` after the capture (open
+   loop: at once). The measurement is compensated to the cycle's start (rig.delay_compensation).
+   The capture-to-command latency is measured from the frame's capture time.
 
 Ground truth (true tip, optical tracker, true configuration) is logged when an optional
 :class:`rig.ground_truth.GroundTruth` observer is given: only the simulated bench has one.
@@ -21,6 +23,7 @@ Ground truth (true tip, optical tracker, true configuration) is logged when an o
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -63,7 +66,8 @@ def ramp_to(params: RobotParams, start: Array, target: Array, dt: float) -> list
 @dataclass
 class PhaseStats:
     """Counters of one phase: cycles run, measurements lost (no frame or no marker) and
-    rejected by the gates, cycles without a new frame, the longest run of lost cycles, cycles
+    rejected by the gates, cycles without a new frame (and of those, the ones driven by the
+    last measurement, compensated: rig ``reuse_measurement_age``), the longest run of lost cycles, cycles
     skipped because the host fell a whole period behind the wall clock (a late cycle runs at
     once; the ones it missed are not made up), and why the phase stopped early ("" when it did not)."""
 
@@ -71,6 +75,7 @@ class PhaseStats:
     lost: int = 0
     rejected: int = 0
     no_frame: int = 0
+    reused: int = 0
     max_consecutive_lost: int = 0
     skipped: int = 0
     stopped: str = ""
@@ -118,6 +123,7 @@ class _Tracking:
     last_ok: Array | None = None
     lost_run: int = 0
     last_reason: str = ""
+    last_meas: TipMeasurement | None = None  # the last accepted measurement (for cycles without a frame)
 
 
 @dataclass(frozen=True)
@@ -129,6 +135,7 @@ class _Outcome:
     accepted: bool
     rejected: bool
     ctrl_us: float
+    reused: bool = False  # no new frame: the last accepted measurement, compensated, drove the controller
 
 
 class ServoLoop:
@@ -175,6 +182,9 @@ class ServoLoop:
         self.psi_cmd: Array | None = None
         self._wall0 = time.perf_counter()
         self._sim0 = self.t
+        self._cycle_start = -math.inf  # wall clock: the current cycle's start [s]
+        self._command_at = -math.inf  # wall clock: the current cycle's command instant [s]
+        self.ready_after_arrival_ms: list[float] = []  # wall clock: frame arrival -> command computed
         self.delay = DelayCompensator(params, rig.delay_compensation_tau) if rig.delay_compensation else None
 
     # -- time and commands ----------------------------------------------------------------
@@ -299,6 +309,11 @@ class ServoLoop:
     # -- closed loop ----------------------------------------------------------------------
     def _closed_cycle(self, target: _CycleTarget, t_wall: float, phase: str, memory: _Tracking,
                       stats: PhaseStats) -> CycleRecord:
+        # wall clock: the cycle's nominal start (the link's time is time.monotonic() there; t_wall
+        # is a little later), to which the measurement is compensated, and its command instant:
+        # both on the nominal schedule, so a cycle that starts late does not move its command
+        self._cycle_start = target.t
+        self._command_at = target.t + self.rig.command_phase
         frame = self._take_frame(target, phase, memory, stats)
         truth = self._observe()
         outcome = self._measure_and_control(frame, truth, target, memory)
@@ -310,10 +325,21 @@ class ServoLoop:
                 self._stop_lost(target, t_wall, phase, outcome, memory, stats)
         if not self.wall_clock:
             self._advance(target.t + self.rig.vision_latency)  # the simulated processing time
+        else:
+            self._wait_for_command_phase(outcome)
         assert self.psi_cmd is not None
         self._send(self.psi_cmd)
         latency = self._now() - outcome.meas.t_capture if outcome.accepted and outcome.meas else float("nan")
         return self._record(target, t_wall, phase, outcome, latency)
+
+    def _wait_for_command_phase(self, outcome: _Outcome) -> None:
+        """Wall clock: note when the command was ready after its frame's arrival [ms], then sleep
+        until the cycle's command instant (``command_phase`` after its start; at once when later)."""
+        now = time.monotonic()
+        if outcome.accepted and self.frames is not None:
+            self.ready_after_arrival_ms.append(1000.0 * (now - self.frames.last_arrival))
+        if self._command_at > now:
+            time.sleep(self._command_at - now)
 
     def _take_frame(self, target: _CycleTarget, phase: str, memory: _Tracking,
                     stats: PhaseStats) -> StereoFrame | None:
@@ -340,7 +366,7 @@ class ServoLoop:
         assert self.sensor is not None and self.controller is not None and self.psi_cmd is not None
         if frame is None:
             memory.last_reason = NO_FRAME
-            return _Outcome(None, truth, False, False, 0.0)
+            return self._reuse(truth, target, memory)
         model = forward_kinematics(self.params, self.psi_cmd)  # the commanded arm, nominal model
         meas = self.sensor.measure(frame, axis_hint_world=model.T_world_marker[:3, 2])  # which way it points
         self.last_measurement = meas
@@ -357,20 +383,46 @@ class ServoLoop:
             memory.last_reason = "measurement rejected by the gates"
             return _Outcome(meas, truth, False, True, 0.0)
         memory.last_ok = p_est
-        if self.delay is not None:  # moved on to when this cycle's command goes out
-            t_cmd = self._now() if self.wall_clock else target.t + self.rig.vision_latency
-            p_est = self.delay.compensate(p_est, meas.t_capture, t_cmd)
+        memory.last_meas = meas
+        ctrl_us = self._control(target, self._compensated(meas), meas)
+        return _Outcome(meas, truth, True, False, ctrl_us)
+
+    def _compensated(self, meas: TipMeasurement) -> Array:
+        """The measured tip [m] moved on by the delay compensation to this cycle's start, the
+        instant whose arm the simulated bench's frame shows (its command goes out
+        ``vision_latency`` later, which the controller's feed-forward is tuned for)."""
+        assert meas.p_world is not None
+        if self.delay is None:
+            return meas.p_world
+        t_start = self._cycle_start if self.wall_clock else self.t
+        return self.delay.compensate(meas.p_world, meas.t_capture, t_start)
+
+    def _control(self, target: _CycleTarget, p_est: Array, meas: TipMeasurement) -> float:
+        """One controller step from the tip ``p_est`` [m] (and the measurement's orientation);
+        returns its time [us]."""
+        assert self.controller is not None and self.psi_cmd is not None
         c0 = time.perf_counter()
         orient = OrientationTask.of(target.R_des, target.w_des, meas.R_world, meas.roll_known)
         step = self.controller.step(self.psi_cmd, p_est, target.p_des, target.v_des, self.rig.control_dt, orient)
-        ctrl_us = 1e6 * (time.perf_counter() - c0)
         self.psi_cmd = step.psi_next
-        return _Outcome(meas, truth, True, False, ctrl_us)
+        return 1e6 * (time.perf_counter() - c0)
+
+    def _reuse(self, truth: TruthSample, target: _CycleTarget, memory: _Tracking) -> _Outcome:
+        """A cycle without a new frame (wall clock): the last accepted measurement, moved on by the
+        delay compensation, drives the controller while it is at most ``reuse_measurement_age`` old
+        at the cycle's start; else (or without the compensation) the arm holds."""
+        last = memory.last_meas
+        if (not self.wall_clock or self.delay is None or last is None
+                or not self._cycle_start - last.t_capture <= self.rig.reuse_measurement_age):
+            return _Outcome(None, truth, False, False, 0.0)
+        ctrl_us = self._control(target, self._compensated(last), last)
+        return _Outcome(None, truth, False, False, ctrl_us, reused=True)
 
     def _count_lost(self, outcome: _Outcome, memory: _Tracking, stats: PhaseStats) -> None:
         stats.lost += int(not outcome.rejected)
         stats.rejected += int(outcome.rejected)
         stats.no_frame += int(outcome.meas is None)
+        stats.reused += int(outcome.reused)
         memory.lost_run += 1
         stats.max_consecutive_lost = max(stats.max_consecutive_lost, memory.lost_run)
 

@@ -129,24 +129,28 @@ class ServoSession:
 @dataclass
 class ServoOutcome:
     """A run's log and how it ended: stopped ("" when the trajectory completed), cause
-    (marker-lost, camera, device, estop, watchdog, interrupted, error) and when, from the start [s]."""
+    (marker-lost, camera, device, estop, watchdog, interrupted, error) and when, from the start [s];
+    ready_after_arrival_ms: on the wall clock, each accepted cycle's frame arrival -> command
+    computed [ms] (before the wait for the cycle's ``command_phase``)."""
 
     log: RunLog
     cycles: int = 0
     lost: int = 0
     rejected: int = 0
     no_frame: int = 0
+    reused: int = 0
     skipped: int = 0
     stopped: str = ""
     cause: str = ""
     t_stop: float = float("nan")
     close_error: str = ""
     wall_time_s: float = 0.0
+    ready_after_arrival_ms: list[float] = dataclasses.field(default_factory=list)
 
 
 def _count(out: ServoOutcome, stats: Any) -> None:
     """Copy a phase's counters (rig.servo_loop.PhaseStats) into the outcome."""
-    for name in ("cycles", "lost", "rejected", "no_frame", "skipped"):
+    for name in ("cycles", "lost", "rejected", "no_frame", "reused", "skipped"):
         setattr(out, name, int(getattr(stats, name)))
 
 
@@ -206,6 +210,8 @@ def run_servo(setup: LoopSetup, traj: Trajectory, session: ServoSession, psi0: A
         if out.stopped:
             out.t_stop = loop.t - t_start if loop is not None else float("nan")
             out.cycles = out.cycles or len(out.log.phase("servo"))
+        if loop is not None:
+            out.ready_after_arrival_ms = list(loop.ready_after_arrival_ms)
         session.close()
         out.close_error = session.close_error
         if recorder is not None:

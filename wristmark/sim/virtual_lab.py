@@ -38,12 +38,12 @@ from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.rig.mjpeg_server import MjpegServer
 from wristmark.rig.realtime_priority import MAX_PRIORITY, check_realtime_priority, request_realtime_priority
 from wristmark.sim.actuator_emulator import ActuatorEmulator
+from wristmark.sim.dense_truth import TRUTH_HEADER, DenseTruthArm
 from wristmark.sim.locked_arm import LockedArm
 from wristmark.sim.plant import TruePlant
 from wristmark.sim.plant_params import PlantParams
 from wristmark.sim.render_process import RenderProcess
 
-TRUTH_HEADER = "t,tip_x,tip_y,tip_z"
 FIRST_FRAME_TIMEOUT_S = 60.0  # [s] the first render compiles nothing (numba caches) but a loaded host is slow
 
 
@@ -103,12 +103,15 @@ class VirtualLab:
     which in real time would eat the machine's real-time budget and throttle the host's loop.
     The caller's thread keeps its own scheduling.
     emulator_factory: ``(arm, params, watchdog_s=...) -> ActuatorEmulator`` (tests record packets).
+    truth_dense_out: also log the true tip every few ms of the box's clock, not only at the frames
+    (:mod:`sim.dense_truth`; same CSV format as ``truth_out``).
     """
 
     def __init__(self, params: RobotParams, plant: PlantParams, calibration: StereoCamera, marker: MarkerModel,
                  camera: LabCamera | None = None, psi0: Any = None, watchdog_s: float = 0.25,
                  truth_out: str | Path | None = None, rt_priority: int | None = None, render_rt: bool = True,
-                 emulator_factory: Callable[..., ActuatorEmulator] | None = None) -> None:
+                 emulator_factory: Callable[..., ActuatorEmulator] | None = None,
+                 truth_dense_out: str | Path | None = None) -> None:
         self.options = camera or LabCamera()
         self.options.validate()
         if calibration.T_world_left is None:
@@ -119,12 +122,17 @@ class VirtualLab:
         cam = calibration if self.options.image_scale == 1.0 else scaled_stereo_camera(calibration,
                                                                                      self.options.image_scale)
         self.arm = LockedArm(TruePlant(params, plant, psi0=np.asarray(psi0 if psi0 is not None else HOME_PSI, float)))
+        self.dense_truth = DenseTruthArm(self.arm) if truth_dense_out else None
+        if self.dense_truth is not None:
+            self.arm = self.dense_truth  # the emulator advances it: the true tip logged every few ms
         if rt_priority is not None:
             check_realtime_priority(min(MAX_PRIORITY, rt_priority + 1))
         self.rt_priority = rt_priority
         self.render_rt = bool(render_rt)
         factory = emulator_factory or ActuatorEmulator
         self.emulator = factory(self.arm, params, watchdog_s=watchdog_s)
+        if self.dense_truth is not None and truth_dense_out:  # no thread runs yet: the two clocks pair exactly
+            self.dense_truth.start(self.emulator.sample_arm()[0], truth_dense_out)
         self.camera = cam  # the endoscope as rendered (at the image scale)
         self.marker = marker
         self._render: RenderProcess | None = None
@@ -198,6 +206,8 @@ class VirtualLab:
         if self._truth is not None:
             x, y, z = (float(v) for v in shape.tip)
             self._truth.write(f"{t:.6f},{x:.9g},{y:.9g},{z:.9g}\n")
+        if self.dense_truth is not None:
+            self.dense_truth.flush()  # the box's thread only logs in memory
         return t
 
     def freeze_camera(self) -> None:
@@ -235,6 +245,8 @@ class VirtualLab:
             self._render.close()
             self._render = None
         self.emulator.stop()
+        if self.dense_truth is not None:
+            self.dense_truth.close()
         if self._truth is not None:
             self._truth.close()
             self._truth = None
@@ -258,16 +270,22 @@ def read_truth_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     return data[:, 0], data[:, 1:4]
 
 
-def true_tip_errors(log_csv: str | Path, truth_csv: str | Path, phase: str = "servo") -> np.ndarray:
+def true_tip_errors(log_csv: str | Path, truth_csv: str | Path, phase: str = "servo", at: str = "t") -> np.ndarray:
     """|true tip - desired tip| [m] of each cycle of ``phase`` in a servo run's log.csv, the true
-    tip interpolated from the lab's ``--truth-out`` at the cycle's ``t_wall`` (one machine, one
-    monotonic clock); NaN for cycles outside the truth's time span."""
+    tip interpolated from the lab's ``--truth-out`` (or ``--truth-dense-out``) at the log's column
+    ``at`` (one machine, one monotonic clock): ``t``, the cycle's nominal instant, at which its
+    desired tip is defined and the in-process bench takes its truth (on the wall clock the link's
+    time is ``time.monotonic()``), or ``t_wall``, when the host's cycle actually began (a few ms
+    later: the truth there is compared with the desired tip of an earlier instant); NaN for
+    cycles outside the truth's time span."""
     from wristmark.rig.run_log import read_log_csv
 
+    if at not in ("t", "t_wall"):
+        raise InputError(f"errors are evaluated at 't' or 't_wall', not {at!r}")
     log = read_log_csv(log_csv)
     t, tip = read_truth_csv(truth_csv)
     sel = np.array([p == phase for p in log["phase"]], bool)
-    t_wall = np.asarray(log["t_wall"], float)[sel]
+    t_wall = np.asarray(log[at], float)[sel]
     p_des = np.stack([np.asarray(log[f"p_des_{a}"], float)[sel] for a in "xyz"], axis=1)
     if t.size < 2:
         return np.full(len(t_wall), np.nan)

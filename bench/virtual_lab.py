@@ -11,7 +11,7 @@ host adds; ``arrival_to_ready``: the host's own work before the cycle's command 
 dropped, cycle jitter, and the true-tip error from ``--truth-dense-out`` at each cycle's nominal
 instant (beside it, ``true_tip_mm_variants``: the frames' truth interpolated at the nominal
 instant and at ``t_wall``, the evaluation before); beside it the in-process run of the same plant,
-scale, rig file (default configs/rig_camera.yaml) and trajectory (simulated clock, 45 ms latency).
+scale, rig file (default configs/rig.yaml) and trajectory (simulated clock, 45 ms latency).
 ``--camera-matched``: where the lab's camera (``--lab-share`` x the renderer's rate alone) is
 slower than the loop, both loops run at the camera's period (``control_dt_s`` in the JSON).
 Both processes run under SCHED_FIFO where the host allows it (rig/realtime_priority.py): the
@@ -183,8 +183,8 @@ def main() -> int:
                     help="the lab renders at most this rate (default 60: as fast as it can here)")
     ap.add_argument("--max-fps-rt", type=positive_float(240.0), default=10.0,
                     help="the lab's rendering gets real-time priority only if the renderer alone sustains 1.5 x this")
-    ap.add_argument("--rig", metavar="YAML", default=str(default_config("rig_camera.yaml")),
-                    help="rig file of both loops (default the shipped configs/rig_camera.yaml)")
+    ap.add_argument("--rig", metavar="YAML", default=str(default_config("rig.yaml")),
+                    help="rig file of both loops (default the shipped configs/rig.yaml)")
     ap.add_argument("--skip-in-process", action="store_true", help="run the lab only (no in-process reference)")
     ap.add_argument("--camera-matched", action="store_true",
                     help="where the lab's camera is slower than the loop, run both loops at the camera's rate "

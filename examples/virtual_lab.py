@@ -61,8 +61,8 @@ def realtime_scheduling(priority: int, keep: bool = True) -> bool:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--fast", action="store_true", help="CI mode: 2 s of the cube, small images")
-    parser.add_argument("--rig", default="configs/rig_camera.yaml",
-                        help="the loop's rig file (default the shipped configs/rig_camera.yaml, for a camera)")
+    parser.add_argument("--rig", default="configs/rig.yaml",
+                        help="the loop's rig file (default the shipped configs/rig.yaml)")
     args = parser.parse_args()
     duration, scale = (2.0, 0.3) if args.fast else (20.0, 0.35)
 

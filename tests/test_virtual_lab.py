@@ -22,12 +22,10 @@ import pytest
 from test_serial_link import PARAMS, PLANT
 
 from wristmark.cli import servo as S
-from wristmark.models.config_files import default_config
 from wristmark.rig import protocol as P
 from wristmark.rig.heap_freeze import freeze_heap
 from wristmark.rig.metrics import error_stats
 from wristmark.rig.realtime_priority import realtime_priority_allowed
-from wristmark.rig.rig_config import RigConfig
 from wristmark.rig.servo_summary import summarize
 from wristmark.sim.actuator_emulator import ActuatorEmulator
 from wristmark.sim.servo_bench import open_sim_session
@@ -43,7 +41,6 @@ ROOT = Path(__file__).resolve().parent.parent
 # ~24 fps in ~28 ms and keeps both within the 0.1 mm of the issue.
 SCALE = 0.35
 FPS = 30.0
-CAMERA_RIG = "configs/rig_camera.yaml"  # both loops: the delay compensation models the actuators' lag
 POINT_S, CUBE_S = 4.0, 6.0  # [s] trajectories of the end-to-end test
 
 
@@ -99,7 +96,7 @@ def read_lines(proc: subprocess.Popen[bytes], n: int, timeout: float) -> list[st
 @pytest.fixture(scope="module")
 def setup() -> SimSetup:
     s = load_setup()
-    return s.with_changes(rig=dataclasses.replace(RigConfig.load(default_config("rig_camera.yaml")), image_scale=SCALE))
+    return s.with_changes(rig=dataclasses.replace(s.rig, image_scale=SCALE))
 
 
 @pytest.fixture(scope="module")
@@ -141,7 +138,7 @@ def test_virtual_lab_reaches_the_in_process_accuracy(lab_process: tuple[str, str
                                                      tmp_path: Path, kind: str, duration: float) -> None:
     pty, url, truth, dense = lab_process
     record = ["--record", str(tmp_path / "run.mcap"), "--record-jpeg"] if kind == "point" else []
-    r = hardware_servo("--serial", pty, "--camera", url, "--image-scale", str(SCALE), *RT_HOST, "--rig", CAMERA_RIG,
+    r = hardware_servo("--serial", pty, "--camera", url, "--image-scale", str(SCALE), *RT_HOST,
                        "--trajectory", kind,
                        "--duration", str(duration), "--no-progress", "--out", str(tmp_path / "run"),
                        "--json", str(tmp_path / "res.json"), *record)

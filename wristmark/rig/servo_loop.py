@@ -360,9 +360,12 @@ class ServoLoop:
         if self.delay is not None:  # moved on to when this cycle's command goes out
             t_cmd = self._now() if self.wall_clock else target.t + self.rig.vision_latency
             p_est = self.delay.compensate(p_est, meas.t_capture, t_cmd)
+        # the encoders read with the frame, for a controller that uses them (the encoders' dead-band inversion)
+        enc = self.link.measured_actuators() if self.controller.uses_encoders else None
         c0 = time.perf_counter()
         orient = OrientationTask.of(target.R_des, target.w_des, meas.R_world, meas.roll_known)
-        step = self.controller.step(self.psi_cmd, p_est, target.p_des, target.v_des, self.rig.control_dt, orient)
+        step = self.controller.step(self.psi_cmd, p_est, target.p_des, target.v_des, self.rig.control_dt, orient,
+                                    encoders=enc)
         ctrl_us = 1e6 * (time.perf_counter() - c0)
         self.psi_cmd = step.psi_next
         return _Outcome(meas, truth, True, False, ctrl_us)

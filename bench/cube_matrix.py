@@ -4,9 +4,10 @@ Runs ``sim.experiments.run_cube`` (open loop and closed loop on fresh simulated 
 vision pipeline in the loop unless ``--sensor truth-noise``) for every combination asked for,
 writes each run folder under ``--out`` and prints one JSON document; a markdown table of all
 runs beside the paper's numbers goes to ``OUT/table.md``. ``--compensation off on`` runs each
-combination without and with the dead-band inversion (solvers/backlash_compensation.py);
-the columns give the closed loop's mean / max and its corner overshoot (max and mean over the
-corners) per controller. ``--orientations none hold`` runs each combination without and with the
+combination without and with the dead-band inversion (the default controller file's
+backlash_method: solvers/play_observer.py); the columns give the closed loop's mean / max and
+its corner overshoot (max and mean over the corners) per controller. ``--orientations none
+hold`` runs each combination without and with the
 tip frame's orientation held (qp only: the paper controller is position-only and is skipped
 for hold/follow); the orientation columns are the optical tracker's orientation against the
 desired one [deg] (open and closed loop; "-" when position only). ``--marker`` picks the sleeve

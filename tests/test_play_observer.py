@@ -133,3 +133,17 @@ def test_config_rejects_bad_method_and_margin() -> None:
         ControllerConfig(backlash_method="guess").validate()
     with pytest.raises(ConfigError, match="backlash_margin"):
         ControllerConfig(backlash_margin=-0.1).validate()
+
+
+def test_default_inversion_applies_to_the_qp_only() -> None:
+    """configs/controller.yaml turns the encoders' inversion on for the qp kind; the paper kind
+    runs without it (backlash_kinds), and an unknown kind in that list is refused."""
+    from wristmark.sim.setup import default_config
+
+    cfg = ControllerConfig.load(default_config("controller.yaml"))
+    assert cfg.backlash_compensation and cfg.backlash_method == "encoders"
+    assert make_controller(P, cfg).uses_encoders
+    paper = make_controller(P, dataclasses.replace(cfg, kind="paper"))
+    assert paper.compensator is None and not paper.uses_encoders
+    with pytest.raises(ConfigError, match="backlash_kinds"):
+        dataclasses.replace(cfg, backlash_kinds=("pid",)).validate()

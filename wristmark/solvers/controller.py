@@ -53,7 +53,9 @@ class ControllerConfig:
     backlash_method: "schmitt" (the direction from a Schmitt trigger on the command) or
     "encoders" (solvers/play_observer.py: the play's output tracked from the encoder readings
     the loop passes to ``step``; the side changes once the command leaves the band by
-    backlash_margin x the bound; without readings nothing is inverted).
+    backlash_margin x the bound; without readings nothing is inverted). backlash_kinds: the
+    controller kinds the inversion applies to (configs/controller.yaml: qp only; the paper's
+    constant-speed controller reverses the actuators every cycle and is not helped by it).
     """
 
     kind: str = "qp"
@@ -87,6 +89,7 @@ class ControllerConfig:
     backlash_lead: float = 0.0
     backlash_method: str = "schmitt"
     backlash_margin: float = 0.02
+    backlash_kinds: tuple[str, ...] = ("paper", "qp")
 
     def validate(self) -> None:
         """Raise ConfigError naming the offending key."""
@@ -103,6 +106,9 @@ class ControllerConfig:
         for k in ("backlash_start", "backlash_fraction", "backlash_learning_rate"):
             if not 0.0 <= getattr(self, k) <= 1.0:
                 raise ConfigError(f"'{k}' must be in [0, 1], got {getattr(self, k)}")
+        if not set(self.backlash_kinds) <= set(CONTROLLER_KINDS):
+            raise ConfigError(f"'backlash_kinds' must be among {', '.join(CONTROLLER_KINDS)}, "
+                              f"got {list(self.backlash_kinds)}")
         if self.backlash_method not in BACKLASH_METHODS:
             raise ConfigError(f"'backlash_method' must be one of {', '.join(BACKLASH_METHODS)}, "
                               f"got {self.backlash_method!r}")
@@ -162,7 +168,7 @@ class Controller(abc.ABC):
         self.params = params
         self.config = config
         self.compensator: CommandCompensator | None = None
-        if config.backlash_compensation:
+        if config.backlash_compensation and config.kind in config.backlash_kinds:
             self.compensator = CommandCompensator(params, make_inverse(config))
         # the servo loop passes the encoder readings to step() when this is true
         self.uses_encoders = self.compensator is not None and config.backlash_method == "encoders"

@@ -1,5 +1,5 @@
 """Closed-loop cube maxima against the size of the arm's dead bands, without and with the
-dead-band inversion (the controller file's backlash_method: solvers/play_observer.py, the default,
+dead-band inversion (the controller file's backlash_method: solvers/play_observer.py
 or solvers/backlash_compensation.py).
 
 configs/plant_unseen.yaml with every backlash entry scaled by each factor (0 = no play, 3 = three

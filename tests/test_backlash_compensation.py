@@ -108,7 +108,7 @@ def test_config_rejects_bad_backlash_keys() -> None:
         ControllerConfig(backlash_fraction=1.5).validate()
 
 
-CONTROLLER_FILES = ["controller_backlash.yaml", "controller.yaml"]  # Schmitt trigger; the default: encoders
+CONTROLLER_FILES = ["controller_backlash.yaml", "controller_encoders.yaml"]  # Schmitt trigger; encoders
 
 
 def _cube(plant: str, compensation: bool, duration: float, controller: str = "controller_backlash.yaml") -> dict:
@@ -128,7 +128,7 @@ def _cube(plant: str, compensation: bool, duration: float, controller: str = "co
 @pytest.mark.parametrize("controller", CONTROLLER_FILES)
 def test_compensation_lowers_the_max_on_an_unseen_arm(controller: str) -> None:
     """Short cube (truth-noise sensor) on configs/plant_unseen.yaml with configs/controller_backlash.yaml
-    (Schmitt trigger) or the default configs/controller.yaml (the encoders' play observer) and its
+    (Schmitt trigger) or configs/controller_encoders.yaml (the encoders' play observer) and its
     inversion turned off and on: the inversion, learning the play online from its bound, cuts the
     closed-loop max, measured here both ways."""
     off, on = _cube("plant_unseen.yaml", False, 16.0, controller), _cube("plant_unseen.yaml", True, 16.0, controller)

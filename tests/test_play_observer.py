@@ -103,7 +103,7 @@ def test_play_learnt_from_the_encoders_loop(share: float) -> None:
 
 
 def test_controller_without_encoders_is_the_plain_controller() -> None:
-    """The default controller (encoders' inversion on) stepped without readings (the paper's
+    """A controller with the encoders' inversion on stepped without readings (the paper's
     interface, unit tests) inverts nothing; with readings it does."""
     cfg = ControllerConfig(backlash_compensation=True, backlash_method="encoders", backlash_start=1.0)
     plain = make_controller(P, dataclasses.replace(cfg, backlash_compensation=False))
@@ -135,12 +135,12 @@ def test_config_rejects_bad_method_and_margin() -> None:
         ControllerConfig(backlash_margin=-0.1).validate()
 
 
-def test_default_inversion_applies_to_the_qp_only() -> None:
-    """configs/controller.yaml turns the encoders' inversion on for the qp kind; the paper kind
-    runs without it (backlash_kinds), and an unknown kind in that list is refused."""
+def test_encoders_file_applies_to_the_qp_only() -> None:
+    """configs/controller_encoders.yaml turns the encoders' inversion on for the qp kind; the paper
+    kind runs without it (backlash_kinds), and an unknown kind in that list is refused."""
     from wristmark.sim.setup import default_config
 
-    cfg = ControllerConfig.load(default_config("controller.yaml"))
+    cfg = ControllerConfig.load(default_config("controller_encoders.yaml"))
     assert cfg.backlash_compensation and cfg.backlash_method == "encoders"
     assert make_controller(P, cfg).uses_encoders
     paper = make_controller(P, dataclasses.replace(cfg, kind="paper"))

@@ -10,10 +10,11 @@ play when the command reverses instead of the feedback winding it through over s
 What it needs is only what the controller sees: its own commanded configuration (the
 nominal command, driven by the vision's tip through the feedback) and the desired path's
 velocity (to tell the feedback's share of the command from the path's); it ignores the encoder
-readings (solvers/play_observer.py, the default method, tracks the play's output from them and
-shares this class's learning and lead). Assumptions: the play is constant per actuator and below ``play_max``; the
-desired path reverses an actuator at most every couple of windows; the arm's gain errors are
-alike on both sides of a reversal (the estimator's drift cancellation).
+readings (solvers/play_observer.py, configs/controller_encoders.yaml, tracks the play's output
+from them and shares this class's learning and lead). Assumptions: the play is constant per
+actuator and below ``play_max``; the desired path reverses an actuator at most every couple of
+windows; the arm's gain errors are alike on both sides of a reversal (the estimator's drift
+cancellation).
 
 The direction must not follow noise (measurement noise makes the command jitter by a few
 micrometres): it flips only once the command has come back more than hysteresis * play_max

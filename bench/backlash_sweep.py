@@ -1,5 +1,6 @@
 """Closed-loop cube maxima against the size of the arm's dead bands, without and with the
-dead-band inversion (solvers/backlash_compensation.py).
+dead-band inversion (the controller file's backlash_method: solvers/play_observer.py
+or solvers/backlash_compensation.py).
 
 configs/plant_unseen.yaml with every backlash entry scaled by each factor (0 = no play, 3 = three
 times that arm's); the qp controller (or --controllers) at a 60 ms cycle, its settings from
@@ -58,7 +59,8 @@ def main() -> int:
                     with tempfile.TemporaryDirectory() as tmp:
                         runs.append(summary(run_cube(setup, Path(tmp), progress=False, seed=seed,
                                                      duration=args.duration)))
-                med = {k: float(np.median([r[k] for r in runs])) for k in runs[0] if k != "stopped"}
+                med = {k: float(np.median([r[k] for r in runs])) for k in runs[0]
+                       if k != "stopped" and runs[0][k] is not None}  # orientation: None when position only
                 row = {"controller": kind, "factor": f, "backlash": list(plant.backlash), "compensation": comp,
                        **med, "max_mm_per_seed": [r["max_mm"] for r in runs],
                        "stopped": [r["stopped"] for r in runs if r["stopped"]]}

@@ -4,15 +4,16 @@ Runs ``sim.experiments.run_cube`` (open loop and closed loop on fresh simulated 
 vision pipeline in the loop unless ``--sensor truth-noise``) for every combination asked for,
 writes each run folder under ``--out`` and prints one JSON document; a markdown table of all
 runs beside the paper's numbers goes to ``OUT/table.md``. ``--compensation off on`` runs each
-combination without and with the dead-band inversion (solvers/backlash_compensation.py);
-the columns give the closed loop's mean / max and its corner overshoot (max and mean over the
-corners) per controller. ``--orientations none hold`` runs each combination without and with the
+combination without and with the dead-band inversion (the controller file's
+backlash_method: solvers/play_observer.py); the columns give the closed loop's mean / max and
+its corner overshoot (max and mean over the corners) per controller. ``--orientations none
+hold`` runs each combination without and with the
 tip frame's orientation held (qp only: the paper controller is position-only and is skipped
 for hold/follow); the orientation columns are the optical tracker's orientation against the
 desired one [deg] (open and closed loop; "-" when position only). ``--marker`` picks the sleeve
 (configs/marker_coded.yaml for the full orientation; the reference sleeve controls the axis only).
 
-    .venv/bin/python bench/cube_matrix.py --controllers qp paper --dts 0.060 0.033 \
+    .venv/bin/python bench/cube_matrix.py --controllers qp paper --dts 0.060 0.033 [--controller-config FILE] \
         [--plants configs/plant.yaml configs/plant_unseen.yaml tests/data/heldout_plants/*.yaml] \
         [--compensation off on] [--orientations none hold] [--marker configs/marker_coded.yaml] \
         [--sensor vision] [--duration S] [--image-scale F]
@@ -44,10 +45,10 @@ HEADER = ("| run | open mean [mm] | open max [mm] | closed mean [mm] | closed ma
 
 def cube_setup(kind: str, dt: float, sensor: str, compensation: bool, plant: PlantParams | None = None,
                plant_file: str | None = None, marker_file: str | None = None,
-               image_scale: float | None = None) -> SimSetup:
+               image_scale: float | None = None, controller_file: str | None = None) -> SimSetup:
     """The default setup with this controller kind, cycle [s], sensor, compensation, plant and
     marker (and images at ``image_scale`` x the calibrated size)."""
-    setup = load_setup(plant=plant_file, marker=marker_file)
+    setup = load_setup(plant=plant_file, marker=marker_file, controller=controller_file)
     if image_scale is not None:
         setup = setup.with_changes(rig=dataclasses.replace(setup.rig, image_scale=image_scale))
     rig = dataclasses.replace(setup.rig, control_dt=dt, sensor=sensor,
@@ -95,6 +96,8 @@ def main() -> int:
     ap.add_argument("--sensor", choices=("vision", "truth-noise"), default="vision")
     ap.add_argument("--duration", type=positive_float(), help="cut the cube walk to S seconds")
     ap.add_argument("--out", default="runs/bench/cube_matrix")
+    ap.add_argument("--controller-config", help="controller settings (default configs/controller.yaml; "
+                    "configs/controller_encoders.yaml: the encoders' dead-band inversion)")
     args = ap.parse_args()
     out = Path(args.out)
     results = []
@@ -108,6 +111,7 @@ def main() -> int:
         if orient != "none" and kind == "paper":
             continue  # the paper controller is position-only
         setup = cube_setup(kind, dt, args.sensor, comp == "on", plant_file=plant, marker_file=args.marker,
+                           controller_file=args.controller_config,
                            image_scale=args.image_scale)
         name = f"{Path(plant).stem}, {kind}, {1000 * dt:.0f} ms, compensation {comp}, orientation {orient}"
         t0 = time.perf_counter()

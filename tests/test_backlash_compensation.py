@@ -108,32 +108,38 @@ def test_config_rejects_bad_backlash_keys() -> None:
         ControllerConfig(backlash_fraction=1.5).validate()
 
 
-def _cube(plant: str, compensation: bool, duration: float) -> dict:
+CONTROLLER_FILES = ["controller_backlash.yaml", "controller_encoders.yaml"]  # Schmitt trigger; encoders
+
+
+def _cube(plant: str, compensation: bool, duration: float, controller: str = "controller_backlash.yaml") -> dict:
     import tempfile
     from pathlib import Path
 
     from wristmark.sim.experiments import run_cube
     from wristmark.sim.setup import default_config, load_setup
 
-    setup = load_setup(plant=default_config(plant), controller=default_config("controller_backlash.yaml"))
+    setup = load_setup(plant=default_config(plant), controller=default_config(controller))
     setup = setup.with_changes(rig=dataclasses.replace(setup.rig, sensor="truth-noise"),
                                controller=dataclasses.replace(setup.controller, backlash_compensation=compensation))
     with tempfile.TemporaryDirectory() as tmp:
         return run_cube(setup, Path(tmp), progress=False, duration=duration, seed=1)["closed_loop"]
 
 
-def test_compensation_lowers_the_max_on_an_unseen_arm() -> None:
+@pytest.mark.parametrize("controller", CONTROLLER_FILES)
+def test_compensation_lowers_the_max_on_an_unseen_arm(controller: str) -> None:
     """Short cube (truth-noise sensor) on configs/plant_unseen.yaml with configs/controller_backlash.yaml
-    and its inversion turned off and on: the inversion, learning the play online from its bound,
-    cuts the closed-loop max, measured here both ways."""
-    off, on = _cube("plant_unseen.yaml", False, 16.0), _cube("plant_unseen.yaml", True, 16.0)
+    (Schmitt trigger) or configs/controller_encoders.yaml (the encoders' play observer) and its
+    inversion turned off and on: the inversion, learning the play online from its bound, cuts the
+    closed-loop max, measured here both ways."""
+    off, on = _cube("plant_unseen.yaml", False, 16.0, controller), _cube("plant_unseen.yaml", True, 16.0, controller)
     assert on["max_mm"] < 0.85 * off["max_mm"]
     assert on["mean_mm"] <= off["mean_mm"]
 
 
-def test_compensation_does_not_hurt_the_default_arm() -> None:
+@pytest.mark.parametrize("controller", CONTROLLER_FILES)
+def test_compensation_does_not_hurt_the_default_arm(controller: str) -> None:
     """Same short cube on configs/plant.yaml: mean no worse, max within 5 % (noise)."""
-    off, on = _cube("plant.yaml", False, 16.0), _cube("plant.yaml", True, 16.0)
+    off, on = _cube("plant.yaml", False, 16.0, controller), _cube("plant.yaml", True, 16.0, controller)
     assert on["mean_mm"] <= off["mean_mm"]
     assert on["max_mm"] <= 1.05 * off["max_mm"]
 

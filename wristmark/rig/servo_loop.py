@@ -401,9 +401,12 @@ class ServoLoop:
         """One controller step from the tip ``p_est`` [m] (and the measurement's orientation);
         returns its time [us]."""
         assert self.controller is not None and self.psi_cmd is not None
+        # the encoders, for a controller that uses them (the encoders' dead-band inversion)
+        enc = self.link.measured_actuators() if self.controller.uses_encoders else None
         c0 = time.perf_counter()
         orient = OrientationTask.of(target.R_des, target.w_des, meas.R_world, meas.roll_known)
-        step = self.controller.step(self.psi_cmd, p_est, target.p_des, target.v_des, self.rig.control_dt, orient)
+        step = self.controller.step(self.psi_cmd, p_est, target.p_des, target.v_des, self.rig.control_dt, orient,
+                                    encoders=enc)
         self.psi_cmd = step.psi_next
         return 1e6 * (time.perf_counter() - c0)
 

@@ -9,11 +9,12 @@ play when the command reverses instead of the feedback winding it through over s
 
 What it needs is only what the controller sees: its own commanded configuration (the
 nominal command, driven by the vision's tip through the feedback) and the desired path's
-velocity (to tell the feedback's share of the command from the path's). The encoders are not
-passed to the controller by the servo loop, and they would not help: they read the motor,
-before the play. Assumptions: the play is constant per actuator and below ``play_max``; the
-desired path reverses an actuator at most every couple of windows; the arm's gain errors are
-alike on both sides of a reversal (the estimator's drift cancellation).
+velocity (to tell the feedback's share of the command from the path's); it ignores the encoder
+readings (solvers/play_observer.py, configs/controller_encoders.yaml, tracks the play's output
+from them and shares this class's learning and lead). Assumptions: the play is constant per
+actuator and below ``play_max``; the desired path reverses an actuator at most every couple of
+windows; the arm's gain errors are alike on both sides of a reversal (the estimator's drift
+cancellation).
 
 The direction must not follow noise (measurement noise makes the command jitter by a few
 micrometres): it flips only once the command has come back more than hysteresis * play_max
@@ -65,6 +66,9 @@ class BacklashInverse:
         self.hysteresis = float(hysteresis)
         self.start, self.fraction, self.learn = float(start), float(fraction), bool(learn)
         self.window, self.rate = float(window), float(rate)
+        # True: the first reversals are averaged (step 1 / (n + 1), at least ``rate``), then ``rate``
+        self.average_first = False
+        self.burst_first = True  # the lead's burst also when a direction is first taken
         self.reset()
 
     @property
@@ -77,6 +81,7 @@ class BacklashInverse:
         ``keep_estimate``, the learnt play."""
         if not keep_estimate or not hasattr(self, "play"):
             self.play = self.start * self.play_max
+            self._learnt = np.zeros(6)  # reversals learnt from, per actuator
         self.direction = np.zeros(6)
         self.extreme: Array | None = None
         self.time = 0.0
@@ -90,6 +95,26 @@ class BacklashInverse:
         ``dt`` [s]; learning uses ``a_dot_path``, the desired path's actuator rates [rad/s, m/s, ...]."""
         a = np.asarray(a_nom, float)
         self.time += dt
+        self._track_feedback(a, dt, a_dot_path)
+        d = self.direction
+        flip, new = self._turn(a)
+        if self.learn:
+            self._learn(flip, d, new)
+        self.direction = new
+        off = self.direction * 0.5 * self.fraction * self.play
+        if not self.burst_first:  # a first direction is no reversal: no burst
+            self._off = np.where(d == 0.0, off, self._off)
+        # first-order lead on the offset: a flip drives the motor through the play in one burst
+        self._burst_gain = 1.0 + 2.0 * self.lead / dt if dt > 0.0 else 1.0
+        burst = off + self.lead / dt * (off - self._off) if self.lead > 0.0 and dt > 0.0 else off
+        self._off = off
+        return np.asarray(burst, float)
+
+    def observe(self, motor: Array) -> None:
+        """Encoder readings [rad, m, ...]: not used by the Schmitt trigger (see play_observer.py)."""
+
+    def _track_feedback(self, a: Array, dt: float, a_dot_path: Array | None) -> None:
+        """Integrate the feedback's share of the command (the command minus the path's motion)."""
         if self.extreme is None:
             self.extreme = a.copy()
             self._last = a.copy()
@@ -99,31 +124,28 @@ class BacklashInverse:
         self._history.append((self.time, self._fb.copy()))
         while self._history and self._history[0][0] < self.time - self.window - 1e-9:
             self._history.pop(0)
+
+    def _turn(self, a: Array) -> tuple[NDArray[np.bool_], Array]:
+        """Which actuators reverse this cycle and the new directions (the Schmitt trigger)."""
+        assert self.extreme is not None
         moved = a - self.extreme
         d = self.direction
         onward = (d != 0.0) & (d * moved >= 0.0)
         self.extreme = np.where(onward, a, self.extreme)
         flip = ~onward & (np.abs(moved) > self.hysteresis * self.play_max)
-        new = np.where(flip, np.sign(moved), d)
-        if self.learn:
-            self._learn(flip, d, new)
-        self.direction = new
         self.extreme = np.where(flip, a, self.extreme)
-        off = self.direction * 0.5 * self.fraction * self.play
-        # first-order lead on the offset: a flip drives the motor through the play in one burst
-        self._burst_gain = 1.0 + 2.0 * self.lead / dt if dt > 0.0 else 1.0
-        burst = off + self.lead / dt * (off - self._off) if self.lead > 0.0 and dt > 0.0 else off
-        self._off = off
-        return np.asarray(burst, float)
+        return flip, np.where(flip, np.sign(moved), d)
 
-    def _learn(self, flip: Array, old: Array, new: Array) -> None:
+    def _learn(self, flip: NDArray[np.bool_], old: Array, new: Array) -> None:
         keep = []
         for j, due, before, dirn, jump in self._open:
             if flip[j]:
                 continue  # turned again before the verdict: no clean reversal to learn from
             if self.time + 1e-9 >= due:
                 est = dirn * (self._fb[j] - before) + jump
-                self.play[j] = float(np.clip((1 - self.rate) * self.play[j] + self.rate * est, 0.0, self.play_max[j]))
+                rate = max(self.rate, 1.0 / (1.0 + self._learnt[j])) if self.average_first else self.rate
+                self._learnt[j] += 1
+                self.play[j] = float(np.clip((1 - rate) * self.play[j] + rate * est, 0.0, self.play_max[j]))
             else:
                 keep.append((j, due, before, dirn, jump))
         before_fb = self._history[0][1]

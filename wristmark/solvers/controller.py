@@ -26,6 +26,9 @@ from wristmark.solvers.backlash_compensation import BacklashInverse, CommandComp
 Array = NDArray[np.float64]
 
 
+BACKLASH_METHODS = ("schmitt", "encoders")
+
+
 @dataclass(frozen=True)
 class ControllerConfig:
     """Controller settings (configs/controller.yaml, under 'controller:'); SI units.
@@ -47,6 +50,12 @@ class ControllerConfig:
     inverted; backlash_hysteresis x the bound is how far the command must come back before its
     direction counts as reversed; backlash_lead [s] is a first-order lead on the inversion's
     offset (a reversal drives the lagging motor through the play in a one-cycle burst; 0 = none).
+    backlash_method: "schmitt" (the direction from a Schmitt trigger on the command) or
+    "encoders" (solvers/play_observer.py: the play's output tracked from the encoder readings
+    the loop passes to ``step``; the side changes once the command leaves the band by
+    backlash_margin x the bound; without readings nothing is inverted). backlash_kinds: the
+    controller kinds the inversion applies to (configs/controller.yaml: qp only; the paper's
+    constant-speed controller reverses the actuators every cycle and is not helped by it).
     """
 
     kind: str = "qp"
@@ -78,6 +87,9 @@ class ControllerConfig:
     backlash_window: float = 0.4
     backlash_learning_rate: float = 0.3
     backlash_lead: float = 0.0
+    backlash_method: str = "schmitt"
+    backlash_margin: float = 0.02
+    backlash_kinds: tuple[str, ...] = ("paper", "qp")
 
     def validate(self) -> None:
         """Raise ConfigError naming the offending key."""
@@ -86,7 +98,7 @@ class ControllerConfig:
             if getattr(self, k) <= 0:
                 raise ConfigError(f"'{k}' must be > 0, got {getattr(self, k)}")
         for k in ("kp", "orientation_weight", "pose_orientation_weight", "kr", "ki", "integral_speed_limit",
-                  "backlash_hysteresis", "backlash_window", "backlash_lead"):
+                  "backlash_hysteresis", "backlash_window", "backlash_lead", "backlash_margin"):
             if getattr(self, k) < 0:
                 raise ConfigError(f"'{k}' must be >= 0, got {getattr(self, k)}")
         if len(self.backlash_play_max) != 6 or min(self.backlash_play_max) < 0:
@@ -94,6 +106,12 @@ class ControllerConfig:
         for k in ("backlash_start", "backlash_fraction", "backlash_learning_rate"):
             if not 0.0 <= getattr(self, k) <= 1.0:
                 raise ConfigError(f"'{k}' must be in [0, 1], got {getattr(self, k)}")
+        if not set(self.backlash_kinds) <= set(CONTROLLER_KINDS):
+            raise ConfigError(f"'backlash_kinds' must be among {', '.join(CONTROLLER_KINDS)}, "
+                              f"got {list(self.backlash_kinds)}")
+        if self.backlash_method not in BACKLASH_METHODS:
+            raise ConfigError(f"'backlash_method' must be one of {', '.join(BACKLASH_METHODS)}, "
+                              f"got {self.backlash_method!r}")
         if self.qp_solver not in ("daqp", "qpoases"):
             raise ConfigError(f"'qp_solver' must be daqp or qpoases, got {self.qp_solver!r}")
 
@@ -150,12 +168,10 @@ class Controller(abc.ABC):
         self.params = params
         self.config = config
         self.compensator: CommandCompensator | None = None
-        if config.backlash_compensation:
-            inverse = BacklashInverse(np.asarray(config.backlash_play_max, float), config.backlash_hysteresis,
-                                      start=config.backlash_start, fraction=config.backlash_fraction,
-                                      learn=config.backlash_learning, window=config.backlash_window,
-                                      rate=config.backlash_learning_rate, lead=config.backlash_lead)
-            self.compensator = CommandCompensator(params, inverse)
+        if config.backlash_compensation and config.kind in config.backlash_kinds:
+            self.compensator = CommandCompensator(params, make_inverse(config))
+        # the servo loop passes the encoder readings to step() when this is true
+        self.uses_encoders = self.compensator is not None and config.backlash_method == "encoders"
 
     def reset(self) -> None:
         """Forget the internal state (integral, backlash directions) before a new run."""
@@ -177,9 +193,12 @@ class Controller(abc.ABC):
         """psi_dot [rad/s, m/s], commanded tip velocity [m/s] and a status word."""
 
     def step(self, psi_cmd: Array, p_meas_world: Array, p_des_world: Array,
-             v_des_world: Array | None, dt: float, orientation: OrientationTask | None = None) -> ControlStep:
+             v_des_world: Array | None, dt: float, orientation: OrientationTask | None = None,
+             encoders: Array | None = None) -> ControlStep:
         """Next commanded configuration from the measured and desired tip in {w} [m] (and, for
         a kind that supports it, the tip frame's orientation; ConfigError from one that does not).
+        ``encoders``: the motor encoder readings [rad, m, m, m, m, m] taken with the measurement
+        (optional; used by the ``encoders`` dead-band inversion only).
 
         With backlash compensation the controller works on the nominal configuration behind
         ``psi_cmd`` and returns the compensated one; the returned step is within the joint and
@@ -192,6 +211,8 @@ class Controller(abc.ABC):
         psi_in = clamp_psi(self.params, check_psi(psi_cmd))
         comp = self.compensator
         psi = psi_in if comp is None else comp.nominal(psi_in)
+        if comp is not None and encoders is not None:
+            comp.inverse.observe(np.asarray(encoders, float))
         t0 = time.perf_counter()
         psi_dot, v_tip, status = self.velocity(psi, np.asarray(p_meas_world, float),
                                                np.asarray(p_des_world, float),
@@ -212,6 +233,18 @@ class Controller(abc.ABC):
 
 
 CONTROLLER_KINDS = ("paper", "qp")
+
+
+def make_inverse(config: ControllerConfig) -> BacklashInverse:
+    """The dead-band inversion ``config.backlash_method`` with the config's settings."""
+    common = dict(start=config.backlash_start, fraction=config.backlash_fraction, learn=config.backlash_learning,
+                  window=config.backlash_window, rate=config.backlash_learning_rate, lead=config.backlash_lead)
+    play_max = np.asarray(config.backlash_play_max, float)
+    if config.backlash_method == "encoders":
+        from wristmark.solvers.play_observer import PlayObserverInverse
+
+        return PlayObserverInverse(play_max, config.backlash_margin, **common)  # type: ignore[arg-type]
+    return BacklashInverse(play_max, config.backlash_hysteresis, **common)  # type: ignore[arg-type]
 
 
 def make_controller(params: RobotParams, config: ControllerConfig) -> Controller:

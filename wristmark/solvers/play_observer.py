@@ -1,0 +1,83 @@
+"""Dead-band inversion with state: the play's output tracked from the motor encoders.
+
+Assumed plant (sim/plant.py, the usual model of a cable / lead-screw transmission): per actuator
+j a motor (what the encoders read) drives the arm through a play operator of width b_j, so the
+output y_j stays put while the motor m_j moves inside [y_j - b_j / 2, y_j + b_j / 2] and is
+dragged along at either edge. With an estimate b_hat the output is tracked by the same operator
+on the encoder readings (sampled once a cycle, when the frame is taken):
+
+    y_hat = clip(y_hat, m - b_hat / 2, m + b_hat / 2)
+
+and the classical backlash inverse commands the motor to u + side * b_hat / 2, where u is the
+nominal actuator command (what the output should reach) and side is the edge of the band the
+motor must push on: +1 once u is above y_hat by more than ``margin`` x play_max, -1 once below by
+as much, unchanged in between. So the motor jumps across the band when the *desired output*
+leaves it, not when the noisy command turns round: no Schmitt trigger on the command. A side
+decided a cycle early or late (e.g. by a 1 um rounding of a target) moves the motor inside the
+band, which does not move the arm; the encoder readings are rounded to micro-units (1 um,
+1 urad, the wire's resolution) before use, so a reading through the serial link and one taken
+in process give the same decisions.
+
+Only ``fraction`` of b_hat is inverted (the loop's feedback covers the rest and an inversion larger
+than the play pushes the arm about at every change of side). The play estimate and its learning
+are those of :class:`BacklashInverse` (the feedback's share of the command over ``window`` either
+side of a change of side; it errs high by 2 x path rate x the loop's delay), as is the optional
+lead on the offset, with two differences: the first reversals of each actuator are averaged
+(step 1 / (n + 1), then ``rate``), so the estimate leaves its low start after one reversal, and
+taking a first side (after a reset) gets no lead burst (it is no reversal). The output's initial
+position in the band is unknown: the first reading puts it at the middle. Without encoder
+readings (a controller stepped without them) it inverts nothing: the plain controller.
+
+Also assumed: the encoders read the motor (before the play) when the frame is taken; the play is
+constant per actuator and below ``play_max``; the feedback-share learning's assumptions (see
+:class:`BacklashInverse`). Measured limits (docs/results.md, "encoders"): the insertion's play is
+learnt poorly (its path rate is the tip's speed, so the learning's bias is large) and is often
+clipped at its bound.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from wristmark.solvers.backlash_compensation import BacklashInverse
+
+Array = NDArray[np.float64]
+MICRO = 1e6  # the wire's micro-units per SI unit (rad, m)
+
+
+class PlayObserverInverse(BacklashInverse):
+    """Per-actuator dead-band inversion driven by the play output observed from the encoders.
+
+    ``margin`` x play_max_j [rad, m, ...] is how far the nominal command must leave the observed
+    output before the side changes; the other arguments are :class:`BacklashInverse`'s (its
+    ``hysteresis`` is not used)."""
+
+    def __init__(self, play_max: Array, margin: float, start: float = 0.5, fraction: float = 0.5,
+                 learn: bool = True, window: float = 0.4, rate: float = 0.3, lead: float = 0.0) -> None:
+        self.margin = float(margin)
+        super().__init__(play_max, 0.0, start=start, fraction=fraction, learn=learn, window=window, rate=rate,
+                         lead=lead)
+        self.average_first = True  # the first reversals' estimates are averaged, then rate
+        self.burst_first = False  # taking a first side is no reversal: no lead burst
+
+    def reset(self, keep_estimate: bool = False) -> None:
+        """Forget the sides, the observed output and (unless ``keep_estimate``) the learnt play."""
+        super().reset(keep_estimate)
+        self.output: Array | None = None
+
+    def observe(self, motor: Array) -> None:
+        """Track the play's output from encoder readings ``motor`` [rad, m, ...], rounded to micro-units."""
+        m = np.rint(np.asarray(motor, float) * MICRO) / MICRO
+        half = 0.5 * self.play
+        self.output = m.copy() if self.output is None else np.clip(self.output, m - half, m + half)
+
+    def _turn(self, a: Array) -> tuple[NDArray[np.bool_], Array]:
+        """The side each actuator's motor pushes on: where the nominal command ``a`` left the band."""
+        d = self.direction
+        if self.output is None:
+            return np.zeros(6, bool), d
+        e = np.rint((a - self.output) * MICRO) / MICRO
+        eps = self.margin * self.play_max
+        new = np.where(e > eps, 1.0, np.where(e < -eps, -1.0, d))
+        return (new != d) & (d != 0.0), new

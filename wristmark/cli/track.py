@@ -16,9 +16,11 @@ the corners, null when the roll is unknown).
 
 With ``--source``: a progress bar on stderr for finite sources (on a terminal), and at the end
 one summary line on stderr: frames, rate [fps], tracking latency (result time minus
-``t_capture``) median and p95 [ms], dropped frames. ``--annotate`` writes the frames with the
-corners, their indices and the marker axes drawn (cvs.annotate); ``--record FILE.mcap`` writes
-the frames and poses as a ROS 2 bag (rig.bag_recorder) that ``--source FILE.mcap`` replays.
+``t_capture``) median and p95 [ms], dropped frames. Before the source is opened the tracker
+is warmed up on synthetic frames and the heap frozen (rig.track_stream.prepare_tracker), so a
+live source drops nothing meanwhile. ``--annotate`` writes the frames with the corners, their
+indices and the marker axes drawn (cvs.annotate); ``--record FILE.mcap`` writes the frames and
+poses as a ROS 2 bag (rig.bag_recorder) that ``--source FILE.mcap`` replays.
 
 Errors are for the whole command (one line on stderr, exit 2): an odd number of paths, a
 missing file (all paths are checked before any pair is tracked), a source that cannot be
@@ -229,7 +231,7 @@ def run(args: argparse.Namespace) -> int:
     options = SourceOptions(layout=args.layout, size=args.size, fps=args.fps, fourcc=args.fourcc or None,
                             topics=_topics(args.topics), timeout=args.timeout, paced=args.paced,
                             image_size=camera.image_size, grayscale=args.grayscale)
-    from wristmark.rig.track_stream import TrackOutputs, track_source
+    from wristmark.rig.track_stream import TrackOutputs, prepare_tracker, track_source
 
     def emit(frame: StereoFrame, res: Any) -> None:
         if args.json:
@@ -238,6 +240,7 @@ def run(args: argparse.Namespace) -> int:
         else:
             print(_text_line(frame, res), flush=True)
 
+    prepare_tracker(tracker, args.grayscale)  # no first use of a code path nor full collection on a frame
     source = open_stereo_source(args.source, options)
     try:
         fps = float(getattr(source, "fps", 0.0) or 30.0)  # a video's own rate for an annotated video

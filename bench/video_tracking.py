@@ -1,7 +1,7 @@
 """Tracking from a stereo video played at its real frame rate: prints JSON.
 
 Usage: python bench/video_tracking.py [--frames 600] [--fps 60] [--scale 1.0] [--repeat 5] [--video FILE] [--bgr]
-                                     [--no-prepare]
+                                     [--no-prepare] [--rt-priority N]
 Renders ``--frames`` pairs of a smooth motion of the marked arm (sim.motion_video, 1920x1080
 per eye at scale 1) and writes them as one side-by-side MJPG video (3840x1080, quality 95) at
 ``--fps`` (or plays ``--video``). Then, in the same run:
@@ -21,7 +21,8 @@ The tracked runs use grey views (``--bgr``: BGR). Each tracked run's tracker is 
 ``wristmark track --source`` prepares it (rig.track_stream.prepare_tracker: a warm-up of every
 code path on synthetic frames, then the heap frozen); ``--no-prepare`` instead warms the numba
 kernels on the video's first frame with another tracker and freezes nothing (how this bench
-ran before, for comparison). The target is at most 1 % of frames dropped at 60 fps;
+ran before, for comparison). ``--rt-priority N``: the whole bench (tracker and decoder threads)
+under SCHED_FIFO, as ``wristmark track --rt-priority N``. The target is at most 1 % of frames dropped at 60 fps;
 ``run(...)`` returns the dict (bench/virtual_lab.py calls it).
 """
 
@@ -45,7 +46,9 @@ from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera  # noqa: E40
 from wristmark.cvs.marker_tracker import MarkerTracker  # noqa: E402
 from wristmark.cvs.open_source import SourceOptions, open_stereo_source  # noqa: E402
 from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.errors import WristmarkError
 from wristmark.models.marker import MarkerModel  # noqa: E402
+from wristmark.rig.realtime_priority import request_realtime_priority
 from wristmark.rig.track_stream import prepare_tracker
 
 MAX_SPIKES = 8  # slowest frames listed per run
@@ -152,10 +155,12 @@ def _track_all(video: Path, camera: StereoCamera, marker: MarkerModel, paced: bo
 
 
 def run(frames: int = 600, fps: float = 60.0, scale: float = 1.0, repeat: int = 5, video: str | Path | None = None,
-        workdir: str | Path | None = None, grayscale: bool = True, prepare: bool = True) -> dict[str, Any]:
+        workdir: str | Path | None = None, grayscale: bool = True, prepare: bool = True,
+        rt_priority: int | None = None) -> dict[str, Any]:
     """The benchmark of the module docstring; returns its JSON as a dict. grayscale: the
     tracked runs decode grey views (``--grayscale`` of ``wristmark track``); prepare: each
-    tracker prepared as ``wristmark track --source`` does (else the old one-frame warm-up)."""
+    tracker prepared as ``wristmark track --source`` does (else the old one-frame warm-up);
+    rt_priority: SCHED_FIFO priority for the timed runs (None: normal scheduling)."""
     cam = load_calibration(CONFIG_DIR / "camera.yaml")
     camera = scaled_stereo_camera(cam, scale) if scale != 1.0 else cam
     marker = MarkerModel()
@@ -164,6 +169,8 @@ def run(frames: int = 600, fps: float = 60.0, scale: float = 1.0, repeat: int = 
         path = Path(video) if video is not None else make_video(Path(tmp) / "stereo_sbs.avi", frames, fps, scale)
         render_s = time.perf_counter() - t
         size_mb = path.stat().st_size / 1e6
+        if rt_priority is not None:  # before any decoder thread starts: they inherit it
+            request_realtime_priority(rt_priority)
         if not prepare:  # the old warm-up: the numba kernels on the first frame, another tracker
             warm = open_stereo_source(str(path))
             first = warm.read()
@@ -175,7 +182,7 @@ def run(frames: int = 600, fps: float = 60.0, scale: float = 1.0, repeat: int = 
             "video": {"frames": frames, "fps": fps, "size_px": [2 * camera.image_size[0], camera.image_size[1]],
                       "codec": "MJPG", "mb_per_frame": round(size_mb / max(frames, 1), 3),
                       "render_s": round(render_s, 1)},
-            "grayscale": grayscale, "prepared": prepare,
+            "grayscale": grayscale, "prepared": prepare, "rt_priority": rt_priority,
             "decode_only": {"bgr": _decode_only(path, camera, False), "grey": _decode_only(path, camera, True)},
             "tracked_unpaced": _track_all(path, camera, marker, False, grayscale, prepare, 1.0 / fps),
             "paced": [_track_all(path, camera, marker, True, grayscale, prepare, 1.0 / fps)
@@ -197,11 +204,18 @@ def main() -> int:
     ap.add_argument("--bgr", action="store_true", help="track BGR frames (default: grey, as track --grayscale)")
     ap.add_argument("--no-prepare", action="store_true", help="do not prepare the trackers (no warm-up "
                     "of every path, no frozen heap): the bench as it was, for comparison")
+    ap.add_argument("--rt-priority", type=int_in(1, 99), help="run under SCHED_FIFO at this priority "
+                    "(as wristmark track --rt-priority; needs root or CAP_SYS_NICE)")
     ap.add_argument("--video", help="play this side-by-side video instead of rendering one (calibration: "
                     "configs/camera.yaml at --scale)")
     a = ap.parse_args()
-    print(json.dumps(run(a.frames, a.fps, a.scale, a.repeat, a.video, grayscale=not a.bgr,
-                         prepare=not a.no_prepare), indent=1))
+    try:
+        out = run(a.frames, a.fps, a.scale, a.repeat, a.video, grayscale=not a.bgr,
+                  prepare=not a.no_prepare, rt_priority=a.rt_priority)
+    except WristmarkError as e:
+        print(f"video_tracking: {e}", file=sys.stderr)
+        return 2
+    print(json.dumps(out, indent=1))
     return 0
 
 

@@ -11,6 +11,7 @@ import sys
 import textwrap
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
@@ -118,19 +119,16 @@ def test_after_the_warm_up_the_first_real_frame_costs_what_a_cold_frame_costs() 
 
 
 _TRACK = textwrap.dedent("""
-    import gc, sys
+    import gc, os, sys
     from wristmark.cli.main import main
     rc = main(sys.argv[1:])
-    print("frozen", gc.get_freeze_count(), file=sys.stderr)
+    print("frozen", gc.get_freeze_count(), "fifo", os.sched_getscheduler(0) == os.SCHED_FIFO, file=sys.stderr)
     sys.exit(rc)
 """)
 
 
-def test_track_source_prepares_the_tracker_and_reports_the_rate(tmp_path: Path) -> None:
-    """``wristmark track --source VIDEO --paced``: the heap is frozen (the start-up objects,
-    tens of thousands, are exempt from collections) and the summary line gives the rate and the
-    dropped frames, which with the frames processed make up the video (how many are dropped
-    depends on the machine's load)."""
+def _video(tmp_path: Path) -> list[str]:
+    """A 6-frame 30 fps side-by-side MJPG video of the coded sleeve, and the track options for it."""
     from wristmark.cvs.calib_yaml import save_calibration
     from wristmark.sim.motion_video import write_stereo_video
 
@@ -138,16 +136,50 @@ def test_track_source_prepares_the_tracker_and_reports_the_rate(tmp_path: Path) 
              for k in range(6)]
     video = write_stereo_video(tmp_path / "sbs.avi", pairs, fps=30)
     save_calibration(tmp_path / "calib.yaml", CAM)
-    r = subprocess.run([sys.executable, "-c", _TRACK, "track", "--source", str(video), "--calib",
-                        str(tmp_path / "calib.yaml"), "--marker", str(CONFIG_DIR / "marker_coded.yaml"),
-                        "--paced", "--grayscale", "--json"], capture_output=True, text=True, timeout=300, cwd=ROOT)
+    return ["--source", str(video), "--calib", str(tmp_path / "calib.yaml"),
+            "--marker", str(CONFIG_DIR / "marker_coded.yaml")]
+
+
+def _run_track(argv: list[str]) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-c", _TRACK, "track", *argv], capture_output=True, text=True,
+                          timeout=300, cwd=ROOT)
+
+
+def test_track_source_prepares_the_tracker_and_reports_the_rate(tmp_path: Path) -> None:
+    """``wristmark track --source VIDEO --paced``: the heap is frozen (the start-up objects,
+    tens of thousands, are exempt from collections) and the summary line gives the rate and the
+    dropped frames, which with the frames processed make up the video (how many are dropped
+    depends on the machine's load)."""
+    r = _run_track([*_video(tmp_path), "--paced", "--grayscale", "--json"])
     assert r.returncode == 0, r.stderr
     lines = [json.loads(line) for line in r.stdout.splitlines()]
     assert lines and all(o["ok"] and o["roll_known"] for o in lines)
     assert [o["frame"] for o in lines] == sorted({o["frame"] for o in lines})  # newest frames, in order
     summary, frozen = r.stderr.strip().splitlines()[-2:]
-    assert int(frozen.split()[1]) > 10000
+    assert int(frozen.split()[1]) > 10000 and frozen.endswith("fifo False")
     assert summary.startswith("track: ") and " fps; latency median " in summary
     fps = float(summary.split(" s, ")[1].split(" fps")[0])
     dropped = int(summary.rsplit("dropped ", 1)[1])
     assert len(lines) + dropped == 6 and 0 < fps <= 31.0  # paced: never faster than the video's 30 fps
+
+
+def test_rt_priority_runs_the_tracker_under_sched_fifo(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``--rt-priority N`` puts the track command under SCHED_FIFO (where the host allows it;
+    else one line saying it was refused, exit 2); without ``--source`` it is an error."""
+    from wristmark.cli.main import main
+    from wristmark.rig.realtime_priority import realtime_priority_allowed
+
+    left, right = synthetic_pair(CAM, CODED)
+    cv2.imwrite(str(tmp_path / "l.png"), left)
+    cv2.imwrite(str(tmp_path / "r.png"), right)
+    argv = _video(tmp_path)
+    assert main(["track", "--calib", argv[3], "--rt-priority", "1", str(tmp_path / "l.png"),
+                 str(tmp_path / "r.png")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--rt-priority needs --source" in err[0]
+    r = _run_track([*argv, "--rt-priority", "1", "--paced", "--json"])
+    if realtime_priority_allowed(1):
+        assert r.returncode == 0, r.stderr
+        assert r.stderr.strip().endswith("fifo True") and len(r.stdout.splitlines()) >= 1
+    else:
+        assert r.returncode == 2 and "real-time priority 1 refused" in r.stderr

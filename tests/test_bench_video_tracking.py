@@ -20,3 +20,7 @@ def test_bench_prints_json() -> None:
     paced = out["paced"][0]
     assert paced["processed"] + paced["dropped"] == 8 and paced["tracking_ms"]["median"] > 0
     assert out["target"]["worst_dropped_percent"] == paced["dropped_percent"]
+    # each tracker prepared as `wristmark track --source` prepares it; the run's collections and spikes
+    assert out["prepared"] is True and set(paced["gc"]["collections"]) == {"0", "1", "2"}
+    assert len(paced["spikes"]) == min(paced["frames_over_one_period"], 8)
+    assert all(s["ms"] > 1e3 / 20 and "detect" in s["stages_ms"] for s in paced["spikes"])

@@ -16,7 +16,10 @@ the corners, null when the roll is unknown).
 
 With ``--source``: a progress bar on stderr for finite sources (on a terminal), and at the end
 one summary line on stderr: frames, rate [fps], tracking latency (result time minus
-``t_capture``) median and p95 [ms], dropped frames. ``--annotate`` writes the frames with the
+``t_capture``) median and p95 [ms], dropped frames. Before the source is opened the tracker
+is warmed up on synthetic frames and the heap frozen (rig.track_stream.prepare_tracker), so a
+live source drops nothing meanwhile; ``--rt-priority N`` runs the tracker and the source's
+threads under SCHED_FIFO (rig.realtime_priority). ``--annotate`` writes the frames with the
 corners, their indices and the marker axes drawn (cvs.annotate); ``--record FILE.mcap`` writes
 the frames and poses as a ROS 2 bag (rig.bag_recorder) that ``--source FILE.mcap`` replays.
 
@@ -79,6 +82,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--paced", action="store_true",
                    help="play a video or bag at its recorded rate in wall-clock time "
                    "(video: newest frame, drops counted)")
+    p.add_argument("--rt-priority", type=int_in(1, 99), metavar="N",
+                   help="with --source: track (and read the source's frames) under SCHED_FIFO at priority N, so a "
+                        "loaded host keeps a live or paced source's rate (needs root or CAP_SYS_NICE)")
     p.add_argument("--grayscale", action="store_true",
                    help="hand the tracker grey views (an MJPG video then decodes only its luma: 2-5x faster)")
     p.add_argument("--annotate", metavar="DIR|FILE.mp4", help="write annotated frames to a folder or a video "
@@ -205,6 +211,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("nothing to track: give LEFT RIGHT image pairs or --source SPEC")
     if args.source is None and (args.annotate or args.record):
         raise InputError("--annotate and --record need --source SPEC (e.g. --source DIR for a dataset folder)")
+    if args.rt_priority is not None and args.source is None:
+        raise InputError("--rt-priority needs --source SPEC (a live or paced source)")
     if args.record_jpeg and not args.record:
         raise InputError("--record-jpeg needs --record FILE.mcap")
     hint = None
@@ -229,7 +237,7 @@ def run(args: argparse.Namespace) -> int:
     options = SourceOptions(layout=args.layout, size=args.size, fps=args.fps, fourcc=args.fourcc or None,
                             topics=_topics(args.topics), timeout=args.timeout, paced=args.paced,
                             image_size=camera.image_size, grayscale=args.grayscale)
-    from wristmark.rig.track_stream import TrackOutputs, track_source
+    from wristmark.rig.track_stream import TrackOutputs, prepare_tracker, track_source
 
     def emit(frame: StereoFrame, res: Any) -> None:
         if args.json:
@@ -238,6 +246,11 @@ def run(args: argparse.Namespace) -> int:
         else:
             print(_text_line(frame, res), flush=True)
 
+    if args.rt_priority is not None:  # before the source's threads start: they inherit it
+        from wristmark.rig.realtime_priority import request_realtime_priority
+
+        request_realtime_priority(args.rt_priority)
+    prepare_tracker(tracker, args.grayscale)  # no first use of a code path nor full collection on a frame
     source = open_stereo_source(args.source, options)
     try:
         fps = float(getattr(source, "fps", 0.0) or 30.0)  # a video's own rate for an annotated video

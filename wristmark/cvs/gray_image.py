@@ -40,3 +40,17 @@ def gray_crop(img: NDArray[np.uint8], box: Box) -> NDArray[np.uint8]:
     """uint8 grey levels of ``img[y0:y1, x0:x1]`` (cropped first, then converted)."""
     x0, y0, x1, y1 = box
     return to_gray(img[y0:y1, x0:x1])
+
+
+def check_view(img: Any, size: tuple[int, int], name: str) -> NDArray[np.uint8]:
+    """The image as an array after checking shape, size and dtype (InputError, one line);
+    nothing is converted: the detectors crop first and convert only what they search."""
+    a = np.asarray(img)
+    if not (a.ndim == 2 or (a.ndim == 3 and a.shape[2] in (3, 4))):
+        raise InputError(f"{name} image must be grayscale (h, w) or BGR (h, w, 3), got shape {a.shape}")
+    w, h = size
+    if a.shape[:2] != (h, w):
+        raise InputError(f"{name} image is {a.shape[1]}x{a.shape[0]} but the calibration expects {w}x{h}")
+    if a.dtype != np.uint8:
+        raise InputError(f"{name} image must be 8-bit (uint8), got {a.dtype}")
+    return a

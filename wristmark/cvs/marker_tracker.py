@@ -26,155 +26,29 @@ decided.
 
 from __future__ import annotations
 
-import importlib
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass, field, replace
-from typing import Any, Protocol
+from dataclasses import replace
+from typing import Any
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera
-from wristmark.cvs.gray_image import to_gray
+from wristmark.cvs.gray_image import check_view, to_gray
 from wristmark.cvs.homography_init import homography_pose
-from wristmark.cvs.marker_axis import AxisEvidenceSettings, axis_evidence, axis_evidence_strict
-from wristmark.cvs.marker_decode import CodeDecoder, CodeReading, CodeReadSettings
+from wristmark.cvs.marker_axis import axis_evidence, axis_evidence_strict
+from wristmark.cvs.marker_decode import CodeDecoder
+from wristmark.cvs.rigid_fit import kabsch, roll_about_z
 from wristmark.cvs.stereo_match import StereoMatch, StereoRectifier, match_corners
-from wristmark.cvs.stereo_pose import MarkerPose, PoseSettings, StereoPoseSolver
+from wristmark.cvs.stereo_pose import MarkerPose, StereoPoseSolver
+from wristmark.cvs.track_result import Array, IntArray, TrackResult
+from wristmark.cvs.tracker_settings import CornerDetector, TrackerSettings, make_detector
 from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
 
-Array = NDArray[np.float64]
-IntArray = NDArray[np.int_]
-
-
-class CornerDetector(Protocol):
-    """What the tracker needs from a detector (cvs.corner_detector.MarkerCornerDetector):
-    ``detect`` gets grey frames, ``track`` grey or BGR ones (it converts only what it searches)."""
-
-    def detect(self, gray: Any, roi: Any = None) -> Any: ...
-
-    def track(self, gray: Any) -> Any: ...
-
-
-@dataclass(frozen=True)
-class TrackerSettings:
-    """min_corners: per camera [-]; min_pairs: stereo pairs needed [-]; max_dy_px: rectified-y
-    tolerance of a pair [px]; max_rms_px: largest accepted reprojection RMS [px]; good_rms_px: in
-    ROI tracking, an RMS of the fit from the previous pose that ends the search over start poses
-    [px]; a cold pair tries every start and keeps the best (local minima of eq. 16 sit near
-    0.8-1 px at 0.2 px corner noise, but with 4 nearly collinear corners a wrong pose can fit to
-    0.3 px while the true one fits to the noise level); detector:
-    'auto' (the paper's detector if installed, else the saddle fallback; when the paper's
-    detector finds no marker in a pair, the saddle detector gets one try on the same pair),
-    'paper' or 'saddle'; pose: solver settings; axis: the image evidence for the direction of
-    z_wm (cvs.marker_axis); code: reading a coded sleeve's cells (cvs.marker_decode);
-    prior_max_move_m [m], prior_max_turn_deg [deg], prior_max_px [px]: the previous pair's pose
-    is a prior for the direction only if this pair's fit is within these of it (translation,
-    rotation modulo the corner symmetry, the previous pose's corners on this pair's left
-    detections: small motion, same corners); strict_direction: never a direction that only the
-    default prior (+x) or one-band image evidence gave (cvs.marker_axis.axis_evidence_strict):
-    'direction ambiguous' instead (``wristmark track --strict-direction``)."""
-
-    min_corners: int = 3
-    min_pairs: int = 2
-    max_dy_px: float = 2.0
-    max_rms_px: float = 0.75
-    good_rms_px: float = 0.4
-    detector: str = "auto"
-    pose: PoseSettings = field(default_factory=PoseSettings)
-    axis: AxisEvidenceSettings = field(default_factory=AxisEvidenceSettings)
-    code: CodeReadSettings = field(default_factory=CodeReadSettings)
-    prior_max_move_m: float = 0.003
-    prior_max_turn_deg: float = 15.0
-    prior_max_px: float = 6.0
-    strict_direction: bool = False
-
-
-@dataclass(frozen=True)
-class TrackResult:
-    """One stereo pair's tracking result (left camera frame {ll}, metres).
-
-    ok: a pose was found and passed the checks; reason: why not ('' when ok); tip_left, tip_world
-    [m] (tip_world None without world_T_left); T_left_marker: 4x4 pose of {wm} in {ll};
-    corners_left/right: detected corners in raw pixels (N, 2); rms_px [px]; time_ms: total [ms];
-    timings: ms per stage (detect, match, init, solve); pose: the solver result when one ran;
-    axis_source: what fixed the direction of z_wm ('hint', 'previous', 'image', 'default' or
-    'code' or 'none'; '' when not ok); axis_score: the image evidence in [-1, 1] for the
-    returned direction (NaN when the image was not asked); roll_known: a coded sleeve's code
-    was read, T_left_marker is the absolute pose (roll included) and ids_left / ids_right the
-    absolute corner ids of corners_left / right (-1: not used); otherwise roll is known modulo
-    one column and ids are None; code: the code reading (coded sleeves).
-    """
-
-    ok: bool
-    reason: str
-    tip_left: Array | None
-    tip_world: Array | None
-    T_left_marker: Array | None
-    corners_left: Array
-    corners_right: Array
-    rms_px: float
-    time_ms: float
-    timings: dict[str, float]
-    pose: MarkerPose | None = None
-    match: StereoMatch | None = None
-    axis_source: str = ""
-    axis_score: float = float("nan")
-    roll_known: bool = False
-    ids_left: IntArray | None = None
-    ids_right: IntArray | None = None
-    code: CodeReading | None = None
-
-
-def _make_detector(kind: str) -> CornerDetector:
-    if kind not in ("auto", "paper", "saddle"):
-        raise InputError(f"unknown detector '{kind}' (valid: auto, paper, saddle)")
-    if kind in ("auto", "paper"):
-        try:
-            mod = importlib.import_module("wristmark.cvs.corner_detector")
-            det: CornerDetector = mod.MarkerCornerDetector()
-            return det
-        except ImportError as e:
-            if kind == "paper":
-                raise InputError("the paper's detector (cvs.corner_detector) is not installed") from e
-    from wristmark.cvs.saddle_corners import SaddleCornerDetector
-
-    return SaddleCornerDetector()
-
-
-def _checked_image(img: Any, size: tuple[int, int], name: str) -> NDArray[np.uint8]:
-    """The image as an array after checking shape, size and dtype (InputError, one line);
-    nothing is converted: the detectors crop first and convert only what they search."""
-    a = np.asarray(img)
-    if not (a.ndim == 2 or (a.ndim == 3 and a.shape[2] in (3, 4))):
-        raise InputError(f"{name} image must be grayscale (h, w) or BGR (h, w, 3), got shape {a.shape}")
-    w, h = size
-    if a.shape[:2] != (h, w):
-        raise InputError(f"{name} image is {a.shape[1]}x{a.shape[0]} but the calibration expects {w}x{h}")
-    if a.dtype != np.uint8:
-        raise InputError(f"{name} image must be 8-bit (uint8), got {a.dtype}")
-    return a
-
-
-def _roll(a: float) -> Array:
-    """4x4 rotation by a [rad] about z."""
-    c, sn = np.cos(a), np.sin(a)
-    return np.array([[c, -sn, 0, 0], [sn, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
-
-
-def kabsch(P_model: Array, P_obs: Array) -> Array:
-    """4x4 rigid transform T with P_obs ~ R P_model + t (least squares, proper rotation)."""
-    cm, co = P_model.mean(axis=0), P_obs.mean(axis=0)
-    H = (P_model - cm).T @ (P_obs - co)
-    u, _, vt = np.linalg.svd(H)
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(vt.T @ u.T)) or 1.0])
-    R = vt.T @ D @ u.T
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R, co - R @ cm
-    return T
+__all__ = ["CornerDetector", "MarkerTracker", "TrackResult", "TrackerSettings", "kabsch"]
 
 
 class MarkerTracker:
@@ -188,8 +62,8 @@ class MarkerTracker:
         self.camera, self.marker = camera, marker
         self.rectifier = StereoRectifier(camera)
         self.solver = StereoPoseSolver(camera, marker, self.settings.pose)
-        self.detector_left = _make_detector(self.settings.detector)
-        self.detector_right = _make_detector(self.settings.detector)
+        self.detector_left = make_detector(self.settings.detector)
+        self.detector_right = make_detector(self.settings.detector)
         T_rl = np.eye(4)
         T_rl[:3, :3], T_rl[:3, 3] = camera.R, camera.T
         self._T_left_right = np.linalg.inv(T_rl)
@@ -217,8 +91,8 @@ class MarkerTracker:
         ``axis_hint_left``: expected direction of z_wm (distal) in {ll}, if the caller knows it."""
         t0 = time.perf_counter()
         self._continuous = False
-        il = _checked_image(left_img, self.camera.image_size, "left")
-        ir = _checked_image(right_img, self.camera.image_size, "right")
+        il = check_view(left_img, self.camera.image_size, "left")
+        ir = check_view(right_img, self.camera.image_size, "right")
         roi = self._tracking
         if roi:
             dl, dr = self.detector_left.track(il), self.detector_right.track(ir)
@@ -242,7 +116,7 @@ class MarkerTracker:
         if not res.ok and self._use_second:
             # 'auto': one try with the other detector (different failure modes, same pose gates)
             if self._second is None:
-                self._second = (_make_detector("saddle"), _make_detector("saddle"))
+                self._second = (make_detector("saddle"), make_detector("saddle"))
             t2 = time.perf_counter()
             il, ir = to_gray(il), to_gray(ir)
             sl, sr = self._second[0].detect(il), self._second[1].detect(ir)
@@ -320,7 +194,7 @@ class MarkerTracker:
         if not (self._continuous and self._last_oriented and prev is not None):
             return None
         s = self.settings
-        T_prev = prev.T_fit @ _roll(self._last_shift * self.marker.beta)  # in this pair's indices
+        T_prev = prev.T_fit @ roll_about_z(self._last_shift * self.marker.beta)  # in this pair's indices
         if np.linalg.norm(pose.T_fit[:3, 3] - T_prev[:3, 3]) > s.prior_max_move_m:
             return None
         dR = T_prev[:3, :3].T @ pose.T_fit[:3, :3]
@@ -391,7 +265,7 @@ class MarkerTracker:
         j = int(np.argmin(err))
         k = int(ks[j])
         self._last_shift, self._last_fit_px = k, float(err[j])
-        return T @ _roll(k * beta)  # maps model point i to where the previous pose had i + k
+        return T @ roll_about_z(k * beta)  # maps model point i to where the previous pose had i + k
 
     def track_corners(
         self,

@@ -11,10 +11,10 @@ One cycle k at t_k = t0 + k dt on the loop's clock:
    rejected measurement holds the arm (the command unchanged). Open loop: the nominal model's
    IK of the desired tip gives the command (pose IK when the trajectory asks for an orientation;
    closed loop, the measured orientation then goes to the controller's orientation task);
-3. the command is sent: on the wall clock ``command_phase`` after the cycle's nominal start (at
-   once when it is computed later), so every command takes effect at the same instant of its
-   cycle, as on the simulated bench, where it goes out ``vision_latency`` after the capture (open
-   loop: at once). The measurement is compensated to the cycle's start (rig.delay_compensation).
+3. the command is sent: on the wall clock as soon as it is computed, or, with a rig
+   ``command_phase`` > 0, at that fixed instant after the cycle's nominal start (at once when it
+   is computed later), as on the simulated bench, where it goes out ``vision_latency`` after the
+   capture (open loop: at once). The measurement is compensated to the cycle's start (rig.delay_compensation).
    The capture-to-command latency is measured from the frame's capture time.
 
 Ground truth (true tip, optical tracker, true configuration) is logged when an optional
@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -35,7 +34,7 @@ from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
 from wristmark.models.errors import WristmarkError
 from wristmark.models.ik import solve_tip_ik
 from wristmark.models.kinematics import forward_kinematics, tip_position
-from wristmark.models.limits import clamp_psi, wrap_angle
+from wristmark.models.limits import clamp_psi
 from wristmark.models.pose_ik import nominal_ik
 from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.rig.actuator_link import ActuatorLink
@@ -45,97 +44,21 @@ from wristmark.rig.ground_truth import NO_TRUTH, GroundTruth, TruthSample
 from wristmark.rig.progress import PhaseProgress
 from wristmark.rig.rig_config import RigConfig
 from wristmark.rig.run_log import CycleRecord, RunLog
+from wristmark.rig.servo_cycle import (
+    CameraStalledError,
+    CycleOutcome,
+    CycleTarget,
+    MarkerLostError,
+    PhaseStats,
+    TrackingMemory,
+    ramp_to,
+)
 from wristmark.rig.tip_sensors import TipMeasurement, TipSensor
 from wristmark.rig.trajectories import Trajectory, feedforward_velocity
 from wristmark.solvers.controller import Controller, OrientationTask
 
 Array = NDArray[np.float64]
 NO_FRAME = "no new frame from the camera"
-
-
-def ramp_to(params: RobotParams, start: Array, target: Array, dt: float) -> list[Array]:
-    """Intermediate configurations from ``start`` to ``target`` (both excluded), one per cycle of
-    ``dt`` [s], each step within the joint velocity limits; bending-plane angles take the short way."""
-    diff = np.asarray(target, float) - np.asarray(start, float)
-    for i in (3, 5):  # delta1, delta2 [rad]: the short way (phi is not wrapped: the stem has end stops)
-        diff[i] = wrap_angle(float(diff[i]))
-    steps = int(np.ceil(np.max(np.abs(diff) / (np.asarray(params.max_velocity, float) * dt)) - 1e-9))
-    return [clamp_psi(params, np.asarray(start, float) + diff * (k / steps)) for k in range(1, steps)]
-
-
-@dataclass
-class PhaseStats:
-    """Counters of one phase: cycles run, measurements lost (no frame or no marker) and
-    rejected by the gates, cycles without a new frame (and of those, the ones driven by the
-    last measurement, compensated: rig ``reuse_measurement_age``), the longest run of lost cycles, cycles
-    skipped because the host fell a whole period behind the wall clock (a late cycle runs at
-    once; the ones it missed are not made up), and why the phase stopped early ("" when it did not)."""
-
-    cycles: int = 0
-    lost: int = 0
-    rejected: int = 0
-    no_frame: int = 0
-    reused: int = 0
-    max_consecutive_lost: int = 0
-    skipped: int = 0
-    stopped: str = ""
-
-
-class MarkerLostError(WristmarkError):
-    """The marker stayed out of sight longer than the loop allows; the arm was held.
-
-    ``stats`` holds the phase's counters up to the stop (None when raised elsewhere); ``record``
-    the stopping cycle's log record, when it got that far."""
-
-    def __init__(self, message: str, stats: PhaseStats | None = None, record: CycleRecord | None = None) -> None:
-        super().__init__(message)
-        self.stats = stats
-        self.record = record
-
-
-class CameraStalledError(MarkerLostError):
-    """The camera delivered no new frame for longer than the loop allows, or its stream failed
-    or ended; the arm was held."""
-
-
-@dataclass(frozen=True)
-class _CycleTarget:
-    """What cycle k aims at: its time t [s], whether it settles, the desired tip p_des [m] and
-    feed-forward velocity v_des [m/s], and (open loop) the desired tip at the cycle's end; the
-    desired tip-frame rotation R_des, R_next and angular velocity w_des [rad/s] (None: position only)."""
-
-    k: int
-    t: float
-    settling: bool
-    p_des: Array
-    v_des: Array
-    p_next: Array
-    R_des: Array | None = None
-    w_des: Array | None = None
-    R_next: Array | None = None
-
-
-@dataclass
-class _Tracking:
-    """The closed loop's memory across cycles: the last accepted tip [m] and the current run of
-    cycles without an accepted measurement (and why the last one failed)."""
-
-    last_ok: Array | None = None
-    lost_run: int = 0
-    last_reason: str = ""
-    last_meas: TipMeasurement | None = None  # the last accepted measurement (for cycles without a frame)
-
-
-@dataclass(frozen=True)
-class _Outcome:
-    """One closed-loop cycle's measurement and what the loop made of it."""
-
-    meas: TipMeasurement | None
-    truth: TruthSample
-    accepted: bool
-    rejected: bool
-    ctrl_us: float
-    reused: bool = False  # no new frame: the last accepted measurement, compensated, drove the controller
 
 
 class ServoLoop:
@@ -247,7 +170,7 @@ class ServoLoop:
         n_settle = int(round(settle / dt))
         n_traj = int(np.floor(traj.duration / dt)) + 1
         stats = PhaseStats()
-        memory = _Tracking()
+        memory = TrackingMemory()
         t0 = self.t
         n = n_settle + n_traj
         bar = PhaseProgress(phase, n_settle, n_traj, progress)
@@ -281,7 +204,7 @@ class ServoLoop:
         bar.close()
         return stats
 
-    def _target(self, traj: Trajectory, k: int, t_k: float, n_settle: int) -> _CycleTarget:
+    def _target(self, traj: Trajectory, k: int, t_k: float, n_settle: int) -> CycleTarget:
         dt = self.rig.control_dt
         tau_raw = (k - n_settle) * dt  # trajectory time; negative while settling
         tau = max(0.0, tau_raw)
@@ -293,21 +216,21 @@ class ServoLoop:
         p_next = traj.sample(tau + dt)[0] if k >= n_settle - 1 else p_des
         o, o_next = traj.sample_orientation(tau), traj.sample_orientation(tau + dt if k >= n_settle - 1 else tau)
         R, w, R_next = (None, None, None) if o is None or o_next is None else (o[0], o[1], o_next[0])
-        return _CycleTarget(k, t_k, k < n_settle, p_des, v_des, p_next, R, w, R_next)
+        return CycleTarget(k, t_k, k < n_settle, p_des, v_des, p_next, R, w, R_next)
 
     def _observe(self) -> TruthSample:
         return self.truth.observe() if self.truth is not None else NO_TRUTH
 
     # -- open loop ------------------------------------------------------------------------
-    def _open_cycle(self, target: _CycleTarget, t_wall: float, phase: str) -> CycleRecord:
+    def _open_cycle(self, target: CycleTarget, t_wall: float, phase: str) -> CycleRecord:
         truth = self._observe()
         assert self.psi_cmd is not None
         self.psi_cmd = clamp_psi(self.params, nominal_ik(self.params, target.p_next, target.R_next, self.psi_cmd))
         self._send(self.psi_cmd)
-        return self._record(target, t_wall, phase, _Outcome(None, truth, False, False, 0.0), float("nan"))
+        return self._record(target, t_wall, phase, CycleOutcome(None, truth, False, False, 0.0), float("nan"))
 
     # -- closed loop ----------------------------------------------------------------------
-    def _closed_cycle(self, target: _CycleTarget, t_wall: float, phase: str, memory: _Tracking,
+    def _closed_cycle(self, target: CycleTarget, t_wall: float, phase: str, memory: TrackingMemory,
                       stats: PhaseStats) -> CycleRecord:
         # wall clock: the cycle's nominal start (the link's time is time.monotonic() there; t_wall
         # is a little later), to which the measurement is compensated, and its command instant:
@@ -332,7 +255,7 @@ class ServoLoop:
         latency = self._now() - outcome.meas.t_capture if outcome.accepted and outcome.meas else float("nan")
         return self._record(target, t_wall, phase, outcome, latency)
 
-    def _wait_for_command_phase(self, outcome: _Outcome) -> None:
+    def _wait_for_command_phase(self, outcome: CycleOutcome) -> None:
         """Wall clock: note when the command was ready after its frame's arrival [ms], then sleep
         until the cycle's command instant (``command_phase`` after its start; at once when later)."""
         now = time.monotonic()
@@ -341,7 +264,7 @@ class ServoLoop:
         if self._command_at > now:
             time.sleep(self._command_at - now)
 
-    def _take_frame(self, target: _CycleTarget, phase: str, memory: _Tracking,
+    def _take_frame(self, target: CycleTarget, phase: str, memory: TrackingMemory,
                     stats: PhaseStats) -> StereoFrame | None:
         """This cycle's frame: on the wall clock one that arrived after the cycle began if it comes
         within ``frame_wait``, else the newest unseen one (None: none at all)."""
@@ -360,8 +283,8 @@ class ServoLoop:
             self.last_frame = frame
         return frame
 
-    def _measure_and_control(self, frame: StereoFrame | None, truth: TruthSample, target: _CycleTarget,
-                             memory: _Tracking) -> _Outcome:
+    def _measure_and_control(self, frame: StereoFrame | None, truth: TruthSample, target: CycleTarget,
+                             memory: TrackingMemory) -> CycleOutcome:
         """Measure the frame, gate the measurement, and step the controller when it is accepted."""
         assert self.sensor is not None and self.controller is not None and self.psi_cmd is not None
         if frame is None:
@@ -374,18 +297,18 @@ class ServoLoop:
             self.on_frame(frame, meas)
         if not (meas.ok and meas.p_world is not None and np.all(np.isfinite(meas.p_world))):
             memory.last_reason = meas.reason or "marker not found"
-            return _Outcome(meas, truth, False, False, 0.0)
+            return CycleOutcome(meas, truth, False, False, 0.0)
         p_est = meas.p_world
         jump_ok = memory.last_ok is None or (
             np.linalg.norm(p_est - memory.last_ok) <= self.rig.gate * (1 + memory.lost_run))
         model_ok = np.linalg.norm(p_est - model.tip) <= self.rig.model_gate
         if not (jump_ok and model_ok):
             memory.last_reason = "measurement rejected by the gates"
-            return _Outcome(meas, truth, False, True, 0.0)
+            return CycleOutcome(meas, truth, False, True, 0.0)
         memory.last_ok = p_est
         memory.last_meas = meas
         ctrl_us = self._control(target, self._compensated(meas), meas)
-        return _Outcome(meas, truth, True, False, ctrl_us)
+        return CycleOutcome(meas, truth, True, False, ctrl_us)
 
     def _compensated(self, meas: TipMeasurement) -> Array:
         """The measured tip [m] moved on by the delay compensation to this cycle's start, the
@@ -397,7 +320,7 @@ class ServoLoop:
         t_start = self._cycle_start if self.wall_clock else self.t
         return self.delay.compensate(meas.p_world, meas.t_capture, t_start)
 
-    def _control(self, target: _CycleTarget, p_est: Array, meas: TipMeasurement) -> float:
+    def _control(self, target: CycleTarget, p_est: Array, meas: TipMeasurement) -> float:
         """One controller step from the tip ``p_est`` [m] (and the measurement's orientation);
         returns its time [us]."""
         assert self.controller is not None and self.psi_cmd is not None
@@ -410,18 +333,18 @@ class ServoLoop:
         self.psi_cmd = step.psi_next
         return 1e6 * (time.perf_counter() - c0)
 
-    def _reuse(self, truth: TruthSample, target: _CycleTarget, memory: _Tracking) -> _Outcome:
+    def _reuse(self, truth: TruthSample, target: CycleTarget, memory: TrackingMemory) -> CycleOutcome:
         """A cycle without a new frame (wall clock): the last accepted measurement, moved on by the
         delay compensation, drives the controller while it is at most ``reuse_measurement_age`` old
         at the cycle's start; else (or without the compensation) the arm holds."""
         last = memory.last_meas
         if (not self.wall_clock or self.delay is None or last is None
                 or not self._cycle_start - last.t_capture <= self.rig.reuse_measurement_age):
-            return _Outcome(None, truth, False, False, 0.0)
+            return CycleOutcome(None, truth, False, False, 0.0)
         ctrl_us = self._control(target, self._compensated(last), last)
-        return _Outcome(None, truth, False, False, ctrl_us, reused=True)
+        return CycleOutcome(None, truth, False, False, ctrl_us, reused=True)
 
-    def _count_lost(self, outcome: _Outcome, memory: _Tracking, stats: PhaseStats) -> None:
+    def _count_lost(self, outcome: CycleOutcome, memory: TrackingMemory, stats: PhaseStats) -> None:
         stats.lost += int(not outcome.rejected)
         stats.rejected += int(outcome.rejected)
         stats.no_frame += int(outcome.meas is None)
@@ -429,8 +352,8 @@ class ServoLoop:
         memory.lost_run += 1
         stats.max_consecutive_lost = max(stats.max_consecutive_lost, memory.lost_run)
 
-    def _stop_lost(self, target: _CycleTarget, t_wall: float, phase: str, outcome: _Outcome,
-                   memory: _Tracking, stats: PhaseStats) -> None:
+    def _stop_lost(self, target: CycleTarget, t_wall: float, phase: str, outcome: CycleOutcome,
+                   memory: TrackingMemory, stats: PhaseStats) -> None:
         """Hold the arm, log the cycle, raise: the camera stalled or the marker stayed lost."""
         self.link.hold()
         at = f"at t = {target.t - self._sim0:.2f} s"
@@ -447,7 +370,7 @@ class ServoLoop:
         raise error(stats.stopped + ": arm held", stats, rec)
 
     # -- the log --------------------------------------------------------------------------
-    def _record(self, target: _CycleTarget, t_wall: float, phase: str, outcome: _Outcome,
+    def _record(self, target: CycleTarget, t_wall: float, phase: str, outcome: CycleOutcome,
                 latency_s: float) -> CycleRecord:
         assert self.psi_cmd is not None
         meas, truth = outcome.meas, outcome.truth

@@ -308,3 +308,14 @@ def test_the_box_runs_above_the_lab_and_rendering_can_stay_at_normal_priority(se
         assert os.sched_getscheduler(0) == os.SCHED_OTHER  # the caller's thread keeps its scheduling
     finally:
         lab.stop()
+
+
+def test_the_lab_never_overwrites_a_truth_file_without_force(tmp_path: Path) -> None:
+    truth = tmp_path / "truth.csv"
+    truth.write_text("a user's data\n")
+    base = [sys.executable, "-m", "wristmark", "emulator", "--pty", "--camera-port", "0"]
+    for option in ("--truth-out", "--truth-dense-out"):
+        r = subprocess.run([*base, option, str(truth)], capture_output=True, text=True, timeout=60)
+        lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+        assert r.returncode == 2 and len(lines) == 1 and "--force" in lines[0], r.stderr
+        assert r.stdout == "" and truth.read_text() == "a user's data\n"  # nothing served, nothing written

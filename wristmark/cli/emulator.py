@@ -19,7 +19,7 @@ from types import FrameType
 
 import numpy as np
 
-from wristmark.cli.common_options import add_config_option, set_example
+from wristmark.cli.common_options import add_config_option, add_force_argument, set_example
 from wristmark.cli.option_types import MAX_TIMEOUT_S, PSI_ABS_MAX, float_in, int_in, positive_float, seed_int
 from wristmark.models.config_files import default_config
 from wristmark.models.errors import InputError
@@ -60,6 +60,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_config_option(cam, "--marker")
     cam.add_argument("--jpeg-quality", type=int_in(1, 100), default=90, metavar="Q", help="JPEG quality (default 90)")
     cam.add_argument("--seed", type=seed_int(), default=0, help="render noise seed (default 0)")
+    add_force_argument(p)
     set_example(p, "wristmark emulator --pty", "wristmark emulator --pty --camera-port 0 --fps 30 --image-scale 0.35 "
                 "--truth-out truth.csv")
 
@@ -85,6 +86,9 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{', '.join(_camera_options_without_port(args))} need --camera-port PORT")
     if args.render_normal_priority and args.rt_priority is None:
         raise InputError("--render-normal-priority needs --rt-priority N")
+    from wristmark.rig.output_dir import claim_outputs
+
+    claim_outputs(files=[args.truth_out, args.truth_dense_out], force=args.force)  # before anything is served
     params = load_robot(args.robot, MarkerModel.load(args.marker or default_config("marker.yaml")))
     plant_path = Path(args.plant) if args.plant else DEFAULT_PLANT
     plant = PlantParams.load(plant_path) if plant_path.exists() or args.plant else PlantParams()

@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: setup run test lint typecheck pytest bench browser clean examples
+.PHONY: setup run test lint typecheck pytest bench browser rtsp-server clean examples
 
 setup: $(STAMP)
 
@@ -23,13 +23,17 @@ run: setup
 browser:
 	bash scripts/ensure-chromium.sh
 
+# GStreamer's RTSP server for Debian's Python: the RTSP tests serve frames with it.
+rtsp-server:
+	bash scripts/ensure-rtsp-server.sh
+
 lint: setup
 	$(VENV)/bin/ruff check wristmark wristmark_testing tests bench examples
 
 typecheck: setup
 	$(VENV)/bin/mypy wristmark
 
-pytest: setup browser
+pytest: setup browser rtsp-server
 	$(PY) -m pytest
 
 test: lint typecheck pytest

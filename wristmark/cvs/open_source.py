@@ -107,12 +107,21 @@ def source_length(source: StereoSource) -> int | None:
     return n if n > 0 else None
 
 
+FFMPEG_LOGLEVEL_ENV = "OPENCV_FFMPEG_LOGLEVEL"  # read by OpenCV when its FFmpeg backend is first used
+
+
 def quiet_opencv() -> None:
-    """OpenCV logs warnings (e.g. FFmpeg timeouts) on stderr: keep only errors, so that a
-    failure is the one line wristmark prints."""
+    """OpenCV logs warnings (e.g. FFmpeg timeouts) and FFmpeg its own messages (``[rtsp @ ...]
+    method DESCRIBE failed: 404``, ``[tcp @ ...] Connection refused``) on stderr: keep only
+    OpenCV's errors and none of FFmpeg's, so that a failure is the one line wristmark prints.
+    A user who sets OPENCV_FFMPEG_LOGLEVEL (e.g. 32, FFmpeg's "info") sees FFmpeg's messages again.
+    Takes effect for FFmpeg only before the process's first FFmpeg capture."""
+    import os
+
     import cv2
 
     cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
+    os.environ.setdefault(FFMPEG_LOGLEVEL_ENV, "-8")  # AV_LOG_QUIET
 
 
 def _open(spec: str | Sequence[str | Path], o: SourceOptions) -> StereoSource:

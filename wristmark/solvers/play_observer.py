@@ -40,10 +40,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from wristmark.models.units import MICRO
 from wristmark.solvers.backlash_compensation import BacklashInverse
 
 Array = NDArray[np.float64]
-MICRO = 1e6  # the wire's micro-units per SI unit (rad, m)
 
 
 class PlayObserverInverse(BacklashInverse):
@@ -54,8 +54,10 @@ class PlayObserverInverse(BacklashInverse):
     ``hysteresis`` is not used)."""
 
     def __init__(self, play_max: Array, margin: float, start: float = 0.5, fraction: float = 0.5,
-                 learn: bool = True, window: float = 0.4, rate: float = 0.3, lead: float = 0.0) -> None:
+                 learn: bool = True, window: float = 0.4, rate: float = 0.3, lead: float = 0.0,
+                 freeze: float = 0.0) -> None:
         self.margin = float(margin)
+        self.freeze = float(freeze)
         super().__init__(play_max, 0.0, start=start, fraction=fraction, learn=learn, window=window, rate=rate,
                          lead=lead)
         self.average_first = True  # the first reversals' estimates are averaged, then rate
@@ -65,11 +67,30 @@ class PlayObserverInverse(BacklashInverse):
         """Forget the sides, the observed output and (unless ``keep_estimate``) the learnt play."""
         super().reset(keep_estimate)
         self.output: Array | None = None
+        self._stood = 0.0  # how long the desired path has stood still [s]
+        self._seed: tuple[NDArray[np.bool_], Array] | None = None
+
+    def seed(self, play: Array, output: Array, known: NDArray[np.bool_]) -> None:
+        """Start from a measured play [rad, m, ...] and output (motor units) where ``known``
+        (a play probe, rig/play_probe.py): the side is the edge the motor last pushed on, the
+        learning goes on at its normal rate, no lead burst; elsewhere as after a reset."""
+        self.reset(keep_estimate=True)
+        k = np.asarray(known, bool)
+        self.play = np.where(k, np.clip(np.asarray(play, float), 0.0, self.play_max), self.play)
+        self._learnt = np.where(k, np.maximum(self._learnt, 1.0 / max(self.rate, 1e-9)), self._learnt)
+        self._seed = (k, np.asarray(output, float).copy())
 
     def observe(self, motor: Array) -> None:
         """Track the play's output from encoder readings ``motor`` [rad, m, ...], rounded to micro-units."""
         m = np.rint(np.asarray(motor, float) * MICRO) / MICRO
         half = 0.5 * self.play
+        if self.output is None and self._seed is not None:  # a probe's output and side
+            k, out = self._seed
+            self._seed = None
+            self.output = np.where(k, out, m)
+            side = np.sign(np.rint((m - self.output) * MICRO))
+            self.direction = np.where(k, side, 0.0)
+            self._off = self.direction * 0.5 * self.fraction * self.play
         self.output = m.copy() if self.output is None else np.clip(self.output, m - half, m + half)
 
     def _turn(self, a: Array) -> tuple[NDArray[np.bool_], Array]:
@@ -80,4 +101,11 @@ class PlayObserverInverse(BacklashInverse):
         e = np.rint((a - self.output) * MICRO) / MICRO
         eps = self.margin * self.play_max
         new = np.where(e > eps, 1.0, np.where(e < -eps, -1.0, d))
+        if self.freeze > 0.0 and self._stood >= self.freeze - 1e-9:  # a held point: noise must not walk
+            return np.zeros(6, bool), np.where(d != 0.0, d, new)  # the motors across the band: sides stay
         return (new != d) & (d != 0.0), new
+
+    def _track_feedback(self, a: Array, dt: float, a_dot_path: Array | None) -> None:
+        super()._track_feedback(a, dt, a_dot_path)
+        standing = a_dot_path is not None and not np.any(np.abs(np.asarray(a_dot_path, float)) > 0.0)
+        self._stood = self._stood + dt if standing else 0.0

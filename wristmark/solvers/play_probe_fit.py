@@ -83,8 +83,36 @@ def fit_play(motor: Array, arm: Array, play_max: float, min_samples: int = 6) ->
     g = np.where(var > 0, cov / np.where(var > 0, var, 1.0), 0.0)
     resid = np.sum((y - ym) ** 2) - g * cov  # residual sum of squares per (b, start)
     i, j = np.unravel_index(int(np.argmin(resid)), resid.shape)
-    gain = float(g[i, j])
-    c = float(ym - gain * om[i, j, 0])
-    rms = float(np.sqrt(max(float(resid[i, j]), 0.0) / m.size))
+    b, start = _refine(m, y, float(plays[i]), float(starts[j]), play_max)
+    o1 = play_operator(m, np.array([b]), np.array([start]))[0, 0]
+    gain, c, rss = _line(o1, y)
+    rms = float(np.sqrt(max(rss, 0.0) / m.size))
     ok = MIN_GAIN <= gain <= 1.0 / MIN_GAIN and rms / gain <= MAX_NOISE * play_max
-    return PlayFit(float(plays[i]), gain, c, float(o[i, j, 0]), float(o[i, j, -1]), rms, bool(ok))
+    return PlayFit(b, gain, c, float(o1[0]), float(o1[-1]), rms, bool(ok))
+
+
+def _line(o: Array, y: Array) -> tuple[float, float, float]:
+    """Least-squares y = c + g o: (g, c, residual sum of squares)."""
+    do, dy = o - o.mean(), y - y.mean()
+    var = float(do @ do)
+    g = float(do @ dy) / var if var > 0 else 0.0
+    return g, float(y.mean() - g * o.mean()), float(dy @ dy - g * (do @ dy))
+
+
+def _refine(m: Array, y: Array, b0: float, s0: float, play_max: float) -> tuple[float, float]:
+    """The grid's best (play, start) refined continuously (Nelder-Mead, within the bounds), so
+    that a small change of the readings (a micro-unit rounding) moves the fit a little, never by
+    a grid step."""
+    from scipy.optimize import minimize
+
+    def rss(x: Array) -> float:
+        b = float(np.clip(x[0], 0.0, play_max))
+        st = float(np.clip(x[1], -1.0, 1.0))
+        return _line(play_operator(m, np.array([b]), np.array([st]))[0, 0], y)[2]
+
+    step = play_max / (PLAY_STEPS - 1)
+    simplex = np.array([[b0, s0], [b0 + step, s0], [b0, s0 + 2.0 / (START_STEPS - 1)]])
+    res = minimize(rss, np.array([b0, s0]), method="Nelder-Mead",
+                   options={"initial_simplex": simplex, "xatol": 1e-3 * step, "fatol": 0.0, "maxiter": 400})
+    best = res.x if res.fun <= rss(np.array([b0, s0])) else np.array([b0, s0])
+    return float(np.clip(best[0], 0.0, play_max)), float(np.clip(best[1], -1.0, 1.0))

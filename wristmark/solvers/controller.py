@@ -63,7 +63,8 @@ class ControllerConfig:
     play_probe (the encoders' inversion only): before the first closed-loop walk the loop probes
     each actuator's play (rig/play_probe.py: a triangle of play_probe_amplitude x its bound over
     play_probe_time [s] per actuator, then play_probe_settle [s] of closed-loop settle) and the
-    inversion starts from the fitted play (solvers/play_probe_fit.py).
+    inversion starts from the fitted play (solvers/play_probe_fit.py), learning it on from there
+    (play_probe_learning) or keeping the probe's.
     """
 
     kind: str = "qp"
@@ -103,6 +104,7 @@ class ControllerConfig:
     play_probe_amplitude: float = 2.0
     play_probe_time: float = 0.6
     play_probe_settle: float = 0.6
+    play_probe_learning: bool = True
 
     def validate(self) -> None:
         """Raise ConfigError naming the offending key."""
@@ -214,7 +216,7 @@ class Controller(abc.ABC):
         if not isinstance(comp.inverse, PlayObserverInverse):
             return None
         comp.inverse.seed(np.array([f.play for f in fits]), np.array([f.last_output for f in fits]),
-                          np.array([f.ok for f in fits]))
+                          np.array([f.ok for f in fits]), relearn=self.config.play_probe_learning)
         comp.inverse.observe(np.asarray(encoders, float))
         nominal = clamp_psi(self.params, check_psi(psi_nominal))
         out = clamp_psi(self.params, comp.compensate(nominal, self.config.dt))

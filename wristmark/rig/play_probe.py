@@ -13,16 +13,18 @@ frame arrived) the motor side; solvers/play_probe_fit.py fits the play per actua
 inversion then starts from the fitted play, on a known side and place in the band.
 
 Assumes a 6-DoF pose: without one (the reference marker, or a coded marker whose roll code was
-not read at the end of the settle) nothing moves, one line on stderr says so, and the inversion
-learns the play online at the reversals as without a probe. The probe's cycles are logged as
-``phase + ':probe'`` and are not counted in the walk's errors. Works the same on the simulated
+not read at the end of the settle) nothing moves, the loop's ``play_probe_note`` says so (the
+experiments put it in result.json; not on stderr, where a run prints only its one-line stop), and
+the inversion learns the play online at the reversals as without a probe. The probe's cycles are logged as
+``phase + ':probe'`` and are not counted in the walk's errors; more than the rig's
+``max_lost_cycles`` probe cycles in a row without a pose hold the arm and stop the run
+(MarkerLostError), as in the loop. Works the same on the simulated
 bench and on the hardware path (GET_STATE gives the encoders, the frames the pose).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import sys
 import time
 from typing import TYPE_CHECKING
 
@@ -35,7 +37,7 @@ from wristmark.models.limits import clamp_psi, clamp_velocity
 from wristmark.models.pose_ik import solve_pose_ik
 from wristmark.models.units import MICRO
 from wristmark.rig.run_log import RunLog
-from wristmark.rig.servo_cycle import CycleOutcome, CycleTarget, PhaseStats, TrackingMemory
+from wristmark.rig.servo_cycle import CycleOutcome, CycleTarget, MarkerLostError, PhaseStats, TrackingMemory
 from wristmark.solvers.play_probe_fit import PlayFit, fit_play
 
 if TYPE_CHECKING:
@@ -71,7 +73,7 @@ def run_play_probe(loop: ServoLoop, template: CycleTarget, phase: str, log: RunL
     assert ctrl is not None and sensor is not None and loop.psi_cmd is not None
     meas0 = loop.last_measurement
     if meas0 is None or meas0.R_world is None or not meas0.roll_known:
-        print(NO_POSE, file=sys.stderr)
+        loop.play_probe_note = NO_POSE
         ctrl.start_play(None)
         return None
     cfg, params, dt = ctrl.config, loop.params, loop.rig.control_dt
@@ -82,6 +84,7 @@ def run_play_probe(loop: ServoLoop, template: CycleTarget, phase: str, log: RunL
     samples = ProbeSamples()
     reads: list[tuple[float, Array]] = []  # (time on the frames' clock, encoders)
     hint, psi = base, base
+    lost = 0  # consecutive probe cycles without a measured pose
     for j in range(6):
         # cycle i: sample (the arm after i targets), then send target i + 1; sample 0 is taken
         # before the actuator moves, the last one a cycle after its last target (the settled command)
@@ -89,7 +92,13 @@ def run_play_probe(loop: ServoLoop, template: CycleTarget, phase: str, log: RunL
         for i in range(n + 1):
             target = dataclasses.replace(template, k=len(samples.probed), t=loop.t + dt, settling=False)
             loop._advance(target.t)
-            hint = _sample(loop, target, phase, log, memory, stats, j, samples, reads, hint)
+            hint, ok = _sample(loop, target, phase, log, memory, stats, j, samples, reads, hint)
+            lost = 0 if ok else lost + 1
+            if lost > loop.rig.max_lost_cycles:  # as in the loop: a lost marker holds the arm
+                loop.link.hold()
+                at = target.t - loop._sim0
+                stats.stopped = f"marker lost for {lost} cycles during the play probe at t = {at:.2f} s"
+                raise MarkerLostError(stats.stopped + ": arm held", stats)
             if i < n:
                 a = a0.copy()
                 a[j] += offsets[i]
@@ -111,9 +120,10 @@ def run_play_probe(loop: ServoLoop, template: CycleTarget, phase: str, log: RunL
 
 
 def _sample(loop: ServoLoop, target: CycleTarget, phase: str, log: RunLog, memory: TrackingMemory,
-            stats: PhaseStats, j: int, samples: ProbeSamples, reads: list[tuple[float, Array]], hint: Array) -> Array:
-    """One probe cycle's frame, encoders and pose (the pose IK's solution returned as the next
-    start), logged; the sample is actuator ``j``'s."""
+            stats: PhaseStats, j: int, samples: ProbeSamples, reads: list[tuple[float, Array]],
+            hint: Array) -> tuple[Array, bool]:
+    """One probe cycle's frame, encoders and pose, logged as actuator ``j``'s sample; returns the
+    pose IK's solution (the next start) and whether a pose was measured."""
     assert loop.sensor is not None and loop.psi_cmd is not None
     params = loop.params
     t_wall = time.monotonic()
@@ -136,7 +146,7 @@ def _sample(loop: ServoLoop, target: CycleTarget, phase: str, log: RunLog, memor
     log.add(rec)
     if callable(loop.on_cycle):
         loop.on_cycle(rec)
-    return hint
+    return hint, ok
 
 
 def _encoders_at(reads: list[tuple[float, Array]], t: float) -> Array:

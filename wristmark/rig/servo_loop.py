@@ -111,6 +111,7 @@ class ServoLoop:
         self.ready_after_arrival_ms: list[float] = []  # wall clock: frame arrival -> command computed
         self.delay = DelayCompensator(params, rig.delay_compensation_tau) if rig.delay_compensation else None
         self.play_fits: list[PlayFit] | None = None  # the play probe's fits per actuator (rig/play_probe.py)
+        self.play_probe_note = ""  # why the play probe was skipped ("" when it ran or was not asked for)
 
     # -- time and commands ----------------------------------------------------------------
     def _advance(self, t: float) -> None:
@@ -176,7 +177,7 @@ class ServoLoop:
         memory = TrackingMemory()
         ctrl = self.controller if closed_loop else None
         n_after = int(round(ctrl.config.play_probe_settle / dt)) if ctrl and ctrl.wants_play_probe else 0
-        bar = PhaseProgress(phase, n_settle + n_after, n_traj, progress)
+        bar = PhaseProgress(phase, n_settle, n_traj, progress)  # the probe and its settle not on it
         if ctrl is not None and ctrl.wants_play_probe:  # settle, probe, settle again, walk
             from wristmark.rig.play_probe import run_play_probe
 
@@ -184,13 +185,14 @@ class ServoLoop:
             self._cycles(traj, phase, closed_loop, log, stats, memory, bar, n_settle, lead_in)
             self.play_fits = run_play_probe(self, self._target(traj, 0, self.t, lead_in), phase, log, memory, stats)
             memory.last_ok, n_settle = None, n_after  # the probe moved the tip: no jump gate just after it
-        self._cycles(traj, phase, closed_loop, log, stats, memory, bar, n_settle + n_traj, n_settle)
+        self._cycles(traj, phase, closed_loop, log, stats, memory, bar, n_settle + n_traj, n_settle, n_after)
         bar.close()
         return stats
 
     def _cycles(self, traj: Trajectory, phase: str, closed_loop: bool, log: RunLog, stats: PhaseStats,
-                memory: TrackingMemory, bar: PhaseProgress, n: int, n_settle: int) -> None:
-        """Cycles 0..n-1 from now, the first ``n_settle`` of them holding the trajectory's start."""
+                memory: TrackingMemory, bar: PhaseProgress, n: int, n_settle: int, unbarred: int = 0) -> None:
+        """Cycles 0..n-1 from now, the first ``n_settle`` of them holding the trajectory's start
+        (the first ``unbarred`` of them not shown on the bar: the settle after a play probe)."""
         dt = self.rig.control_dt
         t0 = self.t
         k = 0
@@ -202,8 +204,9 @@ class ServoLoop:
             if missed > 0:  # a whole cycle late on the wall clock: skip to the current cycle
                 stats.skipped += missed
                 k += missed
-                for _ in range(missed):
-                    bar.step()
+                for i in range(missed):
+                    if k - missed + i >= unbarred:
+                        bar.step()
                 continue
             if closed_loop:
                 try:
@@ -219,7 +222,8 @@ class ServoLoop:
             if callable(self.on_cycle):
                 self.on_cycle(rec)
             k += 1
-            bar.step()
+            if k > unbarred:
+                bar.step()
 
     def _target(self, traj: Trajectory, k: int, t_k: float, n_settle: int) -> CycleTarget:
         dt = self.rig.control_dt

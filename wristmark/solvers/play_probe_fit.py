@@ -38,7 +38,8 @@ class PlayFit:
     """One actuator's probe fit: play b [rad or m], gain g and offset c of the arm-side value on
     the output, the output's last position [rad or m, motor units] and the residual RMS [y units];
     ``ok`` False when the fit is not to be trusted (too few samples, gain out of range, the probe
-    did not travel past play_max)."""
+    did not travel past play_max; with too few samples or travel the numbers are 0, the outputs
+    the last reading)."""
 
     play: float
     gain: float
@@ -70,8 +71,8 @@ def fit_play(motor: Array, arm: Array, play_max: float, min_samples: int = 6) ->
     keep = np.isfinite(m) & np.isfinite(y)
     m, y = m[keep], y[keep]
     if m.size < min_samples or play_max <= 0.0 or np.ptp(m) <= play_max:
-        at = float(m[-1]) if m.size else float("nan")
-        return PlayFit(0.0, float("nan"), float("nan"), at, at, float("nan"), False)
+        at = float(m[-1]) if m.size else 0.0
+        return PlayFit(0.0, 0.0, 0.0, at, at, 0.0, False)
     plays = np.linspace(0.0, play_max, PLAY_STEPS)
     starts = np.linspace(-1.0, 1.0, START_STEPS)
     o = play_operator(m, plays, starts)  # (P, S, K)

@@ -85,6 +85,7 @@ def run_play_probe(loop: ServoLoop, template: CycleTarget, phase: str, log: RunL
     reads: list[tuple[float, Array]] = []  # (time on the frames' clock, encoders)
     hint, psi = base, base
     lost = 0  # consecutive probe cycles without a measured pose
+    raw: list[PlayFit] = []
     for j in range(6):
         # cycle i: sample (the arm after i targets), then send target i + 1; sample 0 is taken
         # before the actuator moves, the last one a cycle after its last target (the settled command)
@@ -106,7 +107,12 @@ def run_play_probe(loop: ServoLoop, template: CycleTarget, phase: str, log: RunL
                 psi = clamp_psi(params, psi + clamp_velocity(params, (want - psi) / dt) * dt)
                 loop.psi_cmd = psi
                 loop._send(psi)
-    fits = _fit(samples, play_max, np.asarray([m for _, m in reads]))
+        # fitted at once, a cycle's work (on the wall clock the box's watchdog wants a command
+        # every 250 ms: six fits at the end were 0.47 s of silence in the virtual lab)
+        loop._send(psi)
+        rows = np.flatnonzero(np.asarray(samples.probed) == j)
+        raw.append(fit_play(np.asarray(samples.motor)[rows, j], np.asarray(samples.arm)[rows, j], float(play_max[j])))
+    fits = _carry(raw, samples, np.asarray([m for _, m in reads]))
     # the nominal command: the output as it was before the probe (known where the fit is trusted)
     u = np.array([f.first_output if f.ok else a0[j] for j, f in enumerate(fits)])
     out = ctrl.start_play(fits, reads[-1][1], psi_from_actuators(params, u, delta_hint=base))
@@ -156,16 +162,13 @@ def _encoders_at(reads: list[tuple[float, Array]], t: float) -> Array:
     return np.array([np.interp(t, ts, ms[:, i]) for i in range(6)])
 
 
-def _fit(samples: ProbeSamples, play_max: Array, reads: Array) -> list[PlayFit]:
-    """Each actuator's fit, its last output carried on through the later encoder readings."""
+def _carry(fits: list[PlayFit], samples: ProbeSamples, reads: Array) -> list[PlayFit]:
+    """Each actuator's fit with its last output carried on through the later encoder readings."""
     probed = np.asarray(samples.probed)
-    motor, arm = np.asarray(samples.motor), np.asarray(samples.arm)
-    fits = []
-    for j in range(6):
-        rows = np.flatnonzero(probed == j)
-        f = fit_play(motor[rows, j], arm[rows, j], float(play_max[j]))
+    out = []
+    for j, f in enumerate(fits):
         o = f.last_output
-        for m in reads[rows[-1] + 1:, j]:
+        for m in reads[np.flatnonzero(probed == j)[-1] + 1:, j]:
             o = float(np.clip(o, m - f.play / 2, m + f.play / 2))
-        fits.append(dataclasses.replace(f, last_output=o))
-    return fits
+        out.append(dataclasses.replace(f, last_output=o))
+    return out

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.optimize import minimize
 
 Array = NDArray[np.float64]
 
@@ -104,8 +105,6 @@ def _refine(m: Array, y: Array, b0: float, s0: float, play_max: float) -> tuple[
     """The grid's best (play, start) refined continuously (Nelder-Mead, within the bounds), so
     that a small change of the readings (a micro-unit rounding) moves the fit a little, never by
     a grid step."""
-    from scipy.optimize import minimize
-
     def rss(x: Array) -> float:
         b = float(np.clip(x[0], 0.0, play_max))
         st = float(np.clip(x[1], -1.0, 1.0))

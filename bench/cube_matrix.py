@@ -97,11 +97,11 @@ def main() -> int:
     ap.add_argument("--duration", type=positive_float(), help="cut the cube walk to S seconds")
     ap.add_argument("--out", default="runs/bench/cube_matrix")
     ap.add_argument("--controller-config", help="controller settings (default configs/controller.yaml; "
-                    "configs/controller_encoders.yaml: the encoders' dead-band inversion)")
+                    "configs/controller_plain.yaml: no dead-band inversion)")
     args = ap.parse_args()
     out = Path(args.out)
     results = []
-    p = PAPER_CUBE
+    p: dict[str, Any] = PAPER_CUBE
     lines = [HEADER, "|---|---|---|---|---|---|---|---|---|---|---|",
              f"| paper (Fig. 8), 60 ms | {p['open_loop']['mean_mm']:.2f} | {p['open_loop']['max_mm']:.2f} | "
              f"{p['closed_loop']['mean_mm']:.2f} | {p['closed_loop']['max_mm']:.2f} | "

@@ -40,7 +40,7 @@ def _blind_after(n: int):  # type: ignore[no-untyped-def]
 def test_cube_reports_a_safe_stop_and_still_writes_the_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     setup = load_setup()
     setup = setup.with_changes(rig=dataclasses.replace(setup.rig, sensor="truth-noise", max_lost_cycles=5))
-    monkeypatch.setattr(sim_setup, "make_measurement", _blind_after(60))
+    monkeypatch.setattr(sim_setup, "make_measurement", _blind_after(60 + 69))  # + the play probe's frames
     res = run_cube(setup, tmp_path, progress=False, duration=6.0)
     c = res["closed_loop"]
     assert "marker lost for 6 cycles" in c["stopped"]

@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.models.errors import LimitError
+from wristmark.models.units import MICRO
 from wristmark.rig.cobs import CobsError, cobs_decode, cobs_encode
 from wristmark.rig.crc16 import crc16_ccitt_false
 
@@ -28,7 +29,6 @@ Array = NDArray[np.float64]
 
 PROTOCOL_VERSION = 1
 ACTUATOR_COUNT = 6
-MICRO = 1e6  # micro-units per SI unit (µrad per rad, µm per m)
 I32_MIN, I32_MAX = -(2**31), 2**31 - 1
 MAX_FRAME = 64  # longest accepted COBS frame [bytes]; the longest v1 packet (STATE) encodes to 35
 

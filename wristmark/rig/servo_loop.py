@@ -56,6 +56,7 @@ from wristmark.rig.servo_cycle import (
 from wristmark.rig.tip_sensors import TipMeasurement, TipSensor
 from wristmark.rig.trajectories import Trajectory, feedforward_velocity
 from wristmark.solvers.controller import Controller, OrientationTask
+from wristmark.solvers.play_probe_fit import PlayFit
 
 Array = NDArray[np.float64]
 NO_FRAME = "no new frame from the camera"
@@ -109,6 +110,8 @@ class ServoLoop:
         self._command_at = -math.inf  # wall clock: the current cycle's command instant [s]
         self.ready_after_arrival_ms: list[float] = []  # wall clock: frame arrival -> command computed
         self.delay = DelayCompensator(params, rig.delay_compensation_tau) if rig.delay_compensation else None
+        self.play_fits: list[PlayFit] | None = None  # the play probe's fits per actuator (rig/play_probe.py)
+        self.play_probe_note = ""  # why the play probe was skipped ("" when it ran or was not asked for)
 
     # -- time and commands ----------------------------------------------------------------
     def _advance(self, t: float) -> None:
@@ -158,9 +161,10 @@ class ServoLoop:
         """Follow ``traj`` (times relative to now); log every cycle under ``phase``.
 
         ``settle`` seconds of holding the trajectory's start come first (logged as
-        ``phase + ':settle'``). Raises MarkerLostError after too many lost measurements and
-        CameraStalledError after too many cycles without a frame or when the stream fails
-        (the arm held in both cases)."""
+        ``phase + ':settle'``); closed loop, a controller that asks for a play probe gets it
+        after them (rig/play_probe.py, ``phase + ':probe'``), then play_probe_settle more.
+        Raises MarkerLostError after too many lost measurements and CameraStalledError after
+        too many cycles without a frame or when the stream fails (the arm held in both cases)."""
         if closed_loop and (self.sensor is None or self.controller is None or self.frames is None):
             raise WristmarkError("closed loop needs a frame feed, a tip sensor and a controller")
         if self.psi_cmd is None:
@@ -171,9 +175,26 @@ class ServoLoop:
         n_traj = int(np.floor(traj.duration / dt)) + 1
         stats = PhaseStats()
         memory = TrackingMemory()
+        ctrl = self.controller if closed_loop else None
+        n_after = int(round(ctrl.config.play_probe_settle / dt)) if ctrl and ctrl.wants_play_probe else 0
+        bar = PhaseProgress(phase, n_settle, n_traj, progress)  # the probe and its settle not on it
+        if ctrl is not None and ctrl.wants_play_probe:  # settle, probe, settle again, walk
+            from wristmark.rig.play_probe import run_play_probe
+
+            lead_in = n_settle + 10**6  # the first settle sees no preview of the walk's start
+            self._cycles(traj, phase, closed_loop, log, stats, memory, bar, n_settle, lead_in)
+            self.play_fits = run_play_probe(self, self._target(traj, 0, self.t, lead_in), phase, log, memory, stats)
+            memory.last_ok, n_settle = None, n_after  # the probe moved the tip: no jump gate just after it
+        self._cycles(traj, phase, closed_loop, log, stats, memory, bar, n_settle + n_traj, n_settle, n_after)
+        bar.close()
+        return stats
+
+    def _cycles(self, traj: Trajectory, phase: str, closed_loop: bool, log: RunLog, stats: PhaseStats,
+                memory: TrackingMemory, bar: PhaseProgress, n: int, n_settle: int, unbarred: int = 0) -> None:
+        """Cycles 0..n-1 from now, the first ``n_settle`` of them holding the trajectory's start
+        (the first ``unbarred`` of them not shown on the bar: the settle after a play probe)."""
+        dt = self.rig.control_dt
         t0 = self.t
-        n = n_settle + n_traj
-        bar = PhaseProgress(phase, n_settle, n_traj, progress)
         k = 0
         while k < n:
             target = self._target(traj, k, t0 + k * dt, n_settle)
@@ -183,8 +204,9 @@ class ServoLoop:
             if missed > 0:  # a whole cycle late on the wall clock: skip to the current cycle
                 stats.skipped += missed
                 k += missed
-                for _ in range(missed):
-                    bar.step()
+                for i in range(missed):
+                    if k - missed + i >= unbarred:
+                        bar.step()
                 continue
             if closed_loop:
                 try:
@@ -200,9 +222,8 @@ class ServoLoop:
             if callable(self.on_cycle):
                 self.on_cycle(rec)
             k += 1
-            bar.step()
-        bar.close()
-        return stats
+            if k > unbarred:
+                bar.step()
 
     def _target(self, traj: Trajectory, k: int, t_k: float, n_settle: int) -> CycleTarget:
         dt = self.rig.control_dt

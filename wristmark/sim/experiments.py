@@ -143,6 +143,10 @@ def run_open_closed(setup: SimSetup, traj: Trajectory, experiment: str, out_dir:
         "run_dir": str(out_dir),
     }
     res["ratio"] = res["closed_loop"]["mean_mm"] / res["open_loop"]["mean_mm"]
+    if closed.play_fits is not None:  # the play probe before the closed loop (rig/play_probe.py), SI units
+        res["closed_loop"]["play_probe"] = [dataclasses.asdict(f) for f in closed.play_fits]
+    elif closed.play_probe_note:
+        res["closed_loop"]["play_probe"] = closed.play_probe_note
     for k, s in stats.items():
         res[k]["lost"] = s.lost
         res[k]["rejected"] = s.rejected

@@ -10,6 +10,7 @@ only: the paper's controller is position-only as the paper defines it, and refus
 from __future__ import annotations
 
 import abc
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -22,6 +23,7 @@ from wristmark.models.kinematics import check_psi, tip_jacobian
 from wristmark.models.limits import clamp_psi, clamp_velocity, psi_bounds
 from wristmark.models.robot_params import RobotParams
 from wristmark.solvers.backlash_compensation import BacklashInverse, CommandCompensator
+from wristmark.solvers.play_probe_fit import PlayFit
 
 Array = NDArray[np.float64]
 
@@ -53,9 +55,16 @@ class ControllerConfig:
     backlash_method: "schmitt" (the direction from a Schmitt trigger on the command) or
     "encoders" (solvers/play_observer.py: the play's output tracked from the encoder readings
     the loop passes to ``step``; the side changes once the command leaves the band by
-    backlash_margin x the bound; without readings nothing is inverted). backlash_kinds: the
+    backlash_margin x the bound; without readings nothing is inverted; once the desired path has
+    stood still for backlash_freeze [s] the sides stay as they are until it moves (a held
+    point's measurement noise does not send the motors across the band; 0 = never)). backlash_kinds: the
     controller kinds the inversion applies to (configs/controller.yaml: qp only; the paper's
     constant-speed controller reverses the actuators every cycle and is not helped by it).
+    play_probe (the encoders' inversion only): before the first closed-loop walk the loop probes
+    each actuator's play (rig/play_probe.py: a triangle of play_probe_amplitude x its bound over
+    play_probe_time [s] per actuator, then play_probe_settle [s] of closed-loop settle) and the
+    inversion starts from the fitted play (solvers/play_probe_fit.py), learning it on from there
+    (play_probe_learning) or keeping the probe's.
     """
 
     kind: str = "qp"
@@ -89,7 +98,13 @@ class ControllerConfig:
     backlash_lead: float = 0.0
     backlash_method: str = "schmitt"
     backlash_margin: float = 0.02
+    backlash_freeze: float = 0.0
     backlash_kinds: tuple[str, ...] = ("paper", "qp")
+    play_probe: bool = False
+    play_probe_amplitude: float = 2.0
+    play_probe_time: float = 0.6
+    play_probe_settle: float = 0.6
+    play_probe_learning: bool = True
 
     def validate(self) -> None:
         """Raise ConfigError naming the offending key."""
@@ -98,7 +113,8 @@ class ControllerConfig:
             if getattr(self, k) <= 0:
                 raise ConfigError(f"'{k}' must be > 0, got {getattr(self, k)}")
         for k in ("kp", "orientation_weight", "pose_orientation_weight", "kr", "ki", "integral_speed_limit",
-                  "backlash_hysteresis", "backlash_window", "backlash_lead", "backlash_margin"):
+                  "backlash_hysteresis", "backlash_window", "backlash_lead", "backlash_margin",
+                  "backlash_freeze"):
             if getattr(self, k) < 0:
                 raise ConfigError(f"'{k}' must be >= 0, got {getattr(self, k)}")
         if len(self.backlash_play_max) != 6 or min(self.backlash_play_max) < 0:
@@ -112,6 +128,12 @@ class ControllerConfig:
         if self.backlash_method not in BACKLASH_METHODS:
             raise ConfigError(f"'backlash_method' must be one of {', '.join(BACKLASH_METHODS)}, "
                               f"got {self.backlash_method!r}")
+        if self.play_probe_amplitude < 1.0:
+            raise ConfigError(f"'play_probe_amplitude' must be >= 1 (x backlash_play_max), "
+                              f"got {self.play_probe_amplitude}")
+        if self.play_probe_time <= 0.0 or self.play_probe_settle < 0.0:
+            raise ConfigError(f"'play_probe_time' must be > 0 and 'play_probe_settle' >= 0 [s], got "
+                              f"{self.play_probe_time} and {self.play_probe_settle}")
         if self.qp_solver not in ("daqp", "qpoases"):
             raise ConfigError(f"'qp_solver' must be daqp or qpoases, got {self.qp_solver!r}")
 
@@ -172,6 +194,34 @@ class Controller(abc.ABC):
             self.compensator = CommandCompensator(params, make_inverse(config))
         # the servo loop passes the encoder readings to step() when this is true
         self.uses_encoders = self.compensator is not None and config.backlash_method == "encoders"
+        self.play_probed = False  # a play probe (rig/play_probe.py) has run, or was skipped
+
+    @property
+    def wants_play_probe(self) -> bool:
+        """True until the loop has run the play probe this controller is configured for."""
+        return self.uses_encoders and self.config.play_probe and not self.play_probed
+
+    def start_play(self, fits: Sequence[PlayFit] | None, encoders: Array | None = None,
+                   psi_nominal: Array | None = None) -> Array | None:
+        """Start the inversion from a play probe's fits (None: the probe was skipped; the play is
+        then learnt online), the encoders read now [rad, m, ...] and the nominal configuration
+        to hold (the arm as it was before the probe); returns the configuration to send for it
+        (within the limits; None when there is nothing to start)."""
+        self.play_probed = True
+        comp = self.compensator
+        if comp is None or fits is None or encoders is None or psi_nominal is None:
+            return None
+        from wristmark.solvers.play_observer import PlayObserverInverse
+
+        if not isinstance(comp.inverse, PlayObserverInverse):
+            return None
+        comp.inverse.seed(np.array([f.play for f in fits]), np.array([f.last_output for f in fits]),
+                          np.array([f.ok for f in fits]), relearn=self.config.play_probe_learning)
+        comp.inverse.observe(np.asarray(encoders, float))
+        nominal = clamp_psi(self.params, check_psi(psi_nominal))
+        out = clamp_psi(self.params, comp.compensate(nominal, self.config.dt))
+        comp.commit(nominal, out)
+        return out
 
     def reset(self) -> None:
         """Forget the internal state (integral, backlash directions) before a new run."""
@@ -243,7 +293,8 @@ def make_inverse(config: ControllerConfig) -> BacklashInverse:
     if config.backlash_method == "encoders":
         from wristmark.solvers.play_observer import PlayObserverInverse
 
-        return PlayObserverInverse(play_max, config.backlash_margin, **common)  # type: ignore[arg-type]
+        return PlayObserverInverse(play_max, config.backlash_margin, freeze=config.backlash_freeze,
+                                   **common)  # type: ignore[arg-type]
     return BacklashInverse(play_max, config.backlash_hysteresis, **common)  # type: ignore[arg-type]
 
 

@@ -25,8 +25,16 @@ side of a change of side; it errs high by 2 x path rate x the loop's delay), as 
 lead on the offset, with two differences: the first reversals of each actuator are averaged
 (step 1 / (n + 1), then ``rate``), so the estimate leaves its low start after one reversal, and
 taking a first side (after a reset) gets no lead burst (it is no reversal). The output's initial
-position in the band is unknown: the first reading puts it at the middle. Without encoder
-readings (a controller stepped without them) it inverts nothing: the plain controller.
+position in the band is unknown: the first reading puts it at the middle, unless a play probe
+(rig/play_probe.py) seeded it (:meth:`PlayObserverInverse.seed`: the fitted play, the output's
+place in the band and so its side; the learning then goes on at ``rate`` from the fitted play).
+Without encoder readings (a controller stepped without them) it inverts nothing: the plain controller.
+
+Held point (``freeze`` [s], 0 = off): once the desired path has stood still that long (its
+actuator rates exactly zero: a point hold, or a settle), the sides no longer change until it moves
+again. At a held point the nominal command moves only by the measurement noise, and every change
+of side would send the motor across the band without moving the arm (docs/results.md: the
+commanded and measured stem then differ by up to 7.8 mrad at the virtual lab's held point).
 
 Also assumed: the encoders read the motor (before the play) when the frame is taken; the play is
 constant per actuator and below ``play_max``; the feedback-share learning's assumptions (see
@@ -40,10 +48,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from wristmark.models.units import MICRO
 from wristmark.solvers.backlash_compensation import BacklashInverse
 
 Array = NDArray[np.float64]
-MICRO = 1e6  # the wire's micro-units per SI unit (rad, m)
 
 
 class PlayObserverInverse(BacklashInverse):
@@ -54,8 +62,10 @@ class PlayObserverInverse(BacklashInverse):
     ``hysteresis`` is not used)."""
 
     def __init__(self, play_max: Array, margin: float, start: float = 0.5, fraction: float = 0.5,
-                 learn: bool = True, window: float = 0.4, rate: float = 0.3, lead: float = 0.0) -> None:
+                 learn: bool = True, window: float = 0.4, rate: float = 0.3, lead: float = 0.0,
+                 freeze: float = 0.0) -> None:
         self.margin = float(margin)
+        self.freeze = float(freeze)
         super().__init__(play_max, 0.0, start=start, fraction=fraction, learn=learn, window=window, rate=rate,
                          lead=lead)
         self.average_first = True  # the first reversals' estimates are averaged, then rate
@@ -65,11 +75,34 @@ class PlayObserverInverse(BacklashInverse):
         """Forget the sides, the observed output and (unless ``keep_estimate``) the learnt play."""
         super().reset(keep_estimate)
         self.output: Array | None = None
+        self._stood = 0.0  # how long the desired path has stood still [s]
+        self._seed: tuple[NDArray[np.bool_], Array] | None = None
+        if not keep_estimate:
+            self._fixed = np.zeros(6, bool)  # plays measured by a probe and not learnt any more
+
+    def seed(self, play: Array, output: Array, known: NDArray[np.bool_], relearn: bool = True) -> None:
+        """Start from a measured play [rad, m, ...] and output (motor units) where ``known``
+        (a play probe, rig/play_probe.py): the side is the edge the motor last pushed on, the
+        learning goes on at its normal rate (``relearn``; else those plays stay as measured),
+        no lead burst; elsewhere as after a reset."""
+        self.reset(keep_estimate=True)
+        k = np.asarray(known, bool)
+        self._fixed = k & (not relearn)
+        self.play = np.where(k, np.clip(np.asarray(play, float), 0.0, self.play_max), self.play)
+        self._learnt = np.where(k, np.maximum(self._learnt, 1.0 / max(self.rate, 1e-9)), self._learnt)
+        self._seed = (k, np.asarray(output, float).copy())
 
     def observe(self, motor: Array) -> None:
         """Track the play's output from encoder readings ``motor`` [rad, m, ...], rounded to micro-units."""
         m = np.rint(np.asarray(motor, float) * MICRO) / MICRO
         half = 0.5 * self.play
+        if self.output is None and self._seed is not None:  # a probe's output and side
+            k, out = self._seed
+            self._seed = None
+            self.output = np.where(k, out, m)
+            side = np.sign(np.rint((m - self.output) * MICRO))
+            self.direction = np.where(k, side, 0.0)
+            self._off = self.direction * 0.5 * self.fraction * self.play
         self.output = m.copy() if self.output is None else np.clip(self.output, m - half, m + half)
 
     def _turn(self, a: Array) -> tuple[NDArray[np.bool_], Array]:
@@ -80,4 +113,16 @@ class PlayObserverInverse(BacklashInverse):
         e = np.rint((a - self.output) * MICRO) / MICRO
         eps = self.margin * self.play_max
         new = np.where(e > eps, 1.0, np.where(e < -eps, -1.0, d))
+        if self.freeze > 0.0 and self._stood >= self.freeze - 1e-9:  # a held point: noise must not walk
+            return np.zeros(6, bool), np.where(d != 0.0, d, new)  # the motors across the band: sides stay
         return (new != d) & (d != 0.0), new
+
+    def _learn(self, flip: NDArray[np.bool_], old: Array, new: Array) -> None:
+        measured = self.play.copy()
+        super()._learn(flip, old, new)
+        self.play = np.where(self._fixed, measured, self.play)
+
+    def _track_feedback(self, a: Array, dt: float, a_dot_path: Array | None) -> None:
+        super()._track_feedback(a, dt, a_dot_path)
+        standing = a_dot_path is not None and not np.any(np.abs(np.asarray(a_dot_path, float)) > 0.0)
+        self._stood = self._stood + dt if standing else 0.0

@@ -1,0 +1,118 @@
+"""The play (backlash) of one actuator fitted from a probe: encoder readings against the arm.
+
+A probe (rig/play_probe.py) moves one actuator's motor back and forth through more than its
+largest play while the others are held, and records per cycle the motor position m_k (the
+encoders, at the frame's capture) and the arm-side value y_k of the same actuator (the tracker's
+6-DoF tip pose through the nominal pose IK and actuation map). Assumed: between the motor and the
+arm sits a play operator of width b (output o_k = clip(o_{k-1}, m_k - b/2, m_k + b/2), the
+motor monotonic between two samples), and the arm-side value is affine in the output near the
+probed configuration, y_k = c + g o_k + noise: the arm's gain and offset errors as the nominal
+model sees them enter only as g and c, and the other actuators, held, only as c.
+
+The fit is the least-squares fit of that model to every sample: for each b on a grid in
+[0, play_max] and each starting place of the output in its band (unknown: the probe starts
+wherever the settle left the arm), the operator is run through the readings and (c, g) follow by
+linear least squares; the pair with the smallest residual wins. Using every sample, including the
+ones inside the band where the arm stands still, is what makes a short probe enough (a fit on the
+dragged samples alone, y = c + g m + h s, loses most of them to the motor's lag at the turns).
+The fit also gives the output at the last sample, so the dead-band inversion can start on a known
+side and place instead of the middle of the band.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import minimize
+
+Array = NDArray[np.float64]
+
+PLAY_STEPS = 81  # grid of the play over [0, play_max]
+MIN_GAIN = 0.3  # a fitted gain below this (or above its inverse) is refused: the probe did not move the arm
+MAX_NOISE = 0.1  # a residual (in motor units) above this x play_max is refused: the pose is too noisy for it
+START_STEPS = 17  # grid of the output's starting place in its band
+
+@dataclass(frozen=True)
+class PlayFit:
+    """One actuator's probe fit: play b [rad or m], gain g and offset c of the arm-side value on
+    the output, the output's last position [rad or m, motor units] and the residual RMS [y units];
+    ``ok`` False when the fit is not to be trusted (too few samples, gain out of range, the probe
+    did not travel past play_max; with too few samples or travel the numbers are 0, the outputs
+    the last reading)."""
+
+    play: float
+    gain: float
+    offset: float
+    first_output: float
+    last_output: float
+    residual_rms: float
+    ok: bool
+
+
+def play_operator(motor: Array, plays: Array, starts: Array) -> Array:
+    """Outputs (n_plays, n_starts, n_samples) of play operators of widths ``plays`` whose output
+    starts at m_0 - start x b / 2, driven by the motor samples ``motor``."""
+    m = np.asarray(motor, float)
+    half = 0.5 * np.asarray(plays, float)[:, None]
+    out = np.empty((len(plays), len(starts), m.size))
+    o = m[0] - np.asarray(starts, float)[None, :] * half
+    for k, mk in enumerate(m):
+        o = np.clip(o, mk - half, mk + half)
+        out[:, :, k] = o
+    return out
+
+
+def fit_play(motor: Array, arm: Array, play_max: float, min_samples: int = 6) -> PlayFit:
+    """Fit y = c + g o(m; b) to the probe's motor readings ``motor`` and arm-side values ``arm``
+    (same units, one per cycle); b within [0, ``play_max``]."""
+    m = np.asarray(motor, float)
+    y = np.asarray(arm, float)
+    keep = np.isfinite(m) & np.isfinite(y)
+    m, y = m[keep], y[keep]
+    if m.size < min_samples or play_max <= 0.0 or np.ptp(m) <= play_max:
+        at = float(m[-1]) if m.size else 0.0
+        return PlayFit(0.0, 0.0, 0.0, at, at, 0.0, False)
+    plays = np.linspace(0.0, play_max, PLAY_STEPS)
+    starts = np.linspace(-1.0, 1.0, START_STEPS)
+    o = play_operator(m, plays, starts)  # (P, S, K)
+    om = o.mean(axis=2, keepdims=True)
+    ym = y.mean()
+    do = o - om
+    var = np.sum(do * do, axis=2)
+    cov = np.sum(do * (y - ym), axis=2)
+    g = np.where(var > 0, cov / np.where(var > 0, var, 1.0), 0.0)
+    resid = np.sum((y - ym) ** 2) - g * cov  # residual sum of squares per (b, start)
+    i, j = np.unravel_index(int(np.argmin(resid)), resid.shape)
+    b, start = _refine(m, y, float(plays[i]), float(starts[j]), play_max)
+    o1 = play_operator(m, np.array([b]), np.array([start]))[0, 0]
+    gain, c, rss = _line(o1, y)
+    rms = float(np.sqrt(max(rss, 0.0) / m.size))
+    ok = MIN_GAIN <= gain <= 1.0 / MIN_GAIN and rms / gain <= MAX_NOISE * play_max
+    return PlayFit(b, gain, c, float(o1[0]), float(o1[-1]), rms, bool(ok))
+
+
+def _line(o: Array, y: Array) -> tuple[float, float, float]:
+    """Least-squares y = c + g o: (g, c, residual sum of squares)."""
+    do, dy = o - o.mean(), y - y.mean()
+    var = float(do @ do)
+    g = float(do @ dy) / var if var > 0 else 0.0
+    return g, float(y.mean() - g * o.mean()), float(dy @ dy - g * (do @ dy))
+
+
+def _refine(m: Array, y: Array, b0: float, s0: float, play_max: float) -> tuple[float, float]:
+    """The grid's best (play, start) refined continuously (Nelder-Mead, within the bounds), so
+    that a small change of the readings (a micro-unit rounding) moves the fit a little, never by
+    a grid step."""
+    def rss(x: Array) -> float:
+        b = float(np.clip(x[0], 0.0, play_max))
+        st = float(np.clip(x[1], -1.0, 1.0))
+        return _line(play_operator(m, np.array([b]), np.array([st]))[0, 0], y)[2]
+
+    step = play_max / (PLAY_STEPS - 1)
+    simplex = np.array([[b0, s0], [b0 + step, s0], [b0, s0 + 2.0 / (START_STEPS - 1)]])
+    res = minimize(rss, np.array([b0, s0]), method="Nelder-Mead",
+                   options={"initial_simplex": simplex, "xatol": 1e-3 * step, "fatol": 0.0, "maxiter": 400})
+    best = res.x if res.fun <= rss(np.array([b0, s0])) else np.array([b0, s0])
+    return float(np.clip(best[0], 0.0, play_max)), float(np.clip(best[1], -1.0, 1.0))

@@ -41,7 +41,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 
-from wristmark.cli.option_types import positive_float  # noqa: E402
+from wristmark.cli.option_types import float_in, int_in, positive_float  # noqa: E402
 from wristmark.models.config_files import default_config  # noqa: E402
 from wristmark.rig.realtime_priority import realtime_priority_allowed  # noqa: E402
 from wristmark.rig.rig_config import RigConfig  # noqa: E402
@@ -97,7 +97,7 @@ def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_r
 
     truth = tmp / f"truth_{scale}.csv"
     dense = tmp / f"truth_dense_{scale}.csv"
-    emu = subprocess.Popen([*WRISTMARK, "emulator", "--pty", "--camera-port", "0", "--fps", f"{fps:.2f}",
+    emu = subprocess.Popen([*WRISTMARK, "emulator", "--pty", "--camera-port", "0", "--fps", f"{fps:.6g}",
                             "--image-scale", str(scale), "--jpeg-quality", "95", "--truth-out", str(truth),
                             "--truth-dense-out", str(dense),
                             *(["--rt-priority", "10"] if rt else []),
@@ -132,6 +132,7 @@ def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_r
                    "cycles_without_a_new_frame": res["closed_loop"]["no_frame"]},
         "cycle_jitter_ms": res["timing"]["jitter_ms"], "cycles_skipped": res["closed_loop"]["skipped"],
         "link_overruns": res["link"]["overruns"],
+        "phase_lock": res["timing"].get("phase_lock"),
         "true_tip_mm": {"mean": err.mean_mm, "max": err.max_mm, "cycles": err.n},
         "true_tip_mm_variants": {  # the same run's error evaluated the earlier ways (decomposition)
             "interpolated_between_frames": {"mean": err_frames.mean_mm, "max": err_frames.max_mm},
@@ -154,7 +155,8 @@ def in_process_run(scale: float, duration: float, rig: str | None = None, dt: fl
 
     setup = load_setup()
     base = RigConfig.load(rig) if rig else setup.rig
-    setup = setup.with_changes(rig=dataclasses.replace(base, image_scale=scale, **({"control_dt": dt} if dt else {})))
+    changes: dict[str, Any] = {"image_scale": scale, **({"control_dt": dt} if dt else {})}
+    setup = setup.with_changes(rig=dataclasses.replace(base, **changes))
     traj = S.build_trajectory(setup, "cube", None, duration)
     psi0 = S.start_configuration(setup, traj)
     session = open_sim_session(setup, psi0, S.LinkOptions(kind="emulator"), seed=setup.rig.seed)
@@ -189,6 +191,17 @@ def main() -> int:
     ap.add_argument("--camera-matched", action="store_true",
                     help="where the lab's camera is slower than the loop, run both loops at the camera's rate "
                          "(default: the rig's cycle)")
+    ap.add_argument("--phase-lock", action="store_true",
+                    help="a phase-locked camera: the lab renders a frame every --cycles-per-frame control cycles on a "
+                         "fixed clock and the host locks its cycle to their capture (rig frame_phase_lock; "
+                         "default: the lab renders as fast as it can)")
+    ap.add_argument("--capture-phase", type=float_in(-0.06, 0.06), default=0.0, metavar="S",
+                    help="with --phase-lock: frames captured S s after the host cycle's start "
+                         "(rig frame_capture_phase; default 0)")
+    ap.add_argument("--frame-wait", type=float_in(0.0, 0.05), default=0.05, metavar="S",
+                    help="with --phase-lock: the host's rig frame_wait (default 0.05)")
+    ap.add_argument("--cycles-per-frame", type=int_in(1, 4), default=1,
+                    help="with --phase-lock: the lab's camera period in control cycles (default 1)")
     ap.add_argument("--lab-share", type=positive_float(1.0), default=0.7,
                     help="the lab's frame rate beside the host, as a share of the renderer's alone (default 0.7)")
     a = ap.parse_args()
@@ -202,6 +215,13 @@ def main() -> int:
         out["video_tracking"] = video_tracking.run()
     out["virtual_lab"] = []
     with tempfile.TemporaryDirectory(prefix="wristmark-lab-bench-") as tmp:
+        rig_file = a.rig
+        if a.phase_lock:  # the host's rig file with the lock (the in-process run ignores it)
+            rig_file = str(Path(tmp) / "rig_phase_locked.yaml")
+            text = Path(a.rig).read_text().rstrip("\n")
+            Path(rig_file).write_text(f"{text}\nframe_phase_lock: true\nframe_capture_phase: {a.capture_phase:g}\n"
+                                      f"frame_wait: {a.frame_wait:g}\n")
+            RigConfig.load(rig_file)
         for scale in a.scales:
             sustained = sustained_fps(scale)
             # the lab renders as fast as it can (up to --max-fps); its box and stream run in real
@@ -211,7 +231,9 @@ def main() -> int:
             base_dt = RigConfig.load(a.rig).control_dt
             dt = camera_matched_cycle(sustained["fps"], base_dt, a.lab_share) if a.camera_matched else None
             fps = a.max_fps if dt is None else min(a.max_fps, 1.25 / dt)  # a little faster than the loop
-            lab = lab_run(scale, fps, a.duration, Path(tmp), rt, rt_render, a.rig, dt)
+            if a.phase_lock:
+                fps = 1.0 / (a.cycles_per_frame * (dt or base_dt))
+            lab = lab_run(scale, fps, a.duration, Path(tmp), rt, rt_render, rig_file, dt)
             lab["lab_realtime_priority"] = {"box_and_stream": rt, "rendering": rt_render}
             ref = None if a.skip_in_process else in_process_run(scale, a.duration, a.rig, dt)
             row: dict[str, Any] = {"image_scale": scale, "renderer": sustained,
@@ -228,6 +250,8 @@ def main() -> int:
                                   "host_work_after_arrival_ms": work, "host_work_met": bool(work <= 10.0)}
             out["virtual_lab"].append(row)
     out["rig"] = a.rig
+    out["phase_lock"] = {"on": a.phase_lock, "capture_phase_s": a.capture_phase, "frame_wait_s": a.frame_wait,
+                         "cycles_per_frame": a.cycles_per_frame} if a.phase_lock else None
     out["machine"]["load_avg_1min_at_end"] = os.getloadavg()[0]
     print(json.dumps(out, indent=1, default=float))
     return 0

@@ -43,7 +43,11 @@ class RigConfig:
     ``vision_latency`` after the capture). reuse_measurement_age: on the wall clock, a cycle
     without a new frame steps the controller with the last accepted measurement moved on by the
     delay compensation when that is at most this old at the cycle's start [s] (0: such a cycle
-    holds the arm; a marker not found or rejected always holds it). vision_latency, plant_dt, sensor,
+    holds the arm; a marker not found or rejected always holds it). frame_phase_lock: on the wall
+    clock, shift the cycle grid (a bounded step per cycle, rig.frame_phase_lock) so that the camera
+    captures each frame ``frame_capture_phase`` [s] after a cycle's nominal start (negative:
+    before it), from the frames' capture stamps; for a camera whose period equals or divides
+    ``control_dt`` (its transport must fit in ``frame_wait`` after that instant). vision_latency, plant_dt, sensor,
     truth_noise_rms, render_noise, tracker_rms and realtime concern the simulated bench only.
     """
 
@@ -69,6 +73,8 @@ class RigConfig:
     tracking_budget: float = 0.15  # [s] wall clock: longest wait of a cycle for its frame's tracking
     command_phase: float = 0.0  # [s] wall clock: a cycle's command goes out this long after its start
     reuse_measurement_age: float = 0.0  # [s] wall clock: a cycle without a frame reuses a measurement this old
+    frame_phase_lock: bool = False  # wall clock: lock the cycle grid to the camera's capture phase
+    frame_capture_phase: float = 0.0  # [s] with the lock: frames captured this long after a cycle's start
 
     def validate(self) -> None:
         """Raise ConfigError naming the offending key."""
@@ -91,6 +97,9 @@ class RigConfig:
         if self.command_phase >= self.control_dt:
             raise ConfigError(f"'command_phase' ({self.command_phase} s) must be shorter than 'control_dt' "
                               f"({self.control_dt} s)")
+        if not -self.control_dt < self.frame_capture_phase < self.frame_wait:
+            raise ConfigError(f"'frame_capture_phase' ({self.frame_capture_phase} s) must be within "
+                              f"(-control_dt, frame_wait) = ({-self.control_dt:g}, {self.frame_wait:g}) s")
         if self.frame_wait + self.tracking_budget > 0.2:
             raise ConfigError(f"'frame_wait' + 'tracking_budget' ({self.frame_wait + self.tracking_budget:g} s) must "
                               "not exceed 0.2 s: a cycle must stay well within the actuator box's 250 ms watchdog")

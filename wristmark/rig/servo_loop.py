@@ -40,6 +40,7 @@ from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.rig.actuator_link import ActuatorLink
 from wristmark.rig.delay_compensation import DelayCompensator
 from wristmark.rig.frame_feed import FrameFeed
+from wristmark.rig.frame_phase_lock import FramePhaseLock
 from wristmark.rig.ground_truth import NO_TRUTH, GroundTruth, TruthSample
 from wristmark.rig.progress import PhaseProgress
 from wristmark.rig.rig_config import RigConfig
@@ -109,6 +110,9 @@ class ServoLoop:
         self._command_at = -math.inf  # wall clock: the current cycle's command instant [s]
         self.ready_after_arrival_ms: list[float] = []  # wall clock: frame arrival -> command computed
         self.delay = DelayCompensator(params, rig.delay_compensation_tau) if rig.delay_compensation else None
+        # wall clock: the cycle grid shifted so that the camera captures at a fixed phase of it
+        lock = wall_clock and rig.frame_phase_lock
+        self.phase_lock = FramePhaseLock(rig.frame_capture_phase, rig.control_dt) if lock else None
 
     # -- time and commands ----------------------------------------------------------------
     def _advance(self, t: float) -> None:
@@ -172,11 +176,12 @@ class ServoLoop:
         stats = PhaseStats()
         memory = TrackingMemory()
         t0 = self.t
+        shift0 = self._grid_shift()
         n = n_settle + n_traj
         bar = PhaseProgress(phase, n_settle, n_traj, progress)
         k = 0
         while k < n:
-            target = self._target(traj, k, t0 + k * dt, n_settle)
+            target = self._target(traj, k, t0 + k * dt + self._grid_shift() - shift0, n_settle)
             self._advance(target.t)
             t_wall = time.monotonic()
             missed = min(int((t_wall - target.t) // dt), n - 1 - k) if self.wall_clock else 0
@@ -255,6 +260,11 @@ class ServoLoop:
         latency = self._now() - outcome.meas.t_capture if outcome.accepted and outcome.meas else float("nan")
         return self._record(target, t_wall, phase, outcome, latency)
 
+    def _grid_shift(self) -> float:
+        """Wall clock with ``rig.frame_phase_lock``: how far [s] the cycle grid has moved to meet
+        the camera's frames (0 otherwise)."""
+        return self.phase_lock.shift if self.phase_lock is not None else 0.0
+
     def _wait_for_command_phase(self, outcome: CycleOutcome) -> None:
         """Wall clock: note when the command was ready after its frame's arrival [ms], then sleep
         until the cycle's command instant (``command_phase`` after its start; at once when later)."""
@@ -281,6 +291,8 @@ class ServoLoop:
             raise CameraStalledError(stats.stopped + ": arm held", stats) from None
         if frame is not None:
             self.last_frame = frame
+            if self.phase_lock is not None:  # when it was captured, from the cycle's nominal start
+                self.phase_lock.observe(frame.t_capture - target.t)
         return frame
 
     def _measure_and_control(self, frame: StereoFrame | None, truth: TruthSample, target: CycleTarget,

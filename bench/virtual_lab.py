@@ -191,13 +191,13 @@ def main() -> int:
     ap.add_argument("--camera-matched", action="store_true",
                     help="where the lab's camera is slower than the loop, run both loops at the camera's rate "
                          "(default: the rig's cycle)")
-    ap.add_argument("--phase-lock", action="store_true",
+    ap.add_argument("--phase-lock", choices=("none", "capture", "arrival"), default="none",
                     help="a phase-locked camera: the lab renders a frame every --cycles-per-frame control cycles on a "
-                         "fixed clock and the host locks its cycle to their capture (rig frame_phase_lock; "
-                         "default: the lab renders as fast as it can)")
-    ap.add_argument("--capture-phase", type=float_in(-0.06, 0.06), default=0.0, metavar="S",
-                    help="with --phase-lock: frames captured S s after the host cycle's start "
-                         "(rig frame_capture_phase; default 0)")
+                         "fixed clock and the host locks its cycle to their capture or arrival (rig frame_phase_lock; "
+                         "default none: the lab renders as fast as it can)")
+    ap.add_argument("--lock-phase", type=float_in(-0.06, 0.06), default=0.0, metavar="S",
+                    help="with --phase-lock: frames captured / arriving S s after the host cycle's start "
+                         "(rig frame_lock_phase; default 0)")
     ap.add_argument("--frame-wait", type=float_in(0.0, 0.05), default=0.05, metavar="S",
                     help="with --phase-lock: the host's rig frame_wait (default 0.05)")
     ap.add_argument("--cycles-per-frame", type=int_in(1, 4), default=1,
@@ -216,10 +216,11 @@ def main() -> int:
     out["virtual_lab"] = []
     with tempfile.TemporaryDirectory(prefix="wristmark-lab-bench-") as tmp:
         rig_file = a.rig
-        if a.phase_lock:  # the host's rig file with the lock (the in-process run ignores it)
+        if a.phase_lock != "none":  # the host's rig file with the lock (the in-process run ignores it)
             rig_file = str(Path(tmp) / "rig_phase_locked.yaml")
-            text = Path(a.rig).read_text().rstrip("\n")
-            Path(rig_file).write_text(f"{text}\nframe_phase_lock: true\nframe_capture_phase: {a.capture_phase:g}\n"
+            keys = ("frame_phase_lock:", "frame_lock_phase:", "frame_wait:")
+            text = "\n".join(ln for ln in Path(a.rig).read_text().splitlines() if not ln.startswith(keys))
+            Path(rig_file).write_text(f"{text}\nframe_phase_lock: {a.phase_lock}\nframe_lock_phase: {a.lock_phase:g}\n"
                                       f"frame_wait: {a.frame_wait:g}\n")
             RigConfig.load(rig_file)
         for scale in a.scales:
@@ -231,7 +232,7 @@ def main() -> int:
             base_dt = RigConfig.load(a.rig).control_dt
             dt = camera_matched_cycle(sustained["fps"], base_dt, a.lab_share) if a.camera_matched else None
             fps = a.max_fps if dt is None else min(a.max_fps, 1.25 / dt)  # a little faster than the loop
-            if a.phase_lock:
+            if a.phase_lock != "none":
                 fps = 1.0 / (a.cycles_per_frame * (dt or base_dt))
             lab = lab_run(scale, fps, a.duration, Path(tmp), rt, rt_render, rig_file, dt)
             lab["lab_realtime_priority"] = {"box_and_stream": rt, "rendering": rt_render}
@@ -250,8 +251,8 @@ def main() -> int:
                                   "host_work_after_arrival_ms": work, "host_work_met": bool(work <= 10.0)}
             out["virtual_lab"].append(row)
     out["rig"] = a.rig
-    out["phase_lock"] = {"on": a.phase_lock, "capture_phase_s": a.capture_phase, "frame_wait_s": a.frame_wait,
-                         "cycles_per_frame": a.cycles_per_frame} if a.phase_lock else None
+    out["phase_lock"] = {"on": a.phase_lock, "lock_phase_s": a.lock_phase, "frame_wait_s": a.frame_wait,
+                         "cycles_per_frame": a.cycles_per_frame} if a.phase_lock != "none" else None
     out["machine"]["load_avg_1min_at_end"] = os.getloadavg()[0]
     print(json.dumps(out, indent=1, default=float))
     return 0

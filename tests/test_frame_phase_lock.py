@@ -43,12 +43,14 @@ def test_a_frame_handed_to_the_next_cycle_counts_as_a_small_phase_error() -> Non
     assert len(lock.offsets) == 1
 
 
-def test_the_capture_phase_is_validated() -> None:
-    with pytest.raises(ConfigError, match="frame_capture_phase"):
-        RigConfig(frame_capture_phase=0.04).validate()  # not below frame_wait (0.04)
-    with pytest.raises(ConfigError, match="frame_capture_phase"):
-        RigConfig(frame_capture_phase=-0.06).validate()  # not a whole cycle before the start
-    RigConfig(frame_phase_lock=True, frame_capture_phase=-0.03).validate()
+def test_the_lock_keys_are_validated() -> None:
+    with pytest.raises(ConfigError, match="frame_lock_phase"):
+        RigConfig(frame_lock_phase=0.04).validate()  # not below frame_wait (0.04)
+    with pytest.raises(ConfigError, match="frame_lock_phase"):
+        RigConfig(frame_lock_phase=-0.06).validate()  # not a whole cycle before the start
+    with pytest.raises(ConfigError, match="frame_phase_lock"):
+        RigConfig(frame_phase_lock="yes").validate()
+    RigConfig(frame_phase_lock="capture", frame_lock_phase=-0.03).validate()
 
 
 class _FreeRunningCamera:
@@ -86,10 +88,10 @@ class _FreeRunningCamera:
         pass
 
 
-def _capture_offsets(lock: bool) -> np.ndarray:
+def _capture_offsets(lock: str, phase: float = 0.0) -> np.ndarray:
     """Capture instant - nominal cycle start [s] of every cycle's frame in a ~1.7 s run whose
-    camera's clock starts 27 ms into the loop's cycle."""
-    rig = RigConfig(settle_time=0.0, control_dt=DT, frame_phase_lock=lock, frame_capture_phase=0.0,
+    camera's clock starts 27 ms into the loop's cycle (rig frame_phase_lock ``lock`` at ``phase``)."""
+    rig = RigConfig(settle_time=0.0, control_dt=DT, frame_phase_lock=lock, frame_lock_phase=phase,
                     reuse_measurement_age=0.0)
     link = _WallLink()
     camera = _FreeRunningCamera(link.t + 0.027 - 10 * DT)
@@ -107,7 +109,12 @@ def _capture_offsets(lock: bool) -> np.ndarray:
 
 
 def test_the_loop_locks_its_cycle_to_the_cameras_capture_phase() -> None:
-    free = _capture_offsets(lock=False)
-    locked = _capture_offsets(lock=True)
+    free = _capture_offsets("none")
+    locked = _capture_offsets("capture")
     assert np.all(np.abs(free[-8:] - 0.027) < 0.003), free  # unlocked: wherever the clocks started
     assert np.all(np.abs(locked[-8:]) < 0.003), locked  # locked: captured at each cycle's start
+
+
+def test_locked_on_the_arrival_the_frames_arrive_at_the_chosen_phase() -> None:
+    locked = _capture_offsets("arrival", 0.02)  # arriving 20 ms after each start: captured TRANSPORT before
+    assert np.all(np.abs(locked[-8:] - (0.02 - TRANSPORT)) < 0.003), locked

@@ -110,9 +110,9 @@ class ServoLoop:
         self._command_at = -math.inf  # wall clock: the current cycle's command instant [s]
         self.ready_after_arrival_ms: list[float] = []  # wall clock: frame arrival -> command computed
         self.delay = DelayCompensator(params, rig.delay_compensation_tau) if rig.delay_compensation else None
-        # wall clock: the cycle grid shifted so that the camera captures at a fixed phase of it
-        lock = wall_clock and rig.frame_phase_lock
-        self.phase_lock = FramePhaseLock(rig.frame_capture_phase, rig.control_dt) if lock else None
+        # wall clock: the cycle grid shifted so that the frames come at a fixed phase of it
+        lock = wall_clock and rig.frame_phase_lock != "none"
+        self.phase_lock = FramePhaseLock(rig.frame_lock_phase, rig.control_dt) if lock else None
 
     # -- time and commands ----------------------------------------------------------------
     def _advance(self, t: float) -> None:
@@ -291,8 +291,9 @@ class ServoLoop:
             raise CameraStalledError(stats.stopped + ": arm held", stats) from None
         if frame is not None:
             self.last_frame = frame
-            if self.phase_lock is not None:  # when it was captured, from the cycle's nominal start
-                self.phase_lock.observe(frame.t_capture - target.t)
+            if self.phase_lock is not None:  # when it was captured or arrived, from the cycle's start
+                at = frame.t_capture if self.rig.frame_phase_lock == "capture" else self.frames.last_arrival
+                self.phase_lock.observe(at - target.t)
         return frame
 
     def _measure_and_control(self, frame: StereoFrame | None, truth: TruthSample, target: CycleTarget,

@@ -14,12 +14,17 @@ instant and at ``t_wall``, the evaluation before); beside it the in-process run 
 scale, rig file (default configs/rig.yaml) and trajectory (simulated clock, 45 ms latency).
 ``--camera-matched``: where the lab's camera (``--lab-share`` x the renderer's rate alone) is
 slower than the loop, both loops run at the camera's period (``control_dt_s`` in the JSON).
+``--phase-lock arrival|capture``: a camera at the loop's rate instead of flat out (one frame every
+``--cycles-per-frame`` cycles on the lab's fixed frame clock) and the host's cycle locked to the
+frames' arrival or capture at ``--lock-phase`` after its start (rig ``frame_phase_lock``,
+``frame_lock_phase``, ``frame_wait`` from ``--frame-wait``; ``phase_lock`` in the JSON).
 Both processes run under SCHED_FIFO where the host allows it (rig/realtime_priority.py): the
 host's loop, the lab's actuator box and stream, and the lab's rendering where the renderer
 alone sustains 1.5 x ``--max-fps-rt``.
 Prints one JSON object. Targets (issue 11): host latency beyond the transport <= 10 ms
 (median); lab true-tip error within 20 % of the in-process run.
 Usage: .venv/bin/python bench/virtual_lab.py [--duration S] [--scales 1 0.5] [--skip-video] [--camera-matched]
+       [--phase-lock arrival --lock-phase 0.038]
 """
 
 from __future__ import annotations

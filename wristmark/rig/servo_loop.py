@@ -2,7 +2,9 @@
 
 One cycle k at t_k = t0 + k dt on the loop's clock:
 1. time runs to t_k (the link waits on the wall clock, or steps the simulated world); on the wall
-   clock a host that fell a whole period behind skips the cycles it missed (counted);
+   clock a host that fell a whole period behind skips the cycles it missed (counted), and with
+   rig ``frame_phase_lock`` the grid t0 + k dt is shifted by the lock (rig/frame_phase_lock.py)
+   so that the camera's frames come at a fixed phase of the cycle;
 2. closed loop: a stereo frame is taken from the frame feed (the simulated bench renders the
    true arm now; a live camera hands out its newest frame, waiting a bounded time for one
    captured after t_k); the tip sensor measures it; the measurement is gated (jump from the

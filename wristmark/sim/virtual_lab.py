@@ -5,8 +5,8 @@ sees only what it would see in a lab, serial bytes and a video stream (DESIGN.md
 (protocol v1, wall clock) and, in a camera thread, samples that arm in wall-clock time at up to
 ``fps`` frames per second on a fixed frame clock (frame k starts k periods after the first, so a
 host can lock its cycle to the frames' phase; where rendering cannot keep up, the next frame
-starts at once and the clock restarts from it), has it rendered by a process of its own (:mod:`sim.render_process`) and
-publishes each stereo pair side by side as a JPEG of an MJPEG stream on loopback
+starts at once and the clock restarts from it), has it rendered by a process of its own
+(:mod:`sim.render_process`) and publishes each stereo pair side by side as a JPEG of an MJPEG stream on loopback
 (:class:`rig.mjpeg_server.MjpegServer`). Each frame's capture instant is the emulator clock's
 ``time.monotonic()`` when the arm was sampled; ``truth_out`` logs it with the true tip in {w}
 [m] (CSV header ``t,tip_x,tip_y,tip_z``), one row per published frame.

@@ -1,37 +1,28 @@
-"""The virtual lab's camera runs on a fixed frame clock: frame k is captured k periods after the
-first (a wake-up's lateness does not accumulate), so a host can lock its cycle to the frames."""
+"""The virtual lab's camera runs on a fixed frame clock: frame k starts k periods after the
+first (a wake-up's lateness does not accumulate), so a host can lock its cycle to the frames;
+a frame slower than the period restarts the clock."""
 
 from __future__ import annotations
 
-import time
-from pathlib import Path
-
 import numpy as np
-from test_serial_link import PARAMS, PLANT
+import pytest
 
-from wristmark.sim.setup import load_setup
-from wristmark.sim.virtual_lab import LabCamera, VirtualLab, read_truth_csv
+from wristmark.sim.virtual_lab import next_frame_start
 
-FPS = 20.0
+PERIOD = 0.06  # [s]
 
 
-def test_the_labs_frames_are_captured_on_a_fixed_clock(tmp_path: Path) -> None:
-    setup = load_setup()
-    truth = tmp_path / "truth.csv"
-    lab = VirtualLab(PARAMS, PLANT, setup.camera, setup.marker, LabCamera(fps=FPS, image_scale=0.25), truth_out=truth)
-    lab.start()
-    try:
-        time.sleep(2.5)
-    finally:
-        lab.stop()
-    t, _ = read_truth_csv(truth)
-    t = t[1:]  # the first frame (the render process's first call) is slow: the clock starts after it
-    assert len(t) >= 25, len(t)  # a 0.25-scale frame renders well within the 50 ms period
-    k = np.arange(len(t))
-    late = (t - t[0]) - k / FPS  # each capture's lateness on the frame clock [s]
-    assert np.all(late > -0.002), late  # never early
-    assert np.median(late) < 0.003, late  # on the clock, not drifting away from it
-    assert np.all(late < 0.025), late
-    # the period between frames is the clock's (the old camera loop added each frame's wake-up
-    # lateness, 0.1-1 ms, to the next period)
-    assert abs(np.median(np.diff(t)) - 1.0 / FPS) < 2e-5, np.diff(t)
+def test_late_wake_ups_do_not_move_the_frame_clock() -> None:
+    rng = np.random.default_rng(0)
+    t_next, starts = 10.0, []
+    for _ in range(200):
+        woke = t_next + rng.uniform(0.0, 0.002)  # each wake-up up to 2 ms late ...
+        starts.append(woke)
+        t_next = next_frame_start(t_next, PERIOD, woke + 0.02)  # ... and 20 ms of rendering
+    late = np.array(starts) - (10.0 + PERIOD * np.arange(200))
+    assert np.all((late >= 0) & (late <= 0.002)), late  # on the clock after 200 frames (12 s)
+
+
+def test_a_frame_slower_than_the_period_restarts_the_clock() -> None:
+    assert next_frame_start(1.0, PERIOD, 1.2) == pytest.approx(1.2)  # at once, from now
+    assert next_frame_start(1.2, PERIOD, 1.21) == pytest.approx(1.26)  # then one period on

@@ -232,9 +232,7 @@ class VirtualLab:
                 self._first.set()
                 return
             self._first.set()
-            # a fixed frame clock (a wake-up's lateness does not accumulate, so a loop can lock to
-            # the frames' phase); a frame slower than the period restarts the clock from now
-            t_next = max(t_next + period, time.monotonic())
+            t_next = next_frame_start(t_next, period, time.monotonic())
 
     def stop(self) -> None:
         """Stop the camera, the stream and the emulator; close the truth file (idempotent)."""
@@ -259,6 +257,14 @@ class VirtualLab:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+
+def next_frame_start(t_start: float, period: float, now: float) -> float:
+    """The lab camera's frame clock [s]: the next frame starts one ``period`` after the last
+    one's scheduled start ``t_start`` (a wake-up's lateness does not accumulate, so a host can
+    lock its cycle to the frames' phase), or at ``now`` when the last frame took longer (the
+    clock restarts from it)."""
+    return max(t_start + period, now)
 
 
 def read_truth_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:

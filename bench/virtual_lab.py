@@ -14,12 +14,17 @@ instant and at ``t_wall``, the evaluation before); beside it the in-process run 
 scale, rig file (default configs/rig.yaml) and trajectory (simulated clock, 45 ms latency).
 ``--camera-matched``: where the lab's camera (``--lab-share`` x the renderer's rate alone) is
 slower than the loop, both loops run at the camera's period (``control_dt_s`` in the JSON).
+``--phase-lock arrival|capture``: a camera at the loop's rate instead of flat out (one frame every
+``--cycles-per-frame`` cycles on the lab's fixed frame clock) and the host's cycle locked to the
+frames' arrival or capture at ``--lock-phase`` after its start (rig ``frame_phase_lock``,
+``frame_lock_phase``, ``frame_wait`` from ``--frame-wait``; ``phase_lock`` in the JSON).
 Both processes run under SCHED_FIFO where the host allows it (rig/realtime_priority.py): the
 host's loop, the lab's actuator box and stream, and the lab's rendering where the renderer
 alone sustains 1.5 x ``--max-fps-rt``.
 Prints one JSON object. Targets (issue 11): host latency beyond the transport <= 10 ms
 (median); lab true-tip error within 20 % of the in-process run.
 Usage: .venv/bin/python bench/virtual_lab.py [--duration S] [--scales 1 0.5] [--skip-video] [--camera-matched]
+       [--phase-lock arrival --lock-phase 0.038]
 """
 
 from __future__ import annotations
@@ -41,7 +46,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 
-from wristmark.cli.option_types import positive_float  # noqa: E402
+from wristmark.cli.option_types import float_in, int_in, positive_float  # noqa: E402
 from wristmark.models.config_files import default_config  # noqa: E402
 from wristmark.rig.realtime_priority import realtime_priority_allowed  # noqa: E402
 from wristmark.rig.rig_config import RigConfig  # noqa: E402
@@ -97,7 +102,7 @@ def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_r
 
     truth = tmp / f"truth_{scale}.csv"
     dense = tmp / f"truth_dense_{scale}.csv"
-    emu = subprocess.Popen([*WRISTMARK, "emulator", "--pty", "--camera-port", "0", "--fps", f"{fps:.2f}",
+    emu = subprocess.Popen([*WRISTMARK, "emulator", "--pty", "--camera-port", "0", "--fps", f"{fps:.6g}",
                             "--image-scale", str(scale), "--jpeg-quality", "95", "--truth-out", str(truth),
                             "--truth-dense-out", str(dense),
                             *(["--rt-priority", "10"] if rt else []),
@@ -132,6 +137,7 @@ def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_r
                    "cycles_without_a_new_frame": res["closed_loop"]["no_frame"]},
         "cycle_jitter_ms": res["timing"]["jitter_ms"], "cycles_skipped": res["closed_loop"]["skipped"],
         "link_overruns": res["link"]["overruns"],
+        "phase_lock": res["timing"].get("phase_lock"),
         "true_tip_mm": {"mean": err.mean_mm, "max": err.max_mm, "cycles": err.n},
         "true_tip_mm_variants": {  # the same run's error evaluated the earlier ways (decomposition)
             "interpolated_between_frames": {"mean": err_frames.mean_mm, "max": err_frames.max_mm},
@@ -154,7 +160,8 @@ def in_process_run(scale: float, duration: float, rig: str | None = None, dt: fl
 
     setup = load_setup()
     base = RigConfig.load(rig) if rig else setup.rig
-    setup = setup.with_changes(rig=dataclasses.replace(base, image_scale=scale, **({"control_dt": dt} if dt else {})))
+    changes: dict[str, Any] = {"image_scale": scale, **({"control_dt": dt} if dt else {})}
+    setup = setup.with_changes(rig=dataclasses.replace(base, **changes))
     traj = S.build_trajectory(setup, "cube", None, duration)
     psi0 = S.start_configuration(setup, traj)
     session = open_sim_session(setup, psi0, S.LinkOptions(kind="emulator"), seed=setup.rig.seed)
@@ -189,6 +196,17 @@ def main() -> int:
     ap.add_argument("--camera-matched", action="store_true",
                     help="where the lab's camera is slower than the loop, run both loops at the camera's rate "
                          "(default: the rig's cycle)")
+    ap.add_argument("--phase-lock", choices=("none", "capture", "arrival"), default="none",
+                    help="a phase-locked camera: the lab renders a frame every --cycles-per-frame control cycles on a "
+                         "fixed clock and the host locks its cycle to their capture or arrival (rig frame_phase_lock; "
+                         "default none: the lab renders as fast as it can)")
+    ap.add_argument("--lock-phase", type=float_in(-0.06, 0.06), default=0.0, metavar="S",
+                    help="with --phase-lock: frames captured / arriving S s after the host cycle's start "
+                         "(rig frame_lock_phase; default 0)")
+    ap.add_argument("--frame-wait", type=float_in(0.0, 0.05), default=0.05, metavar="S",
+                    help="with --phase-lock: the host's rig frame_wait (default 0.05)")
+    ap.add_argument("--cycles-per-frame", type=int_in(1, 4), default=1,
+                    help="with --phase-lock: the lab's camera period in control cycles (default 1)")
     ap.add_argument("--lab-share", type=positive_float(1.0), default=0.7,
                     help="the lab's frame rate beside the host, as a share of the renderer's alone (default 0.7)")
     a = ap.parse_args()
@@ -202,6 +220,14 @@ def main() -> int:
         out["video_tracking"] = video_tracking.run()
     out["virtual_lab"] = []
     with tempfile.TemporaryDirectory(prefix="wristmark-lab-bench-") as tmp:
+        rig_file = a.rig
+        if a.phase_lock != "none":  # the host's rig file with the lock (the in-process run ignores it)
+            rig_file = str(Path(tmp) / "rig_phase_locked.yaml")
+            keys = ("frame_phase_lock:", "frame_lock_phase:", "frame_wait:")
+            text = "\n".join(ln for ln in Path(a.rig).read_text().splitlines() if not ln.startswith(keys))
+            Path(rig_file).write_text(f"{text}\nframe_phase_lock: {a.phase_lock}\nframe_lock_phase: {a.lock_phase:g}\n"
+                                      f"frame_wait: {a.frame_wait:g}\n")
+            RigConfig.load(rig_file)
         for scale in a.scales:
             sustained = sustained_fps(scale)
             # the lab renders as fast as it can (up to --max-fps); its box and stream run in real
@@ -211,7 +237,9 @@ def main() -> int:
             base_dt = RigConfig.load(a.rig).control_dt
             dt = camera_matched_cycle(sustained["fps"], base_dt, a.lab_share) if a.camera_matched else None
             fps = a.max_fps if dt is None else min(a.max_fps, 1.25 / dt)  # a little faster than the loop
-            lab = lab_run(scale, fps, a.duration, Path(tmp), rt, rt_render, a.rig, dt)
+            if a.phase_lock != "none":
+                fps = 1.0 / (a.cycles_per_frame * (dt or base_dt))
+            lab = lab_run(scale, fps, a.duration, Path(tmp), rt, rt_render, rig_file, dt)
             lab["lab_realtime_priority"] = {"box_and_stream": rt, "rendering": rt_render}
             ref = None if a.skip_in_process else in_process_run(scale, a.duration, a.rig, dt)
             row: dict[str, Any] = {"image_scale": scale, "renderer": sustained,
@@ -228,6 +256,8 @@ def main() -> int:
                                   "host_work_after_arrival_ms": work, "host_work_met": bool(work <= 10.0)}
             out["virtual_lab"].append(row)
     out["rig"] = a.rig
+    out["phase_lock"] = {"on": a.phase_lock, "lock_phase_s": a.lock_phase, "frame_wait_s": a.frame_wait,
+                         "cycles_per_frame": a.cycles_per_frame} if a.phase_lock != "none" else None
     out["machine"]["load_avg_1min_at_end"] = os.getloadavg()[0]
     print(json.dumps(out, indent=1, default=float))
     return 0

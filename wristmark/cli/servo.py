@@ -297,6 +297,12 @@ def run(args: argparse.Namespace) -> int:
         res["latency"]["arrival_to_ready"] = percentiles_ms(np.asarray(out.ready_after_arrival_ms, float))
         res["latency"]["command_phase_ms"] = 1000.0 * setup.rig.command_phase
         res["closed_loop"]["reused"] = out.reused  # cycles without a frame driven by the last measurement
+        if setup.rig.frame_phase_lock != "none":  # the cycle locked to the frames (second half: locked)
+            late = np.asarray(out.frame_lock_offsets_ms[len(out.frame_lock_offsets_ms) // 2:], float)
+            res["timing"]["phase_lock"] = {
+                "on": setup.rig.frame_phase_lock, "target_ms": 1000.0 * setup.rig.frame_lock_phase,
+                "shift_ms": out.phase_shift_ms, "after_start": percentiles_ms(late),
+                "after_start_p5_ms": float(np.percentile(late, 5)) if late.size else None}
     if recorder is not None:
         res["recording"] = {"path": args.record, "cycles": recorder.cycles, "dropped_cycles": recorder.dropped,
                             "messages": recorder.bag.messages, "problem": recorder.error}

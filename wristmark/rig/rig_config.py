@@ -10,6 +10,7 @@ from wristmark.models.errors import ConfigError
 
 SENSOR_KINDS = ("vision", "truth-noise")
 NOISE_LEVELS = ("none", "default", "strong")
+PHASE_LOCKS = ("none", "capture", "arrival")  # rig frame_phase_lock
 
 
 @dataclass(frozen=True)
@@ -43,7 +44,12 @@ class RigConfig:
     ``vision_latency`` after the capture). reuse_measurement_age: on the wall clock, a cycle
     without a new frame steps the controller with the last accepted measurement moved on by the
     delay compensation when that is at most this old at the cycle's start [s] (0: such a cycle
-    holds the arm; a marker not found or rejected always holds it). vision_latency, plant_dt, sensor,
+    holds the arm; a marker not found or rejected always holds it). frame_phase_lock: on the wall
+    clock, shift the cycle grid (a bounded step per cycle, rig.frame_phase_lock) so that each
+    frame is captured ('capture', from the frames' capture stamps) or arrives ('arrival') at the
+    host ``frame_lock_phase`` [s] after a cycle's nominal start (negative: before it); 'none': the
+    grid stays where the run started. For a camera whose period equals or divides ``control_dt``
+    (frames must arrive within ``frame_wait`` of a cycle's start). vision_latency, plant_dt, sensor,
     truth_noise_rms, render_noise, tracker_rms and realtime concern the simulated bench only.
     """
 
@@ -69,6 +75,8 @@ class RigConfig:
     tracking_budget: float = 0.15  # [s] wall clock: longest wait of a cycle for its frame's tracking
     command_phase: float = 0.0  # [s] wall clock: a cycle's command goes out this long after its start
     reuse_measurement_age: float = 0.0  # [s] wall clock: a cycle without a frame reuses a measurement this old
+    frame_phase_lock: str = "none"  # wall clock: lock the cycle grid to the frames' capture or arrival
+    frame_lock_phase: float = 0.0  # [s] with the lock: frames captured / arriving this long after a cycle's start
 
     def validate(self) -> None:
         """Raise ConfigError naming the offending key."""
@@ -91,6 +99,12 @@ class RigConfig:
         if self.command_phase >= self.control_dt:
             raise ConfigError(f"'command_phase' ({self.command_phase} s) must be shorter than 'control_dt' "
                               f"({self.control_dt} s)")
+        if self.frame_phase_lock not in PHASE_LOCKS:
+            raise ConfigError(f"'frame_phase_lock' must be one of {', '.join(PHASE_LOCKS)}, "
+                              f"got {self.frame_phase_lock!r}")
+        if not -self.control_dt < self.frame_lock_phase < self.frame_wait:
+            raise ConfigError(f"'frame_lock_phase' ({self.frame_lock_phase} s) must be within "
+                              f"(-control_dt, frame_wait) = ({-self.control_dt:g}, {self.frame_wait:g}) s")
         if self.frame_wait + self.tracking_budget > 0.2:
             raise ConfigError(f"'frame_wait' + 'tracking_budget' ({self.frame_wait + self.tracking_budget:g} s) must "
                               "not exceed 0.2 s: a cycle must stay well within the actuator box's 250 ms watchdog")

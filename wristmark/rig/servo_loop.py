@@ -2,7 +2,9 @@
 
 One cycle k at t_k = t0 + k dt on the loop's clock:
 1. time runs to t_k (the link waits on the wall clock, or steps the simulated world); on the wall
-   clock a host that fell a whole period behind skips the cycles it missed (counted);
+   clock a host that fell a whole period behind skips the cycles it missed (counted), and with
+   rig ``frame_phase_lock`` the grid t0 + k dt is shifted by the lock (rig/frame_phase_lock.py)
+   so that the camera's frames come at a fixed phase of the cycle;
 2. closed loop: a stereo frame is taken from the frame feed (the simulated bench renders the
    true arm now; a live camera hands out its newest frame, waiting a bounded time for one
    captured after t_k); the tip sensor measures it; the measurement is gated (jump from the
@@ -40,6 +42,7 @@ from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.rig.actuator_link import ActuatorLink
 from wristmark.rig.delay_compensation import DelayCompensator
 from wristmark.rig.frame_feed import FrameFeed
+from wristmark.rig.frame_phase_lock import FramePhaseLock
 from wristmark.rig.ground_truth import NO_TRUTH, GroundTruth, TruthSample
 from wristmark.rig.progress import PhaseProgress
 from wristmark.rig.rig_config import RigConfig
@@ -112,6 +115,9 @@ class ServoLoop:
         self.delay = DelayCompensator(params, rig.delay_compensation_tau) if rig.delay_compensation else None
         self.play_fits: list[PlayFit] | None = None  # the play probe's fits per actuator (rig/play_probe.py)
         self.play_probe_note = ""  # why the play probe was skipped ("" when it ran or was not asked for)
+        # wall clock: the cycle grid shifted so that the frames come at a fixed phase of it
+        lock = wall_clock and rig.frame_phase_lock != "none"
+        self.phase_lock = FramePhaseLock(rig.frame_lock_phase, rig.control_dt) if lock else None
 
     # -- time and commands ----------------------------------------------------------------
     def _advance(self, t: float) -> None:
@@ -195,9 +201,10 @@ class ServoLoop:
         (the first ``unbarred`` of them not shown on the bar: the settle after a play probe)."""
         dt = self.rig.control_dt
         t0 = self.t
+        shift0 = self._grid_shift()
         k = 0
         while k < n:
-            target = self._target(traj, k, t0 + k * dt, n_settle)
+            target = self._target(traj, k, t0 + k * dt + self._grid_shift() - shift0, n_settle)
             self._advance(target.t)
             t_wall = time.monotonic()
             missed = min(int((t_wall - target.t) // dt), n - 1 - k) if self.wall_clock else 0
@@ -276,6 +283,11 @@ class ServoLoop:
         latency = self._now() - outcome.meas.t_capture if outcome.accepted and outcome.meas else float("nan")
         return self._record(target, t_wall, phase, outcome, latency)
 
+    def _grid_shift(self) -> float:
+        """Wall clock with ``rig.frame_phase_lock``: how far [s] the cycle grid has moved to meet
+        the camera's frames (0 otherwise)."""
+        return self.phase_lock.shift if self.phase_lock is not None else 0.0
+
     def _wait_for_command_phase(self, outcome: CycleOutcome) -> None:
         """Wall clock: note when the command was ready after its frame's arrival [ms], then sleep
         until the cycle's command instant (``command_phase`` after its start; at once when later)."""
@@ -302,6 +314,9 @@ class ServoLoop:
             raise CameraStalledError(stats.stopped + ": arm held", stats) from None
         if frame is not None:
             self.last_frame = frame
+            if self.phase_lock is not None:  # when it was captured or arrived, from the cycle's start
+                at = frame.t_capture if self.rig.frame_phase_lock == "capture" else self.frames.last_arrival
+                self.phase_lock.observe(at - target.t)
         return frame
 
     def _measure_and_control(self, frame: StereoFrame | None, truth: TruthSample, target: CycleTarget,

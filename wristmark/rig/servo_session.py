@@ -131,7 +131,9 @@ class ServoOutcome:
     """A run's log and how it ended: stopped ("" when the trajectory completed), cause
     (marker-lost, camera, device, estop, watchdog, interrupted, error) and when, from the start [s];
     ready_after_arrival_ms: on the wall clock, each accepted cycle's frame arrival -> command
-    computed [ms] (before the wait for the cycle's ``command_phase``)."""
+    computed [ms] (before the wait for the cycle's ``command_phase``); frame_lock_offsets_ms: with
+    rig ``frame_phase_lock``, each frame's capture (or arrival) after its cycle's nominal start [ms], and
+    phase_shift_ms the cycle grid's final shift [ms]."""
 
     log: RunLog
     cycles: int = 0
@@ -146,6 +148,8 @@ class ServoOutcome:
     close_error: str = ""
     wall_time_s: float = 0.0
     ready_after_arrival_ms: list[float] = dataclasses.field(default_factory=list)
+    frame_lock_offsets_ms: list[float] = dataclasses.field(default_factory=list)
+    phase_shift_ms: float = float("nan")
 
 
 def _count(out: ServoOutcome, stats: Any) -> None:
@@ -212,6 +216,9 @@ def run_servo(setup: LoopSetup, traj: Trajectory, session: ServoSession, psi0: A
             out.cycles = out.cycles or len(out.log.phase("servo"))
         if loop is not None:
             out.ready_after_arrival_ms = list(loop.ready_after_arrival_ms)
+            if loop.phase_lock is not None:
+                out.frame_lock_offsets_ms = [1000.0 * x for x in loop.phase_lock.offsets]
+                out.phase_shift_ms = 1000.0 * loop.phase_lock.shift
         session.close()
         out.close_error = session.close_error
         if recorder is not None:

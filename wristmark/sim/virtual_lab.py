@@ -3,9 +3,10 @@ sees only what it would see in a lab, serial bytes and a video stream (DESIGN.md
 
 :class:`VirtualLab` drives the simulated true arm from an actuator-box emulator on a new pty
 (protocol v1, wall clock) and, in a camera thread, samples that arm in wall-clock time at up to
-``fps`` frames per second (fewer where rendering cannot keep up; frame starts are at least one
-period apart), has it rendered by a process of its own (:mod:`sim.render_process`) and
-publishes each stereo pair side by side as a JPEG of an MJPEG stream on loopback
+``fps`` frames per second on a fixed frame clock (frame k starts k periods after the first, so a
+host can lock its cycle to the frames' phase; where rendering cannot keep up, the next frame
+starts at once and the clock restarts from it), has it rendered by a process of its own
+(:mod:`sim.render_process`) and publishes each stereo pair side by side as a JPEG of an MJPEG stream on loopback
 (:class:`rig.mjpeg_server.MjpegServer`). Each frame's capture instant is the emulator clock's
 ``time.monotonic()`` when the arm was sampled; ``truth_out`` logs it with the true tip in {w}
 [m] (CSV header ``t,tip_x,tip_y,tip_z``), one row per published frame.
@@ -225,13 +226,13 @@ class VirtualLab:
                 t_next = time.monotonic() + period
                 continue
             try:
-                t = self._frame()
+                self._frame()
             except Exception as e:  # noqa: BLE001 - the camera dies with one line; the stream then stalls
                 self.error = f"virtual endoscope stopped: {type(e).__name__}: {e}"
                 self._first.set()
                 return
             self._first.set()
-            t_next = t + period
+            t_next = next_frame_start(t_next, period, time.monotonic())
 
     def stop(self) -> None:
         """Stop the camera, the stream and the emulator; close the truth file (idempotent)."""
@@ -256,6 +257,14 @@ class VirtualLab:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+
+def next_frame_start(t_start: float, period: float, now: float) -> float:
+    """The lab camera's frame clock [s]: the next frame starts one ``period`` after the last
+    one's scheduled start ``t_start`` (a wake-up's lateness does not accumulate, so a host can
+    lock its cycle to the frames' phase), or at ``now`` when the last frame took longer (the
+    clock restarts from it)."""
+    return max(t_start + period, now)
 
 
 def read_truth_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:

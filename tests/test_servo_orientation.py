@@ -11,10 +11,12 @@ from pathlib import Path
 
 import numpy as np
 
+from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.robot_params import RobotParams
 from wristmark.rig.run_log import CycleRecord
 from wristmark.rig.servo_summary import orientation_errors_of
 from wristmark.rig.trajectories import Trajectory
+from wristmark.sim.plant_params import PlantParams
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -36,6 +38,12 @@ def test_servo_holds_the_orientation_through_the_pty(tmp_path: Path) -> None:
     assert c["orientation_mean_deg"] < 0.5 and c["orientation_max_deg"] < 2.0
     assert c["mean_mm"] < 0.5
     assert "orientation mean" in r.stdout
+    probe = c["play_probe"]  # the default controller probes the plays first (a 6-DoF pose: the coded marker)
+    assert isinstance(probe, list) and len(probe) == 6
+    true_play = PlantParams.load(CONFIG_DIR / "plant.yaml").backlash
+    backbones = [(f["play"], b) for f, b in zip(probe[2:], true_play[2:], strict=True) if f["ok"]]
+    assert len(backbones) >= 2  # small images: the base's and the insertion's fits may be refused
+    assert all(abs(p - b) < 12e-6 for p, b in backbones), backbones  # [m] of a 30 um play
     rows = (tmp_path / "run" / "log.csv").read_text().splitlines()
     header = rows[0].split(",")
     cols = [header.index(f"rot_des_{a}") for a in ("x", "y", "z")]
@@ -57,7 +65,8 @@ def test_without_ground_truth_the_vision_estimate_gives_the_orientation_errors()
     nan3 = np.full(3, np.nan)
     recs = [CycleRecord(t=0.06 * k, phase="servo", p_des=np.zeros(3), p_cmd=np.zeros(3), p_est=np.zeros(3),
                         p_true=nan3, p_trk=nan3, psi_cmd=np.zeros(6), psi_true=np.full(6, np.nan), meas_ok=True,
-                        rejected=False, vision_ms=1.0, ctrl_us=1.0, R_des=R_des, R_est=tilt)
+                        rejected=False, vision_ms=1.0, ctrl_us=1.0, R_des=R_des, R_est=tilt,
+                        R_true=np.full((3, 3), np.nan), R_trk=np.full((3, 3), np.nan))  # as the loop records them
             for k in range(3)]
     assert orientation_errors_of(traj, recs) == {}  # the path asks for no orientation
     traj = traj.with_orientation("hold", RobotParams())

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -63,6 +63,14 @@ class ProbeSamples:
     probed: list[int] = dataclasses.field(default_factory=list)
     motor: list[Array] = dataclasses.field(default_factory=list)
     arm: list[Array] = dataclasses.field(default_factory=list)
+
+
+def probe_report(fits: list[PlayFit] | None, note: str) -> list[dict[str, Any]] | str | None:
+    """What a result file says of the probe: the fits per actuator (SI units), why it was
+    skipped, or None when it was not asked for."""
+    if fits is not None:
+        return [dataclasses.asdict(f) for f in fits]
+    return note or None
 
 
 def run_play_probe(loop: ServoLoop, template: CycleTarget, phase: str, log: RunLog, memory: TrackingMemory,

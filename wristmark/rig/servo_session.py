@@ -24,6 +24,7 @@ from wristmark.rig.actuator_link import ActuatorLink
 from wristmark.rig.frame_feed import FrameFeed
 from wristmark.rig.ground_truth import GroundTruth
 from wristmark.rig.loop_setup import LoopSetup
+from wristmark.rig.play_probe import probe_report
 from wristmark.rig.run_log import CycleRecord, RunLog
 from wristmark.rig.tip_sensors import TipSensor
 from wristmark.rig.trajectories import Trajectory
@@ -150,6 +151,7 @@ class ServoOutcome:
     ready_after_arrival_ms: list[float] = dataclasses.field(default_factory=list)
     frame_lock_offsets_ms: list[float] = dataclasses.field(default_factory=list)
     phase_shift_ms: float = float("nan")
+    play_probe: list[dict[str, Any]] | str | None = None  # rig.play_probe.probe_report (None: not asked for)
 
 
 def _count(out: ServoOutcome, stats: Any) -> None:
@@ -216,6 +218,7 @@ def run_servo(setup: LoopSetup, traj: Trajectory, session: ServoSession, psi0: A
             out.cycles = out.cycles or len(out.log.phase("servo"))
         if loop is not None:
             out.ready_after_arrival_ms = list(loop.ready_after_arrival_ms)
+            out.play_probe = probe_report(loop.play_fits, loop.play_probe_note)
             if loop.phase_lock is not None:
                 out.frame_lock_offsets_ms = [1000.0 * x for x in loop.phase_lock.offsets]
                 out.phase_shift_ms = 1000.0 * loop.phase_lock.shift

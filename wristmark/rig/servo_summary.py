@@ -86,7 +86,7 @@ def orientation_errors_of(traj: Trajectory, records: list[CycleRecord]) -> dict[
     estimate's (``orientation_from`` says which)."""
     if traj.orientation is None:
         return {}
-    if any(r.R_trk is not None for r in records):
+    if any(r.R_trk is not None and bool(np.all(np.isfinite(r.R_trk))) for r in records):  # NaN: no tracker
         return {**orientation_summary(records), "orientation_from": "optical tracker"}
     vis = angle_stats_deg(orientation_errors(records, "R_est"))
     return {"orientation_mean_deg": vis["mean_deg"], "orientation_max_deg": vis["max_deg"],
@@ -99,6 +99,8 @@ def summarize(setup: LoopSetup, traj: Trajectory, session: ServoSession, out: Se
     closed = {**closed_loop_errors(recs), **orientation_errors_of(traj, recs), "lost": out.lost,
               "rejected": out.rejected, "no_frame": out.no_frame,
               "skipped": out.skipped}
+    if out.play_probe is not None:  # the play probe before the walk (rig/play_probe.py), SI units
+        closed["play_probe"] = out.play_probe
     link: dict[str, Any] = {"kind": session.options.kind, "port": session.port,
                             "realtime": session.options.realtime or session.options.kind == "serial"}
     driver = getattr(session.link, "driver", None)

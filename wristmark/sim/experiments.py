@@ -17,6 +17,7 @@ from wristmark.models.kinematics import forward_kinematics
 from wristmark.models.robot_params import HOME_PSI
 from wristmark.rig.metrics import corner_overshoot, error_stats, estimate_errors, orientation_summary, tracking_errors
 from wristmark.rig.orientation_path import check_orientation_mode, start_configuration
+from wristmark.rig.play_probe import probe_report
 from wristmark.rig.run_log import CycleRecord, RunLog, write_json
 from wristmark.rig.servo_loop import MarkerLostError, PhaseStats, ServoLoop
 from wristmark.rig.trajectories import (
@@ -143,10 +144,9 @@ def run_open_closed(setup: SimSetup, traj: Trajectory, experiment: str, out_dir:
         "run_dir": str(out_dir),
     }
     res["ratio"] = res["closed_loop"]["mean_mm"] / res["open_loop"]["mean_mm"]
-    if closed.play_fits is not None:  # the play probe before the closed loop (rig/play_probe.py), SI units
-        res["closed_loop"]["play_probe"] = [dataclasses.asdict(f) for f in closed.play_fits]
-    elif closed.play_probe_note:
-        res["closed_loop"]["play_probe"] = closed.play_probe_note
+    probe = probe_report(closed.play_fits, closed.play_probe_note)  # the play probe (rig/play_probe.py)
+    if probe is not None:
+        res["closed_loop"]["play_probe"] = probe
     for k, s in stats.items():
         res[k]["lost"] = s.lost
         res[k]["rejected"] = s.rejected

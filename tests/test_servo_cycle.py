@@ -1,12 +1,14 @@
-"""rig.servo_cycle: the ramp that joins two configurations within the velocity limits, and the
-phase counters' stop errors."""
+"""rig.servo_cycle: the ramp that joins two configurations within the velocity limits, the
+phase counters' stop errors, and a cycle's target."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from wristmark.models.robot_params import HOME_PSI, RobotParams
-from wristmark.rig.servo_cycle import CameraStalledError, MarkerLostError, PhaseStats, ramp_to
+from wristmark.rig.rig_config import RigConfig
+from wristmark.rig.servo_cycle import CameraStalledError, MarkerLostError, PhaseStats, cycle_target, ramp_to
+from wristmark.rig.trajectories import Trajectory
 
 PARAMS = RobotParams()
 DT = 0.06
@@ -37,3 +39,15 @@ def test_a_stalled_camera_is_a_lost_marker_with_the_phase_counters() -> None:
     stats = PhaseStats(cycles=5, lost=3)
     err = CameraStalledError("no frame", stats)
     assert isinstance(err, MarkerLostError) and err.stats is stats and err.record is None
+
+
+def test_cycle_target_holds_the_start_while_settling_then_walks_the_path() -> None:
+    rig = RigConfig()
+    dt = rig.control_dt
+    traj = Trajectory(np.array([[0.0, 0.0, 0.1], [0.01, 0.0, 0.1]]), 0.01)  # 1 s along +x at 10 mm/s
+    settle = [cycle_target(traj, rig, k, k * dt, 5) for k in range(5)]
+    assert all(t.settling and np.allclose(t.p_des, traj.waypoints[0]) for t in settle)
+    walk = cycle_target(traj, rig, 5 + 8, 13 * dt, 5)
+    assert not walk.settling and np.allclose(walk.p_des, traj.sample(8 * dt)[0])
+    assert np.allclose(walk.p_next, traj.sample(9 * dt)[0])  # the open loop aims at the cycle's end
+    assert walk.R_des is None  # a path without an orientation

@@ -156,7 +156,7 @@ def _sample(loop: ServoLoop, target: CycleTarget, phase: str, log: RunLog, memor
     samples.probed.append(j)
     samples.motor.append(_encoders_at(reads, meas.t_capture if meas is not None else reads[-1][0]))
     samples.arm.append(y)
-    rec = loop._record(target, t_wall, phase + ":probe", CycleOutcome(meas, truth, ok, False, 0.0), float("nan"))
+    rec = loop.record(target, t_wall, phase + ":probe", CycleOutcome(meas, truth, ok, False, 0.0), float("nan"))
     log.add(rec)
     if callable(loop.on_cycle):
         loop.on_cycle(rec)

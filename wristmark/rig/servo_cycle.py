@@ -1,7 +1,8 @@
 """What one cycle and one phase of the servo loop (rig.servo_loop) carry: the cycle's target,
 the closed loop's memory across cycles, a cycle's outcome, the phase's counters, the errors that
-stop a phase, and the ramp that joins two configurations within the velocity limits. Positions
-in {w} [m], times [s], configurations [rad, m]."""
+stop a phase, the ramp that joins two configurations within the velocity limits, and the two
+builders of a cycle: its target from the trajectory and its log record. Positions in {w} [m],
+times [s], configurations [rad, m]."""
 
 from __future__ import annotations
 
@@ -11,11 +12,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.models.errors import WristmarkError
+from wristmark.models.kinematics import tip_position
 from wristmark.models.limits import clamp_psi, wrap_angle
 from wristmark.models.robot_params import RobotParams
 from wristmark.rig.ground_truth import TruthSample
+from wristmark.rig.rig_config import RigConfig
 from wristmark.rig.run_log import CycleRecord
 from wristmark.rig.tip_sensors import TipMeasurement
+from wristmark.rig.trajectories import Trajectory, feedforward_velocity
 
 Array = NDArray[np.float64]
 
@@ -103,3 +107,40 @@ class CycleOutcome:
     rejected: bool
     ctrl_us: float
     reused: bool = False  # no new frame: the last accepted measurement, compensated, drove the controller
+
+
+def cycle_target(traj: Trajectory, rig: RigConfig, k: int, t_k: float, n_settle: int) -> CycleTarget:
+    """Cycle ``k`` (the first ``n_settle`` hold the start) at ``t_k`` [s, the loop's clock]: the
+    desired tip and orientation in {w} [m], the feed-forward velocity [m/s] previewed by the
+    loop's delay with a lead for the actuators' lag, and the open loop's aim at the cycle's end."""
+    dt = rig.control_dt
+    tau_raw = (k - n_settle) * dt  # trajectory time; negative while settling
+    tau = max(0.0, tau_raw)
+    p_des, _ = traj.sample(tau)
+    v_des = feedforward_velocity(traj, tau_raw, dt, rig.feedforward_preview, rig.feedforward_lead)
+    # open loop commands a position reached over the coming cycle: aim at its end
+    p_next = traj.sample(tau + dt)[0] if k >= n_settle - 1 else p_des
+    o, o_next = traj.sample_orientation(tau), traj.sample_orientation(tau + dt if k >= n_settle - 1 else tau)
+    R, w, R_next = (None, None, None) if o is None or o_next is None else (o[0], o[1], o_next[0])
+    return CycleTarget(k, t_k, k < n_settle, p_des, v_des, p_next, R, w, R_next)
+
+
+def cycle_record(params: RobotParams, psi_cmd: Array, target: CycleTarget, t_wall: float, phase: str,
+                 outcome: CycleOutcome, latency_s: float, arrival: float | None = None) -> CycleRecord:
+    """The log record of a cycle: its target, the command ``psi_cmd`` [rad, m] in force, the
+    outcome's measurement and truth; ``latency_s`` capture -> command [s]; ``arrival`` the frame's
+    arrival on the wall clock [s] (None: no transport time, e.g. the simulated bench)."""
+    meas, truth = outcome.meas, outcome.truth
+    ok = meas is not None and meas.ok and meas.p_world is not None and bool(np.all(np.isfinite(meas.p_world)))
+    p_est = meas.p_world if ok and meas is not None else None
+    return CycleRecord(
+        t=target.t, phase=phase + (":settle" if target.settling else ""), p_des=np.asarray(target.p_des, float),
+        p_cmd=tip_position(params, psi_cmd), p_est=p_est, p_true=np.asarray(truth.p_true, float),
+        p_trk=np.asarray(truth.p_trk, float), psi_cmd=psi_cmd.copy(),
+        psi_true=np.asarray(truth.psi_true, float), meas_ok=outcome.accepted, rejected=outcome.rejected,
+        vision_ms=meas.time_ms if meas is not None else 0.0, ctrl_us=outcome.ctrl_us, t_wall=t_wall,
+        t_capture=meas.t_capture if meas is not None else float("nan"), latency_ms=1000.0 * latency_s,
+        transport_ms=1000.0 * (arrival - meas.t_capture) if meas is not None and arrival is not None else float("nan"),
+        R_des=target.R_des, R_est=meas.R_world if ok and meas is not None else None,
+        R_true=np.asarray(truth.R_true, float), R_trk=np.asarray(truth.R_trk, float),
+    )

@@ -35,7 +35,7 @@ from wristmark.cvs.frames import FrameSourceError, StereoFrame
 from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
 from wristmark.models.errors import WristmarkError
 from wristmark.models.ik import solve_tip_ik
-from wristmark.models.kinematics import forward_kinematics, tip_position
+from wristmark.models.kinematics import forward_kinematics
 from wristmark.models.limits import clamp_psi
 from wristmark.models.pose_ik import nominal_ik
 from wristmark.models.robot_params import HOME_PSI, RobotParams
@@ -54,10 +54,12 @@ from wristmark.rig.servo_cycle import (
     MarkerLostError,
     PhaseStats,
     TrackingMemory,
+    cycle_record,
+    cycle_target,
     ramp_to,
 )
 from wristmark.rig.tip_sensors import TipMeasurement, TipSensor
-from wristmark.rig.trajectories import Trajectory, feedforward_velocity
+from wristmark.rig.trajectories import Trajectory
 from wristmark.solvers.controller import Controller, OrientationTask
 from wristmark.solvers.play_probe_fit import PlayFit
 
@@ -189,7 +191,8 @@ class ServoLoop:
 
             lead_in = n_settle + 10**6  # the first settle sees no preview of the walk's start
             self._cycles(traj, phase, closed_loop, log, stats, memory, bar, n_settle, lead_in)
-            self.play_fits = run_play_probe(self, self._target(traj, 0, self.t, lead_in), phase, log, memory, stats)
+            start = cycle_target(traj, self.rig, 0, self.t, lead_in)
+            self.play_fits = run_play_probe(self, start, phase, log, memory, stats)
             memory.last_ok, n_settle = None, n_after  # the probe moved the tip: no jump gate just after it
         self._cycles(traj, phase, closed_loop, log, stats, memory, bar, n_settle + n_traj, n_settle, n_after)
         bar.close()
@@ -204,7 +207,7 @@ class ServoLoop:
         shift0 = self._grid_shift()
         k = 0
         while k < n:
-            target = self._target(traj, k, t0 + k * dt + self._grid_shift() - shift0, n_settle)
+            target = cycle_target(traj, self.rig, k, t0 + k * dt + self._grid_shift() - shift0, n_settle)
             self._advance(target.t)
             t_wall = time.monotonic()
             missed = min(int((t_wall - target.t) // dt), n - 1 - k) if self.wall_clock else 0
@@ -232,20 +235,6 @@ class ServoLoop:
             if k > unbarred:
                 bar.step()
 
-    def _target(self, traj: Trajectory, k: int, t_k: float, n_settle: int) -> CycleTarget:
-        dt = self.rig.control_dt
-        tau_raw = (k - n_settle) * dt  # trajectory time; negative while settling
-        tau = max(0.0, tau_raw)
-        p_des, _ = traj.sample(tau)
-        # feed-forward: the desired path previewed by the loop's delay, with a lead for the
-        # actuators' lag; the preview also covers the start of motion (zero until then)
-        v_des = feedforward_velocity(traj, tau_raw, dt, self.rig.feedforward_preview, self.rig.feedforward_lead)
-        # open loop commands a position reached over the coming cycle: aim at its end
-        p_next = traj.sample(tau + dt)[0] if k >= n_settle - 1 else p_des
-        o, o_next = traj.sample_orientation(tau), traj.sample_orientation(tau + dt if k >= n_settle - 1 else tau)
-        R, w, R_next = (None, None, None) if o is None or o_next is None else (o[0], o[1], o_next[0])
-        return CycleTarget(k, t_k, k < n_settle, p_des, v_des, p_next, R, w, R_next)
-
     def _observe(self) -> TruthSample:
         return self.truth.observe() if self.truth is not None else NO_TRUTH
 
@@ -255,7 +244,7 @@ class ServoLoop:
         assert self.psi_cmd is not None
         self.psi_cmd = clamp_psi(self.params, nominal_ik(self.params, target.p_next, target.R_next, self.psi_cmd))
         self._send(self.psi_cmd)
-        return self._record(target, t_wall, phase, CycleOutcome(None, truth, False, False, 0.0), float("nan"))
+        return self.record(target, t_wall, phase, CycleOutcome(None, truth, False, False, 0.0), float("nan"))
 
     # -- closed loop ----------------------------------------------------------------------
     def _closed_cycle(self, target: CycleTarget, t_wall: float, phase: str, memory: TrackingMemory,
@@ -281,7 +270,7 @@ class ServoLoop:
         assert self.psi_cmd is not None
         self._send(self.psi_cmd)
         latency = self._now() - outcome.meas.t_capture if outcome.accepted and outcome.meas else float("nan")
-        return self._record(target, t_wall, phase, outcome, latency)
+        return self.record(target, t_wall, phase, outcome, latency)
 
     def _grid_shift(self) -> float:
         """Wall clock with ``rig.frame_phase_lock``: how far [s] the cycle grid has moved to meet
@@ -402,25 +391,13 @@ class ServoLoop:
         else:
             stats.stopped = f"marker lost for {memory.lost_run} cycles {at} ({memory.last_reason})"
             error = MarkerLostError
-        rec = self._record(target, t_wall, phase, outcome, float("nan"))
+        rec = self.record(target, t_wall, phase, outcome, float("nan"))
         raise error(stats.stopped + ": arm held", stats, rec)
 
     # -- the log --------------------------------------------------------------------------
-    def _record(self, target: CycleTarget, t_wall: float, phase: str, outcome: CycleOutcome,
+    def record(self, target: CycleTarget, t_wall: float, phase: str, outcome: CycleOutcome,
                 latency_s: float) -> CycleRecord:
+        """The cycle's log record (rig.servo_cycle.cycle_record) with this loop's command and feed."""
         assert self.psi_cmd is not None
-        meas, truth = outcome.meas, outcome.truth
-        ok = meas is not None and meas.ok and meas.p_world is not None and bool(np.all(np.isfinite(meas.p_world)))
-        p_est = meas.p_world if ok and meas is not None else None
-        return CycleRecord(
-            t=target.t, phase=phase + (":settle" if target.settling else ""), p_des=np.asarray(target.p_des, float),
-            p_cmd=tip_position(self.params, self.psi_cmd), p_est=p_est, p_true=np.asarray(truth.p_true, float),
-            p_trk=np.asarray(truth.p_trk, float), psi_cmd=self.psi_cmd.copy(),
-            psi_true=np.asarray(truth.psi_true, float), meas_ok=outcome.accepted, rejected=outcome.rejected,
-            vision_ms=meas.time_ms if meas is not None else 0.0, ctrl_us=outcome.ctrl_us, t_wall=t_wall,
-            t_capture=meas.t_capture if meas is not None else float("nan"), latency_ms=1000.0 * latency_s,
-            transport_ms=1000.0 * (self.frames.last_arrival - meas.t_capture)
-            if meas is not None and self.frames is not None and self.wall_clock else float("nan"),
-            R_des=target.R_des, R_est=meas.R_world if ok and meas is not None else None,
-            R_true=np.asarray(truth.R_true, float), R_trk=np.asarray(truth.R_trk, float),
-        )
+        arrival = self.frames.last_arrival if self.frames is not None and self.wall_clock else None
+        return cycle_record(self.params, self.psi_cmd, target, t_wall, phase, outcome, latency_s, arrival)

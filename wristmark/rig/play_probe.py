@@ -35,7 +35,7 @@ from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
 from wristmark.models.kinematics import forward_kinematics
 from wristmark.models.limits import clamp_psi, clamp_velocity
 from wristmark.models.pose_ik import solve_pose_ik
-from wristmark.models.units import MICRO
+from wristmark.models.units import on_micro_grid
 from wristmark.rig.run_log import RunLog
 from wristmark.rig.servo_cycle import CycleOutcome, CycleTarget, MarkerLostError, PhaseStats, TrackingMemory
 from wristmark.solvers.play_probe_fit import PlayFit, fit_play
@@ -142,8 +142,7 @@ def _sample(loop: ServoLoop, target: CycleTarget, phase: str, log: RunLog, memor
     params = loop.params
     t_wall = time.monotonic()
     frame = loop._take_frame(target, phase, memory, stats)
-    # rounded to the wire's micro-units: a reading through the serial link and one taken in process agree
-    reads.append((loop._now(), np.rint(loop.link.measured_actuators() * MICRO) / MICRO))
+    reads.append((loop._now(), on_micro_grid(loop.link.measured_actuators())))
     truth = loop._observe()
     axis = forward_kinematics(params, loop.psi_cmd).T_world_marker[:3, 2]  # which way the marker points
     meas = None if frame is None else loop.sensor.measure(frame, axis_hint_world=axis)

@@ -48,7 +48,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from wristmark.models.units import MICRO
+from wristmark.models.units import on_micro_grid
 from wristmark.solvers.backlash_compensation import BacklashInverse
 
 Array = NDArray[np.float64]
@@ -94,13 +94,13 @@ class PlayObserverInverse(BacklashInverse):
 
     def observe(self, motor: Array) -> None:
         """Track the play's output from encoder readings ``motor`` [rad, m, ...], rounded to micro-units."""
-        m = np.rint(np.asarray(motor, float) * MICRO) / MICRO
+        m = on_micro_grid(motor)
         half = 0.5 * self.play
         if self.output is None and self._seed is not None:  # a probe's output and side
             k, out = self._seed
             self._seed = None
             self.output = np.where(k, out, m)
-            side = np.sign(np.rint((m - self.output) * MICRO))
+            side = np.sign(on_micro_grid(m - self.output))
             self.direction = np.where(k, side, 0.0)
             self._off = self.direction * 0.5 * self.fraction * self.play
         self.output = m.copy() if self.output is None else np.clip(self.output, m - half, m + half)
@@ -110,7 +110,7 @@ class PlayObserverInverse(BacklashInverse):
         d = self.direction
         if self.output is None:
             return np.zeros(6, bool), d
-        e = np.rint((a - self.output) * MICRO) / MICRO
+        e = on_micro_grid(a - self.output)
         eps = self.margin * self.play_max
         new = np.where(e > eps, 1.0, np.where(e < -eps, -1.0, d))
         if self.freeze > 0.0 and self._stood >= self.freeze - 1e-9:  # a held point: noise must not walk

@@ -23,13 +23,17 @@ host's loop, the lab's actuator box and stream, and the lab's rendering where th
 alone sustains 1.5 x ``--max-fps-rt``.
 Prints one JSON object. Targets (issue 11): host latency beyond the transport <= 10 ms
 (median); lab true-tip error within 20 % of the in-process run.
+``--plant``, ``--marker``, ``--controller-config``, ``--orientation``: another arm, marker, controller
+or orientation mode for both loops (e.g. the unseen arm with the coded marker, orientation held).
 Usage: .venv/bin/python bench/virtual_lab.py [--duration S] [--scales 1 0.5] [--skip-video] [--camera-matched]
        [--phase-lock arrival --lock-phase 0.038]
+       [--plant configs/plant_unseen.yaml --marker configs/marker_coded.yaml --orientation hold]
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import platform
@@ -39,6 +43,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -91,12 +96,33 @@ def _read_lines(proc: subprocess.Popen[bytes], n: int, timeout: float) -> list[s
     return [ln.strip() for ln in got.decode().splitlines()[:n]]
 
 
+@dataclass(frozen=True)
+class Scenario:
+    """What both loops run: plant and marker files (None: the shipped ones), the controller file
+    (None: configs/controller.yaml) and the trajectory's orientation mode (none | hold | follow)."""
+
+    plant: str | None = None
+    marker: str | None = None
+    controller: str | None = None
+    orientation: str = "none"
+
+    def lab_args(self) -> list[str]:
+        """The emulator's options for it (its true arm and its marker)."""
+        return [*(["--plant", self.plant] if self.plant else []), *(["--marker", self.marker] if self.marker else [])]
+
+    def host_args(self) -> list[str]:
+        """The hardware path's options for it (no plant: the host never knows the true arm)."""
+        return [*(["--marker", self.marker] if self.marker else []),
+                *(["--controller-config", self.controller] if self.controller else []),
+                *(["--orientation", self.orientation] if self.orientation != "none" else [])]
+
+
 def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_render: bool,
-            rig: str | None = None, dt: float | None = None) -> dict[str, Any]:
+            rig: str | None = None, dt: float | None = None, scenario: Scenario = Scenario()) -> dict[str, Any]:
     """The virtual lab at up to ``fps`` and ``scale``: a cube of ``duration`` s on the hardware
     path (rt: the host loop and the lab's actuator box and stream under SCHED_FIFO; rt_render:
     the lab's rendering too; rig: the host's rig file, default the shipped one; dt: the host's
-    control cycle [s], default the rig file's)."""
+    control cycle [s], default the rig file's; scenario: plant, marker, controller, orientation)."""
     from wristmark.rig.metrics import error_stats
     from wristmark.sim.virtual_lab import read_truth_csv, true_tip_errors
 
@@ -104,7 +130,7 @@ def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_r
     dense = tmp / f"truth_dense_{scale}.csv"
     emu = subprocess.Popen([*WRISTMARK, "emulator", "--pty", "--camera-port", "0", "--fps", f"{fps:.6g}",
                             "--image-scale", str(scale), "--jpeg-quality", "95", "--truth-out", str(truth),
-                            "--truth-dense-out", str(dense),
+                            "--truth-dense-out", str(dense), *scenario.lab_args(),
                             *(["--rt-priority", "10"] if rt else []),
                             *(["--render-normal-priority"] if rt and not rt_render else [])],
                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
@@ -114,7 +140,8 @@ def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_r
         r = subprocess.run([*WRISTMARK, "servo", "--serial", pty, "--camera", url, "--image-scale", str(scale),
                             "--duration", str(duration), "--no-progress", "--out", str(run_dir),
                             "--json", str(tmp / f"res_{scale}.json"), *(["--rt-priority", "20"] if rt else []),
-                            *(["--rig", rig] if rig else []), *(["--dt", f"{dt:g}"] if dt else [])],
+                            *(["--rig", rig] if rig else []), *(["--dt", f"{dt:g}"] if dt else []),
+                            *scenario.host_args()],
                            cwd=ROOT, capture_output=True, text=True, timeout=600)
     finally:
         emu.send_signal(signal.SIGTERM)
@@ -143,13 +170,19 @@ def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_r
             "interpolated_between_frames": {"mean": err_frames.mean_mm, "max": err_frames.max_mm},
             "between_frames_at_t_wall": {"mean": err_wall.mean_mm, "max": err_wall.max_mm}},
         "closed_loop_reused": res["closed_loop"].get("reused"),
+        **({"orientation_deg_vision": {"mean": res["closed_loop"]["orientation_mean_deg"],
+                                       "max": res["closed_loop"]["orientation_max_deg"]}}
+           if res["closed_loop"].get("orientation_mean_deg") is not None else {}),
+        **({"play_probe": res["closed_loop"]["play_probe"]} if res["closed_loop"].get("play_probe") else {}),
         "emulator": emu_err.decode(errors="replace").strip().splitlines()[-1:],
     }
 
 
-def in_process_run(scale: float, duration: float, rig: str | None = None, dt: float | None = None) -> dict[str, Any]:
+def in_process_run(scale: float, duration: float, rig: str | None = None, dt: float | None = None,
+                   scenario: Scenario = Scenario()) -> dict[str, Any]:
     """The same cube on the in-process bench (pty emulator, simulated clock; rig: the rig file,
-    default the shipped one; dt: the control cycle [s], default the rig file's)."""
+    default the shipped one; dt: the control cycle [s], default the rig file's; scenario: plant,
+    marker, controller, orientation)."""
     import dataclasses
 
     from wristmark.cli import servo as S
@@ -158,17 +191,21 @@ def in_process_run(scale: float, duration: float, rig: str | None = None, dt: fl
     from wristmark.sim.servo_bench import open_sim_session
     from wristmark.sim.setup import load_setup
 
-    setup = load_setup()
+    setup = load_setup(plant=scenario.plant, marker=scenario.marker, controller=scenario.controller)
     base = RigConfig.load(rig) if rig else setup.rig
     changes: dict[str, Any] = {"image_scale": scale, **({"control_dt": dt} if dt else {})}
     setup = setup.with_changes(rig=dataclasses.replace(base, **changes))
     traj = S.build_trajectory(setup, "cube", None, duration)
+    if scenario.orientation != "none":
+        traj = traj.with_orientation(scenario.orientation, setup.params)
     psi0 = S.start_configuration(setup, traj)
     session = open_sim_session(setup, psi0, S.LinkOptions(kind="emulator"), seed=setup.rig.seed)
     out = S.run_servo(setup, traj, session, psi0, settle=setup.rig.settle_time)
     c = summarize(setup, traj, session, out)["closed_loop"]
     return {"true_tip_mm": {"mean": c["noise_free"]["mean_mm"], "max": c["noise_free"]["max_mm"],
-                            "cycles": c["cycles"]}, "latency_ms_modelled": 1000 * setup.rig.vision_latency,
+                            "cycles": c["cycles"]},
+            **({"orientation_deg": {"mean": c["orientation_mean_deg"], "max": c["orientation_max_deg"]}}
+               if "orientation_mean_deg" in c else {}), "latency_ms_modelled": 1000 * setup.rig.vision_latency,
             "control_dt_s": setup.rig.control_dt}
 
 
@@ -209,7 +246,15 @@ def main() -> int:
                     help="with --phase-lock: the lab's camera period in control cycles (default 1)")
     ap.add_argument("--lab-share", type=positive_float(1.0), default=0.7,
                     help="the lab's frame rate beside the host, as a share of the renderer's alone (default 0.7)")
+    ap.add_argument("--plant", metavar="YAML",
+                    help="the lab's true arm (and the in-process one; default configs/plant.yaml)")
+    ap.add_argument("--marker", metavar="YAML", help="marker file of both loops (default configs/marker.yaml)")
+    ap.add_argument("--controller-config", metavar="YAML", help="controller file of both loops "
+                                                                "(default configs/controller.yaml)")
+    ap.add_argument("--orientation", choices=("none", "hold", "follow"), default="none",
+                    help="the cube's orientation mode (default none: position only)")
     a = ap.parse_args()
+    scenario = Scenario(a.plant, a.marker, a.controller_config, a.orientation)
     rt = realtime_priority_allowed(20)
     out: dict[str, Any] = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
                                        "load_avg_1min_at_start": os.getloadavg()[0]},
@@ -239,9 +284,9 @@ def main() -> int:
             fps = a.max_fps if dt is None else min(a.max_fps, 1.25 / dt)  # a little faster than the loop
             if a.phase_lock != "none":
                 fps = 1.0 / (a.cycles_per_frame * (dt or base_dt))
-            lab = lab_run(scale, fps, a.duration, Path(tmp), rt, rt_render, rig_file, dt)
+            lab = lab_run(scale, fps, a.duration, Path(tmp), rt, rt_render, rig_file, dt, scenario)
             lab["lab_realtime_priority"] = {"box_and_stream": rt, "rendering": rt_render}
-            ref = None if a.skip_in_process else in_process_run(scale, a.duration, a.rig, dt)
+            ref = None if a.skip_in_process else in_process_run(scale, a.duration, a.rig, dt, scenario)
             row: dict[str, Any] = {"image_scale": scale, "renderer": sustained,
                                    "control_dt_s": dt or base_dt, "camera_matched_cycle": dt is not None,
                                    "lab": lab, "in_process": ref}
@@ -256,6 +301,7 @@ def main() -> int:
                                   "host_work_after_arrival_ms": work, "host_work_met": bool(work <= 10.0)}
             out["virtual_lab"].append(row)
     out["rig"] = a.rig
+    out["scenario"] = dataclasses.asdict(scenario)
     out["phase_lock"] = {"on": a.phase_lock, "lock_phase_s": a.lock_phase, "frame_wait_s": a.frame_wait,
                          "cycles_per_frame": a.cycles_per_frame} if a.phase_lock != "none" else None
     out["machine"]["load_avg_1min_at_end"] = os.getloadavg()[0]

@@ -196,3 +196,69 @@ def test_the_in_process_bench_latency_leaves_the_loop_unchanged(tau: float) -> N
         logs.append(np.array([r.psi_cmd for r in log.records]))
     assert logs[0].shape == logs[1].shape and logs[0].shape[0] > 20
     assert np.array_equal(logs[0], logs[1])
+
+
+# -- the model is the arm's expected configuration, not the dead-band inversion's motor command --
+def _inverting_controller() -> tuple[object, np.ndarray]:
+    """A qp controller with the encoders' dead-band inversion, stepped until it inverts; returns
+    it and the (compensated) configuration it returned last."""
+    cfg = ControllerConfig(kind="qp", backlash_compensation=True, backlash_method="encoders", backlash_start=1.0)
+    ctrl = make_controller(P, cfg)
+    psi = PSI_A.copy()
+    for _ in range(3):
+        p = tip_position(P, psi)
+        psi = ctrl.step(psi, p, p + np.array([0.002, 0.0, 0.0]), None, 0.06,
+                        encoders=actuators_from_psi(P, psi)).psi_next
+    return ctrl, psi
+
+
+def test_output_model_is_the_nominal_behind_the_inversion_and_changes_nothing() -> None:
+    ctrl, psi = _inverting_controller()
+    twin, psi_twin = _inverting_controller()  # the same steps: the same state
+    np.testing.assert_array_equal(psi, psi_twin)
+    nominal = ctrl.output_model(psi)  # type: ignore[attr-defined]
+    offset = actuators_from_psi(P, psi) - actuators_from_psi(P, nominal)
+    assert np.max(np.abs(offset)) > 1e-5  # the motors are commanded across the band
+    p = tip_position(P, psi)
+    a = ctrl.step(psi, p, p + [0.001, 0, 0], None, 0.06, encoders=actuators_from_psi(P, psi))  # type: ignore
+    b = twin.step(psi, p, p + [0.001, 0, 0], None, 0.06, encoders=actuators_from_psi(P, psi))  # type: ignore
+    np.testing.assert_array_equal(a.psi_next, b.psi_next)
+    plain = make_controller(P, ControllerConfig(kind="qp"))
+    np.testing.assert_array_equal(plain.output_model(psi), psi)
+    # a configuration that is not the last one returned is its own model (no state to go by)
+    np.testing.assert_array_equal(ctrl.output_model(PSI_B), PSI_B)  # type: ignore[attr-defined]
+
+
+class _FixedOutput:
+    """A controller stand-in whose arm is expected to stay at PSI_A whatever is commanded."""
+
+    def output_model(self, psi: np.ndarray) -> np.ndarray:
+        return PSI_A.copy()
+
+
+class _NullLink:
+    time = 0.0
+
+    def send_target(self, actuators: np.ndarray) -> None:
+        self.sent = actuators
+
+
+def test_the_loop_compensates_with_the_arm_expected_not_the_motor_commands() -> None:
+    """Commands that move only the motors (the inversion's jumps across the band) predict no tip
+    motion: the loop records the controller's output model, not the command it sends."""
+    rig = RigConfig(sensor="truth-noise", delay_compensation=True, delay_compensation_tau=0.0)
+    loop = ServoLoop(P, rig, _NullLink(), controller=_FixedOutput())  # type: ignore[arg-type]
+    loop.t = 0.0
+    loop._send(PSI_B)
+    loop.t = 0.05
+    loop._send(PSI_C)
+    np.testing.assert_array_equal(loop.link.sent, actuators_from_psi(P, PSI_C))  # type: ignore[attr-defined]
+    assert loop.delay is not None
+    np.testing.assert_array_equal(loop.delay.predicted_motion(0.01, 0.06), np.zeros(3))
+    plain = ServoLoop(P, rig, _NullLink())  # no controller: the commands are the model
+    plain.t = 0.0
+    plain._send(PSI_B)
+    plain.t = 0.05
+    plain._send(PSI_C)
+    assert plain.delay is not None
+    assert np.linalg.norm(plain.delay.predicted_motion(0.01, 0.06)) > 1e-3

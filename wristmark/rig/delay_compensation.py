@@ -12,7 +12,10 @@ where ``model(t)`` is the configuration the arm is expected to have at ``t``: th
 sent at or before ``t`` (``tau = 0``: commands take effect at once), or the commands passed
 through a first-order lag of time constant ``tau`` [s] per actuator (the actuators' own lag).
 Only the difference of the model between the two instants is used, so the model's own error
-(calibration, backlash, load) cancels to first order. All times on the loop's clock [s], tips
+(calibration, backlash, load) cancels to first order. The servo loop records the configuration the
+arm is expected to follow for each command (``Controller.output_model``): with a dead-band
+inversion that is the nominal configuration, not the motor command, whose jumps across the band
+do not move the arm (recording them predicted tip motion that never happened). All times on the loop's clock [s], tips
 in {w} [m], configurations psi [rad, m, rad, rad, rad, rad].
 """
 

@@ -16,7 +16,9 @@ One cycle k at t_k = t0 + k dt on the loop's clock:
 3. the command is sent: on the wall clock as soon as it is computed, or, with a rig
    ``command_phase`` > 0, at that fixed instant after the cycle's nominal start (at once when it
    is computed later), as on the simulated bench, where it goes out ``vision_latency`` after the
-   capture (open loop: at once). The measurement is compensated to the cycle's start (rig.delay_compensation).
+   capture (open loop: at once). The measurement is compensated to the cycle's start (rig.delay_compensation),
+   with the configuration the arm is expected to follow (the controller's output model: a dead-band
+   inversion's offsets move the motors across the band, not the arm).
    The capture-to-command latency is measured from the frame's capture time.
 
 Ground truth (true tip, optical tracker, true configuration) is logged when an optional
@@ -136,8 +138,9 @@ class ServoLoop:
 
     def _send(self, psi: Array) -> None:
         self.link.send_target(actuators_from_psi(self.params, psi))
-        if self.delay is not None:
-            self.delay.record(self._now(), psi)
+        if self.delay is not None:  # what the arm should do: a dead-band inversion's offsets do not move it
+            expected = self.controller.output_model(psi) if self.controller is not None else psi
+            self.delay.record(self._now(), expected)
 
     def start_at(self, psi: Array) -> None:
         """Move to ``psi`` and let the arm settle there (2 s).

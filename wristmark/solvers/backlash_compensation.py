@@ -179,6 +179,12 @@ class CommandCompensator:
         """Nominal configuration behind the commanded one ``psi_cmd``."""
         if self._last_out is None or not np.allclose(psi_cmd, self._last_out, rtol=0.0, atol=1e-12):
             self.reset(keep_estimate=True)
+        return self.nominal_of(psi_cmd)
+
+    def nominal_of(self, psi_cmd: Array) -> Array:
+        """The nominal configuration behind ``psi_cmd`` when it is the last one returned, else
+        ``psi_cmd`` itself; unlike :meth:`nominal`, never changes the state."""
+        if self._last_out is None or not np.allclose(psi_cmd, self._last_out, rtol=0.0, atol=1e-12):
             return np.asarray(psi_cmd, float).copy()
         return self._to_psi(actuators_from_psi(self.params, psi_cmd) - self._offset, psi_cmd)
 

@@ -223,6 +223,15 @@ class Controller(abc.ABC):
         comp.commit(nominal, out)
         return out
 
+    def output_model(self, psi_cmd: Array) -> Array:
+        """The configuration [rad, m, ...] the arm is expected to reach for the command ``psi_cmd``:
+        with the dead-band inversion, the nominal configuration behind the last command returned
+        (its offsets move the motors across the band, not the arm); else ``psi_cmd``. No state
+        changes."""
+        if self.compensator is None:
+            return np.asarray(psi_cmd, float).copy()
+        return self.compensator.nominal_of(psi_cmd)
+
     def reset(self) -> None:
         """Forget the internal state (integral, backlash directions) before a new run."""
         if self.compensator is not None:

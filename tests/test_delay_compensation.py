@@ -49,7 +49,9 @@ def test_prediction_with_instant_commands_is_the_fk_of_the_commands_sent_in_betw
     np.testing.assert_allclose(dc.predicted_motion(0.05, 0.13), tip(PSI_C) - tip(PSI_A), rtol=0, atol=1e-15)
     np.testing.assert_allclose(dc.predicted_motion(0.07, 0.125), tip(PSI_C) - tip(PSI_B), rtol=0, atol=1e-15)
     assert np.all(dc.predicted_motion(0.065, 0.11) == 0.0)  # no command in between
-    assert np.all(dc.predicted_motion(0.13, 0.05) == 0.0)  # "now" before the capture
+    # "now" before the capture (a frame captured after the cycle's start): moved back as far
+    np.testing.assert_allclose(dc.predicted_motion(0.13, 0.05), tip(PSI_A) - tip(PSI_C), rtol=0, atol=1e-15)
+    assert np.all(dc.predicted_motion(0.07, 0.07) == 0.0)
     assert np.linalg.norm(tip(PSI_C) - tip(PSI_A)) > 1e-3  # the check above is not trivial
     p = np.array([0.01, -0.02, 0.1])
     np.testing.assert_allclose(dc.compensate(p, 0.05, 0.13), p + tip(PSI_C) - tip(PSI_A), atol=1e-15)

@@ -103,8 +103,10 @@ class DelayCompensator:
 
     def predicted_motion(self, t_capture: float, t_now: float) -> Array:
         """The model's tip motion in {w} [m] from ``t_capture`` to ``t_now`` (zeros without a
-        history, when nothing changed, or when ``t_now`` is not after ``t_capture``)."""
-        if not (math.isfinite(t_capture) and math.isfinite(t_now)) or t_now <= t_capture:
+        history, when nothing changed, or when the two instants are the same). ``t_now`` may
+        precede ``t_capture``: a frame captured after the instant it is compensated to (a cycle's
+        start) is moved back by the motion the model expects in between."""
+        if not (math.isfinite(t_capture) and math.isfinite(t_now)) or t_now == t_capture:
             return np.zeros(3)
         before, after = self.model_psi(t_capture), self.model_psi(t_now)
         if before is None or after is None or np.array_equal(before, after):

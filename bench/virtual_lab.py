@@ -2,9 +2,9 @@
 
 (a) bench/video_tracking.py's ``run()``: a 1080p side-by-side MJPG video played at 60 fps.
 (b) For each image scale (1: 1080p, and 0.5): the renderer's frame rate on this machine alone
-(median time of a render plus JPEG encode), then the virtual lab rendering as fast as it can
-(``--max-fps``; the achieved rate is reported): the
-emulator (`wristmark emulator --pty --camera-port 0 --fps F`) in one process, the hardware path
+(median time of a render plus JPEG encode), then the virtual lab (its camera at the loop's rate,
+below; with ``--phase-lock none`` as fast as it can up to ``--max-fps``; the achieved rate is
+reported): the emulator (`wristmark emulator --pty --camera-port 0 --fps F`) in one process, the hardware path
 (`wristmark servo --serial PTY --camera URL`) in another, a cube of ``--duration`` s (default 20):
 capture-to-command latency (median, p95, max; split into the frame's transport and what the
 host adds; ``arrival_to_ready``: the host's own work before the cycle's command instant), frames
@@ -14,10 +14,13 @@ instant and at ``t_wall``, the evaluation before); beside it the in-process run 
 scale, rig file (default configs/rig.yaml) and trajectory (simulated clock, 45 ms latency).
 ``--camera-matched``: where the lab's camera (``--lab-share`` x the renderer's rate alone) is
 slower than the loop, both loops run at the camera's period (``control_dt_s`` in the JSON).
-``--phase-lock arrival|capture``: a camera at the loop's rate instead of flat out (one frame every
-``--cycles-per-frame`` cycles on the lab's fixed frame clock) and the host's cycle locked to the
-frames' arrival or capture at ``--lock-phase`` after its start (rig ``frame_phase_lock``,
-``frame_lock_phase``, ``frame_wait`` from ``--frame-wait``; ``phase_lock`` in the JSON).
+By default the lab's camera runs at the loop's rate (one frame every ``--cycles-per-frame`` cycles on
+the lab's fixed frame clock) and the host's cycle is locked to the frames' arrival at
+``--lock-phase`` 0.038 s after its start (rig ``frame_phase_lock: arrival``, ``frame_lock_phase``,
+``frame_wait`` from ``--frame-wait``; ``phase_lock`` in the JSON): every command then goes out
+~45 ms after its cycle's start, the in-process instant, at once after its frame's tracking.
+``--phase-lock none``: a free-running camera rendering as fast as it can, the shipped rig.yaml's
+setting (its commands go out at a different instant of every cycle).
 Both processes run under SCHED_FIFO where the host allows it (rig/realtime_priority.py): the
 host's loop, the lab's actuator box and stream, and the lab's rendering where the renderer
 alone sustains 1.5 x ``--max-fps-rt``.
@@ -26,7 +29,7 @@ Prints one JSON object. Targets (issue 11): host latency beyond the transport <=
 ``--plant``, ``--marker``, ``--controller-config``, ``--orientation``: another arm, marker, controller
 or orientation mode for both loops (e.g. the unseen arm with the coded marker, orientation held).
 Usage: .venv/bin/python bench/virtual_lab.py [--duration S] [--scales 1 0.5] [--skip-video] [--camera-matched]
-       [--phase-lock arrival --lock-phase 0.038]
+       [--phase-lock none]
        [--plant configs/plant_unseen.yaml --marker configs/marker_coded.yaml --orientation hold]
 """
 
@@ -233,13 +236,13 @@ def main() -> int:
     ap.add_argument("--camera-matched", action="store_true",
                     help="where the lab's camera is slower than the loop, run both loops at the camera's rate "
                          "(default: the rig's cycle)")
-    ap.add_argument("--phase-lock", choices=("none", "capture", "arrival"), default="none",
-                    help="a phase-locked camera: the lab renders a frame every --cycles-per-frame control cycles on a "
-                         "fixed clock and the host locks its cycle to their capture or arrival (rig frame_phase_lock; "
-                         "default none: the lab renders as fast as it can)")
-    ap.add_argument("--lock-phase", type=float_in(-0.06, 0.06), default=0.0, metavar="S",
-                    help="with --phase-lock: frames captured / arriving S s after the host cycle's start "
-                         "(rig frame_lock_phase; default 0)")
+    ap.add_argument("--phase-lock", choices=("none", "capture", "arrival"), default="arrival",
+                    help="the lab's camera renders a frame every --cycles-per-frame control cycles on a fixed clock "
+                         "and the host locks its cycle to their arrival (default) or capture (rig frame_phase_lock); "
+                         "none: a free-running camera, the lab rendering as fast as it can")
+    ap.add_argument("--lock-phase", type=float_in(-0.06, 0.06), default=0.038, metavar="S",
+                    help="with --phase-lock: frames arriving / captured S s after the host cycle's start "
+                         "(rig frame_lock_phase; default 0.038: commands ~45 ms after it, the in-process instant)")
     ap.add_argument("--frame-wait", type=float_in(0.0, 0.05), default=0.05, metavar="S",
                     help="with --phase-lock: the host's rig frame_wait (default 0.05)")
     ap.add_argument("--cycles-per-frame", type=int_in(1, 4), default=1,

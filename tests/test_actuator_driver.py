@@ -107,3 +107,28 @@ def test_set_psi_sends_the_actuation_map() -> None:
         drv.close()
     finally:
         dev.close()
+
+
+def test_a_device_end_closing_between_write_and_flush_is_a_disconnect() -> None:
+    """pyserial's flush (tcdrain) on a pty whose other end has gone raises termios.error, which
+    is no OSError: it must still become the typed disconnect (servo then stops safely, exit 3),
+    not an internal error."""
+    import termios
+
+    from wristmark.rig.actuator_driver import ActuatorDisconnected
+
+    dev = ScriptedDevice(lambda req, n: _state(req.seq))
+    try:
+        drv = ActuatorDriver(dev.path, timeout=0.05, retries=0)
+        assert drv.get_state().enabled  # the pty answers
+
+        def gone() -> None:
+            raise termios.error(5, "Input/output error")
+
+        assert drv._port is not None
+        drv._port.flush = gone  # type: ignore[method-assign]
+        with pytest.raises(ActuatorDisconnected, match="failed on write"):
+            drv.get_state()
+        assert not drv.is_open
+    finally:
+        dev.close()

@@ -242,7 +242,7 @@ def test_serial_port_vanishing_mid_run_exits_non_zero_with_one_line(lab: Virtual
     time.sleep(0.3)
     emu.stop()  # cable pulled
     _, err = proc.communicate(timeout=20)
-    assert proc.returncode == 3
+    assert proc.returncode == 3, err
     line = one_line(err)
     assert line.startswith("wristmark servo: error: stopped safely") and path in line
 

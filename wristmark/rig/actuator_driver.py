@@ -31,6 +31,13 @@ from wristmark.models.limits import actuator_bounds
 from wristmark.models.robot_params import RobotParams
 from wristmark.rig import protocol as P
 
+try:  # pyserial's POSIX port: flush (tcdrain) and the buffer resets raise termios.error, not OSError
+    import termios
+
+    PORT_ERRORS: tuple[type[Exception], ...] = (serial.SerialException, OSError, termios.error)
+except ImportError:  # pragma: no cover - not POSIX
+    PORT_ERRORS = (serial.SerialException, OSError)
+
 Array = NDArray[np.float64]
 
 
@@ -144,7 +151,7 @@ class ActuatorDriver:
         if self._port is not None:
             try:
                 self._port.close()
-            except (serial.SerialException, OSError):
+            except PORT_ERRORS:
                 pass
             self._port = None
 
@@ -186,7 +193,7 @@ class ActuatorDriver:
         try:
             port.write(data)
             port.flush()
-        except (serial.SerialException, OSError) as e:
+        except PORT_ERRORS as e:  # e.g. the device's end closed between the write and the flush
             self.close()
             raise ActuatorDisconnected(f"actuator port {self.url!r} failed on write: {e}; reconnect") from e
 
@@ -194,7 +201,7 @@ class ActuatorDriver:
         port = self._port_or_raise()
         try:
             return bytes(port.read(port.in_waiting or 1))
-        except (serial.SerialException, OSError) as e:
+        except PORT_ERRORS as e:
             self.close()
             raise ActuatorDisconnected(f"actuator port {self.url!r} failed on read: {e}; reconnect") from e
 

@@ -26,12 +26,12 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-import serial
 from numpy.typing import NDArray
 
 from wristmark.models.limits import actuator_bounds
 from wristmark.models.robot_params import RobotParams
 from wristmark.rig.actuator_driver import (
+    PORT_ERRORS,
     ActuatorDriver,
     ActuatorError,
     ActuatorEStopped,
@@ -41,6 +41,7 @@ from wristmark.rig.actuator_driver import (
 )
 
 Array = NDArray[np.float64]
+CLOSE_ERRORS: tuple[type[Exception], ...] = (ActuatorError, *PORT_ERRORS)  # what close() reports, never raises
 
 KEEPALIVE_S = 0.1  # [s] longest host silence while time advances (device watchdog: 0.25 s)
 _HOLD_MARGIN = 1e-6  # [m or rad] a held target stays this far inside the limits (micro-unit rounding)
@@ -204,7 +205,7 @@ class SerialLink:
                 break
             try:
                 step()
-            except (ActuatorError, serial.SerialException, OSError) as e:
+            except CLOSE_ERRORS as e:
                 problems.append(f"{name} failed: {e}")
         self.driver.close()
         self.close_error = "; ".join(problems)

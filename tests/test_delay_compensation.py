@@ -251,16 +251,16 @@ def test_the_loop_compensates_with_the_arm_expected_not_the_motor_commands() -> 
     rig = RigConfig(sensor="truth-noise", delay_compensation=True, delay_compensation_tau=0.0)
     loop = ServoLoop(P, rig, _NullLink(), controller=_FixedOutput())  # type: ignore[arg-type]
     loop.t = 0.0
-    loop._send(PSI_B)
+    loop.send(PSI_B)
     loop.t = 0.05
-    loop._send(PSI_C)
+    loop.send(PSI_C)
     np.testing.assert_array_equal(loop.link.sent, actuators_from_psi(P, PSI_C))  # type: ignore[attr-defined]
     assert loop.delay is not None
     np.testing.assert_array_equal(loop.delay.predicted_motion(0.01, 0.06), np.zeros(3))
     plain = ServoLoop(P, rig, _NullLink())  # no controller: the commands are the model
     plain.t = 0.0
-    plain._send(PSI_B)
+    plain.send(PSI_B)
     plain.t = 0.05
-    plain._send(PSI_C)
+    plain.send(PSI_C)
     assert plain.delay is not None
     assert np.linalg.norm(plain.delay.predicted_motion(0.01, 0.06)) > 1e-3

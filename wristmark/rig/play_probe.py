@@ -100,12 +100,12 @@ def run_play_probe(loop: ServoLoop, template: CycleTarget, phase: str, log: RunL
         offsets = triangle(n, cfg.play_probe_amplitude * float(play_max[j]))
         for i in range(n + 1):
             target = dataclasses.replace(template, k=len(samples.probed), t=loop.t + dt, settling=False)
-            loop._advance(target.t)
+            loop.advance_to(target.t)
             hint, ok = _sample(loop, target, phase, log, memory, stats, j, samples, reads, hint)
             lost = 0 if ok else lost + 1
             if lost > loop.rig.max_lost_cycles:  # as in the loop: a lost marker holds the arm
                 loop.link.hold()
-                at = target.t - loop._sim0
+                at = loop.elapsed(target.t)
                 stats.stopped = f"marker lost for {lost} cycles during the play probe at t = {at:.2f} s"
                 raise MarkerLostError(stats.stopped + ": arm held", stats)
             if i < n:
@@ -114,10 +114,10 @@ def run_play_probe(loop: ServoLoop, template: CycleTarget, phase: str, log: RunL
                 want = clamp_psi(params, psi_from_actuators(params, a, delta_hint=base))
                 psi = clamp_psi(params, psi + clamp_velocity(params, (want - psi) / dt) * dt)
                 loop.psi_cmd = psi
-                loop._send(psi)
+                loop.send(psi)
         # fitted at once, a cycle's work (on the wall clock the box's watchdog wants a command
         # every 250 ms: six fits at the end were 0.47 s of silence in the virtual lab)
-        loop._send(psi)
+        loop.send(psi)
         rows = np.flatnonzero(np.asarray(samples.probed) == j)
         raw.append(fit_play(np.asarray(samples.motor)[rows, j], np.asarray(samples.arm)[rows, j], float(play_max[j])))
     fits = _carry(raw, samples, np.asarray([m for _, m in reads]))
@@ -125,10 +125,10 @@ def run_play_probe(loop: ServoLoop, template: CycleTarget, phase: str, log: RunL
     u = np.array([f.first_output if f.ok else a0[j] for j, f in enumerate(fits)])
     out = ctrl.start_play(fits, reads[-1][1], psi_from_actuators(params, u, delta_hint=base))
     loop.psi_cmd = base if out is None else out
-    loop._send(loop.psi_cmd)
+    loop.send(loop.psi_cmd)
     for _ in range(RESTORE_CYCLES):  # the motors reach it before the feedback resumes
         target = dataclasses.replace(template, k=len(samples.probed), t=loop.t + dt, settling=False)
-        loop._advance(target.t)
+        loop.advance_to(target.t)
         _sample(loop, target, phase, log, memory, stats, 5, samples, reads, hint)
     return fits
 
@@ -141,9 +141,9 @@ def _sample(loop: ServoLoop, target: CycleTarget, phase: str, log: RunLog, memor
     assert loop.sensor is not None and loop.psi_cmd is not None
     params = loop.params
     t_wall = time.monotonic()
-    frame = loop._take_frame(target, phase, memory, stats)
-    reads.append((loop._now(), on_micro_grid(loop.link.measured_actuators())))
-    truth = loop._observe()
+    frame = loop.take_frame(target, phase, memory, stats)
+    reads.append((loop.now(), on_micro_grid(loop.link.measured_actuators())))
+    truth = loop.observe()
     axis = forward_kinematics(params, loop.psi_cmd).T_world_marker[:3, 2]  # which way the marker points
     meas = None if frame is None else loop.sensor.measure(frame, axis_hint_world=axis)
     y = np.full(6, np.nan)

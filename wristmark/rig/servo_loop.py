@@ -124,7 +124,9 @@ class ServoLoop:
         self.phase_lock = FramePhaseLock(rig.frame_lock_phase, rig.control_dt) if lock else None
 
     # -- time and commands ----------------------------------------------------------------
-    def _advance(self, t: float) -> None:
+    def advance_to(self, t: float) -> None:
+        """Let the loop's time run to ``t`` [s] (the link waits on the wall clock or steps the
+        simulated world; a real-time simulated loop also sleeps to keep pace)."""
         if self.rig.realtime and not self.wall_clock:
             ahead = (t - self._sim0) - (time.perf_counter() - self._wall0)
             if ahead > 0:
@@ -132,15 +134,21 @@ class ServoLoop:
         self.link.advance_to(t)
         self.t = t
 
-    def _now(self) -> float:
+    def now(self) -> float:
         """The time on the frames' clock [s]: the wall clock, or the loop's simulated time."""
         return time.monotonic() if self.wall_clock else self.t
 
-    def _send(self, psi: Array) -> None:
+    def elapsed(self, t: float) -> float:
+        """Time [s] from the loop's start to ``t`` on its clock."""
+        return t - self._sim0
+
+    def send(self, psi: Array) -> None:
+        """Send the configuration ``psi`` [rad, m, ...] to the link, and record it for the delay
+        compensation as the configuration the arm should follow."""
         self.link.send_target(actuators_from_psi(self.params, psi))
         if self.delay is not None:  # what the arm should do: a dead-band inversion's offsets do not move it
             expected = self.controller.output_model(psi) if self.controller is not None else psi
-            self.delay.record(self._now(), expected)
+            self.delay.record(self.now(), expected)
 
     def start_at(self, psi: Array) -> None:
         """Move to ``psi`` and let the arm settle there (2 s).
@@ -152,11 +160,11 @@ class ServoLoop:
         dt = self.rig.control_dt
         for step in ramp_to(self.params, self._encoder_psi(target), target, dt):
             self.psi_cmd = step
-            self._send(step)
-            self._advance(self.t + dt)
+            self.send(step)
+            self.advance_to(self.t + dt)
         self.psi_cmd = target
-        self._send(target)
-        self._advance(self.t + 2.0)
+        self.send(target)
+        self.advance_to(self.t + 2.0)
 
     def _encoder_psi(self, hint: Array) -> Array:
         """The configuration the encoders report (``hint`` picks delta where it is ambiguous)."""
@@ -211,7 +219,7 @@ class ServoLoop:
         k = 0
         while k < n:
             target = cycle_target(traj, self.rig, k, t0 + k * dt + self._grid_shift() - shift0, n_settle)
-            self._advance(target.t)
+            self.advance_to(target.t)
             t_wall = time.monotonic()
             missed = min(int((t_wall - target.t) // dt), n - 1 - k) if self.wall_clock else 0
             if missed > 0:  # a whole cycle late on the wall clock: skip to the current cycle
@@ -238,15 +246,16 @@ class ServoLoop:
             if k > unbarred:
                 bar.step()
 
-    def _observe(self) -> TruthSample:
+    def observe(self) -> TruthSample:
+        """The ground-truth observer's sample now (NO_TRUTH without one: hardware)."""
         return self.truth.observe() if self.truth is not None else NO_TRUTH
 
     # -- open loop ------------------------------------------------------------------------
     def _open_cycle(self, target: CycleTarget, t_wall: float, phase: str) -> CycleRecord:
-        truth = self._observe()
+        truth = self.observe()
         assert self.psi_cmd is not None
         self.psi_cmd = clamp_psi(self.params, nominal_ik(self.params, target.p_next, target.R_next, self.psi_cmd))
-        self._send(self.psi_cmd)
+        self.send(self.psi_cmd)
         return self.record(target, t_wall, phase, CycleOutcome(None, truth, False, False, 0.0), float("nan"))
 
     # -- closed loop ----------------------------------------------------------------------
@@ -257,8 +266,8 @@ class ServoLoop:
         # both on the nominal schedule, so a cycle that starts late does not move its command
         self._cycle_start = target.t
         self._command_at = target.t + self.rig.command_phase
-        frame = self._take_frame(target, phase, memory, stats)
-        truth = self._observe()
+        frame = self.take_frame(target, phase, memory, stats)
+        truth = self.observe()
         outcome = self._measure_and_control(frame, truth, target, memory)
         if outcome.accepted:
             memory.lost_run = 0
@@ -267,12 +276,12 @@ class ServoLoop:
             if memory.lost_run > self.rig.max_lost_cycles:
                 self._stop_lost(target, t_wall, phase, outcome, memory, stats)
         if not self.wall_clock:
-            self._advance(target.t + self.rig.vision_latency)  # the simulated processing time
+            self.advance_to(target.t + self.rig.vision_latency)  # the simulated processing time
         else:
             self._wait_for_command_phase(outcome)
         assert self.psi_cmd is not None
-        self._send(self.psi_cmd)
-        latency = self._now() - outcome.meas.t_capture if outcome.accepted and outcome.meas else float("nan")
+        self.send(self.psi_cmd)
+        latency = self.now() - outcome.meas.t_capture if outcome.accepted and outcome.meas else float("nan")
         return self.record(target, t_wall, phase, outcome, latency)
 
     def _grid_shift(self) -> float:
@@ -289,7 +298,7 @@ class ServoLoop:
         if self._command_at > now:
             time.sleep(self._command_at - now)
 
-    def _take_frame(self, target: CycleTarget, phase: str, memory: TrackingMemory,
+    def take_frame(self, target: CycleTarget, phase: str, memory: TrackingMemory,
                     stats: PhaseStats) -> StereoFrame | None:
         """This cycle's frame: on the wall clock one that arrived after the cycle began if it comes
         within ``frame_wait``, else the newest unseen one (None: none at all)."""
@@ -302,7 +311,7 @@ class ServoLoop:
                 frame = self.frames.take()
         except FrameSourceError as e:
             self.link.hold()
-            stats.stopped = f"camera: {e} at t = {target.t - self._sim0:.2f} s"
+            stats.stopped = f"camera: {e} at t = {self.elapsed(target.t):.2f} s"
             raise CameraStalledError(stats.stopped + ": arm held", stats) from None
         if frame is not None:
             self.last_frame = frame
@@ -384,7 +393,7 @@ class ServoLoop:
                    memory: TrackingMemory, stats: PhaseStats) -> None:
         """Hold the arm, log the cycle, raise: the camera stalled or the marker stayed lost."""
         self.link.hold()
-        at = f"at t = {target.t - self._sim0:.2f} s"
+        at = f"at t = {self.elapsed(target.t):.2f} s"
         if memory.last_reason == NO_FRAME:
             waited = memory.lost_run * self.rig.control_dt
             name = self.frames.name if self.frames is not None else "camera"

@@ -318,3 +318,22 @@ def test_reused_buffers_leave_no_trace_and_side_by_side_equals_the_pair() -> Non
     assert np.shares_memory(both, pb.left) and pa.left.flags.c_contiguous
     for k in (0, 1):
         assert np.array_equal(a._rad[k], a._bg[k]) and np.array_equal(a._sig[k], a._bg_signal[k])
+
+
+def test_precomputed_centre_rays_are_the_ray_maps_pixel_centres() -> None:
+    # One sample per pixel traces the rays of RayMap.dirs: through each raw pixel's centre, the
+    # normalized coordinates of its undistorted position, unit length.
+    from wristmark.sim.render_arm import RayMap
+    from wristmark.sim.render_raycast import TILE
+
+    cam = scaled_stereo_camera(load_calibration(DEFAULT), 0.25)
+    rm = RayMap(cam.right, cam.image_size)
+    ty, tx = rm.tiles
+    d = rm.dirs.transpose(0, 3, 1, 2).reshape(ty, TILE, TILE, tx, 3).transpose(0, 1, 3, 2, 4)
+    d = d.reshape(ty * TILE, tx * TILE, 3)  # (v, u, xyz)
+    xy = rm.xy[1:-1, 1:-1]
+    ray = np.concatenate([xy, np.ones(xy.shape[:2] + (1,))], axis=2)
+    np.testing.assert_allclose(d, ray / np.linalg.norm(ray, axis=2, keepdims=True), rtol=0, atol=1e-15)
+    w, h = cam.image_size
+    uv = cam.right.project(d[h // 3, w // 2][None, :] * 0.1)[0]
+    np.testing.assert_allclose(uv, [w // 2, h // 3], atol=1e-6)

@@ -9,10 +9,12 @@ renderer of issue 11 (b) was made faster), extracted once under runs/bench-basel
 kernels compile on the first run there). Each round runs both builds in turn, each in a fresh
 process rendering the same N arm shapes (a warm-up pair first, not counted); per pair it records
 the process's CPU time (time.process_time: every thread, so the machine's other load does not
-count), the wall time and SHA-256 of the left image, the right image and the JPEG. Prints JSON:
-medians per build over all rounds, the ratio this / baseline, and whether every pair's bytes
-are identical between the builds. The machine is shared: CPU time is the measure, wall time
-is noted.
+count), the wall time and SHA-256 of the left image, the right image and the JPEG; then the
+same pairs again with each stage's thread CPU time summed (the sim.render names of STAGES; the
+rest is copies, np.hstack, the JPEG encode and thread hand-offs). Prints JSON: medians per build
+over all rounds (``fps_cpu_2_cores``: the rate if the pipeline had both cores to itself), the
+ratio this / baseline, and whether every pair's bytes are identical between the builds. The
+machine is shared: CPU time is the measure, wall time is noted.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 BASELINE = "e8dedf81853666ebe61f22dcb0e4fe510110ba11"  # main before issue 11 (b)'s faster renderer
+STAGES = ("plan_arm", "render_arm", "optics_signal_box", "optics_signal", "sensor_image")  # names in sim.render
 
 
 def _worker(a: argparse.Namespace) -> None:
@@ -77,7 +80,35 @@ def _worker(a: argparse.Namespace) -> None:
         cpu.append(1e3 * (time.process_time() - c0))
         wall.append(1e3 * (time.perf_counter() - w0))
         digests.append([hashlib.sha256(b).hexdigest()[:16] for b in (left, right, jpeg)])
-    print(json.dumps({"cpu_ms": cpu, "wall_ms": wall, "sha": digests}))
+    # where the CPU goes: the same shapes again, each stage's thread CPU time summed over both threads
+    from wristmark.sim import render as render_module
+
+    stages: dict[str, float] = {k: 0.0 for k in STAGES}
+    originals = {k: getattr(render_module, k) for k in STAGES}
+
+    def timed(name: str, fn: Any) -> Any:
+        def wrapper(*args: Any, **kw: Any) -> Any:
+            t = time.thread_time()
+            try:
+                return fn(*args, **kw)
+            finally:
+                stages[name] += time.thread_time() - t
+
+        return wrapper
+
+    for k in STAGES:
+        setattr(render_module, k, timed(k, originals[k]))
+    try:
+        t_all = time.process_time()
+        for s in shapes[1:]:
+            one(s)
+        t_all = time.process_time() - t_all
+    finally:
+        for k, fn in originals.items():
+            setattr(render_module, k, fn)
+    per_pair = {k: 1e3 * v / a.pairs for k, v in stages.items()}
+    per_pair["rest (copies, hstack, JPEG encode, threads)"] = 1e3 * t_all / a.pairs - sum(per_pair.values())
+    print(json.dumps({"cpu_ms": cpu, "wall_ms": wall, "sha": digests, "stages_ms": per_pair}))
 
 
 def _baseline_dir(ref: str) -> Path:
@@ -130,7 +161,9 @@ def main() -> None:
         cpu = [c for r in rs for c in r["cpu_ms"]]
         wall = [w for r in rs for w in r["wall_ms"]]
         res[k] = {"cpu_ms_median": round(float(np.median(cpu)), 1), "wall_ms_median": round(float(np.median(wall)), 1),
-                  "fps_cpu_2_cores": round(2000 / float(np.median(cpu)), 1)}
+                  "fps_cpu_2_cores": round(2000 / float(np.median(cpu)), 1),
+                  "stage_cpu_ms_per_pair": {n: round(float(np.median([r["stages_ms"][n] for r in rs])), 1)
+                                            for n in rs[0]["stages_ms"]}}
     res["cpu_ratio"] = round(res["this"]["cpu_ms_median"] / res["baseline"]["cpu_ms_median"], 3)
     res["wall_ratio"] = round(res["this"]["wall_ms_median"] / res["baseline"]["wall_ms_median"], 3)
     sha = [r["sha"] for r in runs["baseline"] + runs["this"]]

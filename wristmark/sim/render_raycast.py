@@ -327,10 +327,10 @@ def _supersample(xy: F64, prim: I64, p0: int, p1: int, caps: F64, sleeve: F64, p
     nss = ss * ss
     for p in range(TILE * TILE):
         if need[p] and cnt[p] > 0:
-            o = out[tv + p // TILE - v0, tu + p % TILE - u0]
+            a, b = tv + p // TILE - v0, tu + p % TILE - u0
             miss = nss - cnt[p]
             for c in range(3):
-                o[c] = (acc[p, c] + miss * o[c]) / nss
+                out[a, b, c] = (acc[p, c] + miss * out[a, b, c]) / nss
     return count
 
 

@@ -244,3 +244,96 @@ def test_render_stage_inputs_validated() -> None:
         optics_signal_box(img, (0, 0), (2, 2, 4, 4), img, RenderSettings(motion_blur=3.0))
     with pytest.raises(InputError, match="patch must cover"):
         optics_signal_box(img[:4], (0, 0), (2, 2, 4, 4), img, RenderSettings())
+    with pytest.raises(InputError, match="out must be"):
+        sensor_image(img, RenderSettings(), 0, out=np.zeros((8, 16, 3), np.uint8)[:, ::2])
+
+
+# --- the faster pipeline (issue 11 b): same bytes as the straightforward one ------------------
+
+
+def _reference_sensor(signal: np.ndarray, st: RenderSettings, key: int) -> np.ndarray:
+    """The sensor of the module docstring of sim.render_sensor, written again in numpy (float32)."""
+    from wristmark.sim.render_sensor import normal_table
+
+    n = signal.size
+    k = np.arange((n + 3) // 4, dtype=np.uint64) + np.uint64(1)
+    with np.errstate(over="ignore"):
+        z = np.uint64(key) + k * np.uint64(0x9E3779B97F4A7C15)
+        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        z = z ^ (z >> np.uint64(31))
+    lane = np.arange(n, dtype=np.uint64) & np.uint64(3)
+    field = (z[np.arange(n) // 4] >> (np.uint64(16) * lane)) & np.uint64(0xFFFF)
+    noisy = st.shot_gain > 0 or st.read_noise > 0
+    g = normal_table()[field.astype(np.int64)] if noisy else np.zeros(n, np.float32)
+    s = signal.astype(np.float32).ravel()
+    sd = np.sqrt(np.maximum(s, np.float32(0)) * np.float32(st.shot_gain) + np.float32(st.read_noise**2))
+    x = np.minimum(np.maximum(s + sd * g + np.float32(0.5), np.float32(0)), np.float32(255))
+    return x.astype(np.uint8).reshape(signal.shape)
+
+
+@pytest.mark.parametrize("preset", ["default", "strong", "none"])
+def test_sensor_kernel_equals_a_numpy_reference_also_into_a_wider_image(preset) -> None:
+    # The vectorized kernel gives the bytes of the generator and quantiser its docstring states,
+    # also when it writes one half of a side-by-side image (the noise index is the half's own).
+    from wristmark.sim.render_sensor import sensor_image
+
+    rng = np.random.default_rng(2)
+    st = noise_preset(preset)
+    for shape in ((37, 53, 3), (41, 29)):  # odd sizes: spans that start and end inside a generator word
+        sig = (rng.random(shape) * 280 - 10).astype(np.float32)
+        ref = _reference_sensor(sig, st, 987654321)
+        assert np.array_equal(sensor_image(sig, st, 987654321), ref)
+        wide = np.full((shape[0], 2 * shape[1], *shape[2:]), 7, np.uint8)
+        got = sensor_image(sig, st, 987654321, out=wide[:, shape[1] :])
+        assert np.array_equal(got, ref) and np.array_equal(wide[:, shape[1] :], ref)
+        assert np.all(wide[:, : shape[1]] == 7)  # the other half untouched
+
+
+@pytest.mark.parametrize("settings", [noise_preset("default"), noise_preset("strong")])
+def test_tile_row_optics_equal_the_whole_frame_exactly(half_camera, settings) -> None:
+    # The arm's optics run per tile row over the cached background's: in colour bit for bit the
+    # optics of the whole frame (in grey OpenCV's conversion rounds differently by position:
+    # within 1e-4, test_incremental_optics_equal_full_frame).
+    r = StereoRenderer(half_camera, MarkerModel(), settings, seed=3)
+    for shape in (arm_shape(RobotParams(), PSI), arm_shape(RobotParams(), HOME_PSI)):
+        for cam in (0, 1):
+            assert np.array_equal(r.signal(shape, cam), r.signal(shape, cam, incremental=False))
+
+
+def test_reused_buffers_leave_no_trace_and_side_by_side_equals_the_pair() -> None:
+    # The renderer writes the arm into buffers it keeps and restores: a frame does not depend on
+    # the frames before it, and the side-by-side image holds exactly the two images of render().
+    cam = scaled_stereo_camera(load_calibration(DEFAULT), 0.35)
+    a = StereoRenderer(cam, MarkerModel(), noise_preset("default"), seed=9)
+    b = StereoRenderer(cam, MarkerModel(), noise_preset("default"), seed=9)
+    other, shape = arm_shape(RobotParams(), PSI), arm_shape(RobotParams(), HOME_PSI)
+    a.render(other)  # frame 0: another arm
+    b.render(shape)
+    pa = a.render(shape)  # frame 1 (same noise stream): the same arm
+    both, pb = b.render_side_by_side(shape)
+    w = cam.image_size[0]
+    assert np.array_equal(pa.left, pb.left) and np.array_equal(pa.right, pb.right)
+    assert np.array_equal(both[:, :w], pa.left) and np.array_equal(both[:, w:], pa.right)
+    assert np.shares_memory(both, pb.left) and pa.left.flags.c_contiguous
+    for k in (0, 1):
+        assert np.array_equal(a._rad[k], a._bg[k]) and np.array_equal(a._sig[k], a._bg_signal[k])
+
+
+def test_precomputed_centre_rays_are_the_ray_maps_pixel_centres() -> None:
+    # One sample per pixel traces the rays of RayMap.dirs: through each raw pixel's centre, the
+    # normalized coordinates of its undistorted position, unit length.
+    from wristmark.sim.render_arm import RayMap
+    from wristmark.sim.render_raycast import TILE
+
+    cam = scaled_stereo_camera(load_calibration(DEFAULT), 0.25)
+    rm = RayMap(cam.right, cam.image_size)
+    ty, tx = rm.tiles
+    d = rm.dirs.transpose(0, 3, 1, 2).reshape(ty, TILE, TILE, tx, 3).transpose(0, 1, 3, 2, 4)
+    d = d.reshape(ty * TILE, tx * TILE, 3)  # (v, u, xyz)
+    xy = rm.xy[1:-1, 1:-1]
+    ray = np.concatenate([xy, np.ones(xy.shape[:2] + (1,))], axis=2)
+    np.testing.assert_allclose(d, ray / np.linalg.norm(ray, axis=2, keepdims=True), rtol=0, atol=1e-15)
+    w, h = cam.image_size
+    uv = cam.right.project(d[h // 3, w // 2][None, :] * 0.1)[0]
+    np.testing.assert_allclose(uv, [w // 2, h // 3], atol=1e-6)

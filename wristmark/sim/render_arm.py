@@ -23,7 +23,7 @@ from wristmark.cvs.camera import Camera
 from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
 from wristmark.sim.render_culling import NEAR, cull_tiles
-from wristmark.sim.render_raycast import CAPSULE_COLS, SLEEVE_COLS, TILE, raycast_tiles
+from wristmark.sim.render_raycast import CAPSULE_COLS, SLEEVE_COLS, TILE, ray_directions, raycast_tiles
 
 Array = NDArray[np.float64]
 Box = tuple[int, int, int, int]  # pixel rectangle (u0, v0, u1, v1), u1 and v1 exclusive
@@ -67,7 +67,8 @@ class Sleeve:
 
 class RayMap:
     """Normalized image coordinates (x/z, y/z) of every raw pixel of one camera, padded to whole
-    tiles plus a 1 px border, and per-tile bounds (box, centre, radius) used for culling."""
+    tiles plus a 1 px border, per-tile bounds (box, centre, radius) used for culling, and the
+    unit rays through the pixel centres, per tile (``dirs``: what one sample per pixel traces)."""
 
     def __init__(self, camera: Camera, image_size: tuple[int, int]) -> None:
         w, h = image_size
@@ -82,6 +83,7 @@ class RayMap:
         self.tile_hi = np.ascontiguousarray(blk.max(axis=2))
         self.tile_c = 0.5 * (self.tile_lo + self.tile_hi)
         self.tile_r = np.ascontiguousarray(np.linalg.norm(blk - self.tile_c[:, :, None, :], axis=3).max(axis=2))
+        self.dirs = ray_directions(self.xy, ty, tx)  # (ty, tx, 3, TILE^2) unit rays through the pixel centres
 
     def tiles_box(self, lo: Array, hi: Array) -> Box | None:
         """Pixel rectangle (u0, v0, u1, v1) of the tiles whose rays overlap the normalized box."""
@@ -194,7 +196,7 @@ def render_arm(
         raise InputError(f"out must be a float32 (h, w, 3) image, got {out.dtype} {out.shape}")
     return int(
         raycast_tiles(
-            ray_map.xy, plan.tiles, plan.ptr, plan.prim, plan.caps, plan.sleeve, plan.patches, _MATS, float(gain),
-            bool(flat), bool(adaptive), out, int(origin[0]), int(origin[1]),
+            ray_map.xy, ray_map.dirs, plan.tiles, plan.ptr, plan.prim, plan.caps, plan.sleeve, plan.patches, _MATS,
+            float(gain), bool(flat), bool(adaptive), out, int(origin[0]), int(origin[1]),
         )
     )

@@ -10,7 +10,8 @@ and the box and the stream still answer at once.
 
 :class:`RenderProcess` starts the process (``spawn``: no threads inherited) with the camera,
 marker, noise preset and seed; :meth:`RenderProcess.render_jpeg` sends one :class:`ArmShape`
-and returns the side-by-side pair (left | right) JPEG-encoded, with the render and encode times.
+and returns the side-by-side pair (left | right, rendered into one image: no copy)
+JPEG-encoded, with the render and encode times (:func:`render_pair_jpeg` is that pipeline).
 """
 
 from __future__ import annotations
@@ -21,13 +22,20 @@ import signal
 import time
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera
 from wristmark.models.arm_shape import ArmShape
 from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
 
+if TYPE_CHECKING:  # the renderer (numba, OpenCV) is imported in the render process only
+    from wristmark.sim.render import StereoRenderer
+
+U8 = NDArray[np.uint8]
 START_TIMEOUT_S = 120.0  # [s] the process imports numba, OpenCV and the scene on a loaded host
 
 
@@ -40,15 +48,30 @@ class RenderedJpeg:
     encode_ms: float
 
 
+def encode_jpeg(image: U8, quality: int) -> bytes:
+    """JPEG bytes of a uint8 image (BGR or grey) at ``quality`` (1-100)."""
+    import cv2
+
+    ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    if not ok:
+        raise InputError("JPEG encoding failed")
+    return bytes(buf.tobytes())
+
+
+def render_pair_jpeg(renderer: StereoRenderer, shape: ArmShape, quality: int) -> tuple[bytes, U8, U8]:
+    """What the render process does per frame: render ``shape`` (in {w} [m]) into one
+    side-by-side image (left | right, no copy) and JPEG-encode it at ``quality`` (1-100).
+    Returns (the JPEG, the left image, the right image), the images views of that one buffer."""
+    both, pair = renderer.render_side_by_side(shape)
+    return encode_jpeg(both, quality), pair.left, pair.right
+
+
 def _serve(conn: Connection, camera: StereoCamera, marker: MarkerModel, noise: str, seed: int, quality: int,
            rt_priority: int | None) -> None:
     """The render process: a shape in, a RenderedJpeg (or an error line) out, until None or EOF."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the lab's to handle, not ours
     try:
         os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
-        import cv2
-        import numpy as np
-
         from wristmark.sim.render import StereoRenderer
         from wristmark.sim.render_settings import noise_preset
 
@@ -70,12 +93,10 @@ def _serve(conn: Connection, camera: StereoCamera, marker: MarkerModel, noise: s
             return
         try:
             r0 = time.perf_counter()
-            pair = renderer.render(shape)
+            both, _ = renderer.render_side_by_side(shape)
             r1 = time.perf_counter()
-            ok, buf = cv2.imencode(".jpg", np.hstack([pair.left, pair.right]), [cv2.IMWRITE_JPEG_QUALITY, quality])
-            if not ok:
-                raise InputError("JPEG encoding failed")
-            out: Any = RenderedJpeg(buf.tobytes(), 1e3 * (r1 - r0), 1e3 * (time.perf_counter() - r1))
+            jpeg = encode_jpeg(both, quality)
+            out: Any = RenderedJpeg(jpeg, 1e3 * (r1 - r0), 1e3 * (time.perf_counter() - r1))
         except Exception as e:  # noqa: BLE001 - one line for the lab
             out = f"error: {type(e).__name__}: {e}"
         try:

@@ -278,15 +278,18 @@ def main() -> int:
             RigConfig.load(rig_file)
         for scale in a.scales:
             sustained = sustained_fps(scale)
-            # the lab renders as fast as it can (up to --max-fps); its box and stream run in real
-            # time, its rendering only where the renderer does not need both cores (in real time
-            # it would eat the machine's real-time budget and throttle the host's loop)
-            rt_render = rt and sustained["fps"] >= 1.5 * a.max_fps_rt
             base_dt = RigConfig.load(a.rig).control_dt
             dt = camera_matched_cycle(sustained["fps"], base_dt, a.lab_share) if a.camera_matched else None
             fps = a.max_fps if dt is None else min(a.max_fps, 1.25 / dt)  # a little faster than the loop
             if a.phase_lock != "none":
                 fps = 1.0 / (a.cycles_per_frame * (dt or base_dt))
+            # the lab's box and stream run in real time, its rendering only where the renderer
+            # leaves a core's worth to spare: at 1.5 x --max-fps-rt alone and, for a camera at a
+            # fixed rate, 1.5 x that rate (in real time a renderer that needs most of both cores
+            # eats the machine's real-time budget and starves the host's loop: at 1080p, locked
+            # at 16.7 fps with 18.5 fps alone, the host skipped 55 cycles)
+            need = max(a.max_fps_rt, fps if a.phase_lock != "none" else 0.0)
+            rt_render = rt and sustained["fps"] >= 1.5 * need
             lab = lab_run(scale, fps, a.duration, Path(tmp), rt, rt_render, rig_file, dt, scenario)
             lab["lab_realtime_priority"] = {"box_and_stream": rt, "rendering": rt_render}
             ref = None if a.skip_in_process else in_process_run(scale, a.duration, a.rig, dt, scenario)

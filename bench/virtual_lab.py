@@ -284,12 +284,12 @@ def main() -> int:
             if a.phase_lock != "none":
                 fps = 1.0 / (a.cycles_per_frame * (dt or base_dt))
             # the lab's box and stream run in real time, its rendering only where the renderer
-            # leaves a core's worth to spare: at 1.5 x --max-fps-rt alone and, for a camera at a
-            # fixed rate, 1.5 x that rate (in real time a renderer that needs most of both cores
-            # eats the machine's real-time budget and starves the host's loop: at 1080p, locked
-            # at 16.7 fps with 18.5 fps alone, the host skipped 55 cycles)
-            need = max(a.max_fps_rt, fps if a.phase_lock != "none" else 0.0)
-            rt_render = rt and sustained["fps"] >= 1.5 * need
+            # leaves most of the machine to spare: at 1.5 x --max-fps-rt alone and, for a camera
+            # at a fixed rate, 2 x that rate (in real time a renderer that needs most of both
+            # cores eats the machine's real-time budget and starves the host's loop: at 1080p,
+            # locked at 16.7 fps, the host skipped 55 cycles with 18.5 fps alone and 34 with 26.1)
+            rt_render = rt and sustained["fps"] >= 1.5 * a.max_fps_rt and (
+                a.phase_lock == "none" or sustained["fps"] >= 2.0 * fps)
             lab = lab_run(scale, fps, a.duration, Path(tmp), rt, rt_render, rig_file, dt, scenario)
             lab["lab_realtime_priority"] = {"box_and_stream": rt, "rendering": rt_render}
             ref = None if a.skip_in_process else in_process_run(scale, a.duration, a.rig, dt, scenario)

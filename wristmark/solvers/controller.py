@@ -29,6 +29,7 @@ Array = NDArray[np.float64]
 
 
 BACKLASH_METHODS = ("schmitt", "encoders")
+INTEGRAL_MODES = ("plain", "path")
 
 
 @dataclass(frozen=True)
@@ -44,7 +45,9 @@ class ControllerConfig:
     tip-velocity error (S converts rad to tip metres, ``lever`` [m/rad]); orientation_weight:
     weight [m^2/rad^2] on keeping the tip frame's orientation (0 = position only); ki: integral
     gain on the tip error [1/s^2] (0 = none), its velocity capped at integral_speed_limit [m/s]
-    (solvers/tip_integral.py). Both kinds: backlash_compensation turns on the dead-band inversion
+    (solvers/tip_integral.py); integral_mode: "plain" (ki sum(e dt)) or "path" (ki G v_des, the
+    mismatch learnt as a linear map of the desired velocity: it turns with the path at a corner).
+    Both kinds: backlash_compensation turns on the dead-band inversion
     of solvers/backlash_compensation.py: backlash_play_max [rad, m, m, m, m, m] (actuators phi,
     d, s1a, s1b, s2a, s2b) bounds the play it may assume, the estimate starts at backlash_start
     x that bound and (backlash_learning) is learnt at every reversal over backlash_window [s]
@@ -87,6 +90,7 @@ class ControllerConfig:
     qp_solver: str = "daqp"
     ki: float = 0.0
     integral_speed_limit: float = 0.003
+    integral_mode: str = "plain"
     backlash_compensation: bool = False
     backlash_play_max: tuple[float, ...] = (0.012, 0.0002, 0.00016, 0.00016, 0.00016, 0.00016)
     backlash_start: float = 0.25
@@ -134,6 +138,8 @@ class ControllerConfig:
         if self.play_probe_time <= 0.0 or self.play_probe_settle < 0.0:
             raise ConfigError(f"'play_probe_time' must be > 0 and 'play_probe_settle' >= 0 [s], got "
                               f"{self.play_probe_time} and {self.play_probe_settle}")
+        if self.integral_mode not in INTEGRAL_MODES:
+            raise ConfigError(f"'integral_mode' must be one of {', '.join(INTEGRAL_MODES)}, got {self.integral_mode!r}")
         if self.qp_solver not in ("daqp", "qpoases"):
             raise ConfigError(f"'qp_solver' must be daqp or qpoases, got {self.qp_solver!r}")
 

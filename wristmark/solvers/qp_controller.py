@@ -13,7 +13,9 @@ sat(kr e_axis)), e_axis the shortest turn of the measured axis onto the desired 
 direction (2 DoF) is controlled and the roll about it only damped, never steered by a guess.
 
 v_ref = v_des (feed-forward) + sat(kp (p_des - p_meas), max_correction_speed) + v_i [m/s], v_i the
-clamped integral ki sum(e dt) of solvers/tip_integral.py (ki = 0: none); Jv, Jw the
+clamped integral ki sum(e dt) of solvers/tip_integral.py (ki = 0: none; ``integral_mode: path``:
+ki G v_des, the mismatch learnt as a map of the desired velocity, which turns with the path at
+a corner); Jv, Jw the
 linear / angular rows of the 6x6 tip Jacobian in {w}; S = diag(lever, 1, lever, ...) turns
 joint rates into tip-scale metres so one damping weight fits rad and m; the box folds in the
 velocity limits and psi + psi_dot dt inside the joint limits. The QP is built once as a CasADi
@@ -122,7 +124,9 @@ class QpController(Controller):
         err = p_des - p_meas
         saturated = float(np.linalg.norm(cfg.kp * err)) > cfg.max_correction_speed
         fb = saturate(cfg.kp * err, cfg.max_correction_speed)
-        if dt > 0.0:
+        if dt > 0.0 and cfg.integral_mode == "path":
+            fb = fb + self.integral.update_path(err, v_des, dt, saturated)
+        elif dt > 0.0:
             fb = fb + self.integral.update(err, dt, saturated)
         if cfg.feed_forward and v_des is not None:
             fb = fb + v_des

@@ -220,11 +220,24 @@ class MarkerCornerDetector:
         """ROI around the previous corners (paper III.A(1)) when there are some and the marker is
         found there, else the whole frame; uint8 grey or BGR."""
         img = check_image(gray)
-        if self._last is not None:
-            det = self.detect(img, self._box(self._last, (img.shape[0], img.shape[1])))
+        box = self.previous_roi((img.shape[0], img.shape[1]))
+        if box is not None:
+            det = self.detect(img, box)
             if det.corners.shape[0] >= self.settings.min_corners:
                 return det
         return self.detect(img)
+
+    def follow(self, corners: Array) -> None:
+        """Centre the next ROI search on ``corners`` (N, 2) [px] found otherwise (e.g. by another
+        detector in this pair); fewer than two forget the ROI."""
+        c = np.asarray(corners, float).reshape(-1, 2)
+        self._last = c.copy() if c.shape[0] >= 2 else None
+
+    def previous_roi(self, shape: tuple[int, ...]) -> Roi | None:
+        """The box (x, y, w, h) [px] that ``track`` searches first in an image of ``shape`` (rows,
+        cols, ...): around the previous corners, with room for one more at either end; None when
+        the previous search found no marker."""
+        return None if self._last is None else self._box(self._last, (int(shape[0]), int(shape[1])))
 
     def reset(self) -> None:
         """Forget the ROI (next ``track`` searches the whole frame)."""

@@ -198,14 +198,28 @@ class SaddleCornerDetector:
         """ROI around the previous corners when there are some, else the whole frame (grey or BGR:
         in the ROI only the box is converted)."""
         img = np.asarray(gray)
-        if self._last is not None:
-            m = self.settings.roi_margin_px
-            lo = np.maximum(np.floor(self._last.min(axis=0)) - m, 0).astype(int)
-            hi = np.minimum(np.ceil(self._last.max(axis=0)) + m, [img.shape[1] - 1, img.shape[0] - 1]).astype(int)
-            det = self.detect(img, (int(lo[0]), int(lo[1]), int(hi[0] - lo[0] + 1), int(hi[1] - lo[1] + 1)))
+        box = self.previous_roi(img.shape)
+        if box is not None:
+            det = self.detect(img, box)
             if det.corners.shape[0] >= self.settings.min_corners:
                 return det
         return self.detect(_gray(img))
+
+    def follow(self, corners: Array) -> None:
+        """Centre the next ROI search on ``corners`` (N, 2) [px] found otherwise (e.g. by another
+        detector in this pair); fewer than two forget the ROI."""
+        c = np.asarray(corners, float).reshape(-1, 2)
+        self._last = c.copy() if c.shape[0] >= 2 else None
+
+    def previous_roi(self, shape: tuple[int, ...]) -> tuple[int, int, int, int] | None:
+        """The box (x, y, w, h) [px] that ``track`` searches first in an image of ``shape`` (rows,
+        cols, ...): the previous corners plus ``roi_margin_px``; None when there are none."""
+        if self._last is None:
+            return None
+        m = self.settings.roi_margin_px
+        lo = np.maximum(np.floor(self._last.min(axis=0)) - m, 0).astype(int)
+        hi = np.minimum(np.ceil(self._last.max(axis=0)) + m, [shape[1] - 1, shape[0] - 1]).astype(int)
+        return int(lo[0]), int(lo[1]), int(hi[0] - lo[0] + 1), int(hi[1] - lo[1] + 1)
 
     def reset(self) -> None:
         """Forget the ROI (next ``track`` searches the whole frame)."""

@@ -15,11 +15,17 @@ from wristmark.models.errors import InputError
 
 class CornerDetector(Protocol):
     """What the tracker needs from a detector (cvs.corner_detector.MarkerCornerDetector):
-    ``detect`` gets grey frames, ``track`` grey or BGR ones (it converts only what it searches)."""
+    ``detect`` gets grey frames (or grey / BGR ones with a ``roi``), ``track`` grey or BGR ones (it
+    converts only what it searches); ``previous_roi`` is the box ``track`` searches first, or None;
+    ``follow`` centres the next one on corners found otherwise."""
 
     def detect(self, gray: Any, roi: Any = None) -> Any: ...
 
     def track(self, gray: Any) -> Any: ...
+
+    def previous_roi(self, shape: tuple[int, ...]) -> Any: ...
+
+    def follow(self, corners: Any) -> None: ...
 
 
 @dataclass(frozen=True)

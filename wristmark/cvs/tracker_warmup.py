@@ -12,8 +12,8 @@ pair with a second tracker. Paced at 60 fps (16.7 ms a frame) each of those drop
 :func:`warm_up_tracker` runs every path once on synthetic frames of the calibration's size
 (cvs.synthetic_marker: real pixels of the sleeve, code patches included), then forgets the
 state: a cold pair (whole-frame search, every start pose, the direction and the code), the same
-pair in ROI tracking, the pair with an axis hint, and an empty pair (the ROI misses, the whole
-frame is searched again and the second detector runs).
+pair in ROI tracking, the pair with an axis hint, and an empty pair (the ROIs miss, the second
+detector tries the same boxes, the whole frames are searched and the second detector runs).
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ One cycle k at t_k = t0 + k dt on the loop's clock:
    so that the camera's frames come at a fixed phase of the cycle;
 2. closed loop: a stereo frame is taken from the frame feed (the simulated bench renders the
    true arm now; a live camera hands out its newest frame, waiting a bounded time for one
-   captured after t_k); the tip sensor measures it; the measurement is gated (jump from the
+   that arrives after t_k); the tip sensor measures it; the measurement is gated (jump from the
    previous accepted one, distance from the model's commanded tip); the controller computes the
    next commanded configuration, clamped to the joint and velocity limits; no frame, a lost or a
    rejected measurement holds the arm (the command unchanged). Open loop: the nominal model's
@@ -113,6 +113,7 @@ class ServoLoop:
         self.psi_cmd: Array | None = None
         self._wall0 = time.perf_counter()
         self._sim0 = self.t
+        self._advanced = False  # a cycle (or a ramp step) has had its time: self.t is its start
         self._cycle_start = -math.inf  # wall clock: the current cycle's start [s]
         self._command_at = -math.inf  # wall clock: the current cycle's command instant [s]
         self.ready_after_arrival_ms: list[float] = []  # wall clock: frame arrival -> command computed
@@ -133,6 +134,7 @@ class ServoLoop:
                 time.sleep(ahead)
         self.link.advance_to(t)
         self.t = t
+        self._advanced = True
 
     def now(self) -> float:
         """The time on the frames' clock [s]: the wall clock, or the loop's simulated time."""
@@ -214,7 +216,10 @@ class ServoLoop:
         """Cycles 0..n-1 from now, the first ``n_settle`` of them holding the trajectory's start
         (the first ``unbarred`` of them not shown on the bar: the settle after a play probe)."""
         dt = self.rig.control_dt
-        t0 = self.t
+        # on the wall clock self.t is the last cycle's start: the grid goes on a cycle later (a new
+        # grid at that same instant began a whole cycle late, and a loop late by most of a cycle
+        # could stay a frame behind its camera); the simulated clock is past it by the latency
+        t0 = self.t + dt if self.wall_clock and self._advanced else self.t
         shift0 = self._grid_shift()
         k = 0
         while k < n:
@@ -300,13 +305,14 @@ class ServoLoop:
 
     def take_frame(self, target: CycleTarget, phase: str, memory: TrackingMemory,
                     stats: PhaseStats) -> StereoFrame | None:
-        """This cycle's frame: on the wall clock one that arrived after the cycle began if it comes
-        within ``frame_wait``, else the newest unseen one (None: none at all)."""
+        """This cycle's frame: on the wall clock one that arrived after the cycle's nominal start
+        (a cycle that starts late takes it at once) if it comes within ``frame_wait`` of the
+        cycle's actual start, else the newest unseen one (None: none at all)."""
         assert self.frames is not None
         try:
-            if self.wall_clock:
+            if self.wall_clock:  # a frame that arrived since the cycle's nominal start is its frame
                 t_start = time.monotonic()
-                frame = self.frames.take(fresh_after=t_start, wait_until=t_start + self.frame_wait)
+                frame = self.frames.take(fresh_after=min(target.t, t_start), wait_until=t_start + self.frame_wait)
             else:
                 frame = self.frames.take()
         except FrameSourceError as e:

@@ -28,6 +28,8 @@ Prints one JSON object. Targets (issue 11): host latency beyond the transport <=
 (median); lab true-tip error within 20 % of the in-process run.
 ``--plant``, ``--marker``, ``--controller-config``, ``--orientation``: another arm, marker, controller
 or orientation mode for both loops (e.g. the unseen arm with the coded marker, orientation held).
+``--reference-seeds S ...``: the in-process run again with each seed of the rig's noise (render,
+tracker): its spread, and the lab against the mean of those runs (``in_process_seeds``).
 Usage: .venv/bin/python bench/virtual_lab.py [--duration S] [--scales 1 0.5] [--skip-video] [--camera-matched]
        [--phase-lock none]
        [--plant configs/plant_unseen.yaml --marker configs/marker_coded.yaml --orientation hold]
@@ -182,10 +184,10 @@ def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_r
 
 
 def in_process_run(scale: float, duration: float, rig: str | None = None, dt: float | None = None,
-                   scenario: Scenario = Scenario()) -> dict[str, Any]:
+                   scenario: Scenario = Scenario(), seed: int | None = None) -> dict[str, Any]:
     """The same cube on the in-process bench (pty emulator, simulated clock; rig: the rig file,
     default the shipped one; dt: the control cycle [s], default the rig file's; scenario: plant,
-    marker, controller, orientation)."""
+    marker, controller, orientation; seed: the rig's seed, default the rig file's)."""
     import dataclasses
 
     from wristmark.cli import servo as S
@@ -196,7 +198,8 @@ def in_process_run(scale: float, duration: float, rig: str | None = None, dt: fl
 
     setup = load_setup(plant=scenario.plant, marker=scenario.marker, controller=scenario.controller)
     base = RigConfig.load(rig) if rig else setup.rig
-    changes: dict[str, Any] = {"image_scale": scale, **({"control_dt": dt} if dt else {})}
+    changes: dict[str, Any] = {"image_scale": scale, **({"control_dt": dt} if dt else {}),
+                               **({"seed": seed} if seed is not None else {})}
     setup = setup.with_changes(rig=dataclasses.replace(base, **changes))
     traj = S.build_trajectory(setup, "cube", None, duration)
     if scenario.orientation != "none":
@@ -256,6 +259,9 @@ def main() -> int:
                                                                 "(default configs/controller.yaml)")
     ap.add_argument("--orientation", choices=("none", "hold", "follow"), default="none",
                     help="the cube's orientation mode (default none: position only)")
+    ap.add_argument("--reference-seeds", type=int_in(0, 2**31 - 1), nargs="+", metavar="S",
+                    help="also run the in-process reference with these seeds (the rig's noise) and report "
+                         "the lab against their mean (the target's ratio stays against the rig file's seed)")
     a = ap.parse_args()
     scenario = Scenario(a.plant, a.marker, a.controller_config, a.orientation)
     rt = realtime_priority_allowed(20)
@@ -305,6 +311,13 @@ def main() -> int:
                 row["targets"] = {"true_tip_ratio": round(ratio, 3), "true_tip_within_20_percent": bool(ratio <= 1.2),
                                   "host_latency_beyond_transport_ms": host, "host_latency_met": bool(host <= 10.0),
                                   "host_work_after_arrival_ms": work, "host_work_met": bool(work <= 10.0)}
+            if a.reference_seeds and ref is not None:  # the in-process run's spread over its noise's seeds
+                means = {s: in_process_run(scale, a.duration, a.rig, dt, scenario, s)["true_tip_mm"]["mean"]
+                         for s in a.reference_seeds}
+                mean = float(np.mean(list(means.values())))
+                row["in_process_seeds"] = {"mean_mm": {str(s): m for s, m in means.items()}, "mean_of_means_mm": mean,
+                                           **({"lab_ratio": round(lab["true_tip_mm"]["mean"] / mean, 3)}
+                                              if "true_tip_mm" in lab else {})}
             out["virtual_lab"].append(row)
     out["rig"] = a.rig
     out["scenario"] = dataclasses.asdict(scenario)

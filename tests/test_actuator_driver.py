@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import select
 import threading
 import tty
 
@@ -25,6 +26,7 @@ class ScriptedDevice:
         self.script = script
         self.requests: list[P.Packet] = []
         self._parser = P.StreamParser()
+        self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
         self._thread.start()
 
@@ -33,7 +35,12 @@ class ScriptedDevice:
         return os.ttyname(self.slave)
 
     def _run(self) -> None:
-        while True:
+        # never a blocking read: close() joins this thread before it closes the fds, whose numbers
+        # the next test's pty reuses (a read still pending on the old number then stole and answered
+        # the next emulator's requests: "expected PONG, got State" in test_actuator_emulator)
+        while not self._stop.is_set():
+            if not select.select([self.master], [], [], 0.02)[0]:
+                continue
             try:
                 data = os.read(self.master, 4096)
             except OSError:
@@ -44,6 +51,9 @@ class ScriptedDevice:
                     os.write(self.master, self.script(item, len(self.requests)))
 
     def close(self) -> None:
+        self._stop.set()
+        self._thread.join(5.0)
+        assert not self._thread.is_alive(), "the scripted device's reader did not stop"
         os.close(self.slave)
         os.close(self.master)
 

@@ -10,7 +10,9 @@ frame is measured and the encoders read; the tracker's 6-DoF tip pose turned int
 values by the nominal pose IK (models/pose_ik.py, models/actuation.py) is the arm side, the
 encoders interpolated to the frame's capture time (on the wall clock they are read after the
 frame arrived) the motor side; solvers/play_probe_fit.py fits the play per actuator. The
-inversion then starts from the fitted play, on a known side and place in the band.
+inversion then starts from the fitted play, on a known side and place in the band. Each motor's
+first-order lag is fitted too, from the targets sent and the encoders read alone (both stamped
+on the loop's clock; no pose needed), for the inversion's reversal burst (``backlash_motor_burst``).
 
 Assumes a 6-DoF pose: without one (the reference marker, or a coded marker whose roll code was
 not read at the end of the settle) nothing moves, the loop's ``play_probe_note`` says so (the
@@ -38,7 +40,7 @@ from wristmark.models.pose_ik import solve_pose_ik
 from wristmark.models.units import on_micro_grid
 from wristmark.rig.run_log import RunLog
 from wristmark.rig.servo_cycle import CycleOutcome, CycleTarget, MarkerLostError, PhaseStats, TrackingMemory
-from wristmark.solvers.play_probe_fit import PlayFit, fit_play
+from wristmark.solvers.play_probe_fit import PlayFit, fit_motor_lag, fit_play
 
 if TYPE_CHECKING:
     from wristmark.rig.servo_loop import ServoLoop
@@ -94,7 +96,10 @@ def run_play_probe(loop: ServoLoop, template: CycleTarget, phase: str, log: RunL
     hint, psi = base, base
     lost = 0  # consecutive probe cycles without a measured pose
     raw: list[PlayFit] = []
+    sends: list[tuple[float, Array]] = []  # (time on the frames' clock, actuator targets) of this actuator's probe
     for j in range(6):
+        first_read = len(reads)
+        sends.clear()
         # cycle i: sample (the arm after i targets), then send target i + 1; sample 0 is taken
         # before the actuator moves, the last one a cycle after its last target (the settled command)
         offsets = triangle(n, cfg.play_probe_amplitude * float(play_max[j]))
@@ -115,11 +120,16 @@ def run_play_probe(loop: ServoLoop, template: CycleTarget, phase: str, log: RunL
                 psi = clamp_psi(params, psi + clamp_velocity(params, (want - psi) / dt) * dt)
                 loop.psi_cmd = psi
                 loop.send(psi)
+                sends.append((loop.now(), actuators_from_psi(params, psi)))
         # fitted at once, a cycle's work (on the wall clock the box's watchdog wants a command
         # every 250 ms: six fits at the end were 0.47 s of silence in the virtual lab)
         loop.send(psi)
         rows = np.flatnonzero(np.asarray(samples.probed) == j)
-        raw.append(fit_play(np.asarray(samples.motor)[rows, j], np.asarray(samples.arm)[rows, j], float(play_max[j])))
+        fit = fit_play(np.asarray(samples.motor)[rows, j], np.asarray(samples.arm)[rows, j], float(play_max[j]))
+        seg = reads[first_read:]  # the motor's lag from the encoders alone (no pose needed)
+        tau = fit_motor_lag(np.array([t for t, _ in sends]), np.array([a[j] for _, a in sends]),
+                            np.array([t for t, _ in seg]), np.array([m[j] for _, m in seg]))
+        raw.append(dataclasses.replace(fit, motor_tau=tau))
     fits = _carry(raw, samples, np.asarray([m for _, m in reads]))
     # the nominal command: the output as it was before the probe (known where the fit is trusted)
     u = np.array([f.first_output if f.ok else a0[j] for j, f in enumerate(fits)])

@@ -60,7 +60,11 @@ class ControllerConfig:
     the loop passes to ``step``; the side changes once the command leaves the band by
     backlash_margin x the bound; without readings nothing is inverted; once the desired path has
     stood still for backlash_freeze [s] the sides stay as they are until it moves (a held
-    point's measurement noise does not send the motors across the band; 0 = never)). backlash_kinds: the
+    point's measurement noise does not send the motors across the band; 0 = never);
+    backlash_motor_burst: at a reversal of side the motor's target is sized from the encoders and
+    the motor lag the play probe measured so that the motor reaches the new side's steady target
+    in one cycle (instead of the lead's fixed burst; actuators without a measured lag keep the
+    lead). backlash_kinds: the
     controller kinds the inversion applies to (configs/controller.yaml: qp only; the paper's
     constant-speed controller reverses the actuators every cycle and is not helped by it).
     play_probe (the encoders' inversion only): before the first closed-loop walk the loop probes
@@ -103,6 +107,7 @@ class ControllerConfig:
     backlash_method: str = "schmitt"
     backlash_margin: float = 0.02
     backlash_freeze: float = 0.0
+    backlash_motor_burst: bool = False
     backlash_kinds: tuple[str, ...] = ("paper", "qp")
     play_probe: bool = False
     play_probe_amplitude: float = 2.0
@@ -132,6 +137,9 @@ class ControllerConfig:
         if self.backlash_method not in BACKLASH_METHODS:
             raise ConfigError(f"'backlash_method' must be one of {', '.join(BACKLASH_METHODS)}, "
                               f"got {self.backlash_method!r}")
+        if self.backlash_motor_burst and self.backlash_method != "encoders":
+            raise ConfigError("'backlash_motor_burst' needs backlash_method: encoders (the motors' lags come from "
+                              "the play probe's encoder readings)")
         if self.play_probe_amplitude < 1.0:
             raise ConfigError(f"'play_probe_amplitude' must be >= 1 (x backlash_play_max), "
                               f"got {self.play_probe_amplitude}")
@@ -222,7 +230,8 @@ class Controller(abc.ABC):
         if not isinstance(comp.inverse, PlayObserverInverse):
             return None
         comp.inverse.seed(np.array([f.play for f in fits]), np.array([f.last_output for f in fits]),
-                          np.array([f.ok for f in fits]), relearn=self.config.play_probe_learning)
+                          np.array([f.ok for f in fits]), relearn=self.config.play_probe_learning,
+                          motor_tau=np.array([f.motor_tau for f in fits]))
         comp.inverse.observe(np.asarray(encoders, float))
         nominal = clamp_psi(self.params, check_psi(psi_nominal))
         out = clamp_psi(self.params, comp.compensate(nominal, self.config.dt))
@@ -309,7 +318,7 @@ def make_inverse(config: ControllerConfig) -> BacklashInverse:
         from wristmark.solvers.play_observer import PlayObserverInverse
 
         return PlayObserverInverse(play_max, config.backlash_margin, freeze=config.backlash_freeze,
-                                   **common)  # type: ignore[arg-type]
+                                   motor_burst=config.backlash_motor_burst, **common)  # type: ignore[arg-type]
     return BacklashInverse(play_max, config.backlash_hysteresis, **common)  # type: ignore[arg-type]
 
 

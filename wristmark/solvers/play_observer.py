@@ -36,6 +36,16 @@ again. At a held point the nominal command moves only by the measurement noise, 
 of side would send the motor across the band without moving the arm (docs/results.md: the
 commanded and measured stem then differ by up to 7.8 mrad at the virtual lab's held point).
 
+Reversal burst from the motor's lag (``motor_burst``, ``backlash_motor_burst``): the lead's burst
+is a fixed multiple of the offset's jump, right for a motor of ~the lead's lag; a slower motor
+crosses the band over two or three cycles while the arm stands (docs/results.md, "the motor's lag
+at a reversal": the 75 ms motors of an unseen arm at a corner where both first backbones reverse).
+With the motors' first-order lags tau measured by the play probe from the encoders
+(:meth:`seed`), the flip cycle of an actuator whose motor has not reached the new side's edge
+sends instead the target that brings the motor from its reading to the steady target in one
+cycle, m + (goal - m) / (1 - exp(-dt / tau)), within the lead's largest offset. Assumed: first-order
+motors, their lags constant after the probe; without a probed lag the lead's burst stays.
+
 Also assumed: the encoders read the motor (before the play) when the frame is taken; the play is
 constant per actuator and below ``play_max``; the feedback-share learning's assumptions (see
 :class:`BacklashInverse`). Measured limits (docs/results.md, "encoders"): the insertion's play is
@@ -44,6 +54,8 @@ clipped at its bound.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from numpy.typing import NDArray
@@ -63,9 +75,10 @@ class PlayObserverInverse(BacklashInverse):
 
     def __init__(self, play_max: Array, margin: float, start: float = 0.5, fraction: float = 0.5,
                  learn: bool = True, window: float = 0.4, rate: float = 0.3, lead: float = 0.0,
-                 freeze: float = 0.0) -> None:
+                 freeze: float = 0.0, motor_burst: bool = False) -> None:
         self.margin = float(margin)
         self.freeze = float(freeze)
+        self.motor_burst = bool(motor_burst)
         super().__init__(play_max, 0.0, start=start, fraction=fraction, learn=learn, window=window, rate=rate,
                          lead=lead)
         self.average_first = True  # the first reversals' estimates are averaged, then rate
@@ -77,15 +90,22 @@ class PlayObserverInverse(BacklashInverse):
         self.output: Array | None = None
         self._stood = 0.0  # how long the desired path has stood still [s]
         self._seed: tuple[NDArray[np.bool_], Array] | None = None
+        self._motor: Array | None = None  # the last encoder readings (micro-units)
         if not keep_estimate:
             self._fixed = np.zeros(6, bool)  # plays measured by a probe and not learnt any more
+            self.motor_tau = np.full(6, math.nan)  # the motors' lags measured by a probe [s] (NaN: unknown)
 
-    def seed(self, play: Array, output: Array, known: NDArray[np.bool_], relearn: bool = True) -> None:
+    def seed(self, play: Array, output: Array, known: NDArray[np.bool_], relearn: bool = True,
+             motor_tau: Array | None = None) -> None:
         """Start from a measured play [rad, m, ...] and output (motor units) where ``known``
         (a play probe, rig/play_probe.py): the side is the edge the motor last pushed on, the
         learning goes on at its normal rate (``relearn``; else those plays stay as measured),
-        no lead burst; elsewhere as after a reset."""
+        no lead burst; elsewhere as after a reset. ``motor_tau``: the motors' first-order lags [s]
+        the probe measured from the encoders (NaN where not), for ``motor_burst``."""
         self.reset(keep_estimate=True)
+        if motor_tau is not None:
+            tau = np.asarray(motor_tau, float)
+            self.motor_tau = np.where(np.isfinite(tau) & (tau >= 0.0), tau, math.nan)
         k = np.asarray(known, bool)
         self._fixed = k & (not relearn)
         self.play = np.where(k, np.clip(np.asarray(play, float), 0.0, self.play_max), self.play)
@@ -95,6 +115,7 @@ class PlayObserverInverse(BacklashInverse):
     def observe(self, motor: Array) -> None:
         """Track the play's output from encoder readings ``motor`` [rad, m, ...], rounded to micro-units."""
         m = on_micro_grid(motor)
+        self._motor = m
         half = 0.5 * self.play
         if self.output is None and self._seed is not None:  # a probe's output and side
             k, out = self._seed
@@ -104,6 +125,27 @@ class PlayObserverInverse(BacklashInverse):
             self.direction = np.where(k, side, 0.0)
             self._off = self.direction * 0.5 * self.fraction * self.play
         self.output = m.copy() if self.output is None else np.clip(self.output, m - half, m + half)
+
+    def offset(self, a_nom: Array, dt: float, a_dot_path: Array | None = None) -> Array:
+        """:meth:`BacklashInverse.offset`; with ``motor_burst``, an actuator whose side just
+        reversed and whose motor (the last encoder reading) has not reached the new side's edge of
+        the band gets, instead of the lead's burst, the target that brings a first-order motor of
+        the probed lag tau from where it is to the steady target u + side * fraction * b_hat / 2
+        in one cycle: m + (goal - m) / (1 - exp(-dt / tau)), within the lead's largest offset."""
+        old = self.direction.copy()
+        burst = super().offset(a_nom, dt, a_dot_path)
+        if not self.motor_burst or self._motor is None or self.output is None or dt <= 0.0:
+            return burst
+        d, m, tau = self.direction, self._motor, self.motor_tau
+        crossing = (old != 0.0) & (d == -old) & np.isfinite(tau) & (d * (m - self.output) < 0.5 * self.play)
+        if not np.any(crossing):
+            return burst
+        alpha = 1.0 - np.exp(-dt / np.where(np.isfinite(tau) & (tau > 0.0), tau, 1.0))
+        alpha = np.where(np.isfinite(tau) & (tau > 0.0), alpha, 1.0)
+        a = np.asarray(a_nom, float)
+        goal = a + self._off  # the steady target (the lead's state is the steady offset)
+        sized = np.clip(m + (goal - m) / alpha - a, -self.half, self.half)
+        return np.asarray(np.where(crossing, sized, burst), float)
 
     def _turn(self, a: Array) -> tuple[NDArray[np.bool_], Array]:
         """The side each actuator's motor pushes on: where the nominal command ``a`` left the band."""

@@ -49,6 +49,7 @@ class PlayFit:
     last_output: float
     residual_rms: float
     ok: bool
+    motor_tau: float = float("nan")  # the motor's first-order lag [s] fitted from the encoders (NaN: none)
 
 
 def play_operator(motor: Array, plays: Array, starts: Array) -> Array:
@@ -116,3 +117,53 @@ def _refine(m: Array, y: Array, b0: float, s0: float, play_max: float) -> tuple[
                    options={"initial_simplex": simplex, "xatol": 1e-3 * step, "fatol": 0.0, "maxiter": 400})
     best = res.x if res.fun <= rss(np.array([b0, s0])) else np.array([b0, s0])
     return float(np.clip(best[0], 0.0, play_max)), float(np.clip(best[1], -1.0, 1.0))
+
+
+TAU_GRID = np.geomspace(0.002, 0.4, 161)  # motor lags tried [s] (ratio 1.033 a step)
+MAX_LAG_RESIDUAL = 0.05  # a lag fit whose RMS exceeds this x the commands' span is refused
+
+
+def first_order_response(m0: float, sends: Array, targets: Array, times: Array, tau: float) -> Array:
+    """The positions at ``times`` of a first-order motor of lag ``tau`` [s] that starts at ``m0``
+    at ``times[0]`` and follows the targets ``targets`` sent at ``sends`` (held between sends;
+    the target before the first send is ``m0``)."""
+    events = sorted([(float(t), 1, float(u)) for t, u in zip(sends, targets)] +
+                    [(float(t), 0, 0.0) for t in times])  # at equal times the reading comes first
+    m, u, t_last = float(m0), float(m0), float(times[0])
+    out = []
+    for t, kind, val in events:
+        if t < t_last:
+            continue
+        m = u + (m - u) * (np.exp(-(t - t_last) / tau) if tau > 0 else 0.0)
+        t_last = t
+        if kind == 1:
+            u = val
+        else:
+            out.append(m)
+    return np.asarray(out, float)
+
+
+def fit_motor_lag(sends: Array, targets: Array, times: Array, motor: Array) -> float:
+    """The first-order lag tau [s] of a motor from its targets ``targets`` sent at ``sends`` [s]
+    and its encoder readings ``motor`` at ``times`` [s] (same clock, same units; the first reading
+    before the first send): the least-squares tau on a log grid over [2 ms, 0.4 s]. NaN when the
+    targets hardly move or the model does not fit (RMS above MAX_LAG_RESIDUAL x their span)."""
+    ts, m = np.asarray(times, float), np.asarray(motor, float)
+    s, u = np.asarray(sends, float), np.asarray(targets, float)
+    keep = np.isfinite(ts) & np.isfinite(m)
+    ts, m = ts[keep], m[keep]
+    if m.size < 4 or s.size < 2:
+        return float("nan")
+    span = float(np.ptp(np.concatenate([u, m[:1]])))
+    if span <= 0.0:
+        return float("nan")
+    rss = np.array([float(np.sum((first_order_response(m[0], s, u, ts, tau) - m) ** 2)) for tau in TAU_GRID])
+    k = int(np.argmin(rss))
+    if np.sqrt(rss[k] / m.size) > MAX_LAG_RESIDUAL * span:
+        return float("nan")
+    if 0 < k < TAU_GRID.size - 1:  # a parabola through the three best, in log tau
+        y0, y1, y2 = rss[k - 1], rss[k], rss[k + 1]
+        den = y0 - 2 * y1 + y2
+        shift = 0.5 * (y0 - y2) / den if den > 0 else 0.0
+        return float(TAU_GRID[k] * (TAU_GRID[k + 1] / TAU_GRID[k]) ** float(np.clip(shift, -0.5, 0.5)))
+    return float(TAU_GRID[k])

@@ -181,13 +181,25 @@ def test_the_command_phase_and_reuse_age_are_validated() -> None:
     RigConfig(command_phase=0.045, reuse_measurement_age=0.15).validate()
 
 
-def test_a_second_phase_goes_on_with_the_cycle_grid_and_takes_frames_from_each_nominal_start() -> None:
+def test_a_second_phase_goes_on_with_the_cycle_grid_and_a_late_cycle_takes_its_frame_at_once() -> None:
     """Two phases in a row on the wall clock (as the settle, the play probe and the walk): the
     second one's first cycle is a cycle after the first one's last (a grid restarted at that same
     instant began a whole cycle late: in the virtual lab the loop then stayed a frame behind its
-    camera for up to 27 cycles, commands ~110 ms after their cycles' starts, errors up to 1.1 mm);
-    every cycle takes a frame that arrived since its nominal start, not since it actually began."""
-    link, sensor = _WallLink(), _ModelSensor()
+    camera for up to 27 cycles, commands ~110 ms after their cycles' starts, errors up to 1.1 mm).
+    A cycle that begins over half its frame wait late takes a frame that arrived since its
+    nominal start; one on time, a frame that arrived after it began."""
+    late_cycle = 3
+
+    class _LateLink(_WallLink):
+        def __init__(self) -> None:
+            super().__init__()
+            self.calls = 0
+
+        def advance_to(self, t: float) -> None:
+            self.calls += 1
+            super().advance_to(t + (0.75 * RIG.frame_wait if self.calls == late_cycle + 1 else 0.0))
+
+    link, sensor = _LateLink(), _ModelSensor()
     feed = _Feed(set())
     loop = ServoLoop(P, RIG, link, frames=feed, sensor=sensor,  # type: ignore[arg-type]
                      controller=make_controller(P, ControllerConfig(kind="qp")), wall_clock=True)
@@ -199,4 +211,7 @@ def test_a_second_phase_goes_on_with_the_cycle_grid_and_takes_frames_from_each_n
     t = np.array([r.t for r in log.records])
     assert len({r.phase for r in log.records}) == 2
     np.testing.assert_allclose(np.diff(t), RIG.control_dt, atol=1e-9)
-    np.testing.assert_array_equal(np.array(feed.fresh_after), t)  # each cycle's nominal start
+    fresh = np.array(feed.fresh_after)
+    assert fresh[late_cycle] == t[late_cycle]  # late: since its nominal start
+    on_time = np.arange(len(t)) != late_cycle
+    assert np.all(fresh[on_time] >= t[on_time]) and np.all(fresh[on_time] < t[on_time] + 0.5 * RIG.frame_wait)

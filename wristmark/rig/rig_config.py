@@ -28,8 +28,9 @@ class RigConfig:
     feedforward_preview, feedforward_lead: the feed-forward tip velocity takes the desired path
     ``preview`` [s] ahead plus a first-order lead of ``lead`` [s] (rig.trajectories.feedforward_velocity).
     frame_wait: on the wall clock (a camera), how long a cycle waits for a frame that arrived
-    after its nominal start before it takes the newest older one [s] (0: never wait); a cycle
-    without any new frame holds the arm like a lost marker. image_scale: the simulated bench renders at this
+    after it began (after its nominal start when it began over half this late) before it takes
+    the newest older one [s] (0: never wait); a cycle without any new frame holds the arm like a
+    lost marker. image_scale: the simulated bench renders at this
     fraction of the calibrated resolution; on hardware, the camera delivers it (the calibration
     is scaled to match). delay_compensation: the controller gets the measured tip moved on by
     the nominal model's predicted motion from the frame's capture to the command

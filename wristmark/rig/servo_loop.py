@@ -7,12 +7,13 @@ One cycle k at t_k = t0 + k dt on the loop's clock:
    so that the camera's frames come at a fixed phase of the cycle;
 2. closed loop: a stereo frame is taken from the frame feed (the simulated bench renders the
    true arm now; a live camera hands out its newest frame, waiting a bounded time for one
-   that arrives after t_k); the tip sensor measures it; the measurement is gated (jump from the
-   previous accepted one, distance from the model's commanded tip); the controller computes the
-   next commanded configuration, clamped to the joint and velocity limits; no frame, a lost or a
-   rejected measurement holds the arm (the command unchanged). Open loop: the nominal model's
-   IK of the desired tip gives the command (pose IK when the trajectory asks for an orientation;
-   closed loop, the measured orientation then goes to the controller's orientation task);
+   that arrives after the cycle began, or after t_k for a cycle that began late); the tip
+   sensor measures it; the measurement is gated (jump from the previous accepted one, distance
+   from the model's commanded tip); the controller computes the next commanded configuration,
+   clamped to the joint and velocity limits; no frame, a lost or a rejected measurement holds
+   the arm (the command unchanged). Open loop: the nominal model's IK of the desired tip gives
+   the command (pose IK when the trajectory asks for an orientation; closed loop, the measured
+   orientation then goes to the controller's orientation task);
 3. the command is sent: on the wall clock as soon as it is computed, or, with a rig
    ``command_phase`` > 0, at that fixed instant after the cycle's nominal start (at once when it
    is computed later), as on the simulated bench, where it goes out ``vision_latency`` after the
@@ -305,14 +306,19 @@ class ServoLoop:
 
     def take_frame(self, target: CycleTarget, phase: str, memory: TrackingMemory,
                     stats: PhaseStats) -> StereoFrame | None:
-        """This cycle's frame: on the wall clock one that arrived after the cycle's nominal start
-        (a cycle that starts late takes it at once) if it comes within ``frame_wait`` of the
-        cycle's actual start, else the newest unseen one (None: none at all)."""
+        """This cycle's frame: on the wall clock one that arrived after the cycle began (after its
+        nominal start for a cycle that began over ``frame_wait`` / 2 late) if it comes within
+        ``frame_wait``, else the newest unseen one (None: none at all)."""
         assert self.frames is not None
         try:
-            if self.wall_clock:  # a frame that arrived since the cycle's nominal start is its frame
+            if self.wall_clock:
                 t_start = time.monotonic()
-                frame = self.frames.take(fresh_after=min(target.t, t_start), wait_until=t_start + self.frame_wait)
+                # a cycle that began late by over half its frame wait takes the frame that arrived
+                # since its nominal start at once (else it waited for the next one, and the loop could
+                # stay a frame behind its camera); on time, a frame that arrived after it began
+                late = t_start - target.t > 0.5 * self.frame_wait
+                frame = self.frames.take(fresh_after=target.t if late else t_start,
+                                         wait_until=t_start + self.frame_wait)
             else:
                 frame = self.frames.take()
         except FrameSourceError as e:

@@ -109,7 +109,8 @@ class MarkerTracker:
             # 'auto': one try with the other detector (different failure modes, same pose gates)
             t2 = time.perf_counter()
             il, ir = to_gray(il), to_gray(ir)
-            sl, sr = self._second_detectors()[0].detect(il), self._second_detectors()[1].detect(ir)
+            second = self._second_detectors()
+            sl, sr = second[0].detect(il), second[1].detect(ir)
             t_second = 1e3 * (time.perf_counter() - t2)
             res2 = self.track_corners(sl.corners, sr.corners, sl.polarity, sr.polarity, _t0=t0)
             if res2.ok:

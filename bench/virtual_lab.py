@@ -30,6 +30,12 @@ Prints one JSON object. Targets (issue 11): host latency beyond the transport <=
 or orientation mode for both loops (e.g. the unseen arm with the coded marker, orientation held).
 ``--reference-seeds S ...``: the in-process run again with each seed of the rig's noise (render,
 tracker): its spread, and the lab against the mean of those runs (``in_process_seeds``).
+``in_process_latency_matched``: the in-process run once more at the lab's own timing, measured
+from its log: frames that show the arm as it was the lab's median capture age before each
+cycle's start (rig ``frame_age``; 0 where the lab's frames are captured after it) and commands
+the lab's median delay after that start (``vision_latency``), so that where the lab's camera
+is slow (1080p here) the in-process reference has the same capture-to-command latency; the
+lab against it in ``targets.true_tip_ratio_latency_matched``.
 Usage: .venv/bin/python bench/virtual_lab.py [--duration S] [--scales 1 0.5] [--skip-video] [--camera-matched]
        [--phase-lock none]
        [--plant configs/plant_unseen.yaml --marker configs/marker_coded.yaml --orientation hold]
@@ -160,6 +166,7 @@ def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_r
     t, _ = read_truth_csv(truth)
     lat = res["latency"]
     return {
+        "timing_in_cycle_ms": cycle_timing(run_dir / "log.csv"),
         "fps_requested": round(fps, 1),
         "fps_rendered": round((len(t) - 1) / (t[-1] - t[0]), 1) if len(t) > 1 else None,
         "latency_ms": {k: {q: lat[k][q] for q in ("median_ms", "p95_ms", "max_ms")} for k in
@@ -183,11 +190,26 @@ def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_r
     }
 
 
+def cycle_timing(log_csv: Path) -> dict[str, float]:
+    """Medians over a run's measured walk cycles [ms]: a frame's capture before its cycle's
+    nominal start (negative: after it) and the command after that start."""
+    from wristmark.rig.run_log import read_log_csv
+
+    log = read_log_csv(log_csv)
+    sel = np.array([p == "servo" and ok == 1 for p, ok in zip(log["phase"], log["meas_ok"])], bool)
+    t, t_cap = np.asarray(log["t"], float)[sel], np.asarray(log["t_capture"], float)[sel]
+    cmd = t_cap + 1e-3 * np.asarray(log["latency_ms"], float)[sel]
+    return {"capture_before_start_median": round(1000 * float(np.median(t - t_cap)), 2),
+            "command_after_start_median": round(1000 * float(np.median(cmd - t)), 2)}
+
+
 def in_process_run(scale: float, duration: float, rig: str | None = None, dt: float | None = None,
-                   scenario: Scenario = Scenario(), seed: int | None = None) -> dict[str, Any]:
+                   scenario: Scenario = Scenario(), seed: int | None = None,
+                   timing: dict[str, float] | None = None) -> dict[str, Any]:
     """The same cube on the in-process bench (pty emulator, simulated clock; rig: the rig file,
     default the shipped one; dt: the control cycle [s], default the rig file's; scenario: plant,
-    marker, controller, orientation; seed: the rig's seed, default the rig file's)."""
+    marker, controller, orientation; seed: the rig's seed, default the rig file's; timing: a lab
+    run's ``timing_in_cycle_ms``, whose capture age and command delay the frames and commands get)."""
     import dataclasses
 
     from wristmark.cli import servo as S
@@ -200,6 +222,10 @@ def in_process_run(scale: float, duration: float, rig: str | None = None, dt: fl
     base = RigConfig.load(rig) if rig else setup.rig
     changes: dict[str, Any] = {"image_scale": scale, **({"control_dt": dt} if dt else {}),
                                **({"seed": seed} if seed is not None else {})}
+    if timing is not None:  # the lab's: frames that old at the cycle's start, commands that late after it
+        cycle = dt or base.control_dt
+        changes["frame_age"] = max(0.0, 1e-3 * timing["capture_before_start_median"])
+        changes["vision_latency"] = min(0.95 * cycle, max(0.0, 1e-3 * timing["command_after_start_median"]))
     setup = setup.with_changes(rig=dataclasses.replace(base, **changes))
     traj = S.build_trajectory(setup, "cube", None, duration)
     if scenario.orientation != "none":
@@ -211,7 +237,10 @@ def in_process_run(scale: float, duration: float, rig: str | None = None, dt: fl
     return {"true_tip_mm": {"mean": c["noise_free"]["mean_mm"], "max": c["noise_free"]["max_mm"],
                             "cycles": c["cycles"]},
             **({"orientation_deg": {"mean": c["orientation_mean_deg"], "max": c["orientation_max_deg"]}}
-               if "orientation_mean_deg" in c else {}), "latency_ms_modelled": 1000 * setup.rig.vision_latency,
+               if "orientation_mean_deg" in c else {}),
+            "latency_ms_modelled": round(1000 * (setup.rig.frame_age + setup.rig.vision_latency), 2),
+            "frame_age_ms": round(1000 * setup.rig.frame_age, 2),
+            "command_after_start_ms": round(1000 * setup.rig.vision_latency, 2),
             "control_dt_s": setup.rig.control_dt}
 
 
@@ -311,6 +340,13 @@ def main() -> int:
                 row["targets"] = {"true_tip_ratio": round(ratio, 3), "true_tip_within_20_percent": bool(ratio <= 1.2),
                                   "host_latency_beyond_transport_ms": host, "host_latency_met": bool(host <= 10.0),
                                   "host_work_after_arrival_ms": work, "host_work_met": bool(work <= 10.0)}
+            if "timing_in_cycle_ms" in lab and not a.skip_in_process:  # the in-process run at the lab's timing
+                matched = in_process_run(scale, a.duration, a.rig, dt, scenario, timing=lab["timing_in_cycle_ms"])
+                row["in_process_latency_matched"] = matched
+                if "targets" in row:
+                    r = lab["true_tip_mm"]["mean"] / matched["true_tip_mm"]["mean"]
+                    row["targets"]["true_tip_ratio_latency_matched"] = round(r, 3)
+                    row["targets"]["latency_matched_within_20_percent"] = bool(r <= 1.2)
             if a.reference_seeds and ref is not None:  # the in-process run's spread over its noise's seeds
                 means = {s: in_process_run(scale, a.duration, a.rig, dt, scenario, s)["true_tip_mm"]["mean"]
                          for s in a.reference_seeds}

@@ -27,6 +27,9 @@ def test_default_file_loads_and_matches_paper_cycle() -> None:
         ("bogus: 1\n", ["unknown key 'bogus'"]),
         ("gate: [1, 2]\n", ["gate", "number"]),
         ("max_lost_cycles: 0\n", ["max_lost_cycles"]),
+        ("frame_age: -0.01\n", ["frame_age", ">= 0"]),
+        ("frame_age: 1.5\n", ["frame_age", "at most 1 s"]),
+        ("frame_age: 0.1\nsensor: truth-noise\n", ["frame_age", "vision"]),
     ],
 )
 def test_validation_errors_name_key_and_file(tmp_path: Path, text: str, words: list[str]) -> None:

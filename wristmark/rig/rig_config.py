@@ -50,8 +50,12 @@ class RigConfig:
     frame is captured ('capture', from the frames' capture stamps) or arrives ('arrival') at the
     host ``frame_lock_phase`` [s] after a cycle's nominal start (negative: before it); 'none': the
     grid stays where the run started. For a camera whose period equals or divides ``control_dt``
-    (frames must arrive within ``frame_wait`` of a cycle's start). vision_latency, plant_dt, sensor,
-    truth_noise_rms, render_noise, tracker_rms and realtime concern the simulated bench only.
+    (frames must arrive within ``frame_wait`` of a cycle's start). frame_age: the simulated
+    bench's frames show the arm this long [s] before the cycle's start and are stamped so (a
+    camera whose frames reach the host that late, e.g. the virtual lab's at 1080p); capture to
+    command is then ``frame_age + vision_latency`` (vision sensor only; at most 1 s).
+    vision_latency, frame_age, plant_dt, sensor, truth_noise_rms, render_noise, tracker_rms and
+    realtime concern the simulated bench only.
     """
 
     control_dt: float = 0.060
@@ -78,6 +82,7 @@ class RigConfig:
     reuse_measurement_age: float = 0.0  # [s] wall clock: a cycle without a frame reuses a measurement this old
     frame_phase_lock: str = "none"  # wall clock: lock the cycle grid to the frames' capture or arrival
     frame_lock_phase: float = 0.0  # [s] with the lock: frames captured / arriving this long after a cycle's start
+    frame_age: float = 0.0  # [s] simulated bench: its frames show the arm this long before the cycle's start
 
     def validate(self) -> None:
         """Raise ConfigError naming the offending key."""
@@ -86,7 +91,7 @@ class RigConfig:
                 raise ConfigError(f"'{k}' must be > 0, got {getattr(self, k)}")
         for k in ("vision_latency", "truth_noise_rms", "tracker_rms", "settle_time", "feedforward_preview",
                   "feedforward_lead", "frame_wait", "delay_compensation_tau", "command_phase",
-                  "reuse_measurement_age"):
+                  "reuse_measurement_age", "frame_age"):
             if getattr(self, k) < 0:
                 raise ConfigError(f"'{k}' must be >= 0, got {getattr(self, k)}")
         if self.vision_latency >= self.control_dt:
@@ -94,6 +99,10 @@ class RigConfig:
                 f"'vision_latency' ({self.vision_latency} s) must be shorter than 'control_dt' "
                 f"({self.control_dt} s): the paper sets the cycle longer than the processing time"
             )
+        if self.frame_age > 1.0:
+            raise ConfigError(f"'frame_age' must be at most 1 s, got {self.frame_age}")
+        if self.frame_age > 0 and self.sensor != "vision":
+            raise ConfigError("'frame_age' needs 'sensor: vision' (it ages rendered frames)")
         if self.frame_wait >= self.control_dt:
             raise ConfigError(f"'frame_wait' ({self.frame_wait} s) must be shorter than 'control_dt' "
                               f"({self.control_dt} s)")

@@ -47,6 +47,12 @@ class LockedArm:
         with self.lock:
             return self.arm.true_shape()
 
+    def true_shape_at(self, t: float) -> ArmShape:
+        """The true shape at the earlier instant ``t`` [s] (an arm that keeps a history:
+        :meth:`sim.plant.TruePlant.true_shape_at`)."""
+        with self.lock:
+            return self.arm.true_shape_at(t)  # type: ignore[attr-defined]
+
     @property
     def true_psi(self) -> Array:
         """The true configuration (NaN when the arm does not expose it)."""

@@ -14,6 +14,7 @@ the base-ring plane (the rotation axis of eq. 2), so load bends compose with com
 from __future__ import annotations
 
 import math
+from collections import deque
 
 import numpy as np
 from numpy.typing import NDArray
@@ -38,10 +39,14 @@ def _add_bend(theta: float, delta: float, dv: Array) -> tuple[float, float]:
 
 class TruePlant:
     """Simulated true arm implementing :class:`models.plant_interface.ActuatedArm`: commanded psi
-    [rad, m, ...] in, true shape in {w} [m] out, integrated in steps of ``dt_internal`` [s]."""
+    [rad, m, ...] in, true shape in {w} [m] out, integrated in steps of ``dt_internal`` [s].
+
+    history: how far back [s] the arm remembers its backbones' positions (every internal step),
+    so that :meth:`true_shape_at` can give its shape at an earlier instant (a camera whose frames
+    are that old; 0: no memory)."""
 
     def __init__(self, params: RobotParams, plant: PlantParams, psi0: Array | None = None,
-                 dt_internal: float = 1e-3) -> None:
+                 dt_internal: float = 1e-3, history: float = 0.0) -> None:
         self.params = params
         self.plant = plant
         self.dt_internal = float(dt_internal)
@@ -54,6 +59,8 @@ class TruePlant:
         self._delta_hint = q0.copy()
         self._time = 0.0
         self._cache: tuple[Array, ArmFrames, Array] | None = None
+        self.history = float(history)
+        self._past: deque[tuple[float, Array]] = deque([(0.0, self._output.copy())])
 
     # -- ActuatedArm ---------------------------------------------------------------------
     @property
@@ -80,11 +87,15 @@ class TruePlant:
         h = dt / n
         tau = self.plant.actuator_tau
         alpha = 1.0 if tau == 0 else 1.0 - math.exp(-h / tau)
-        for _ in range(n):
+        for i in range(n):
             self._motor += alpha * (self._target - self._motor)
             self._output = np.clip(self._output, self._motor - self._half_play, self._motor + self._half_play)
+            if self.history > 0:
+                self._past.append((self._time + (i + 1) * h, self._output.copy()))
         self._time += dt
         self._cache = None
+        while len(self._past) > 2 and self._past[1][0] < self._time - self.history:
+            self._past.popleft()
 
     def measured_actuators(self) -> Array:
         """Motor encoder positions (before backlash)."""
@@ -93,6 +104,21 @@ class TruePlant:
     def true_shape(self) -> ArmShape:
         """The true arm's shape now."""
         psi, frames, stem = self._state()
+        return shape_from_frames(self.params, psi, frames, stem_points=stem)
+
+    def true_shape_at(self, t: float) -> ArmShape:
+        """The true arm's shape at the earlier instant ``t`` [s] of its clock: its backbones'
+        positions interpolated between internal steps (raises InputError beyond the ``history``
+        it keeps; ``t`` at or after now: the shape now)."""
+        if t >= self._time:
+            return self.true_shape()
+        if self.history <= 0 or t < self._past[0][0] - 1e-12:
+            raise InputError(f"the simulated arm keeps {self.history:g} s of history: no shape at t = {t:.4f} s "
+                             f"(now {self._time:.4f} s)")
+        ts = np.fromiter((p[0] for p in self._past), float, len(self._past))
+        outs = np.array([p[1] for p in self._past])
+        output = np.array([np.interp(t, ts, outs[:, i]) for i in range(outs.shape[1])])
+        psi, frames, stem = self._bend(psi_from_actuators(self.params, output, self._delta_hint))
         return shape_from_frames(self.params, psi, frames, stem_points=stem)
 
     # -- truth -----------------------------------------------------------------------------

@@ -45,18 +45,28 @@ class OnDemandSource:
 
 
 class RenderedStereoSource(OnDemandSource):
-    """Renders ``arm`` through ``camera`` (noise preset ``noise``, seeded) at every read."""
+    """Renders ``arm`` through ``camera`` (noise preset ``noise``, seeded) at every read.
+
+    age: each frame shows the arm as it was this long [s] before the read, and is stamped so
+    (a camera whose frames reach the host that late; the arm must keep that much history:
+    ``true_shape_at``, e.g. :class:`sim.plant.TruePlant` with ``history``)."""
 
     def __init__(self, arm: ActuatedArm, camera: StereoCamera, marker: MarkerModel, clock: Callable[[], float],
-                 noise: str = "default", seed: int = 0, name: str = "simulated endoscope") -> None:
+                 noise: str = "default", seed: int = 0, name: str = "simulated endoscope", age: float = 0.0) -> None:
         super().__init__(clock, name)
         self.arm = arm
+        self.age = float(age)
         self.renderer = StereoRenderer(camera, marker, noise_preset(noise), seed=seed)
         self.last_pair: RenderedPair | None = None
 
     def read(self) -> StereoFrame:
-        """Render the true arm now; t_capture = the clock now [s]."""
+        """Render the true arm now (``age`` ago); t_capture = the clock now (minus ``age``) [s]."""
         t = float(self.clock())
-        pair = self.renderer.render(self.arm.true_shape())
+        if self.age > 0:
+            shape = self.arm.true_shape_at(self.arm.time - self.age)  # type: ignore[attr-defined]
+            t -= self.age
+        else:
+            shape = self.arm.true_shape()
+        pair = self.renderer.render(shape)
         self.last_pair = pair
         return self._frame(t, pair.left, pair.right)

@@ -82,7 +82,7 @@ def make_measurement(setup: SimSetup, arm: ActuatedArm, clock: Callable[[], floa
     if setup.rig.sensor == "truth-noise":
         return SynchronousFeed(TruthClockSource(clock)), NoisyTruthSensor(arm, setup.rig.truth_noise_rms, seed)
     source = RenderedStereoSource(arm, setup.render_camera, setup.marker, clock, noise=setup.rig.render_noise,
-                                  seed=seed)
+                                  seed=seed, age=setup.rig.frame_age)
     return SynchronousFeed(source), VisionTipSensor(setup.tracking_camera, setup.marker)
 
 
@@ -92,8 +92,11 @@ def make_truth(setup: SimSetup, arm: ActuatedArm, seed: int) -> SimulatedTruth:
 
 
 def make_plant(setup: SimSetup, psi0: Array) -> TruePlant:
-    """A fresh simulated true arm resting at configuration psi0 (commanded)."""
-    return TruePlant(setup.params, setup.plant, psi0=np.asarray(psi0, float), dt_internal=setup.rig.plant_dt)
+    """A fresh simulated true arm resting at configuration psi0 (commanded); it remembers its
+    past for the rig's ``frame_age`` (and a cycle more)."""
+    history = setup.rig.frame_age + setup.rig.control_dt if setup.rig.frame_age > 0 else 0.0
+    return TruePlant(setup.params, setup.plant, psi0=np.asarray(psi0, float), dt_internal=setup.rig.plant_dt,
+                     history=history)
 
 
 def make_direct_loop(setup: SimSetup, psi0: Array, closed_loop: bool, seed: int = 0) -> ServoLoop:

@@ -311,3 +311,29 @@ def test_a_view_without_the_marker_is_searched_whole_once_per_pair(
     whole = [c[0] for c in calls if c[1]]
     assert whole.count("MarkerCornerDetector") == 1, calls  # the left view, once (the right one had its box)
     assert whole.count("SaddleCornerDetector") == 2, calls  # the second try, each view once
+
+
+# The saddle detector's corners of one half-size virtual-lab pair (walk t = 10.08 s): three
+# stereo pairs on one arc of the sleeve, and in the right view one more corner at the chain's end
+# (off by ~1 px) that the left view did not find. True tip in {ll} from the lab's truth file.
+ARC_LEFT = np.array([[280.642, 451.721], [284.017, 469.997], [290.616, 486.903]])
+ARC_RIGHT = np.array([[247.454, 434.438], [246.875, 449.144], [249.885, 467.395], [256.552, 484.299]])
+ARC_POL_LEFT, ARC_POL_RIGHT = np.array([-1, 1, -1]), np.array([1, -1, 1, -1])
+ARC_TRUE_TIP_LEFT = np.array([-0.009549, 0.020991, 0.085899])
+
+
+def test_a_fit_that_hinges_on_a_corner_seen_in_one_view_only_is_refused() -> None:
+    from wristmark.cvs.camera import scaled_stereo_camera
+    from wristmark.cvs.tracker_settings import TrackerSettings
+
+    cam = scaled_stereo_camera(CAM, 0.5)
+    # without the check: a good reprojection RMS and a tip ~3 mm off (the lab's excursion)
+    old = MarkerTracker(cam, MARKER, TrackerSettings(max_single_view_shift_m=np.inf))
+    wrong = old.track_corners(ARC_LEFT, ARC_RIGHT, ARC_POL_LEFT, ARC_POL_RIGHT)
+    assert wrong.ok and wrong.rms_px < 0.3
+    assert np.linalg.norm(wrong.tip_left - ARC_TRUE_TIP_LEFT) > 2e-3
+    res = MarkerTracker(cam, MARKER).track_corners(ARC_LEFT, ARC_RIGHT, ARC_POL_LEFT, ARC_POL_RIGHT)
+    assert not res.ok and "one view only" in res.reason and res.tip_left is None
+    # the stereo pairs alone fit the truth
+    pairs = MarkerTracker(cam, MARKER).track_corners(ARC_LEFT, ARC_RIGHT[1:], ARC_POL_LEFT, ARC_POL_RIGHT[1:])
+    assert pairs.ok and np.linalg.norm(pairs.tip_left - ARC_TRUE_TIP_LEFT) < 5e-4

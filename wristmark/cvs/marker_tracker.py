@@ -5,7 +5,9 @@ image (ROI tracking from pair to pair, whole frame when lost), rectified-y corre
 relative indices (cvs.stereo_match), the homography start (eq. 14-15, or triangulation + Kabsch
 when a camera sees fewer than 4 corners or the homography start does not converge), the CasADi
 stereo solve (eq. 16) and the tip (eq. 5). It returns ``ok=False`` with a reason rather than a
-doubtful pose: no marker, too few corners, no stereo pairs, or a residual above ``max_rms_px``.
+doubtful pose: no marker, too few corners, no stereo pairs, a residual above ``max_rms_px``, or
+a fit that hinges on corners seen in one view only (the best fit of the stereo pairs alone puts
+the tip more than ``max_single_view_shift_m`` away).
 ``track_corners`` takes corners directly (controller loops, baselines, tests).
 
 The sleeve looks the same after a half turn about x_wm, so which way z_wm (distal) points is
@@ -171,6 +173,26 @@ class MarkerTracker:
         res = self.track_corners(dl.corners, dr.corners, dl.polarity, dr.polarity, _t0=t0)
         res.timings["detect"] = t_det
         return res, (full[0], full[1])
+
+    def _single_view_shift(self, best: MarkerPose, idx_l: IntArray, ul: Array, idx_r: IntArray, ur: Array,
+                           m: StereoMatch) -> float:
+        """How far [m] the tip of the fit ``best`` lies from the best fit of the stereo pairs only,
+        over the same start poses (0 when every corner has its partner, or when the pairs alone
+        give no fit)."""
+        common = np.intersect1d(idx_l, idx_r)
+        in_l, in_r = np.isin(idx_l, common), np.isin(idx_r, common)
+        if (in_l.all() and in_r.all()) or 2 * common.size < 4:
+            return 0.0
+        kept = (self._last_shift, self._last_fit_px)  # the previous start's bookkeeping is this pair's
+        pairs_only: MarkerPose | None = None
+        for T0 in self._start_poses(idx_l[in_l], ul[in_l], idx_r[in_r], ur[in_r], m):
+            pose = self.solver.solve(idx_l[in_l], ul[in_l], idx_r[in_r], ur[in_r], T0)
+            if np.isfinite(pose.rms_px) and (pairs_only is None or pose.rms_px < pairs_only.rms_px):
+                pairs_only = pose
+        self._last_shift, self._last_fit_px = kept
+        if pairs_only is None:
+            return 0.0
+        return float(np.linalg.norm(pairs_only.tip_left - best.tip_left))
 
     def _orient(self, res: TrackResult, images: tuple[NDArray[np.uint8], NDArray[np.uint8]],
                 hint: Array | None) -> TrackResult:
@@ -359,16 +381,13 @@ class MarkerTracker:
             return self._fail(
                 "no start pose (need 4 corners in one image or 3 stereo pairs)", cl, cr, t0, timings, match=m
             )
+        doubt = ""
         if not best.rms_px <= s.max_rms_px or best.T_left_marker[2, 3] <= 0:
-            return self._fail(
-                f"reprojection RMS {best.rms_px:.2f} px above {s.max_rms_px} px: corners do not fit the marker",
-                cl,
-                cr,
-                t0,
-                timings,
-                pose=best,
-                match=m,
-            )
+            doubt = f"reprojection RMS {best.rms_px:.2f} px above {s.max_rms_px} px: corners do not fit the marker"
+        elif (shift := self._single_view_shift(best, idx_l, ul, idx_r, ur, m)) > s.max_single_view_shift_m:
+            doubt = f"the fit hinges on corners seen in one view only (the tip moves {1e3 * shift:.1f} mm without them)"
+        if doubt:
+            return self._fail(doubt, cl, cr, t0, timings, pose=best, match=m)
         return TrackResult(
             True,
             "",

@@ -45,7 +45,11 @@ class TrackerSettings:
     rotation modulo the corner symmetry, the previous pose's corners on this pair's left
     detections: small motion, same corners); strict_direction: never a direction that only the
     default prior (+x) or one-band image evidence gave (cvs.marker_axis.axis_evidence_strict):
-    'direction ambiguous' instead (``wristmark track --strict-direction``)."""
+    'direction ambiguous' instead (``wristmark track --strict-direction``);
+    max_single_view_shift_m [m]: a fit that uses corners seen in one view only (no stereo
+    partner) is refused when the tip moves more than this without them: few corners on one arc
+    of the sleeve leave its axis weakly determined, and one such corner off by a pixel at the
+    chain's end tilted the fit 3-5 mm off in the virtual lab (docs/results.md)."""
 
     min_corners: int = 3
     min_pairs: int = 2
@@ -60,6 +64,7 @@ class TrackerSettings:
     prior_max_turn_deg: float = 15.0
     prior_max_px: float = 6.0
     strict_direction: bool = False
+    max_single_view_shift_m: float = 0.001
 
 
 def make_detector(kind: str) -> CornerDetector:

@@ -177,11 +177,11 @@ class MarkerTracker:
     def _single_view_shift(self, best: MarkerPose, idx_l: IntArray, ul: Array, idx_r: IntArray, ur: Array,
                            m: StereoMatch) -> float:
         """How far [m] the tip of the fit ``best`` lies from the best fit of the stereo pairs only,
-        over the same start poses (0 when every corner has its partner, or when the pairs alone
-        give no fit)."""
+        over the same start poses (0 when every corner has its partner, when fewer than 3 pairs
+        leave the pairs' own fit no better determined than ``best``, or when they give no fit)."""
         common = np.intersect1d(idx_l, idx_r)
         in_l, in_r = np.isin(idx_l, common), np.isin(idx_r, common)
-        if (in_l.all() and in_r.all()) or 2 * common.size < 4:
+        if (in_l.all() and in_r.all()) or common.size < 3:
             return 0.0
         kept = (self._last_shift, self._last_fit_px)  # the previous start's bookkeeping is this pair's
         pairs_only: MarkerPose | None = None

@@ -47,7 +47,8 @@ class TrackerSettings:
     default prior (+x) or one-band image evidence gave (cvs.marker_axis.axis_evidence_strict):
     'direction ambiguous' instead (``wristmark track --strict-direction``);
     max_single_view_shift_m [m]: a fit that uses corners seen in one view only (no stereo
-    partner) is refused when the tip moves more than this without them: few corners on one arc
+    partner) is refused when the tip moves more than this without them, where at least 3 stereo
+    pairs fit on their own (2 pairs determine the pose no better than the fit): few corners on one arc
     of the sleeve leave its axis weakly determined, and one such corner off by a pixel at the
     chain's end tilted the fit 3-5 mm off in the virtual lab (docs/results.md)."""
 

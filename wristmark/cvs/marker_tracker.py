@@ -192,7 +192,10 @@ class MarkerTracker:
         self._last_shift, self._last_fit_px = kept
         if pairs_only is None:
             return 0.0
-        return float(np.linalg.norm(pairs_only.tip_left - best.tip_left))
+        # the fitted poses' tips (T_fit: the same sense of the indices in both; the reported tips may
+        # differ by the half turn the axis prior applies to each fit on its own)
+        tips = [self.solver._tips(pose.T_fit)[0] for pose in (pairs_only, best)]
+        return float(np.linalg.norm(tips[0] - tips[1]))
 
     def _orient(self, res: TrackResult, images: tuple[NDArray[np.uint8], NDArray[np.uint8]],
                 hint: Array | None) -> TrackResult:

@@ -147,3 +147,60 @@ def test_encoders_file_applies_to_the_qp_only() -> None:
     assert paper.compensator is None and not paper.uses_encoders
     with pytest.raises(ConfigError, match="backlash_kinds"):
         dataclasses.replace(cfg, backlash_kinds=("pid",)).validate()
+
+
+def _first_reversal(inv: PlayObserverInverse, steps: int = 260) -> None:
+    """test_play_learnt_from_the_encoders_loop's loop up to just after its first reversal's verdict."""
+    dt, y, a, r, m = 0.01, np.zeros(6), np.zeros(6), np.zeros(6), np.zeros(6)
+    rate = 5 * PLAY
+    for k in range(steps):
+        v = rate * np.sign(np.sin(2 * np.pi * k * dt / 4.0 + 0.3))
+        r = r + v * dt
+        a = a + (v + 15.0 * (r - y)) * dt
+        inv.observe(m)
+        m = a + inv.offset(a, dt, v)
+        y = _play_operator(y, m, 0.5 * PLAY)
+
+
+def test_a_start_move_makes_the_first_reversal_learnt_at_the_normal_rate() -> None:
+    """Actuators the start ramp moved further than their play estimate learn their first reversal
+    at ``rate`` (0.3 of the way from the start); the others replace the start with it."""
+    plain = PlayObserverInverse(PLAY, 0.01, start=0.1, fraction=0.75, learn=True)
+    moved = PlayObserverInverse(PLAY, 0.01, start=0.1, fraction=0.75, learn=True)
+    before = np.array([0.1, 0.02, 0.0, 0.0, 0.0, 0.0])
+    after = before + np.array([0.01, 1e-3, 1e-4, 1e-6, -1e-3, 0.0])  # moved: 0, 1, 2, 4 (> 0.1 x PLAY)
+    moved.after_move(before, after)
+    _first_reversal(plain)
+    _first_reversal(moved)
+    start = 0.1 * PLAY
+    assert np.all(np.abs(plain.play - start) > 0.3 * start)  # the first verdict was given
+    step_plain, step_moved = plain.play - start, moved.play - start
+    was_moved = np.array([True, True, True, False, True, False])
+    np.testing.assert_allclose(step_moved[was_moved], 0.3 * step_plain[was_moved], rtol=1e-9)
+    np.testing.assert_array_equal(moved.play[~was_moved], plain.play[~was_moved])
+
+
+def test_the_loop_tells_the_controller_where_its_start_ramp_left_the_play() -> None:
+    """ServoLoop.start_at on an arm resting at home: the actuators its ramp moved are marked; an
+    arm already at the start gets no ramp and nothing is marked."""
+    from wristmark.models.config_files import default_config
+    from wristmark.models.ik import solve_tip_ik
+    from wristmark.models.kinematics import tip_position
+    from wristmark.rig.actuator_link import DirectLink
+    from wristmark.rig.rig_config import RigConfig
+    from wristmark.rig.servo_loop import ServoLoop
+    from wristmark.sim.plant import TruePlant
+    from wristmark.sim.plant_params import PlantParams
+
+    home = np.array(HOME_PSI, float)
+    start = solve_tip_ik(P, tip_position(P, home) + [0.01, -0.005, 0.008], home).psi
+    learnt = {}
+    for name, rest in (("home", home), ("start", start)):
+        ctrl = make_controller(P, ControllerConfig.load(default_config("controller.yaml")))
+        assert ctrl.uses_encoders and ctrl.compensator is not None
+        loop = ServoLoop(P, RigConfig(sensor="truth-noise"), DirectLink(TruePlant(P, PlantParams(), psi0=rest)),
+                         controller=ctrl)
+        loop.start_at(start)
+        learnt[name] = ctrl.compensator.inverse._learnt.copy()  # type: ignore[attr-defined]
+    assert learnt["home"][0] > 0 and np.count_nonzero(learnt["home"]) >= 3
+    assert not np.any(learnt["start"])

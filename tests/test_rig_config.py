@@ -30,6 +30,9 @@ def test_default_file_loads_and_matches_paper_cycle() -> None:
         ("frame_age: -0.01\n", ["frame_age", ">= 0"]),
         ("frame_age: 1.5\n", ["frame_age", "at most 1 s"]),
         ("frame_age: 0.1\nsensor: truth-noise\n", ["frame_age", "vision"]),
+        ("delay_compensation_learn_window: -1\n", ["delay_compensation_learn_window", ">= 0"]),
+        ("delay_compensation_learn_window: 1000\n", ["delay_compensation_learn_window", "at most 600 s"]),
+        ("delay_compensation_learn_window: .nan\n", ["delay_compensation_learn_window", "finite"]),
     ],
 )
 def test_validation_errors_name_key_and_file(tmp_path: Path, text: str, words: list[str]) -> None:

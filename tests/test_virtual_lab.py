@@ -167,6 +167,9 @@ def test_virtual_lab_reaches_the_in_process_accuracy(lab_process: tuple[str, str
     n_traj = int(np.floor(duration / setup.rig.control_dt)) + 1  # skipped counts the settling cycles too
     assert n_traj - c["skipped"] <= c["cycles"] <= n_traj
     assert abs(lab.mean_mm - ref["mean_mm"]) < 0.1
+    # the delay compensation learnt its map of the model's motion from the frames, within its bounds
+    learnt = c["motion_map"]
+    assert learnt["updates"] >= 0.5 * c["cycles"] and np.abs(np.array(learnt["matrix"]) - np.eye(3)).max() <= 0.3
     # the lab stamps its frames (one machine's monotonic clock): the latency includes the transport
     assert latency["n"] >= lab.n and transport["n"] == latency["n"]
     assert 0 < transport["median_ms"] < latency["median_ms"] < 1000 * setup.rig.control_dt

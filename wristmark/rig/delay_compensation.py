@@ -15,7 +15,10 @@ Only the difference of the model between the two instants is used, so the model'
 (calibration, backlash, load) cancels to first order. The servo loop records the configuration the
 arm is expected to follow for each command (``Controller.output_model``): with a dead-band
 inversion that is the nominal configuration, not the motor command, whose jumps across the band
-do not move the arm (recording them predicted tip motion that never happened). All times on the loop's clock [s], tips
+do not move the arm (recording them predicted tip motion that never happened). With a
+``correction`` (rig/motion_correction.py) the model's motion is mapped by the 3x3 matrix learnt
+from the measurements themselves (:meth:`DelayCompensator.observe`): the model's gain errors
+would otherwise leave a bias that grows with the frames' age. All times on the loop's clock [s], tips
 in {w} [m], configurations psi [rad, m, rad, rad, rad, rad].
 """
 
@@ -31,6 +34,7 @@ from numpy.typing import NDArray
 from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
 from wristmark.models.kinematics import tip_position
 from wristmark.models.robot_params import RobotParams
+from wristmark.rig.motion_correction import MotionCorrection
 
 Array = NDArray[np.float64]
 
@@ -50,19 +54,34 @@ class DelayCompensator:
 
     tau: first-order lag [s] of every actuator assumed by the model (0: a command takes effect
     at once); horizon: how far back [s] the history reaches (older captures are predicted from
-    its oldest entry)."""
+    its oldest entry); correction: the learnt map of the model's motion to the arm's (None: the
+    model as it is)."""
 
-    def __init__(self, params: RobotParams, tau: float = 0.0, horizon: float = 1.0) -> None:
+    def __init__(self, params: RobotParams, tau: float = 0.0, horizon: float = 1.0,
+                 correction: MotionCorrection | None = None) -> None:
         if not (math.isfinite(tau) and tau >= 0):
             raise ValueError(f"tau must be >= 0 s, got {tau}")
         self.params = params
         self.tau = float(tau)
         self.horizon = float(horizon)
+        self.correction = correction
         self._sent: deque[_Sent] = deque()
 
     def reset(self) -> None:
-        """Forget every command (a new run)."""
+        """Forget every command (a new run) and the learnt correction."""
         self._sent.clear()
+        if self.correction is not None:
+            self.correction.reset()
+
+    def observe(self, p_measured: Array, t_capture: float) -> None:
+        """An accepted measurement [m] in {w} captured at ``t_capture`` [s]: the correction (if
+        any) learns from the measured motion since the previous one against the model's."""
+        c = self.correction
+        if c is None:
+            return
+        prev = c.last_capture
+        motion = self.predicted_motion(prev, t_capture) if math.isfinite(prev) else None
+        c.observe(p_measured, t_capture, motion)
 
     def record(self, t: float, psi: Array) -> None:
         """A command ``psi`` was sent at ``t`` [s] (times must not decrease)."""
@@ -114,5 +133,9 @@ class DelayCompensator:
         return tip_position(self.params, after) - tip_position(self.params, before)
 
     def compensate(self, p_measured: Array, t_capture: float, t_now: float) -> Array:
-        """The measured tip [m] in {w} moved on by the model from its capture to ``t_now``."""
-        return np.asarray(p_measured, float) + self.predicted_motion(t_capture, t_now)
+        """The measured tip [m] in {w} moved on by the model (corrected, with a correction) from
+        its capture to ``t_now``."""
+        motion = self.predicted_motion(t_capture, t_now)
+        if self.correction is not None:
+            motion = self.correction.apply(motion)
+        return np.asarray(p_measured, float) + motion

@@ -35,7 +35,10 @@ class RigConfig:
     is scaled to match). delay_compensation: the controller gets the measured tip moved on by
     the nominal model's predicted motion from the frame's capture to the command
     (rig.delay_compensation; the model: the commands sent, through a first-order lag of
-    ``delay_compensation_tau`` [s] per actuator, 0 = at once). tracking_budget: on the wall
+    ``delay_compensation_tau`` [s] per actuator, 0 = at once; the model's motion mapped by a
+    3x3 matrix fitted to the measured motion between consecutive frames, forgetting with the
+    time constant ``delay_compensation_learn_window`` [s], 0 = the model as it is:
+    rig.motion_correction). tracking_budget: on the wall
     clock, how long a cycle waits for its frame's tracking before it holds the arm for that
     cycle (rig.tip_sensors.DeadlineTipSensor; with ``frame_wait`` it keeps every cycle under the
     actuator box's 250 ms watchdog). command_phase: on the wall clock, a closed-loop cycle's
@@ -77,6 +80,7 @@ class RigConfig:
     frame_wait: float = 0.04  # [s] wall clock: longest wait of a cycle for a fresh frame
     delay_compensation: bool = True
     delay_compensation_tau: float = 0.0  # [s] actuator lag assumed by the compensation's model
+    delay_compensation_learn_window: float = 5.0  # [s] memory of the compensation's learnt motion map (0: off)
     tracking_budget: float = 0.15  # [s] wall clock: longest wait of a cycle for its frame's tracking
     command_phase: float = 0.0  # [s] wall clock: a cycle's command goes out this long after its start
     reuse_measurement_age: float = 0.0  # [s] wall clock: a cycle without a frame reuses a measurement this old
@@ -90,8 +94,8 @@ class RigConfig:
             if getattr(self, k) <= 0:
                 raise ConfigError(f"'{k}' must be > 0, got {getattr(self, k)}")
         for k in ("vision_latency", "truth_noise_rms", "tracker_rms", "settle_time", "feedforward_preview",
-                  "feedforward_lead", "frame_wait", "delay_compensation_tau", "command_phase",
-                  "reuse_measurement_age", "frame_age"):
+                  "feedforward_lead", "frame_wait", "delay_compensation_tau", "delay_compensation_learn_window",
+                  "command_phase", "reuse_measurement_age", "frame_age"):
             if getattr(self, k) < 0:
                 raise ConfigError(f"'{k}' must be >= 0, got {getattr(self, k)}")
         if self.vision_latency >= self.control_dt:
@@ -99,6 +103,9 @@ class RigConfig:
                 f"'vision_latency' ({self.vision_latency} s) must be shorter than 'control_dt' "
                 f"({self.control_dt} s): the paper sets the cycle longer than the processing time"
             )
+        if self.delay_compensation_learn_window > 600.0:
+            raise ConfigError(f"'delay_compensation_learn_window' must be at most 600 s, "
+                              f"got {self.delay_compensation_learn_window}")
         if self.frame_age > 1.0:
             raise ConfigError(f"'frame_age' must be at most 1 s, got {self.frame_age}")
         if self.frame_age > 0 and self.sensor != "vision":

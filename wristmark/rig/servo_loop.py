@@ -47,6 +47,7 @@ from wristmark.rig.delay_compensation import DelayCompensator
 from wristmark.rig.frame_feed import FrameFeed
 from wristmark.rig.frame_phase_lock import FramePhaseLock
 from wristmark.rig.ground_truth import NO_TRUTH, GroundTruth, TruthSample
+from wristmark.rig.motion_correction import MotionCorrection
 from wristmark.rig.progress import PhaseProgress
 from wristmark.rig.rig_config import RigConfig
 from wristmark.rig.run_log import CycleRecord, RunLog
@@ -118,7 +119,10 @@ class ServoLoop:
         self._cycle_start = -math.inf  # wall clock: the current cycle's start [s]
         self._command_at = -math.inf  # wall clock: the current cycle's command instant [s]
         self.ready_after_arrival_ms: list[float] = []  # wall clock: frame arrival -> command computed
-        self.delay = DelayCompensator(params, rig.delay_compensation_tau) if rig.delay_compensation else None
+        window = rig.delay_compensation_learn_window
+        learn = MotionCorrection(window) if window > 0 else None
+        self.delay = DelayCompensator(params, rig.delay_compensation_tau, correction=learn) \
+            if rig.delay_compensation else None
         self.play_fits: list[PlayFit] | None = None  # the play probe's fits per actuator (rig/play_probe.py)
         self.play_probe_note = ""  # why the play probe was skipped ("" when it ran or was not asked for)
         # wall clock: the cycle grid shifted so that the frames come at a fixed phase of it
@@ -161,17 +165,16 @@ class ServoLoop:
         one big jump; a simulated arm already there gets no ramp)."""
         target = clamp_psi(self.params, psi)
         dt = self.rig.control_dt
-        for step in ramp_to(self.params, self._encoder_psi(target), target, dt):
+        before = np.asarray(self.link.measured_actuators(), float)
+        for step in ramp_to(self.params, psi_from_actuators(self.params, before, delta_hint=target), target, dt):
             self.psi_cmd = step
             self.send(step)
             self.advance_to(self.t + dt)
         self.psi_cmd = target
         self.send(target)
         self.advance_to(self.t + 2.0)
-
-    def _encoder_psi(self, hint: Array) -> Array:
-        """The configuration the encoders report (``hint`` picks delta where it is ambiguous)."""
-        return psi_from_actuators(self.params, self.link.measured_actuators(), delta_hint=hint)
+        if self.controller is not None and self.controller.uses_encoders:  # where the ramp left each play
+            self.controller.note_start_move(before, np.asarray(self.link.measured_actuators(), float))
 
     def params_home(self) -> Array:
         """Home configuration used as the IK start."""
@@ -356,6 +359,8 @@ class ServoLoop:
             return CycleOutcome(meas, truth, False, True, 0.0)
         memory.last_ok = p_est
         memory.last_meas = meas
+        if self.delay is not None:  # the compensation's learnt map of the model's motion to the arm's
+            self.delay.observe(p_est, meas.t_capture)
         ctrl_us = self._control(target, self._compensated(meas), meas)
         return CycleOutcome(meas, truth, True, False, ctrl_us)
 

@@ -152,6 +152,8 @@ class ServoOutcome:
     frame_lock_offsets_ms: list[float] = dataclasses.field(default_factory=list)
     phase_shift_ms: float = float("nan")
     play_probe: list[dict[str, Any]] | str | None = None  # rig.play_probe.probe_report (None: not asked for)
+    # the delay compensation's learnt map of the model's tip motion to the measured one (rig.motion_correction)
+    motion_map: dict[str, Any] | None = None
 
 
 def _count(out: ServoOutcome, stats: Any) -> None:
@@ -219,6 +221,9 @@ def run_servo(setup: LoopSetup, traj: Trajectory, session: ServoSession, psi0: A
         if loop is not None:
             out.ready_after_arrival_ms = list(loop.ready_after_arrival_ms)
             out.play_probe = probe_report(loop.play_fits, loop.play_probe_note)
+            correction = loop.delay.correction if loop.delay is not None else None
+            if correction is not None:
+                out.motion_map = {"matrix": np.round(correction.matrix, 4).tolist(), "updates": correction.updates}
             if loop.phase_lock is not None:
                 out.frame_lock_offsets_ms = [1000.0 * x for x in loop.phase_lock.offsets]
                 out.phase_shift_ms = 1000.0 * loop.phase_lock.shift

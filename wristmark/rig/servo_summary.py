@@ -101,6 +101,8 @@ def summarize(setup: LoopSetup, traj: Trajectory, session: ServoSession, out: Se
               "skipped": out.skipped}
     if out.play_probe is not None:  # the play probe before the walk (rig/play_probe.py), SI units
         closed["play_probe"] = out.play_probe
+    if out.motion_map is not None:  # measured tip motion ~ matrix @ the model's (rig/motion_correction.py)
+        closed["motion_map"] = out.motion_map
     link: dict[str, Any] = {"kind": session.options.kind, "port": session.port,
                             "realtime": session.options.realtime or session.options.kind == "serial"}
     driver = getattr(session.link, "driver", None)

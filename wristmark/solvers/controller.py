@@ -238,6 +238,16 @@ class Controller(abc.ABC):
         comp.commit(nominal, out)
         return out
 
+    def note_start_move(self, encoders_before: Array, encoders_after: Array) -> None:
+        """The loop's start ramp moved the motors from ``encoders_before`` to ``encoders_after``
+        [rad, m, ...] (encoder readings): the encoders' dead-band inversion learns the first
+        reversals of the actuators it moved at its normal rate (PlayObserverInverse.after_move)."""
+        from wristmark.solvers.play_observer import PlayObserverInverse
+
+        comp = self.compensator
+        if comp is not None and isinstance(comp.inverse, PlayObserverInverse):
+            comp.inverse.after_move(encoders_before, encoders_after)
+
     def output_model(self, psi_cmd: Array) -> Array:
         """The configuration [rad, m, ...] the arm is expected to reach for the command ``psi_cmd``:
         with the dead-band inversion, the nominal configuration behind the last command returned

@@ -112,6 +112,17 @@ class PlayObserverInverse(BacklashInverse):
         self._learnt = np.where(k, np.maximum(self._learnt, 1.0 / max(self.rate, 1e-9)), self._learnt)
         self._seed = (k, np.asarray(output, float).copy())
 
+    def after_move(self, motor_before: Array, motor_after: Array) -> None:
+        """The motors were moved from ``motor_before`` to ``motor_after`` [rad, m, ...] (encoder
+        readings; the servo loop's start ramp): an actuator moved further than its play estimate
+        ends with its output dragged at an edge of its band, not in its middle, and its first
+        reversals are learnt at ``rate`` instead of averaged (replacing the low start at the first
+        one). Measured, the mechanism not isolated: with the averaging, an arm ramped from home
+        to the cube's start oscillated across its play on the walk's first edge (docs/results.md,
+        "the same start for both loops")."""
+        moved = np.abs(on_micro_grid(motor_after) - on_micro_grid(motor_before)) > self.play
+        self._learnt = np.where(moved, np.maximum(self._learnt, 1.0 / max(self.rate, 1e-9)), self._learnt)
+
     def observe(self, motor: Array) -> None:
         """Track the play's output from encoder readings ``motor`` [rad, m, ...], rounded to micro-units."""
         m = on_micro_grid(motor)

@@ -36,6 +36,12 @@ cycle's start (rig ``frame_age``; 0 where the lab's frames are captured after it
 the lab's median delay after that start (``vision_latency``), so that where the lab's camera
 is slow (1080p here) the in-process reference has the same capture-to-command latency; the
 lab against it in ``targets.true_tip_ratio_latency_matched``.
+``--lab-start``: where both arms rest before the run. ``start`` (default): at the cube's start
+configuration, the lab's through the emulator's ``--psi0`` (the in-process bench's arm always
+began there); ``home``: at the emulator's home, from where the loop's start ramps it, in the lab
+and (``open_sim_session(rest=...)``) in process alike. The two differ in where each motor sits in
+its play when the walk begins, which at 1080p's timing changes the error by more than the lab's
+transport does (docs/results.md, "the same start for both loops").
 Usage: .venv/bin/python bench/virtual_lab.py [--duration S] [--scales 1 0.5] [--skip-video] [--camera-matched]
        [--phase-lock none]
        [--plant configs/plant_unseen.yaml --marker configs/marker_coded.yaml --orientation hold]
@@ -129,11 +135,13 @@ class Scenario:
 
 
 def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_render: bool,
-            rig: str | None = None, dt: float | None = None, scenario: Scenario = Scenario()) -> dict[str, Any]:
+            rig: str | None = None, dt: float | None = None, scenario: Scenario = Scenario(),
+            psi_rest: np.ndarray | None = None) -> dict[str, Any]:
     """The virtual lab at up to ``fps`` and ``scale``: a cube of ``duration`` s on the hardware
     path (rt: the host loop and the lab's actuator box and stream under SCHED_FIFO; rt_render:
     the lab's rendering too; rig: the host's rig file, default the shipped one; dt: the host's
-    control cycle [s], default the rig file's; scenario: plant, marker, controller, orientation)."""
+    control cycle [s], default the rig file's; scenario: plant, marker, controller, orientation;
+    psi_rest: where the lab's arm rests at the start, default the emulator's home)."""
     from wristmark.rig.metrics import error_stats
     from wristmark.sim.virtual_lab import read_truth_csv, true_tip_errors
 
@@ -142,6 +150,7 @@ def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_r
     emu = subprocess.Popen([*WRISTMARK, "emulator", "--pty", "--camera-port", "0", "--fps", f"{fps:.6g}",
                             "--image-scale", str(scale), "--jpeg-quality", "95", "--truth-out", str(truth),
                             "--truth-dense-out", str(dense), *scenario.lab_args(),
+                            *(["--psi0", *(f"{x:.17g}" for x in psi_rest)] if psi_rest is not None else []),
                             *(["--rt-priority", "10"] if rt else []),
                             *(["--render-normal-priority"] if rt and not rt_render else [])],
                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
@@ -203,35 +212,53 @@ def cycle_timing(log_csv: Path) -> dict[str, float]:
             "command_after_start_median": round(1000 * float(np.median(cmd - t)), 2)}
 
 
-def in_process_run(scale: float, duration: float, rig: str | None = None, dt: float | None = None,
-                   scenario: Scenario = Scenario(), seed: int | None = None,
-                   timing: dict[str, float] | None = None) -> dict[str, Any]:
-    """The same cube on the in-process bench (pty emulator, simulated clock; rig: the rig file,
-    default the shipped one; dt: the control cycle [s], default the rig file's; scenario: plant,
-    marker, controller, orientation; seed: the rig's seed, default the rig file's; timing: a lab
-    run's ``timing_in_cycle_ms``, whose capture age and command delay the frames and commands get)."""
-    import dataclasses
-
+def _setup_and_cube(scale: float, duration: float, rig: str | None, dt: float | None, scenario: Scenario,
+                    changes: dict[str, Any] | None = None) -> tuple[Any, Any]:
+    """Both loops' setup (the rig file with ``image_scale``, ``control_dt`` and ``changes``) and cube."""
     from wristmark.cli import servo as S
-    from wristmark.rig.rig_config import RigConfig
-    from wristmark.rig.servo_summary import summarize
-    from wristmark.sim.servo_bench import open_sim_session
     from wristmark.sim.setup import load_setup
 
     setup = load_setup(plant=scenario.plant, marker=scenario.marker, controller=scenario.controller)
     base = RigConfig.load(rig) if rig else setup.rig
-    changes: dict[str, Any] = {"image_scale": scale, **({"control_dt": dt} if dt else {}),
-                               **({"seed": seed} if seed is not None else {})}
-    if timing is not None:  # the lab's: frames that old at the cycle's start, commands that late after it
-        cycle = dt or base.control_dt
-        changes["frame_age"] = max(0.0, 1e-3 * timing["capture_before_start_median"])
-        changes["vision_latency"] = min(0.95 * cycle, max(0.0, 1e-3 * timing["command_after_start_median"]))
-    setup = setup.with_changes(rig=dataclasses.replace(base, **changes))
+    every: dict[str, Any] = {"image_scale": scale, **({"control_dt": dt} if dt else {}), **(changes or {})}
+    setup = setup.with_changes(rig=dataclasses.replace(base, **every))
     traj = S.build_trajectory(setup, "cube", None, duration)
     if scenario.orientation != "none":
         traj = traj.with_orientation(scenario.orientation, setup.params)
+    return setup, traj
+
+
+def start_configuration(scale: float, duration: float, rig: str | None, dt: float | None,
+                        scenario: Scenario) -> np.ndarray:
+    """The cube's start configuration [rad, m, ...], the host's (and the in-process loop's) first target."""
+    from wristmark.cli import servo as S
+
+    return np.asarray(S.start_configuration(*_setup_and_cube(scale, duration, rig, dt, scenario)), float)
+
+
+def in_process_run(scale: float, duration: float, rig: str | None = None, dt: float | None = None,
+                   scenario: Scenario = Scenario(), seed: int | None = None,
+                   timing: dict[str, float] | None = None, from_home: bool = False) -> dict[str, Any]:
+    """The same cube on the in-process bench (pty emulator, simulated clock; rig: the rig file,
+    default the shipped one; dt: the control cycle [s], default the rig file's; scenario: plant,
+    marker, controller, orientation; seed: the rig's seed, default the rig file's; timing: a lab
+    run's ``timing_in_cycle_ms``, whose capture age and command delay the frames and commands get;
+    from_home: the arm rests at the home configuration and the loop ramps it to the start, as the
+    lab's with ``--lab-start home``; else it rests at the start)."""
+    from wristmark.cli import servo as S
+    from wristmark.models.robot_params import HOME_PSI
+    from wristmark.rig.servo_summary import summarize
+    from wristmark.sim.servo_bench import open_sim_session
+
+    changes: dict[str, Any] = {**({"seed": seed} if seed is not None else {})}
+    if timing is not None:  # the lab's: frames that old at the cycle's start, commands that late after it
+        cycle = dt or RigConfig.load(rig or default_config("rig.yaml")).control_dt
+        changes["frame_age"] = max(0.0, 1e-3 * timing["capture_before_start_median"])
+        changes["vision_latency"] = min(0.95 * cycle, max(0.0, 1e-3 * timing["command_after_start_median"]))
+    setup, traj = _setup_and_cube(scale, duration, rig, dt, scenario, changes)
     psi0 = S.start_configuration(setup, traj)
-    session = open_sim_session(setup, psi0, S.LinkOptions(kind="emulator"), seed=setup.rig.seed)
+    session = open_sim_session(setup, psi0, S.LinkOptions(kind="emulator"), seed=setup.rig.seed,
+                               rest=np.asarray(HOME_PSI, float) if from_home else None)
     out = S.run_servo(setup, traj, session, psi0, settle=setup.rig.settle_time)
     c = summarize(setup, traj, session, out)["closed_loop"]
     return {"true_tip_mm": {"mean": c["noise_free"]["mean_mm"], "max": c["noise_free"]["max_mm"],
@@ -291,6 +318,10 @@ def main() -> int:
     ap.add_argument("--reference-seeds", type=int_in(0, 2**31 - 1), nargs="+", metavar="S",
                     help="also run the in-process reference with these seeds (the rig's noise) and report "
                          "the lab against their mean (the target's ratio stays against the rig file's seed)")
+    ap.add_argument("--lab-start", choices=("start", "home"), default="start",
+                    help="where both arms rest before the run: start (default): at the cube's start configuration, "
+                         "as the in-process bench's always did (the lab's emulator gets --psi0); home: at the "
+                         "emulator's home, ramped to the start by the loop, in the lab and in process alike")
     a = ap.parse_args()
     scenario = Scenario(a.plant, a.marker, a.controller_config, a.orientation)
     rt = realtime_priority_allowed(20)
@@ -325,9 +356,12 @@ def main() -> int:
             # locked at 16.7 fps, the host skipped 55 cycles with 18.5 fps alone and 34 with 26.1)
             rt_render = rt and sustained["fps"] >= 1.5 * a.max_fps_rt and (
                 a.phase_lock == "none" or sustained["fps"] >= 2.0 * fps)
-            lab = lab_run(scale, fps, a.duration, Path(tmp), rt, rt_render, rig_file, dt, scenario)
+            home = a.lab_start == "home"
+            rest = None if home else start_configuration(scale, a.duration, a.rig, dt, scenario)
+            lab = lab_run(scale, fps, a.duration, Path(tmp), rt, rt_render, rig_file, dt, scenario, rest)
             lab["lab_realtime_priority"] = {"box_and_stream": rt, "rendering": rt_render}
-            ref = None if a.skip_in_process else in_process_run(scale, a.duration, a.rig, dt, scenario)
+            ref = None if a.skip_in_process else in_process_run(scale, a.duration, a.rig, dt, scenario,
+                                                                    from_home=home)
             row: dict[str, Any] = {"image_scale": scale, "renderer": sustained,
                                    "control_dt_s": dt or base_dt, "camera_matched_cycle": dt is not None,
                                    "lab": lab, "in_process": ref}
@@ -341,21 +375,23 @@ def main() -> int:
                                   "host_latency_beyond_transport_ms": host, "host_latency_met": bool(host <= 10.0),
                                   "host_work_after_arrival_ms": work, "host_work_met": bool(work <= 10.0)}
             if "timing_in_cycle_ms" in lab and not a.skip_in_process:  # the in-process run at the lab's timing
-                matched = in_process_run(scale, a.duration, a.rig, dt, scenario, timing=lab["timing_in_cycle_ms"])
+                matched = in_process_run(scale, a.duration, a.rig, dt, scenario, timing=lab["timing_in_cycle_ms"],
+                                         from_home=home)
                 row["in_process_latency_matched"] = matched
                 if "targets" in row:
                     r = lab["true_tip_mm"]["mean"] / matched["true_tip_mm"]["mean"]
                     row["targets"]["true_tip_ratio_latency_matched"] = round(r, 3)
                     row["targets"]["latency_matched_within_20_percent"] = bool(r <= 1.2)
             if a.reference_seeds and ref is not None:  # the in-process run's spread over its noise's seeds
-                means = {s: in_process_run(scale, a.duration, a.rig, dt, scenario, s)["true_tip_mm"]["mean"]
-                         for s in a.reference_seeds}
+                means = {s: in_process_run(scale, a.duration, a.rig, dt, scenario, s,
+                                           from_home=home)["true_tip_mm"]["mean"] for s in a.reference_seeds}
                 mean = float(np.mean(list(means.values())))
                 row["in_process_seeds"] = {"mean_mm": {str(s): m for s, m in means.items()}, "mean_of_means_mm": mean,
                                            **({"lab_ratio": round(lab["true_tip_mm"]["mean"] / mean, 3)}
                                               if "true_tip_mm" in lab else {})}
             out["virtual_lab"].append(row)
     out["rig"] = a.rig
+    out["lab_start"] = a.lab_start
     out["scenario"] = dataclasses.asdict(scenario)
     out["phase_lock"] = {"on": a.phase_lock, "lock_phase_s": a.lock_phase, "frame_wait_s": a.frame_wait,
                          "cycles_per_frame": a.cycles_per_frame} if a.phase_lock != "none" else None

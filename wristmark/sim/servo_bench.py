@@ -28,22 +28,25 @@ SIM_LINK_KINDS = ("emulator", "direct")
 
 
 def open_sim_session(setup: SimSetup, psi0: Array, options: LinkOptions, seed: int = 0,
-                     emulator_factory: Callable[..., ActuatorEmulator] | None = None) -> ServoSession:
+                     emulator_factory: Callable[..., ActuatorEmulator] | None = None,
+                     rest: Array | None = None) -> ServoSession:
     """Open the link to the in-process bench (not yet enabled: see :meth:`ServoSession.start`),
-    the simulated arm resting at ``psi0``; frames are rendered from the true arm at the loop's
-    time (seeded ``seed``).
+    the simulated arm resting at ``psi0`` (or at ``rest`` [rad, m, ...], from where the loop's
+    start ramps it to ``psi0``, as the virtual lab's and a real arm); frames are rendered from the
+    true arm at the loop's time (seeded ``seed``).
 
     emulator_factory: ``(arm, params, clock=...) -> ActuatorEmulator`` (tests record packets).
     """
+    born = np.asarray(psi0 if rest is None else rest, float)
     if options.kind not in SIM_LINK_KINDS:
         raise ConfigError(f"simulated link kind must be one of {', '.join(SIM_LINK_KINDS)}, got {options.kind!r}")
     if options.kind == "direct":
-        plant = make_plant(setup, psi0)
+        plant = make_plant(setup, born)
         direct = DirectLink(plant)
         frames, sensor = make_measurement(setup, plant, lambda: direct.time, seed)
         return ServoSession(direct, options, frames, sensor, port="(in process)", truth=make_truth(setup, plant, seed),
                             arm=plant)
-    arm = LockedArm(make_plant(setup, psi0))
+    arm = LockedArm(make_plant(setup, born))
     clock = None if options.realtime else SimClock(arm.time)
     timeout = options.timeout if options.timeout is not None else (HW_TIMEOUT_S if options.realtime else SIM_TIMEOUT_S)
     factory = emulator_factory or ActuatorEmulator

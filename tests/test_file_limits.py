@@ -110,6 +110,19 @@ def test_anchors_and_aliases_are_refused(tmp_path: Path, text: str, needle: str)
         load_yaml(f)
 
 
+@pytest.mark.parametrize(("text", "line"), [
+    ("control_dt: 0.06\ngate: 0.004\ncontrol_dt: 0.11\n", 3),  # YAML alone would keep the last
+    ("controller:\n  kp: 8.0\n  ki: 4.0\n  kp: 5.0\n", 4),
+])
+def test_a_key_given_twice_is_refused_with_its_line(tmp_path: Path, text: str, line: int) -> None:
+    f = tmp_path / "rig.yaml"
+    f.write_text(text)
+    with pytest.raises(ConfigError, match=re.escape(f"rig.yaml:{line}: key '") + ".*' is given twice"):
+        load_yaml(f)
+    f.write_text("a:\n  k: 1\nb:\n  k: 2\n")  # the same key in two mappings is fine
+    assert load_yaml(f) == {"a": {"k": 1}, "b": {"k": 2}}
+
+
 def test_deep_nesting_is_one_error(tmp_path: Path) -> None:
     f = tmp_path / "deep.yaml"
     f.write_text("a: " + "[" * 100_000 + "\n")

@@ -26,8 +26,9 @@ T = TypeVar("T")
 MAX_CONFIG_BYTES = 1 << 20  # [B] largest configuration or calibration file read (1 MiB)
 
 
-class YamlAliasError(yaml.YAMLError):
-    """An anchor or alias in a wristmark YAML file (line: 1-based)."""
+class YamlRefusedError(yaml.YAMLError):
+    """Well-formed YAML that a wristmark file must not contain: an anchor or alias, or a key
+    given twice in one mapping (line: 1-based)."""
 
     def __init__(self, message: str, line: int) -> None:
         super().__init__(message)
@@ -37,15 +38,25 @@ class YamlAliasError(yaml.YAMLError):
 
 class NoAliasSafeLoader(yaml.SafeLoader):
     """yaml.SafeLoader that refuses anchors and aliases (configuration files never need them,
-    and nested aliases let a 1 KB file expand to gigabytes: the "billion laughs")."""
+    and nested aliases let a 1 KB file expand to gigabytes: the "billion laughs") and a key given
+    twice in one mapping (YAML would silently keep the last)."""
 
     def compose_node(self, parent: Any, index: Any) -> Any:
         event = self.peek_event()
         if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None) is not None:
             sign = "*" if isinstance(event, yaml.AliasEvent) else "&"
-            raise YamlAliasError(f"YAML anchors and aliases are not allowed ('{sign}{event.anchor}'): "
-                                 "write the values out", event.start_mark.line + 1)
+            raise YamlRefusedError(f"YAML anchors and aliases are not allowed ('{sign}{event.anchor}'): "
+                                   "write the values out", event.start_mark.line + 1)
         return super().compose_node(parent, index)
+
+    def construct_mapping(self, node: Any, deep: bool = False) -> Any:
+        seen: set[Any] = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            if isinstance(key, str | int | float | bool) and key in seen:
+                raise YamlRefusedError(f"key '{key}' is given twice", key_node.start_mark.line + 1)
+            seen.add(key)
+        return super().construct_mapping(node, deep=deep)
 
 
 def check_file_size(path: str | Path, limit: int = MAX_CONFIG_BYTES, what: str = "configuration file") -> Path:
@@ -64,11 +75,11 @@ def check_file_size(path: str | Path, limit: int = MAX_CONFIG_BYTES, what: str =
 
 def load_yaml(path: str | Path) -> dict[str, Any]:
     """Read a YAML mapping from ``path``; raise :class:`ConfigError` if missing, malformed,
-    larger than MAX_CONFIG_BYTES, or using anchors/aliases (:class:`NoAliasSafeLoader`)."""
+    larger than MAX_CONFIG_BYTES, using anchors/aliases or a key twice (:class:`NoAliasSafeLoader`)."""
     p = check_file_size(path)
     try:
         data = yaml.load(p.read_bytes(), Loader=NoAliasSafeLoader)  # noqa: S506 - a SafeLoader
-    except YamlAliasError as e:
+    except YamlRefusedError as e:
         raise ConfigError(f"{p}:{e.line}: {e.message}") from None
     except yaml.YAMLError as e:
         first = str(e).splitlines()[0] if str(e) else "parse error"

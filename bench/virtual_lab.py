@@ -250,12 +250,11 @@ def in_process_run(scale: float, duration: float, rig: str | None = None, dt: fl
     from wristmark.rig.servo_summary import summarize
     from wristmark.sim.servo_bench import open_sim_session
 
-    changes: dict[str, Any] = {**({"seed": seed} if seed is not None else {})}
+    setup, traj = _setup_and_cube(scale, duration, rig, dt, scenario, {"seed": seed} if seed is not None else None)
     if timing is not None:  # the lab's: frames that old at the cycle's start, commands that late after it
-        cycle = dt or RigConfig.load(rig or default_config("rig.yaml")).control_dt
-        changes["frame_age"] = max(0.0, 1e-3 * timing["capture_before_start_median"])
-        changes["vision_latency"] = min(0.95 * cycle, max(0.0, 1e-3 * timing["command_after_start_median"]))
-    setup, traj = _setup_and_cube(scale, duration, rig, dt, scenario, changes)
+        age = max(0.0, 1e-3 * timing["capture_before_start_median"])
+        delay = min(0.95 * setup.rig.control_dt, max(0.0, 1e-3 * timing["command_after_start_median"]))
+        setup = setup.with_changes(rig=dataclasses.replace(setup.rig, frame_age=age, vision_latency=delay))
     psi0 = S.start_configuration(setup, traj)
     session = open_sim_session(setup, psi0, S.LinkOptions(kind="emulator"), seed=setup.rig.seed,
                                rest=np.asarray(HOME_PSI, float) if from_home else None)

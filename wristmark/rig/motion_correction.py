@@ -39,8 +39,10 @@ class MotionCorrection:
             raise ValueError(f"window must be > 0 s, got {window}")
         if not (math.isfinite(prior) and prior > 0):
             raise ValueError(f"prior must be > 0 m^2, got {prior}")
-        self.window, self.prior, self.max_deviation, self.max_gap = float(window), float(prior), \
-            float(max_deviation), float(max_gap)
+        self.window = float(window)
+        self.prior = float(prior)
+        self.max_deviation = float(max_deviation)
+        self.max_gap = float(max_gap)
         self.reset()
 
     def reset(self) -> None:

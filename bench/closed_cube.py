@@ -16,10 +16,10 @@ import time
 
 import numpy as np
 
-from wristmark.rig.metrics import error_stats, tracking_errors
-from wristmark.rig.orientation_path import start_configuration
-from wristmark.rig.run_log import RunLog
-from wristmark.rig.trajectories import CUBE_SIZE, CUBE_SPEED, cube_trajectory, workspace_centre
+from wristmark.rig.loop.metrics import error_stats, tracking_errors
+from wristmark.rig.recording.run_log import RunLog
+from wristmark.rig.targets.orientation_path import start_configuration
+from wristmark.rig.targets.trajectories import CUBE_SIZE, CUBE_SPEED, cube_trajectory, workspace_centre
 from wristmark.sim.experiments import check_orientation
 from wristmark.sim.setup import load_setup, make_direct_loop
 

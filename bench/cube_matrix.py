@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import Any
 
 from wristmark.cli.option_types import positive_float  # noqa: E402
-from wristmark.rig.orientation_path import ORIENTATION_MODES  # noqa: E402
+from wristmark.rig.targets.orientation_path import ORIENTATION_MODES  # noqa: E402
 from wristmark.sim.experiments import PAPER_CUBE, run_cube  # noqa: E402
 from wristmark.sim.plant_params import PlantParams  # noqa: E402
 from wristmark.sim.setup import SimSetup, default_config, load_setup  # noqa: E402

@@ -4,7 +4,7 @@ The in-process cube (pty emulator, simulated clock) with frames that show the ar
 before each cycle's start (rig ``frame_age``) and commands ``--command-delay`` after it: the
 compensation then moves every measurement on by the model's motion over the frame's age, and
 the arm's gain errors leave a bias that grows with the age unless the map learnt from the
-measured motion (rig ``delay_compensation_learn_window``, rig/motion_correction.py) corrects
+measured motion (rig ``delay_compensation_learn_window``, rig/loop/motion_correction.py) corrects
 it. For each age, each seed of the rig's noise and the window off (0) and on (the rig file's),
 the true-tip error (mean, max) of the cube, and the learnt map at the end.
 Prints one JSON object.
@@ -26,7 +26,7 @@ import numpy as np
 
 from wristmark.cli import servo as S
 from wristmark.cli.option_types import float_in, int_in, positive_float
-from wristmark.rig.servo_summary import summarize
+from wristmark.rig.loop.servo_summary import summarize
 from wristmark.sim.servo_bench import open_sim_session
 from wristmark.sim.setup import load_setup
 

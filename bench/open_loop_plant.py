@@ -20,7 +20,7 @@ from wristmark.models.ik import solve_tip_ik  # noqa: E402
 from wristmark.models.kinematics import tip_position  # noqa: E402
 from wristmark.models.limits import within_limits  # noqa: E402
 from wristmark.models.robot_params import HOME_PSI, RobotParams  # noqa: E402
-from wristmark.rig.trajectories import cube_trajectory  # noqa: E402
+from wristmark.rig.targets.trajectories import cube_trajectory  # noqa: E402
 from wristmark.sim.plant import TruePlant  # noqa: E402
 from wristmark.sim.plant_params import PlantParams  # noqa: E402
 

@@ -3,7 +3,7 @@
 Usage: python bench/real_chessboard.py [FOLDER]
 FOLDER holds OpenCV's stereo samples leftNN.jpg / rightNN.jpg (default tests/data/opencv_stereo,
 13 pairs, 9x6 inner corners). Per image: complete 9x6 grids found, time, mean distance between
-our corners (cvs.corner_detector.detect_xcorners + assemble_grid) and OpenCV's (same order);
+our corners (cvs.corners.detector.detect_xcorners + assemble_grid) and OpenCV's (same order);
 then cv2.stereoCalibrate reprojection RMS [px] from each method's corners (each camera calibrated
 alone first, then CALIB_USE_INTRINSIC_GUESS). Ours is run twice: with the HTM refinement (default)
 and with the paper's eq. 9-10 quadric only (refine=False).
@@ -22,7 +22,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from wristmark.cvs.corner_detector import BOARD_SETTINGS, assemble_grid, detect_xcorners  # noqa: E402
+from wristmark.cvs.corners.detector import BOARD_SETTINGS, assemble_grid, detect_xcorners  # noqa: E402
 
 PATTERN = (9, 6)
 

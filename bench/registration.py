@@ -2,7 +2,7 @@
 
 For configs/plant.yaml and configs/plant_unseen.yaml, each with its tip load and without, the
 true camera is moved by CAMERA_OFFSET (in {ll}) and registered from 6, 12 and 24 poses
-(rig.registration_poses + sim.registration_bench + solvers.registration, as ``wristmark
+(rig.registration.poses + sim.registration_bench + solvers.registration, as ``wristmark
 register`` does). Per case: the error of world_T_left against the truth (translation [mm],
 rotation [deg]) and the same error once the rotation about z_w by segment 1's plane offset o1 is
 taken out (o1 is a phi-encoder offset, unobservable by any camera registration: see
@@ -31,10 +31,10 @@ from typing import Any
 import cv2
 import numpy as np
 
-from wristmark.cvs.marker_tracker import MarkerTracker  # noqa: E402
+from wristmark.cvs.tracking.tracker import MarkerTracker  # noqa: E402
 from wristmark.models.config_files import CONFIG_DIR
-from wristmark.rig.registration_poses import choose_poses  # noqa: E402
-from wristmark.rig.registration_run import collect, registration_poses  # noqa: E402
+from wristmark.rig.registration.poses import choose_poses  # noqa: E402
+from wristmark.rig.registration.run import collect, registration_poses  # noqa: E402
 from wristmark.sim.experiments import run_cube  # noqa: E402
 from wristmark.sim.registration_bench import SimRegistrationRig  # noqa: E402
 from wristmark.sim.setup import SimSetup, load_setup  # noqa: E402

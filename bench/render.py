@@ -20,16 +20,16 @@ from typing import Any
 import cv2
 import numpy as np
 
-import wristmark.sim.render as render_module
+import wristmark.sim.render.stereo_renderer as render_module
 from wristmark.cli.render import PSI_SPREAD
-from wristmark.cvs.calibration_io import load_calibration
+from wristmark.cvs.calibration.load import load_calibration
 from wristmark.cvs.camera import scaled_stereo_camera
 from wristmark.models.arm_shape import arm_shape
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import RobotParams
-from wristmark.sim.render import StereoRenderer
-from wristmark.sim.render_settings import noise_preset
+from wristmark.sim.render.settings import noise_preset
+from wristmark.sim.render.stereo_renderer import StereoRenderer
 from wristmark.sim.visibility import random_visible_psi
 
 STAGES = ("plan_arm", "render_arm", "optics_signal_box", "optics_signal", "sensor_image")

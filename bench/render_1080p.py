@@ -10,7 +10,7 @@ kernels compile on the first run there). Each round runs both builds in turn, ea
 process rendering the same N arm shapes (a warm-up pair first, not counted); per pair it records
 the process's CPU time (time.process_time: every thread, so the machine's other load does not
 count), the wall time and SHA-256 of the left image, the right image and the JPEG; then the
-same pairs again with each stage's thread CPU time summed (the sim.render names of STAGES; the
+same pairs again with each stage's thread CPU time summed (the names of STAGES in sim/render/stereo_renderer.py; the
 rest is copies, np.hstack, the JPEG encode and thread hand-offs). Prints JSON: medians per build
 over all rounds (``fps_cpu_2_cores``: the rate if the pipeline had both cores to itself), the
 ratio this / baseline, and whether every pair's bytes are identical between the builds. The
@@ -35,7 +35,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 BASELINE = "e8dedf81853666ebe61f22dcb0e4fe510110ba11"  # main before issue 11 (b)'s faster renderer
-STAGES = ("plan_arm", "render_arm", "optics_signal_box", "optics_signal", "sensor_image")  # names in sim.render
+STAGES = ("plan_arm", "render_arm", "optics_signal_box", "optics_signal", "sensor_image")  # stereo_renderer.py
 
 
 def _worker(a: argparse.Namespace) -> None:
@@ -43,15 +43,15 @@ def _worker(a: argparse.Namespace) -> None:
     import cv2
 
     from wristmark.cli.render import PSI_SPREAD
-    from wristmark.cvs.calibration_io import load_calibration
+    from wristmark.cvs.calibration.load import load_calibration
     from wristmark.cvs.camera import scaled_stereo_camera
     from wristmark.models.arm_shape import arm_shape
     from wristmark.models.config_files import CONFIG_DIR
     from wristmark.models.marker import MarkerModel
     from wristmark.models.robot_params import RobotParams
-    from wristmark.sim import render_process
-    from wristmark.sim.render import StereoRenderer
-    from wristmark.sim.render_settings import noise_preset
+    from wristmark.sim.render import process as render_process
+    from wristmark.sim.render.settings import noise_preset
+    from wristmark.sim.render.stereo_renderer import StereoRenderer
     from wristmark.sim.visibility import random_visible_psi
 
     cam = load_calibration(CONFIG_DIR / "camera.yaml")
@@ -81,7 +81,7 @@ def _worker(a: argparse.Namespace) -> None:
         wall.append(1e3 * (time.perf_counter() - w0))
         digests.append([hashlib.sha256(b).hexdigest()[:16] for b in (left, right, jpeg)])
     # where the CPU goes: the same shapes again, each stage's thread CPU time summed over both threads
-    from wristmark.sim import render as render_module
+    from wristmark.sim.render import stereo_renderer as render_module
 
     stages: dict[str, float] = {k: 0.0 for k in STAGES}
     originals = {k: getattr(render_module, k) for k in STAGES}

@@ -24,13 +24,13 @@ import time
 import numpy as np
 
 from wristmark.cli.option_types import positive_float
-from wristmark.cvs.calibration_io import load_calibration
+from wristmark.cvs.calibration.load import load_calibration
 from wristmark.cvs.camera import scaled_stereo_camera
-from wristmark.cvs.marker_tracker import MarkerTracker
-from wristmark.cvs.open_source import SourceOptions, open_stereo_source
+from wristmark.cvs.sources.open_source import SourceOptions, open_stereo_source
+from wristmark.cvs.tracking.tracker import MarkerTracker
 from wristmark.models.config_files import default_config
 from wristmark.models.marker import MarkerModel
-from wristmark.rig.track_stream import prepare_tracker
+from wristmark.rig.recording.track_stream import prepare_tracker
 
 
 def main() -> int:

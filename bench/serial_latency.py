@@ -1,7 +1,7 @@
 """Benchmark: protocol-v1 round trip over a real pseudo-terminal (driver <-> emulator thread).
 
 Prints one JSON object on stdout: median / p99 / max round trip [µs] for GET_STATE and
-SET_TARGET through :class:`rig.actuator_driver.ActuatorDriver`, against the in-process
+SET_TARGET through :class:`rig.link.actuator_driver.ActuatorDriver`, against the in-process
 emulator serving the simulated true arm (configs/plant.yaml) on a pty.
 Usage: .venv/bin/python bench/serial_latency.py [--calls 2000] [--ideal]
 """
@@ -18,7 +18,7 @@ import numpy as np
 from wristmark.models.actuation import actuators_from_psi  # noqa: E402
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.robot_params import HOME_PSI, RobotParams  # noqa: E402
-from wristmark.rig.actuator_driver import ActuatorDriver  # noqa: E402
+from wristmark.rig.link.actuator_driver import ActuatorDriver  # noqa: E402
 from wristmark.sim.actuator_emulator import ActuatorEmulator  # noqa: E402
 from wristmark.sim.plant import TruePlant  # noqa: E402
 from wristmark.sim.plant_params import PlantParams  # noqa: E402

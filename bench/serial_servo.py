@@ -19,9 +19,9 @@ import platform
 import numpy as np
 
 from wristmark.cli import servo as S  # noqa: E402
-from wristmark.rig import protocol as P  # noqa: E402
-from wristmark.rig.actuator_link import DirectLink  # noqa: E402
-from wristmark.rig.servo_summary import summarize  # noqa: E402
+from wristmark.rig.link import protocol as P  # noqa: E402
+from wristmark.rig.link.actuator_link import DirectLink  # noqa: E402
+from wristmark.rig.loop.servo_summary import summarize  # noqa: E402
 from wristmark.sim.servo_bench import open_sim_session  # noqa: E402
 from wristmark.sim.setup import load_setup  # noqa: E402
 

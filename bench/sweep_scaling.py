@@ -54,9 +54,9 @@ def machine_load() -> dict:
 
 
 def main() -> None:
-    from wristmark.cli.sweep_run import run_sweep
-    from wristmark.cli.sweep_spec import load_spec
-    from wristmark.cli.sweep_trial import TrialJob, run_trial, warm_up
+    from wristmark.sweep.run import run_sweep
+    from wristmark.sweep.spec import load_spec
+    from wristmark.sweep.trial import TrialJob, run_trial, warm_up
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--trials", type=int, default=8)

@@ -3,8 +3,8 @@
 Usage: python bench/tracking.py [DATASET_DIR] [--pairs N] [--seed S] [--detectors paper,saddle]
 Without a folder it renders N pairs (default 20) at the default render noise into a temporary
 folder. Per pair, measured in the same run:
-- ours: MarkerTracker once per corner detector, side by side ("paper": cvs.corner_detector,
-  the paper's Sec. III.A; "saddle": the cvs.saddle_corners fallback), cold (whole frame, state
+- ours: MarkerTracker once per corner detector, side by side ("paper": cvs.corners.detector,
+  the paper's Sec. III.A; "saddle": the cvs.corners.saddle fallback), cold (whole frame, state
   reset) and again on the same pair in ROI tracking; times per stereo pair (total and the
   detection stage);
 - detector_only: the paper's detector alone per image, cold (whole frame) and in ROI tracking,
@@ -41,9 +41,9 @@ import cv2
 import numpy as np
 
 from wristmark.cli.main import main as cli_main  # noqa: E402
-from wristmark.cvs.corner_detector import MarkerCornerDetector  # noqa: E402
-from wristmark.cvs.homography_init import homography_pose  # noqa: E402
-from wristmark.cvs.marker_tracker import MarkerTracker, TrackerSettings  # noqa: E402
+from wristmark.cvs.corners.detector import MarkerCornerDetector  # noqa: E402
+from wristmark.cvs.tracking.homography_init import homography_pose  # noqa: E402
+from wristmark.cvs.tracking.tracker import MarkerTracker, TrackerSettings  # noqa: E402
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.sim.dataset import StereoDataset, load_dataset  # noqa: E402
 

@@ -2,10 +2,10 @@
 
 Usage: python bench/video_tracking.py [--frames 600] [--fps 60] [--scale 1.0] [--repeat 5] [--video FILE] [--bgr]
                                      [--no-prepare] [--rt-priority N]
-Renders ``--frames`` pairs of a smooth motion of the marked arm (sim.motion_video, 1920x1080
+Renders ``--frames`` pairs of a smooth motion of the marked arm (sim.render.motion_video, 1920x1080
 per eye at scale 1) and writes them as one side-by-side MJPG video (3840x1080, quality 95) at
 ``--fps`` (or plays ``--video``). Then, in the same run:
-- decode_only: the video read unpaced through cvs.open_source (demux + JPEG decode + split),
+- decode_only: the video read unpaced through cvs.sources.open_source (demux + JPEG decode + split),
   per-frame time, decoding BGR and grey views (grey decodes only the JPEG's luma);
 - tracked_unpaced: the same source with MarkerTracker on every frame, as fast as it goes;
 - paced: the file played by the paced video source at its real rate in wall-clock time
@@ -18,7 +18,7 @@ per eye at scale 1) and writes them as one side-by-side MJPG video (3840x1080, q
   generation, longest pause) and the slowest frames with their stages (``spikes``: tracking
   longer than one frame period, with any collection that ran inside it).
 The tracked runs use grey views (``--bgr``: BGR). Each tracked run's tracker is prepared as
-``wristmark track --source`` prepares it (rig.track_stream.prepare_tracker: a warm-up of every
+``wristmark track --source`` prepares it (rig.recording.track_stream.prepare_tracker: a warm-up of every
 code path on synthetic frames, then the heap frozen); ``--no-prepare`` instead warms the numba
 kernels on the video's first frame with another tracker and freezes nothing (how this bench
 ran before, for comparison). ``--rt-priority N``: the whole bench (tracker and decoder threads)
@@ -41,15 +41,15 @@ from typing import Any
 import numpy as np
 
 from wristmark.cli.option_types import int_in, positive_float  # noqa: E402
-from wristmark.cvs.calibration_io import load_calibration  # noqa: E402
+from wristmark.cvs.calibration.load import load_calibration  # noqa: E402
 from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera  # noqa: E402
-from wristmark.cvs.marker_tracker import MarkerTracker  # noqa: E402
-from wristmark.cvs.open_source import SourceOptions, open_stereo_source  # noqa: E402
+from wristmark.cvs.sources.open_source import SourceOptions, open_stereo_source  # noqa: E402
+from wristmark.cvs.tracking.tracker import MarkerTracker  # noqa: E402
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.errors import WristmarkError
 from wristmark.models.marker import MarkerModel  # noqa: E402
-from wristmark.rig.realtime_priority import request_realtime_priority
-from wristmark.rig.track_stream import prepare_tracker
+from wristmark.rig.loop.realtime_priority import request_realtime_priority
+from wristmark.rig.recording.track_stream import prepare_tracker
 
 MAX_SPIKES = 8  # slowest frames listed per run
 
@@ -66,7 +66,7 @@ def _ms(values: list[float]) -> dict[str, float]:
 
 def make_video(path: Path, frames: int, fps: float, scale: float, seed: int = 0) -> Path:
     """Render the motion and write it as a side-by-side MJPG video; returns the path."""
-    from wristmark.sim.motion_video import render_motion, write_stereo_video
+    from wristmark.sim.render.motion_video import render_motion, write_stereo_video
 
     cam = load_calibration(CONFIG_DIR / "camera.yaml")
     return write_stereo_video(path, render_motion(cam, frames, scale=scale, seed=seed), fps=fps)

@@ -21,7 +21,7 @@ the lab's fixed frame clock) and the host's cycle is locked to the frames' arriv
 ~45 ms after its cycle's start, the in-process instant, at once after its frame's tracking.
 ``--phase-lock none``: a free-running camera rendering as fast as it can, the shipped rig.yaml's
 setting (its commands go out at a different instant of every cycle).
-Both processes run under SCHED_FIFO where the host allows it (rig/realtime_priority.py): the
+Both processes run under SCHED_FIFO where the host allows it (rig/loop/realtime_priority.py): the
 host's loop, the lab's actuator box and stream, and the lab's rendering where the renderer
 alone sustains 1.5 x ``--max-fps-rt``.
 Prints one JSON object. Targets (issue 11): host latency beyond the transport <= 10 ms
@@ -70,8 +70,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 from wristmark.cli.option_types import float_in, int_in, positive_float  # noqa: E402
 from wristmark.models.config_files import default_config  # noqa: E402
-from wristmark.rig.realtime_priority import realtime_priority_allowed  # noqa: E402
-from wristmark.rig.rig_config import RigConfig  # noqa: E402
+from wristmark.rig.loop.realtime_priority import realtime_priority_allowed  # noqa: E402
+from wristmark.rig.loop.rig_config import RigConfig  # noqa: E402
 
 WRISTMARK = [sys.executable, "-m", "wristmark"]
 
@@ -82,8 +82,8 @@ def sustained_fps(scale: float, n: int = 12) -> dict[str, float]:
 
     from wristmark.cvs.camera import scaled_stereo_camera
     from wristmark.models.robot_params import HOME_PSI
-    from wristmark.sim.render import StereoRenderer
-    from wristmark.sim.render_settings import noise_preset
+    from wristmark.sim.render.settings import noise_preset
+    from wristmark.sim.render.stereo_renderer import StereoRenderer
     from wristmark.sim.setup import load_setup, make_plant
 
     setup = load_setup()
@@ -142,7 +142,7 @@ def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_r
     the lab's rendering too; rig: the host's rig file, default the shipped one; dt: the host's
     control cycle [s], default the rig file's; scenario: plant, marker, controller, orientation;
     psi_rest: where the lab's arm rests at the start, default the emulator's home)."""
-    from wristmark.rig.metrics import error_stats
+    from wristmark.rig.loop.metrics import error_stats
     from wristmark.sim.virtual_lab import read_truth_csv, true_tip_errors
 
     truth = tmp / f"truth_{scale}.csv"
@@ -202,7 +202,7 @@ def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_r
 def cycle_timing(log_csv: Path) -> dict[str, float]:
     """Medians over a run's measured walk cycles [ms]: a frame's capture before its cycle's
     nominal start (negative: after it) and the command after that start."""
-    from wristmark.rig.run_log import read_log_csv
+    from wristmark.rig.recording.run_log import read_log_csv
 
     log = read_log_csv(log_csv)
     sel = np.array([p == "servo" and ok == 1 for p, ok in zip(log["phase"], log["meas_ok"])], bool)
@@ -247,7 +247,7 @@ def in_process_run(scale: float, duration: float, rig: str | None = None, dt: fl
     lab's with ``--lab-start home``; else it rests at the start)."""
     from wristmark.cli import servo as S
     from wristmark.models.robot_params import HOME_PSI
-    from wristmark.rig.servo_summary import summarize
+    from wristmark.rig.loop.servo_summary import summarize
     from wristmark.sim.servo_bench import open_sim_session
 
     setup, traj = _setup_and_cube(scale, duration, rig, dt, scenario, {"seed": seed} if seed is not None else None)

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Installs GStreamer's RTSP server for Debian's own Python when missing: the RTSP tests
-# (tests/test_frame_source_rtsp.py) serve frames with it (wristmark_testing/rtsp_server.py).
+# (tests/cvs/sources/test_frame_source_rtsp.py) serve frames with it (wristmark_testing/rtsp_server.py).
 # Only from the Debian archive; the project's venv does not need it.
 set -euo pipefail
 probe='import gi; gi.require_version("Gst", "1.0"); gi.require_version("GstRtspServer", "1.0"); from gi.repository import Gst, GstRtspServer; Gst.init(None); assert Gst.ElementFactory.find("rtpjpegpay") and Gst.ElementFactory.find("jpegparse") and Gst.ElementFactory.find("appsrc")'

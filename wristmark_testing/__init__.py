@@ -1,7 +1,7 @@
 """Independent checkers for wristmark's tests and benchmarks, written only from DESIGN.md.
 
 Nothing here imports ``wristmark`` and ``wristmark`` never imports this package
-(tests/test_layers.py checks both), so a check here cannot share a mistake with the code it checks:
+(tests/project/test_layers.py checks both), so a check here cannot share a mistake with the code it checks:
 ``reference_chain`` (the kinematic chain on 4x4 matrices), ``independent_render`` (a second
 stereo renderer of the marker, numpy/OpenCV only) and ``independent_dataset_check`` (every rule
 of the stereo dataset format). A separate top-level package of the same distribution (like

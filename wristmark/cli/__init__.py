@@ -1,7 +1,7 @@
 """The ``wristmark`` command line: ``main`` dispatches to one module per subcommand
 (``add_arguments`` + ``run``). It is the top layer: it may import every
-other package. The sweeps (``load_spec``, ``run_sweep``) live here because a trial is a
-``wristmark experiment`` command line.
+other package but ``wristmark.sweep``, which drives it (a trial is a ``wristmark experiment``
+command line).
 
 The names below are imported on first use (``wristmark/_lazy.py``).
 """
@@ -11,8 +11,6 @@ TYPE_CHECKING = False  # typing.TYPE_CHECKING without importing typing (mypy rea
 if TYPE_CHECKING:
     from wristmark.cli.main import COMMANDS, build_parser
     from wristmark.cli.main import main as run_cli
-    from wristmark.cli.sweep_run import run_sweep
-    from wristmark.cli.sweep_spec import load_spec
 else:
     from wristmark._lazy import attach
 

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from wristmark.cli.common_options import add_config_option, add_force_argument, add_json_flag, set_example
 from wristmark.models.errors import InputError
-from wristmark.rig.output_dir import claim_outputs
+from wristmark.rig.recording.output_dir import claim_outputs
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -26,9 +26,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from wristmark.cvs.calibration_io import load_calibration, save_calibration
-    from wristmark.cvs.calibration_summary import summarize, summary_text
-    from wristmark.cvs.registration_io import apply_registration
+    from wristmark.cvs.calibration.load import load_calibration, save_calibration
+    from wristmark.cvs.calibration.registration_file import apply_registration
+    from wristmark.cvs.calibration.summary import summarize, summary_text
 
     cam = apply_registration(load_calibration(args.calib), args.registration)
     if args.action == "convert":

@@ -2,7 +2,7 @@
 
 ``--board chessboard:CxR:SQUARE | charuco:CxR:SQUARE:MARKER:DICT`` (DESIGN.md "Calibration
 files"), ``LEFT RIGHT [LEFT RIGHT ...]`` or ``--source SPEC`` (a dataset folder, video, camera
-or bag: cvs.open_source), ``--out C.yaml`` (refused if it exists, unless ``--force``),
+or bag: cvs.sources.open_source), ``--out C.yaml`` (refused if it exists, unless ``--force``),
 ``--report DIR``. Dropped views are named on stderr; ``--json`` prints the result on stdout.
 """
 
@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from wristmark.cli.common_options import add_force_argument, add_json_flag, set_example
 from wristmark.cli.option_types import int_in, positive_float
 from wristmark.models.errors import InputError
-from wristmark.rig.output_dir import claim_outputs
+from wristmark.rig.recording.output_dir import claim_outputs
 
 Pair = tuple[str, NDArray[np.uint8], NDArray[np.uint8]]
 
@@ -49,15 +49,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _file_pairs(paths: list[Path]) -> Iterator[Pair]:
-    from wristmark.cvs.frame_source_images import read_image
+    from wristmark.cvs.sources.images import read_image
 
     for lp, rp in zip(paths[0::2], paths[1::2]):
         yield f"{lp.name} + {rp.name}", read_image(lp), read_image(rp)
 
 
 def _source_pairs(spec: str, limit: int, every: int, layout: str) -> Iterator[Pair]:
-    from wristmark.cvs.frames import frames
-    from wristmark.cvs.open_source import SourceOptions, open_stereo_source
+    from wristmark.cvs.sources.frames import frames
+    from wristmark.cvs.sources.open_source import SourceOptions, open_stereo_source
 
     src = open_stereo_source(spec, SourceOptions(layout=layout))
     try:
@@ -71,9 +71,9 @@ def _source_pairs(spec: str, limit: int, every: int, layout: str) -> Iterator[Pa
 def run(args: argparse.Namespace) -> int:
     import cv2
 
-    from wristmark.cvs.calibration_board import BoardDetector, BoardSpec
-    from wristmark.cvs.calibration_io import save_calibration
-    from wristmark.cvs.stereo_calibration import calibrate_stereo, detect_views
+    from wristmark.cvs.calibration.board import BoardDetector, BoardSpec
+    from wristmark.cvs.calibration.load import save_calibration
+    from wristmark.cvs.calibration.stereo import calibrate_stereo, detect_views
 
     board = BoardSpec.parse(args.board)
     out = Path(args.out)
@@ -105,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"wristmark calibrate: dropped view {v.name}: {v.reason}", file=sys.stderr)
     save_calibration(out, res.camera)
     if args.report:
-        from wristmark.cvs.calibration_report import write_report
+        from wristmark.cvs.calibration.report import write_report
 
         write_report(Path(args.report), res, views, args.board, example[0] if example else None)
     cam = res.camera

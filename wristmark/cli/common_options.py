@@ -4,7 +4,7 @@ adding only its default or a note), ``--json`` (a flag: the result as JSON on st
 ``servo`` and ``experiment``, ``--json FILE.json``: the result as JSON in that file), ``--out``
 (an output folder, metavar DIR, or an output file, metavar FILE.ext), ``--force`` (overwrite
 outputs), ``--host`` (who may watch the 3D view), and the example that ends each command's
-``--help``. tests/test_cli_help.py checks every command against them."""
+``--help``. tests/cli/test_cli_help.py checks every command against them."""
 
 from __future__ import annotations
 

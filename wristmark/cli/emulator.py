@@ -86,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{', '.join(_camera_options_without_port(args))} need --camera-port PORT")
     if args.render_normal_priority and args.rt_priority is None:
         raise InputError("--render-normal-priority needs --rt-priority N")
-    from wristmark.rig.output_dir import claim_outputs
+    from wristmark.rig.recording.output_dir import claim_outputs
 
     claim_outputs(files=[args.truth_out, args.truth_dense_out], force=args.force)  # before anything is served
     params = load_robot(args.robot, MarkerModel.load(args.marker or default_config("marker.yaml")))
@@ -102,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGINT, _stop)
     if args.camera_port is None:
         if args.rt_priority is not None:
-            from wristmark.rig.realtime_priority import request_realtime_priority
+            from wristmark.rig.loop.realtime_priority import request_realtime_priority
 
             request_realtime_priority(args.rt_priority)  # the serving thread inherits it
         emulator = ActuatorEmulator(TruePlant(params, plant, psi0=psi0), params, watchdog_s=args.watchdog)
@@ -119,10 +119,10 @@ def run(args: argparse.Namespace) -> int:
 
 def _serve_lab(args: argparse.Namespace, params: RobotParams, plant: object, psi0: np.ndarray,
                done: threading.Event) -> int:
-    from wristmark.cvs.calibration_io import load_calibration
+    from wristmark.cvs.calibration.load import load_calibration
     from wristmark.models.marker import MarkerModel
-    from wristmark.rig.heap_freeze import freeze_heap
-    from wristmark.rig.loop_setup import default_config
+    from wristmark.rig.loop.heap_freeze import freeze_heap
+    from wristmark.rig.loop.loop_setup import default_config
     from wristmark.sim.virtual_lab import LabCamera, VirtualLab
 
     calib = load_calibration(args.calib or default_config("camera.yaml"))
@@ -134,7 +134,7 @@ def _serve_lab(args: argparse.Namespace, params: RobotParams, plant: object, psi
                      render_rt=not args.render_normal_priority)
     try:
         path, url = lab.start()
-        freeze_heap()  # a full collection would stop the box and the camera for ~0.1 s (rig.heap_freeze)
+        freeze_heap()  # a full collection would stop the box and the camera for ~0.1 s (rig.loop.heap_freeze)
         print(path, flush=True)
         print(url, flush=True)
         w, h = lab.camera.image_size

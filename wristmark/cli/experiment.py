@@ -21,12 +21,12 @@ from wristmark.cli.option_types import (
 )
 from wristmark.cli.setup_args import add_registration_argument, add_setup_arguments, setup_from_args
 from wristmark.models.errors import ConfigError
-from wristmark.rig.orientation_path import ORIENTATION_MODES
-from wristmark.rig.output_dir import claim_outputs, link_latest, new_run_dir
-from wristmark.rig.run_log import write_json
+from wristmark.rig.recording.output_dir import claim_outputs, link_latest, new_run_dir
+from wristmark.rig.recording.run_log import write_json
+from wristmark.rig.targets.orientation_path import ORIENTATION_MODES
 
 if TYPE_CHECKING:
-    from wristmark.rig.run_log import CycleRecord
+    from wristmark.rig.recording.run_log import CycleRecord
     from wristmark.sim.setup import SimSetup
 
 

@@ -1,4 +1,5 @@
-"""The ``wristmark`` command line: a thin dispatcher over ``cli/<name>.py``.
+"""The ``wristmark`` command line: a thin dispatcher over ``cli/<name>.py`` (and the sweep's
+command, ``sweep/command.py``: the sweep drives this command line, so it stands above it).
 
 Each command module defines ``add_arguments(parser)`` and ``run(args) -> int``; it is imported
 only when its command runs, so ``wristmark fk`` does not pay for OpenCV or Meshcat. Errors that
@@ -33,6 +34,15 @@ COMMANDS: dict[str, str] = {
 }
 
 
+# The module of each command: ``wristmark.cli.<name>`` unless named here.
+COMMAND_MODULES: dict[str, str] = {"sweep": "wristmark.sweep.command"}
+
+
+def command_module(name: str) -> str:
+    """The dotted module that defines ``add_arguments`` and ``run`` of command ``name``."""
+    return COMMAND_MODULES.get(name, f"wristmark.cli.{name}")
+
+
 EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE: what a shell reports for a writer whose reader closed the pipe
 
 
@@ -62,7 +72,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     for name, help_text in COMMANDS.items():
         p = sub.add_parser(name, help=help_text, description=help_text)
         if name == command:
-            module = importlib.import_module(f"wristmark.cli.{name}")
+            module = importlib.import_module(command_module(name))
             module.add_arguments(p)
     return parser
 
@@ -79,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.command is None:
             parser.print_help()
             return 2
-        module = importlib.import_module(f"wristmark.cli.{args.command}")
+        module = importlib.import_module(command_module(args.command))
         status = int(module.run(args) or 0)
         sys.stdout.flush()  # a closed pipe shows here, not at interpreter exit
         return status

@@ -1,4 +1,4 @@
-"""``wristmark marker print``: the unrolled sleeve of a marker file at 1:1 (cvs.marker_print).
+"""``wristmark marker print``: the unrolled sleeve of a marker file at 1:1 (cvs.marker.print_sheet).
 
 ``wristmark marker print --marker FILE --out sleeve.svg|sleeve.pdf [--force]`` writes the page
 (2 pi r wide plus margins, the sleeve's z extent tall, a 10 mm scale bar and the marker file's
@@ -14,7 +14,7 @@ from pathlib import Path
 from wristmark.cli.common_options import add_config_option, add_force_argument, set_example
 from wristmark.models.config_files import find_config
 from wristmark.models.errors import InputError
-from wristmark.rig.output_dir import claim_outputs
+from wristmark.rig.recording.output_dir import claim_outputs
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -28,7 +28,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from wristmark.cvs.marker_print import write_pdf, write_svg
+    from wristmark.cvs.marker.print_sheet import write_pdf, write_svg
     from wristmark.models.marker import MarkerModel
 
     out = Path(args.out)

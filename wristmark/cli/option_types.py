@@ -6,7 +6,7 @@ outside the stated range, and names the range in its one-line message (argparse 
 
     p.add_argument("--dt", type=float_in(1e-3, 1.0), metavar="S", help="control cycle [s]")
 
-Every type made here carries its range as ``validated_range`` (tests/test_cli_options.py finds
+Every type made here carries its range as ``validated_range`` (tests/cli/test_cli_options.py finds
 every numeric option of every command and fails on one without it).
 """
 

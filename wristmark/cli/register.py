@@ -3,7 +3,7 @@ the marker (DESIGN.md "Registration").
 
 Sources of observations: the simulated bench (default, in-process: ``--plant P``, whose
 ``camera_offset`` moves the true camera), ``--serial PORT --camera SPEC`` (hardware or the
-virtual lab), or ``--from-log DIR`` (a registration log, rig/registration_log.py). Writes the
+virtual lab), or ``--from-log DIR`` (a registration log, rig/registration/log.py). Writes the
 registration file (``--out``), per-pose residuals on stderr, ``--json`` on stdout, and with
 ``--log DIR`` the observations it used.
 """
@@ -22,7 +22,7 @@ from wristmark.cli.common_options import add_config_option, add_force_argument, 
 from wristmark.cli.option_types import float_in, int_in, positive_float, seed_int
 from wristmark.models.config_files import default_config
 from wristmark.models.errors import InputError
-from wristmark.rig.output_dir import claim_outputs
+from wristmark.rig.recording.output_dir import claim_outputs
 
 REPLY_TIMEOUT_S = 0.2  # [s] per attempt at a reply from the actuator box (3 retries)
 
@@ -58,10 +58,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def _observe_sim(args: argparse.Namespace, progress: bool) -> tuple[Any, list, dict[str, Any]]:
     import dataclasses
 
-    from wristmark.cvs.marker_tracker import MarkerTracker
-    from wristmark.cvs.registration_io import load_registration
-    from wristmark.rig.registration_poses import choose_poses
-    from wristmark.rig.registration_run import collect
+    from wristmark.cvs.calibration.registration_file import load_registration
+    from wristmark.cvs.tracking.tracker import MarkerTracker
+    from wristmark.rig.registration.poses import choose_poses
+    from wristmark.rig.registration.run import collect
     from wristmark.sim.registration_bench import SimRegistrationRig
     from wristmark.sim.setup import load_setup
     from wristmark.solvers.registration import transform_error
@@ -83,19 +83,19 @@ def _observe_sim(args: argparse.Namespace, progress: bool) -> tuple[Any, list, d
 
 
 def _observe_hardware(args: argparse.Namespace, progress: bool) -> tuple[Any, list, dict[str, Any]]:
-    from wristmark.cvs.calibration_io import load_calibration
-    from wristmark.cvs.marker_tracker import MarkerTracker
-    from wristmark.cvs.registration_io import apply_registration
+    from wristmark.cvs.calibration.load import load_calibration
+    from wristmark.cvs.calibration.registration_file import apply_registration
+    from wristmark.cvs.tracking.tracker import MarkerTracker
     from wristmark.models.marker import MarkerModel
     from wristmark.models.robot_params import load_robot
-    from wristmark.rig.actuator_driver import ActuatorDriver
-    from wristmark.rig.registration_hardware import HardwareRegistrationRig
-    from wristmark.rig.registration_poses import choose_poses
-    from wristmark.rig.registration_run import collect
+    from wristmark.rig.link.actuator_driver import ActuatorDriver
+    from wristmark.rig.registration.hardware import HardwareRegistrationRig
+    from wristmark.rig.registration.poses import choose_poses
+    from wristmark.rig.registration.run import collect
 
     if not args.camera:
         raise InputError("--serial needs --camera SPEC (the stereo endoscope's frame source)")
-    from wristmark.cvs.open_source import SourceOptions, open_stereo_source
+    from wristmark.cvs.sources.open_source import SourceOptions, open_stereo_source
     calib = args.calib or str(default_config("camera.yaml"))
     cam = apply_registration(load_calibration(calib), args.registration)
     marker = MarkerModel.load(args.marker) if args.marker else MarkerModel()
@@ -121,11 +121,11 @@ def _observe_hardware(args: argparse.Namespace, progress: bool) -> tuple[Any, li
 def run(args: argparse.Namespace) -> int:
     import cv2
 
-    from wristmark.cvs.registration_io import Registration, save_registration
+    from wristmark.cvs.calibration.registration_file import Registration, save_registration
     from wristmark.models.marker import MarkerModel
     from wristmark.models.robot_params import load_robot
-    from wristmark.rig.registration_log import read_log, write_log
-    from wristmark.rig.registration_run import registration_poses
+    from wristmark.rig.registration.log import read_log, write_log
+    from wristmark.rig.registration.run import registration_poses
     from wristmark.solvers.registration import solve_registration, transform_error
 
     out = Path(args.out)

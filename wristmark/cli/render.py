@@ -24,7 +24,7 @@ from wristmark.cli.option_types import (
 )
 from wristmark.models.config_files import default_config
 from wristmark.models.errors import InputError
-from wristmark.rig.output_dir import claim_outputs
+from wristmark.rig.recording.output_dir import claim_outputs
 
 Array = NDArray[np.float64]
 # Half-widths of the random psi draw around HOME_PSI: phi [rad], d [m], theta1, delta1, theta2, delta2 [rad].
@@ -85,15 +85,15 @@ def read_psi_file(path: str | Path) -> list[Array]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from wristmark.cvs.calibration_io import load_calibration
+    from wristmark.cvs.calibration.load import load_calibration
     from wristmark.cvs.camera import scaled_stereo_camera
     from wristmark.models.arm_shape import arm_shape
     from wristmark.models.limits import check_limits
     from wristmark.models.marker import MarkerModel
     from wristmark.models.robot_params import load_robot
     from wristmark.sim.dataset import DatasetWriter
-    from wristmark.sim.render import StereoRenderer
-    from wristmark.sim.render_settings import RenderSettings, noise_preset
+    from wristmark.sim.render.settings import RenderSettings, noise_preset
+    from wristmark.sim.render.stereo_renderer import StereoRenderer
     from wristmark.sim.visibility import marker_visible, random_visible_psi
 
     if args.pairs is not None and args.pairs < 1:

@@ -8,7 +8,7 @@ the simulated bench is imported.
 
 Without ``--serial`` the command runs the simulated bench in process: the actuator-box emulator
 on a new pseudo-terminal, driving the simulated true arm, talked to through
-:class:`rig.actuator_driver.ActuatorDriver` (every command crosses the pty as bytes) while the
+:class:`rig.link.actuator_driver.ActuatorDriver` (every command crosses the pty as bytes) while the
 emulator and the loop share a simulated clock (faster than real time, deterministic);
 ``--realtime`` runs that emulator on the wall clock instead; ``--direct`` is the in-process
 reference without serial bytes.
@@ -48,10 +48,7 @@ from wristmark.cli.option_types import (
 )
 from wristmark.cli.setup_args import add_registration_argument, add_setup_arguments, setup_from_args
 from wristmark.models.errors import InputError
-from wristmark.rig.orientation_path import ORIENTATION_MODES, check_orientation_mode
-from wristmark.rig.output_dir import claim_outputs
-from wristmark.rig.run_log import write_json
-from wristmark.rig.servo_session import (
+from wristmark.rig.loop.servo_session import (
     HW_TIMEOUT_S,
     POINT_HOLD_S,
     SIM_TIMEOUT_S,
@@ -61,11 +58,14 @@ from wristmark.rig.servo_session import (
     ServoSession,
     run_servo,
 )
-from wristmark.rig.servo_summary import percentiles_ms, summarize
-from wristmark.rig.trajectories import Trajectory
+from wristmark.rig.loop.servo_summary import percentiles_ms, summarize
+from wristmark.rig.recording.output_dir import claim_outputs
+from wristmark.rig.recording.run_log import write_json
+from wristmark.rig.targets.orientation_path import ORIENTATION_MODES, check_orientation_mode
+from wristmark.rig.targets.trajectories import Trajectory
 
 if TYPE_CHECKING:
-    from wristmark.rig.loop_setup import LoopSetup
+    from wristmark.rig.loop.loop_setup import LoopSetup
 
 Array = NDArray[np.float64]
 
@@ -135,7 +135,7 @@ def build_setup(args: argparse.Namespace) -> LoopSetup:
 
 def build_trajectory(setup: LoopSetup, kind: str, point: list[float] | None, duration: float | None) -> Trajectory:
     """The cube walk around the workspace centre, or a held point; cut to ``duration`` [s]."""
-    from wristmark.rig.trajectories import CUBE_SIZE, CUBE_SPEED, cube_trajectory, workspace_centre
+    from wristmark.rig.targets.trajectories import CUBE_SIZE, CUBE_SPEED, cube_trajectory, workspace_centre
 
     if duration is not None and not (np.isfinite(duration) and duration > 0):
         raise InputError(f"--duration must be > 0 s, got {duration}")
@@ -223,16 +223,16 @@ def check_link_options(args: argparse.Namespace) -> None:
 def open_session(setup: LoopSetup, psi0: Array, options: LinkOptions, args: argparse.Namespace) -> ServoSession:
     """The hardware session (serial port + camera), or the simulated bench's in process."""
     if options.kind == "serial":
-        from wristmark.rig.hardware_session import open_hardware_session
+        from wristmark.rig.loop.hardware_session import open_hardware_session
 
         if args.rt_priority is not None:  # before any thread starts: the camera's threads inherit it
-            from wristmark.rig.realtime_priority import request_realtime_priority
+            from wristmark.rig.loop.realtime_priority import request_realtime_priority
 
             request_realtime_priority(args.rt_priority)
-        from wristmark.rig.heap_freeze import freeze_heap
+        from wristmark.rig.loop.heap_freeze import freeze_heap
 
         session = open_hardware_session(setup, options, args.camera, camera_timeout=args.camera_timeout)
-        freeze_heap()  # no full garbage collection of the start-up heap mid-run (rig.heap_freeze)
+        freeze_heap()  # no full garbage collection of the start-up heap mid-run (rig.loop.heap_freeze)
         return session
     from wristmark.sim.servo_bench import open_sim_session
 
@@ -244,7 +244,7 @@ def open_recorder(args: argparse.Namespace, setup: LoopSetup, session: ServoSess
     the bag cannot be written."""
     if not args.record:
         return None
-    from wristmark.rig.servo_recorder import ServoRecorder
+    from wristmark.rig.recording.servo_recorder import ServoRecorder
 
     try:
         return ServoRecorder(args.record, setup.params, jpeg=args.record_jpeg,

@@ -1,7 +1,7 @@
 """Command-line options shared by the commands that run a servo loop (experiment, servo): which
 configuration files, and overrides of the loop (cycle, latency, sensor, image scale, seed) and
 of the controller kind. ``setup_from_args`` loads and validates them into a SimSetup (the
-simulated bench) or, for the hardware path, a :class:`rig.loop_setup.LoopSetup` without
+simulated bench) or, for the hardware path, a :class:`rig.loop.loop_setup.LoopSetup` without
 importing the simulated bench. The stereo calibration is ``--calib`` (``--camera`` names a
 frame source in ``servo``)."""
 
@@ -24,7 +24,7 @@ from wristmark.cli.option_types import (
 from wristmark.models.errors import ConfigError, InputError
 
 if TYPE_CHECKING:
-    from wristmark.rig.loop_setup import LoopSetup
+    from wristmark.rig.loop.loop_setup import LoopSetup
 
 SIM_ONLY = ("plant", "latency", "sensor")  # options that only the simulated bench has
 
@@ -69,7 +69,7 @@ def setup_from_args(args: argparse.Namespace, simulated: bool = True, **rig_over
         setup = load_setup(robot=args.robot, marker=args.marker, camera=args.calib, plant=args.plant,
                            rig=args.rig, controller=args.controller_config)
     else:
-        from wristmark.rig.loop_setup import load_loop_setup
+        from wristmark.rig.loop.loop_setup import load_loop_setup
 
         given = [f"--{k}" for k in SIM_ONLY if getattr(args, k, None) is not None]
         if given:
@@ -77,7 +77,7 @@ def setup_from_args(args: argparse.Namespace, simulated: bool = True, **rig_over
         setup = load_loop_setup(robot=args.robot, marker=args.marker, camera=args.calib, rig=args.rig,
                                 controller=args.controller_config)
     if getattr(args, "registration", None):
-        from wristmark.cvs.registration_io import load_registration
+        from wristmark.cvs.calibration.registration_file import load_registration
 
         setup = setup.with_changes(registration=load_registration(args.registration).world_T_left)
     changes: dict[str, Any] = {}

@@ -2,11 +2,11 @@
 "Stereo frame sources", "Recording").
 
 Frames come from ``LEFT RIGHT ...`` image pairs or ``--source SPEC`` (dataset folder, video,
-two videos, V4L2 camera, HTTP/RTSP stream, ROS 2 bag: cvs.open_source) and are tracked in
+two videos, V4L2 camera, HTTP/RTSP stream, ROS 2 bag: cvs.sources.open_source) and are tracked in
 order as one sequence (ROI tracking from frame to frame). With ``--json`` one object per frame
 and line: left, right, ok, tip, R, t (pose of {wm} in {ll}, metres), corners_left,
 corners_right (raw pixels), rms_px, time_ms, and axis_source (what decided the direction of
-z_wm: cvs.marker_tracker); with ``--source`` also ``frame`` (the source's index) and
+z_wm: cvs.tracking.tracker); with ``--source`` also ``frame`` (the source's index) and
 ``t_capture`` (host monotonic clock [s]). ``"ok": false`` with a ``reason`` when the marker is
 not found, or "direction ambiguous" when nothing tells which way the marker points (the
 direction is never guessed unless --lenient-direction; docs/conventions.md); the exit status
@@ -17,11 +17,11 @@ the corners, null when the roll is unknown).
 With ``--source``: a progress bar on stderr for finite sources (on a terminal), and at the end
 one summary line on stderr: frames, rate [fps], tracking latency (result time minus
 ``t_capture``) median and p95 [ms], dropped frames. Before the source is opened the tracker
-is warmed up on synthetic frames and the heap frozen (rig.track_stream.prepare_tracker), so a
+is warmed up on synthetic frames and the heap frozen (rig.recording.track_stream.prepare_tracker), so a
 live source drops nothing meanwhile; ``--rt-priority N`` runs the tracker and the source's
-threads under SCHED_FIFO (rig.realtime_priority). ``--annotate`` writes the frames with the
-corners, their indices and the marker axes drawn (cvs.annotate); ``--record FILE.mcap`` writes
-the frames and poses as a ROS 2 bag (rig.bag_recorder) that ``--source FILE.mcap`` replays.
+threads under SCHED_FIFO (rig.loop.realtime_priority). ``--annotate`` writes the frames with the
+corners, their indices and the marker axes drawn (cvs.tracking.annotate); ``--record FILE.mcap`` writes
+the frames and poses as a ROS 2 bag (rig.recording.bag_recorder) that ``--source FILE.mcap`` replays.
 
 Errors are for the whole command (one line on stderr, exit 2): an odd number of paths, a
 missing file (all paths are checked before any pair is tracked), a source that cannot be
@@ -41,7 +41,7 @@ import numpy as np
 
 from wristmark.cli.common_options import add_config_option, add_json_flag, set_example
 from wristmark.cli.option_types import MAX_RMS_PX, float_in, int_in, positive_float
-from wristmark.cvs.frames import StereoFrame
+from wristmark.cvs.sources.frames import StereoFrame
 from wristmark.models.errors import InputError
 
 DEFAULT_TIMEOUT_S = 5.0
@@ -173,7 +173,7 @@ def _text_line(frame: StereoFrame, res: Any) -> str:
 
 
 def _settings(args: argparse.Namespace) -> Any:
-    from wristmark.cvs.marker_tracker import TrackerSettings
+    from wristmark.cvs.tracking.tracker import TrackerSettings
 
     settings = TrackerSettings(detector=args.detector, strict_direction=not args.lenient_direction)
     if args.max_rms is not None:
@@ -182,7 +182,7 @@ def _settings(args: argparse.Namespace) -> Any:
 
 
 def _topics(text: str | None) -> tuple[str, str]:
-    from wristmark.cvs.open_source import DEFAULT_TOPICS
+    from wristmark.cvs.sources.open_source import DEFAULT_TOPICS
 
     if text is None:
         return DEFAULT_TOPICS
@@ -193,10 +193,10 @@ def _topics(text: str | None) -> tuple[str, str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from wristmark.cvs.calibration_io import load_calibration
-    from wristmark.cvs.marker_tracker import MarkerTracker
-    from wristmark.cvs.open_source import SourceOptions, open_stereo_source
-    from wristmark.cvs.registration_io import apply_registration
+    from wristmark.cvs.calibration.load import load_calibration
+    from wristmark.cvs.calibration.registration_file import apply_registration
+    from wristmark.cvs.sources.open_source import SourceOptions, open_stereo_source
+    from wristmark.cvs.tracking.tracker import MarkerTracker
     from wristmark.models.marker import MarkerModel
 
     def fields(res: Any) -> dict[str, Any]:
@@ -237,7 +237,7 @@ def run(args: argparse.Namespace) -> int:
     options = SourceOptions(layout=args.layout, size=args.size, fps=args.fps, fourcc=args.fourcc or None,
                             topics=_topics(args.topics), timeout=args.timeout, paced=args.paced,
                             image_size=camera.image_size, grayscale=args.grayscale)
-    from wristmark.rig.track_stream import TrackOutputs, prepare_tracker, track_source
+    from wristmark.rig.recording.track_stream import TrackOutputs, prepare_tracker, track_source
 
     def emit(frame: StereoFrame, res: Any) -> None:
         if args.json:
@@ -247,7 +247,7 @@ def run(args: argparse.Namespace) -> int:
             print(_text_line(frame, res), flush=True)
 
     if args.rt_priority is not None:  # before the source's threads start: they inherit it
-        from wristmark.rig.realtime_priority import request_realtime_priority
+        from wristmark.rig.loop.realtime_priority import request_realtime_priority
 
         request_realtime_priority(args.rt_priority)
     prepare_tracker(tracker, args.grayscale)  # no first use of a code path nor full collection on a frame

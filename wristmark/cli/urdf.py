@@ -8,7 +8,7 @@ import json
 from wristmark.cli.common_options import add_config_option, add_force_argument, add_json_flag, set_example
 from wristmark.cli.option_types import MAX_LINKS, int_in
 from wristmark.models.errors import InputError
-from wristmark.rig.output_dir import claim_outputs
+from wristmark.rig.recording.output_dir import claim_outputs
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

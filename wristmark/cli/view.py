@@ -26,7 +26,7 @@ from wristmark.cli.common_options import (
 )
 from wristmark.cli.option_types import MAX_FRAMES, MAX_HOLD_S, int_in, nonnegative_float
 from wristmark.models.errors import InputError
-from wristmark.rig.output_dir import claim_outputs
+from wristmark.rig.recording.output_dir import claim_outputs
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

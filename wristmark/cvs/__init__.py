@@ -11,21 +11,26 @@ The names below are imported on first use (``wristmark/_lazy.py``).
 TYPE_CHECKING = False  # typing.TYPE_CHECKING without importing typing (mypy reads it as True)
 
 if TYPE_CHECKING:
-    from wristmark.cvs.annotate import AnnotationWriter, annotate_pair
-    from wristmark.cvs.calib_yaml import save_calibration
-    from wristmark.cvs.calibration_board import BoardSpec
-    from wristmark.cvs.calibration_io import load_calibration
+    from wristmark.cvs.calibration.board import BoardSpec
+    from wristmark.cvs.calibration.load import load_calibration
+    from wristmark.cvs.calibration.registration_file import (
+        Registration,
+        apply_registration,
+        load_registration,
+        save_registration,
+    )
+    from wristmark.cvs.calibration.stereo import StereoCalibration, calibrate_stereo, detect_views
+    from wristmark.cvs.calibration.yaml_files import save_calibration
     from wristmark.cvs.camera import Camera, StereoCamera, scaled_stereo_camera
-    from wristmark.cvs.corner_detector import MarkerCornerDetector, detect_xcorners
-    from wristmark.cvs.frame_layout import join_stereo, split_stereo
-    from wristmark.cvs.frame_source_images import ImagePairSource, open_image_folder, open_image_pairs
-    from wristmark.cvs.frames import FrameSourceError, StereoFrame, StereoSource
-    from wristmark.cvs.frames import frames as iter_frames
-    from wristmark.cvs.marker_tracker import MarkerTracker, TrackerSettings, TrackResult
-    from wristmark.cvs.open_source import SourceOptions, open_stereo_source
-    from wristmark.cvs.registration_io import Registration, apply_registration, load_registration, save_registration
-    from wristmark.cvs.stereo_calibration import StereoCalibration, calibrate_stereo, detect_views
-    from wristmark.cvs.stereo_pose import MarkerPose, PoseSettings, StereoPoseSolver
+    from wristmark.cvs.corners.detector import MarkerCornerDetector, detect_xcorners
+    from wristmark.cvs.sources.frames import FrameSourceError, StereoFrame, StereoSource
+    from wristmark.cvs.sources.frames import frames as iter_frames
+    from wristmark.cvs.sources.images import ImagePairSource, open_image_folder, open_image_pairs
+    from wristmark.cvs.sources.layout import join_stereo, split_stereo
+    from wristmark.cvs.sources.open_source import SourceOptions, open_stereo_source
+    from wristmark.cvs.tracking.annotate import AnnotationWriter, annotate_pair
+    from wristmark.cvs.tracking.stereo_pose import MarkerPose, PoseSettings, StereoPoseSolver
+    from wristmark.cvs.tracking.tracker import MarkerTracker, TrackerSettings, TrackResult
 else:
     from wristmark._lazy import attach
 

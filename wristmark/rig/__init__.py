@@ -10,23 +10,23 @@ The names below are imported on first use (``wristmark/_lazy.py``).
 TYPE_CHECKING = False  # typing.TYPE_CHECKING without importing typing (mypy reads it as True)
 
 if TYPE_CHECKING:
-    from wristmark.rig.actuator_driver import ActuatorDriver, ActuatorError
-    from wristmark.rig.actuator_link import ActuatorLink, DirectLink
-    from wristmark.rig.hardware_session import open_hardware_session
-    from wristmark.rig.loop_setup import LoopSetup, load_loop_setup
-    from wristmark.rig.metrics import ErrorStats, error_stats
-    from wristmark.rig.mjpeg_server import MjpegServer
-    from wristmark.rig.registration_poses import choose_poses
-    from wristmark.rig.registration_run import Observation, collect
-    from wristmark.rig.registration_run import registration_poses as registration_inputs
-    from wristmark.rig.rig_config import RigConfig
-    from wristmark.rig.run_log import CycleRecord, RunLog, read_log_csv
-    from wristmark.rig.serial_link import SerialLink, SimClock
-    from wristmark.rig.servo_loop import CameraStalledError, MarkerLostError, ServoLoop
-    from wristmark.rig.servo_session import LinkOptions, ServoOutcome, ServoSession, run_servo
-    from wristmark.rig.servo_summary import summarize as summarize_servo
-    from wristmark.rig.tip_sensors import TipMeasurement, TipSensor, VisionTipSensor
-    from wristmark.rig.trajectories import Trajectory, accuracy_targets, cube_trajectory, workspace_centre
+    from wristmark.cvs.sources.mjpeg_server import MjpegServer
+    from wristmark.rig.link.actuator_driver import ActuatorDriver, ActuatorError
+    from wristmark.rig.link.actuator_link import ActuatorLink, DirectLink
+    from wristmark.rig.link.serial_link import SerialLink, SimClock
+    from wristmark.rig.loop.hardware_session import open_hardware_session
+    from wristmark.rig.loop.loop_setup import LoopSetup, load_loop_setup
+    from wristmark.rig.loop.metrics import ErrorStats, error_stats
+    from wristmark.rig.loop.rig_config import RigConfig
+    from wristmark.rig.loop.servo_loop import CameraStalledError, MarkerLostError, ServoLoop
+    from wristmark.rig.loop.servo_session import LinkOptions, ServoOutcome, ServoSession, run_servo
+    from wristmark.rig.loop.servo_summary import summarize as summarize_servo
+    from wristmark.rig.loop.tip_sensors import TipMeasurement, TipSensor, VisionTipSensor
+    from wristmark.rig.recording.run_log import CycleRecord, RunLog, read_log_csv
+    from wristmark.rig.registration.poses import choose_poses
+    from wristmark.rig.registration.run import Observation, collect
+    from wristmark.rig.registration.run import registration_poses as registration_inputs
+    from wristmark.rig.targets.trajectories import Trajectory, accuracy_targets, cube_trajectory, workspace_centre
 else:
     from wristmark._lazy import attach
 

@@ -15,13 +15,13 @@ if TYPE_CHECKING:
     from wristmark.sim.actuator_emulator import ActuatorEmulator
     from wristmark.sim.dataset import StereoDataset, load_dataset
     from wristmark.sim.experiments import run_accuracy, run_cube, run_load, run_point
-    from wristmark.sim.motion_video import motion_psi, render_motion, write_stereo_video
     from wristmark.sim.optical_tracker import OpticalTracker
     from wristmark.sim.plant import TruePlant
     from wristmark.sim.plant_params import PlantParams
     from wristmark.sim.registration_bench import SimRegistrationRig
-    from wristmark.sim.render import RenderedPair, StereoRenderer
-    from wristmark.sim.render_settings import RenderSettings, noise_preset
+    from wristmark.sim.render.motion_video import motion_psi, render_motion, write_stereo_video
+    from wristmark.sim.render.settings import RenderSettings, noise_preset
+    from wristmark.sim.render.stereo_renderer import RenderedPair, StereoRenderer
     from wristmark.sim.setup import SimSetup, load_setup
     from wristmark.sim.virtual_lab import VirtualLab, true_tip_errors
 else:

@@ -28,7 +28,7 @@ from wristmark.models.errors import WristmarkError
 from wristmark.models.limits import actuator_bounds
 from wristmark.models.plant_interface import ActuatedArm
 from wristmark.models.robot_params import RobotParams
-from wristmark.rig import protocol as P
+from wristmark.rig.link import protocol as P
 
 _POLL_S = 0.01  # serve loop wake-up period [s]: watchdog and arm advance resolution
 

@@ -13,12 +13,12 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from wristmark.cvs.calibration_io import load_calibration, save_calibration
+from wristmark.cvs.calibration.load import load_calibration, save_calibration
 from wristmark.cvs.camera import StereoCamera
 from wristmark.models.config_io import save_yaml, to_mapping
 from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
-from wristmark.sim.render import CornerTruth, RenderedPair
+from wristmark.sim.render.stereo_renderer import CornerTruth, RenderedPair
 
 Array = NDArray[np.float64]
 

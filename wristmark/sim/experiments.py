@@ -15,12 +15,18 @@ from wristmark.models.errors import ConfigError
 from wristmark.models.ik import solve_tip_ik
 from wristmark.models.kinematics import forward_kinematics
 from wristmark.models.robot_params import HOME_PSI
-from wristmark.rig.metrics import corner_overshoot, error_stats, estimate_errors, orientation_summary, tracking_errors
-from wristmark.rig.orientation_path import check_orientation_mode, start_configuration
-from wristmark.rig.play_probe import probe_report
-from wristmark.rig.run_log import CycleRecord, RunLog, write_json
-from wristmark.rig.servo_loop import MarkerLostError, PhaseStats, ServoLoop
-from wristmark.rig.trajectories import (
+from wristmark.rig.loop.metrics import (
+    corner_overshoot,
+    error_stats,
+    estimate_errors,
+    orientation_summary,
+    tracking_errors,
+)
+from wristmark.rig.loop.play_probe import probe_report
+from wristmark.rig.loop.servo_loop import MarkerLostError, PhaseStats, ServoLoop
+from wristmark.rig.recording.run_log import CycleRecord, RunLog, write_json
+from wristmark.rig.targets.orientation_path import check_orientation_mode, start_configuration
+from wristmark.rig.targets.trajectories import (
     CUBE_SIZE,
     CUBE_SPEED,
     Trajectory,
@@ -69,7 +75,7 @@ def run_cube(setup: SimSetup, out_dir: Path, progress: bool = True, seed: int | 
 
     ``duration`` [s] cuts the walk short (quick checks); None runs all 12 edges. ``on_cycle`` is
     called with every cycle's record, ``on_frame`` with every measured frame and its
-    measurement (e.g. a live 3D view). ``orientation``: none | hold | follow (rig/orientation_path.py)."""
+    measurement (e.g. a live 3D view). ``orientation``: none | hold | follow (rig/targets/orientation_path.py)."""
     traj = cube_trajectory(workspace_centre(setup.params), CUBE_SIZE, CUBE_SPEED)
     if duration is not None:
         traj = traj.truncated(duration)
@@ -90,7 +96,7 @@ def run_point(setup: SimSetup, out_dir: Path, point: np.ndarray | None = None, p
     """Hold ``point`` in {w} [m] (default: the workspace centre) for ``duration`` [s] (default
     POINT_HOLD_S), open loop then closed loop on fresh plants; writes the run folder.
     ``orientation``: none | hold | follow (both hold the start's orientation on a point)."""
-    from wristmark.rig.servo_session import POINT_HOLD_S, PointHold
+    from wristmark.rig.loop.servo_session import POINT_HOLD_S, PointHold
 
     p = workspace_centre(setup.params) if point is None else np.asarray(point, float)
     miss = solve_tip_ik(setup.params, p, np.asarray(HOME_PSI)).error
@@ -144,7 +150,7 @@ def run_open_closed(setup: SimSetup, traj: Trajectory, experiment: str, out_dir:
         "run_dir": str(out_dir),
     }
     res["ratio"] = res["closed_loop"]["mean_mm"] / res["open_loop"]["mean_mm"]
-    probe = probe_report(closed.play_fits, closed.play_probe_note)  # the play probe (rig/play_probe.py)
+    probe = probe_report(closed.play_fits, closed.play_probe_note)  # the play probe (rig/loop/play_probe.py)
     if probe is not None:
         res["closed_loop"]["play_probe"] = probe
     for k, s in stats.items():

@@ -8,8 +8,8 @@ from numpy.typing import NDArray
 
 from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
 from wristmark.models.robot_params import HOME_PSI
-from wristmark.sim.render import StereoRenderer
-from wristmark.sim.render_settings import noise_preset
+from wristmark.sim.render.settings import noise_preset
+from wristmark.sim.render.stereo_renderer import StereoRenderer
 from wristmark.sim.setup import SimSetup, make_plant
 
 Array = NDArray[np.float64]
@@ -17,7 +17,7 @@ SETTLE_S = 1.0  # [s] simulated time allowed for each move (actuator lag tau ~ 0
 
 
 class SimRegistrationRig:
-    """:class:`rig.registration_run.RegistrationRig` on the simulated bench."""
+    """:class:`rig.registration.run.RegistrationRig` on the simulated bench."""
 
     def __init__(self, setup: SimSetup, seed: int = 0) -> None:
         self.setup = setup

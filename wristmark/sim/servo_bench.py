@@ -15,10 +15,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.models.errors import ConfigError
-from wristmark.rig.actuator_driver import ActuatorDriver
-from wristmark.rig.actuator_link import DirectLink
-from wristmark.rig.serial_link import SerialLink, SimClock
-from wristmark.rig.servo_session import HW_TIMEOUT_S, SIM_TIMEOUT_S, LinkOptions, ServoSession
+from wristmark.rig.link.actuator_driver import ActuatorDriver
+from wristmark.rig.link.actuator_link import DirectLink
+from wristmark.rig.link.serial_link import SerialLink, SimClock
+from wristmark.rig.loop.servo_session import HW_TIMEOUT_S, SIM_TIMEOUT_S, LinkOptions, ServoSession
 from wristmark.sim.actuator_emulator import ActuatorEmulator
 from wristmark.sim.locked_arm import LockedArm
 from wristmark.sim.setup import SimSetup, make_measurement, make_plant, make_truth

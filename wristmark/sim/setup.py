@@ -17,15 +17,15 @@ from wristmark.cvs.camera import StereoCamera
 from wristmark.models.config_files import CONFIG_DIR, default_config
 from wristmark.models.config_io import to_mapping
 from wristmark.models.plant_interface import ActuatedArm
-from wristmark.rig.actuator_link import DirectLink
-from wristmark.rig.frame_feed import FrameFeed, SynchronousFeed
-from wristmark.rig.loop_setup import LoopSetup, config_paths, load_loop_setup
-from wristmark.rig.servo_loop import ServoLoop
-from wristmark.rig.tip_sensors import TipSensor, VisionTipSensor
+from wristmark.rig.link.actuator_link import DirectLink
+from wristmark.rig.loop.frame_feed import FrameFeed, SynchronousFeed
+from wristmark.rig.loop.loop_setup import LoopSetup, config_paths, load_loop_setup
+from wristmark.rig.loop.servo_loop import ServoLoop
+from wristmark.rig.loop.tip_sensors import TipSensor, VisionTipSensor
 from wristmark.sim.optical_tracker import OpticalTracker
 from wristmark.sim.plant import TruePlant
 from wristmark.sim.plant_params import PlantParams
-from wristmark.sim.rendered_source import RenderedStereoSource
+from wristmark.sim.render.rendered_source import RenderedStereoSource
 from wristmark.sim.truth import SimulatedTruth
 from wristmark.sim.truth_sensor import NoisyTruthSensor, TruthClockSource
 from wristmark.solvers.controller import make_controller
@@ -37,7 +37,7 @@ __all__ = ["CONFIG_DIR", "SimSetup", "default_config", "load_setup", "make_measu
 
 @dataclass
 class SimSetup(LoopSetup):
-    """A :class:`rig.loop_setup.LoopSetup` plus the plant file of the simulated true arm."""
+    """A :class:`rig.loop.loop_setup.LoopSetup` plus the plant file of the simulated true arm."""
 
     plant: PlantParams = field(default_factory=PlantParams)
 

@@ -1,12 +1,12 @@
 """The simulated bench's ground truth for the servo loop's log: the true arm, seen by the
-simulated optical tracker (:class:`rig.ground_truth.GroundTruth`)."""
+simulated optical tracker (:class:`rig.loop.ground_truth.GroundTruth`)."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from wristmark.models.plant_interface import ActuatedArm
-from wristmark.rig.ground_truth import TruthSample
+from wristmark.rig.loop.ground_truth import TruthSample
 from wristmark.sim.optical_tracker import OpticalTracker
 
 

@@ -13,11 +13,11 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-from wristmark.cvs.frames import StereoFrame
+from wristmark.cvs.sources.frames import StereoFrame
 from wristmark.models.plant_interface import ActuatedArm
 from wristmark.models.so3 import perturb
-from wristmark.rig.tip_sensors import TipMeasurement
-from wristmark.sim.rendered_source import OnDemandSource
+from wristmark.rig.loop.tip_sensors import TipMeasurement
+from wristmark.sim.render.rendered_source import OnDemandSource
 
 Array = NDArray[np.float64]
 _EMPTY = np.zeros((1, 1), np.uint8)

@@ -6,12 +6,12 @@ sees only what it would see in a lab, serial bytes and a video stream (DESIGN.md
 ``fps`` frames per second on a fixed frame clock (frame k starts k periods after the first, so a
 host can lock its cycle to the frames' phase; where rendering cannot keep up, the next frame
 starts at once and the clock restarts from it), has it rendered by a process of its own
-(:mod:`sim.render_process`) and publishes each stereo pair side by side as a JPEG of an MJPEG stream on loopback
-(:class:`rig.mjpeg_server.MjpegServer`). Each frame's capture instant is the emulator clock's
+(:mod:`sim.render.process`) and publishes each stereo pair side by side as a JPEG of an MJPEG stream on loopback
+(:class:`cvs.sources.mjpeg_server.MjpegServer`). Each frame's capture instant is the emulator clock's
 ``time.monotonic()`` when the arm was sampled; ``truth_out`` logs it with the true tip in {w}
 [m] (CSV header ``t,tip_x,tip_y,tip_z``), one row per published frame.
 
-Each JPEG also carries its capture instant (cvs.jpeg_stamp, a COM segment decoders ignore):
+Each JPEG also carries its capture instant (cvs.sources.jpeg_stamp, a COM segment decoders ignore):
 valid only because both processes read one machine's monotonic clock, and not something a real
 camera needs (a host stamps a real camera's frames at arrival, or maps the device's own
 timestamps). With it, the host's capture-to-command latency includes the frame's transport
@@ -33,17 +33,17 @@ from typing import IO, Any
 import numpy as np
 
 from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera
+from wristmark.cvs.sources.mjpeg_server import MjpegServer
 from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import HOME_PSI, RobotParams
-from wristmark.rig.mjpeg_server import MjpegServer
-from wristmark.rig.realtime_priority import MAX_PRIORITY, check_realtime_priority, request_realtime_priority
+from wristmark.rig.loop.realtime_priority import MAX_PRIORITY, check_realtime_priority, request_realtime_priority
 from wristmark.sim.actuator_emulator import ActuatorEmulator
 from wristmark.sim.dense_truth import TRUTH_HEADER, DenseTruthArm
 from wristmark.sim.locked_arm import LockedArm
 from wristmark.sim.plant import TruePlant
 from wristmark.sim.plant_params import PlantParams
-from wristmark.sim.render_process import RenderProcess
+from wristmark.sim.render.process import RenderProcess
 
 FIRST_FRAME_TIMEOUT_S = 60.0  # [s] the first render compiles nothing (numba caches) but a loaded host is slow
 
@@ -95,11 +95,11 @@ class VirtualLab:
     """The actuator box on a pty and the endoscope on an MJPEG stream, around one simulated arm.
 
     rt_priority: run every thread of the lab (actuator box, camera, renderer, stream server)
-    under ``SCHED_FIFO`` at this priority (:mod:`rig.realtime_priority`), as firmware and a camera
+    under ``SCHED_FIFO`` at this priority (:mod:`rig.loop.realtime_priority`), as firmware and a camera
     are not starved by the host's other work; all of them, since a normal thread holding
     Python's GIL would stall the real-time ones (priority inversion). The actuator box's thread
     runs one priority above the others. The rendering runs in a process of its own
-    (:mod:`sim.render_process`: it shares no GIL with the box), in real time at ``rt_priority``
+    (:mod:`sim.render.process`: it shares no GIL with the box), in real time at ``rt_priority``
     too, or at normal priority with ``render_rt`` False: for a renderer that needs every core,
     which in real time would eat the machine's real-time budget and throttle the host's loop.
     The caller's thread keeps its own scheduling.
@@ -287,7 +287,7 @@ def true_tip_errors(log_csv: str | Path, truth_csv: str | Path, phase: str = "se
     time is ``time.monotonic()``), or ``t_wall``, when the host's cycle actually began (a few ms
     later: the truth there is compared with the desired tip of an earlier instant); NaN for
     cycles outside the truth's time span."""
-    from wristmark.rig.run_log import read_log_csv
+    from wristmark.rig.recording.run_log import read_log_csv
 
     if at not in ("t", "t_wall"):
         raise InputError(f"errors are evaluated at 't' or 't_wall', not {at!r}")

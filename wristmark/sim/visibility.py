@@ -6,7 +6,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera
-from wristmark.cvs.marker_view import marker_in_view
+from wristmark.cvs.marker.in_view import marker_in_view
 from wristmark.models.arm_shape import ArmShape, arm_shape
 from wristmark.models.errors import InputError
 from wristmark.models.limits import clamp_psi

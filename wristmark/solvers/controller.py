@@ -68,7 +68,7 @@ class ControllerConfig:
     controller kinds the inversion applies to (configs/controller.yaml: qp only; the paper's
     constant-speed controller reverses the actuators every cycle and is not helped by it).
     play_probe (the encoders' inversion only): before the first closed-loop walk the loop probes
-    each actuator's play (rig/play_probe.py: a triangle of play_probe_amplitude x its bound over
+    each actuator's play (rig/loop/play_probe.py: a triangle of play_probe_amplitude x its bound over
     play_probe_time [s] per actuator, then play_probe_settle [s] of closed-loop settle) and the
     inversion starts from the fitted play (solvers/play_probe_fit.py), learning it on from there
     (play_probe_learning) or keeping the probe's.
@@ -208,7 +208,7 @@ class Controller(abc.ABC):
             self.compensator = CommandCompensator(params, make_inverse(config))
         # the servo loop passes the encoder readings to step() when this is true
         self.uses_encoders = self.compensator is not None and config.backlash_method == "encoders"
-        self.play_probed = False  # a play probe (rig/play_probe.py) has run, or was skipped
+        self.play_probed = False  # a play probe (rig/loop/play_probe.py) has run, or was skipped
 
     @property
     def wants_play_probe(self) -> bool:

@@ -26,7 +26,7 @@ lead on the offset, with two differences: the first reversals of each actuator a
 (step 1 / (n + 1), then ``rate``), so the estimate leaves its low start after one reversal, and
 taking a first side (after a reset) gets no lead burst (it is no reversal). The output's initial
 position in the band is unknown: the first reading puts it at the middle, unless a play probe
-(rig/play_probe.py) seeded it (:meth:`PlayObserverInverse.seed`: the fitted play, the output's
+(rig/loop/play_probe.py) seeded it (:meth:`PlayObserverInverse.seed`: the fitted play, the output's
 place in the band and so its side; the learning then goes on at ``rate`` from the fitted play).
 Without encoder readings (a controller stepped without them) it inverts nothing: the plain controller.
 
@@ -98,7 +98,7 @@ class PlayObserverInverse(BacklashInverse):
     def seed(self, play: Array, output: Array, known: NDArray[np.bool_], relearn: bool = True,
              motor_tau: Array | None = None) -> None:
         """Start from a measured play [rad, m, ...] and output (motor units) where ``known``
-        (a play probe, rig/play_probe.py): the side is the edge the motor last pushed on, the
+        (a play probe, rig/loop/play_probe.py): the side is the edge the motor last pushed on, the
         learning goes on at its normal rate (``relearn``; else those plays stay as measured),
         no lead burst; elsewhere as after a reset. ``motor_tau``: the motors' first-order lags [s]
         the probe measured from the encoders (NaN where not), for ``motor_burst``."""

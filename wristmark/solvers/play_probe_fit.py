@@ -1,6 +1,6 @@
 """The play (backlash) of one actuator fitted from a probe: encoder readings against the arm.
 
-A probe (rig/play_probe.py) moves one actuator's motor back and forth through more than its
+A probe (rig/loop/play_probe.py) moves one actuator's motor back and forth through more than its
 largest play while the others are held, and records per cycle the motor position m_k (the
 encoders, at the frame's capture) and the arm-side value y_k of the same actuator (the tracker's
 6-DoF tip pose through the nominal pose IK and actuation map). Assumed: between the motor and the

@@ -9,7 +9,7 @@ server or the drawing, and never shares Python's GIL with them. Frames: {w} worl
 Use::
 
     view = start_live_view(setup)              # prints the URL to open
-    loop.on_cycle = view.on_cycle              # rig.servo_loop.ServoLoop
+    loop.on_cycle = view.on_cycle              # rig.loop.servo_loop.ServoLoop
     loop.on_frame = view.on_frame              # the left camera image with its corners (2 Hz)
     ...                                        # run the loop
     view.close()                               # or view.hold() first, to keep serving
@@ -37,8 +37,8 @@ from wristmark.viz.scene import SceneConfig
 from wristmark.viz.viewer_client import MeshcatServer, ViewerError
 
 if TYPE_CHECKING:
-    from wristmark.rig.loop_setup import LoopSetup
-    from wristmark.rig.run_log import CycleRecord
+    from wristmark.rig.loop.loop_setup import LoopSetup
+    from wristmark.rig.recording.run_log import CycleRecord
 
 DEFAULT_RATE_HZ = 30.0  # [Hz] frames sent to the browser at most
 DEFAULT_IMAGE_RATE_HZ = 2.0  # [Hz] camera images shown at most
@@ -233,7 +233,7 @@ def start_live_view(setup: LoopSetup | None = None, *, config: SceneConfig | Non
         raise WristmarkError(f"trail length must be >= 0 s, got {trail_seconds}")
     if config is None:
         if setup is None:
-            from wristmark.rig.loop_setup import load_loop_setup
+            from wristmark.rig.loop.loop_setup import load_loop_setup
 
             setup = load_loop_setup()
         config = SceneConfig.from_setup(setup)

@@ -11,8 +11,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from wristmark.rig.metrics import tracking_errors  # noqa: E402
-from wristmark.rig.run_log import RunLog  # noqa: E402
+from wristmark.rig.loop.metrics import tracking_errors  # noqa: E402
+from wristmark.rig.recording.run_log import RunLog  # noqa: E402
 
 
 def plot_cube(log: RunLog, out_dir: Path) -> list[Path]:

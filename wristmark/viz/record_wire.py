@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 if TYPE_CHECKING:
-    from wristmark.rig.run_log import CycleRecord
+    from wristmark.rig.recording.run_log import CycleRecord
 
 Array = NDArray[np.float64]
 

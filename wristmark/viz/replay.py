@@ -1,7 +1,7 @@
 """Replay of an experiment run folder as a Meshcat animation with a time slider.
 
 A servo run folder (``wristmark experiment cube``/``load`` write one per run) holds
-``log.csv`` (rig.run_log.COLUMNS) and ``config.json`` (the robot, marker, plant and camera that
+``log.csv`` (rig.recording.run_log.COLUMNS) and ``config.json`` (the robot, marker, plant and camera that
 ran). Each logged cycle becomes a key frame: the true arm at psi_true, the ghost at psi_cmd,
 the four tips; the full paths of each phase are drawn as lines. An accuracy run (no log.csv,
 ``result.json`` with ``positions_detail``) replays its positions one per second, the arm at the
@@ -28,7 +28,7 @@ from wristmark.models.config_io import from_mapping
 from wristmark.models.errors import ConfigError, InputError
 from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import HOME_PSI, RobotParams
-from wristmark.rig.run_log import COLUMNS, read_log_csv
+from wristmark.rig.recording.run_log import COLUMNS, read_log_csv
 from wristmark.viz import shapes
 from wristmark.viz.scene import HIDDEN_SCALE, ROOT, ArmScene, SceneConfig, SceneState
 from wristmark.viz.style import TIP_KINDS, TIP_STYLES
@@ -56,7 +56,7 @@ class RunReplay:
 def scene_config_from_run(run_dir: Path) -> SceneConfig:
     """The scene of the configuration recorded in ``run_dir/config.json`` (missing parts: the
     project's configs/)."""
-    from wristmark.cvs.calibration_io import calibration_from_mapping, load_calibration
+    from wristmark.cvs.calibration.load import calibration_from_mapping, load_calibration
     from wristmark.models.config_files import default_config
 
     path = run_dir / "config.json"
@@ -101,7 +101,7 @@ def _states_from_log(log_path: Path) -> tuple[list[SceneState], Array, dict[str,
     except OSError as e:
         raise InputError(f"{log_path}: cannot read ({e.strerror or e})") from None
     except (ValueError, KeyError, TypeError, csv.Error) as e:
-        raise InputError(f"{log_path}: corrupt log (not rig.run_log's format: {e})") from None
+        raise InputError(f"{log_path}: corrupt log (not rig.recording.run_log's format: {e})") from None
     if not cols:
         raise InputError(f"{log_path}: no logged cycles")
     missing = [c for c in _NEEDED if c not in cols]

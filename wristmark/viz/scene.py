@@ -49,8 +49,8 @@ from wristmark.viz.style import (
 )
 
 if TYPE_CHECKING:
-    from wristmark.rig.loop_setup import LoopSetup
-    from wristmark.rig.run_log import CycleRecord
+    from wristmark.rig.loop.loop_setup import LoopSetup
+    from wristmark.rig.recording.run_log import CycleRecord
     from wristmark.viz.record_wire import WireRecord
 
 Array = NDArray[np.float64]

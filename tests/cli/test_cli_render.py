@@ -1,0 +1,58 @@
+"""``wristmark render`` end to end, and its one-line errors."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from wristmark.cli.main import main
+from wristmark.models.robot_params import HOME_PSI
+from wristmark.sim.dataset import load_dataset
+
+
+def test_render_one_pair_end_to_end(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "ds"
+    assert main(["render", "--out", str(out), "--pairs", "1", "--seed", "3", "--scale", "0.25", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["pairs"] == 1
+    ds = load_dataset(out)
+    assert len(ds.pairs) == 1 and ds.camera.image_size == (480, 270)
+    vis = [c for c in ds.truth[0].corners_left if c.cos_view > 0.3]
+    assert len(vis) >= 3
+
+
+def test_render_given_psi_and_file(tmp_path: Path) -> None:
+    f = tmp_path / "psi.txt"
+    f.write_text("# phi d theta1 delta1 theta2 delta2\n" + " ".join(map(str, HOME_PSI)) + "\n")
+    out = tmp_path / "ds"
+    args = ["render", "--out", str(out), "--scale", "0.25", "--noise", "none", "--jpeg", "90", "--motion-blur", "2"]
+    assert main([*args, "--psi", *map(str, HOME_PSI), "--psi-file", str(f)]) == 0
+    ds = load_dataset(out)
+    assert len(ds.truth) == 2
+    np.testing.assert_allclose(ds.truth[0].tip, ds.truth[1].tip, atol=1e-15)
+
+
+@pytest.mark.parametrize(
+    ("extra", "needle"),
+    [
+        (["--pairs", "0"], "--pairs"),
+        (["--jpeg", "0"], "--jpeg"),
+        (["--motion-blur", "-1"], "--motion-blur"),
+        (["--noise", "loud"], "invalid choice"),
+        (["--calib", "/nonexistent/c.yaml"], "not found"),
+        (["--psi", "0", "0.04", "3.0", "0", "0.9", "0"], "theta1"),
+        (["--psi-file", "/nonexistent/psi.txt"], "psi file not found"),
+        (["--psi", "0", "0.04", "0.7", "0", "0.9", "0", "--pairs", "3"], "disagrees"),
+    ],
+)
+def test_bad_options_give_one_line_errors(tmp_path: Path, extra: list[str], needle: str) -> None:
+    cmd = [sys.executable, "-m", "wristmark", "render", "--out", str(tmp_path / "x"), "--scale", "0.25", *extra]
+    p = subprocess.run(cmd, capture_output=True, text=True, cwd=Path(__file__).resolve().parents[2], timeout=120)
+    assert p.returncode != 0
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0], p.stderr

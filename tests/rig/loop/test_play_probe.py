@@ -1,0 +1,165 @@
+"""The play probe (rig/loop/play_probe.py, solvers/play_probe_fit.py): the fit on a simulated play
+operator, the probe in the loop (its own phase, the 6-DoF fallback), the short cubes on the
+unseen and the default arm, and a held point that does not buzz."""
+
+import csv
+import dataclasses
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from wristmark.models.errors import ConfigError
+from wristmark.rig.loop.play_probe import NO_POSE, triangle
+from wristmark.rig.loop.tip_sensors import TipMeasurement
+from wristmark.sim.setup import SimSetup, default_config, load_setup
+from wristmark.solvers.controller import ControllerConfig
+from wristmark.solvers.play_observer import PlayObserverInverse
+from wristmark.solvers.play_probe_fit import fit_play
+
+DT, TAU = 0.06, 0.07  # the loop's cycle and the motor's lag [s]
+PLAY_MAX, PLAY = 160e-6, 80e-6  # a backbone's bound and true play [m]
+
+
+def _probe(play: float, gain: float, noise: float, seed: int, n: int = 10) -> tuple[np.ndarray, np.ndarray, float]:
+    """A triangle of 2 x PLAY_MAX through a first-order motor and a play operator; the arm side
+    y = c + gain x output + noise, sampled once a cycle (the first before the motor moves)."""
+    rng = np.random.default_rng(seed)
+    m, o = 0.0, rng.uniform(-0.5, 0.5) * play  # the output anywhere in its band at the start
+    ms, ys = [m], [0.01 + gain * o + rng.normal(0.0, noise)]
+    first = o
+    for u in triangle(n, 2 * PLAY_MAX):
+        for _ in range(60):  # 1 ms steps
+            m += (1.0 - np.exp(-DT / 60 / TAU)) * (u - m)
+            o = float(np.clip(o, m - play / 2, m + play / 2))
+        ms.append(m)
+        ys.append(0.01 + gain * o + rng.normal(0.0, noise))
+    return np.array(ms), np.array(ys), first
+
+
+def test_triangle_goes_out_back_through_and_returns() -> None:
+    t = triangle(8, 1.0)
+    assert t[-1] == 0.0 and t.max() == pytest.approx(1.0) and t.min() == pytest.approx(-1.0)
+    assert np.argmax(t) < np.argmin(t) and t[-2] < 0.0  # out, back through, returning upwards
+
+
+@pytest.mark.parametrize("gain", [0.85, 1.0, 1.15])
+def test_fit_recovers_the_play_and_a_gain_error_does_not_bias_it(gain: float) -> None:
+    """Over 40 noisy probes (5 um of arm-side noise) the fitted play's mean is within 4 % of the
+    true one whatever the arm's gain, each fit within 15 um; the gain is the true one and the
+    output before the probe is found within 8 um on average (from the few samples before the
+    motor reaches the band's edge)."""
+    fits = [(fit_play(*_probe(PLAY, gain, 5e-6, s)[:2], PLAY_MAX), _probe(PLAY, gain, 5e-6, s)[2]) for s in range(40)]
+    plays = np.array([f.play for f, _ in fits])
+    assert all(f.ok for f, _ in fits)
+    assert abs(plays.mean() - PLAY) < 0.04 * PLAY and np.abs(plays - PLAY).max() < 15e-6
+    assert np.abs([f.gain - gain for f, _ in fits]).max() < 0.05
+    before = np.abs([f.first_output - first for f, first in fits])  # the output before the probe moved it
+    assert before.mean() < 0.1 * PLAY and before.max() < 0.35 * PLAY
+
+
+def test_fit_refuses_a_probe_too_noisy_or_too_short() -> None:
+    m, y, _ = _probe(PLAY, 1.0, 40e-6, 0)  # noise half the play: the pose cannot resolve it
+    assert not fit_play(m, y, PLAY_MAX).ok
+    m, y, _ = _probe(PLAY, 1.0, 1e-6, 0)
+    assert not fit_play(m / 4, y, PLAY_MAX).ok  # travelled less than the bound
+    assert not fit_play(m[:4], y[:4], PLAY_MAX).ok  # too few samples
+    assert fit_play(m, y, PLAY_MAX).ok
+
+
+def test_a_seeded_observer_starts_on_the_probed_side_without_a_burst() -> None:
+    """Seeded with a play and an output dragged at the band's lower edge (the probe ended moving
+    up), the inversion pushes up at once by fraction x b / 2, with no lead burst."""
+    play_max = np.full(6, PLAY_MAX)
+    inv = PlayObserverInverse(play_max, 0.01, start=0.15, fraction=0.75, lead=0.03)
+    inv.seed(np.full(6, PLAY), np.full(6, -PLAY / 2), np.ones(6, bool))
+    inv.observe(np.zeros(6))
+    np.testing.assert_array_equal(inv.direction, np.ones(6))
+    np.testing.assert_allclose(inv.offset(np.zeros(6), DT), np.full(6, 0.75 * PLAY / 2))
+
+
+def test_config_rejects_bad_probe_keys() -> None:
+    with pytest.raises(ConfigError, match="play_probe_amplitude"):
+        ControllerConfig(play_probe_amplitude=0.5).validate()
+    with pytest.raises(ConfigError, match="play_probe_time"):
+        ControllerConfig(play_probe_time=0.0).validate()
+    with pytest.raises(ConfigError, match="backlash_freeze"):
+        ControllerConfig(backlash_freeze=-1.0).validate()
+
+
+def _setup(plant: str, controller: str = "controller.yaml") -> SimSetup:
+    setup = load_setup(plant=default_config(plant), controller=default_config(controller),
+                       marker=default_config("marker_coded.yaml"))
+    return setup.with_changes(rig=dataclasses.replace(setup.rig, sensor="truth-noise"))
+
+
+def _cube(setup: SimSetup, duration: float, seed: int = 0, orientation: str = "hold") -> tuple[dict, list[str]]:
+    """A short cube's closed-loop summary and the phase of every logged cycle."""
+    from wristmark.sim.experiments import run_cube
+
+    with tempfile.TemporaryDirectory() as tmp:
+        res = run_cube(setup, Path(tmp), progress=False, duration=duration, seed=seed, orientation=orientation)
+        with open(Path(tmp) / "log.csv") as f:
+            phases = [r["phase"] for r in csv.DictReader(f)]
+    return res["closed_loop"], phases
+
+
+def test_probe_is_its_own_phase_and_cuts_the_unseen_arms_start() -> None:
+    """The default controller on configs/plant_unseen.yaml (truth-noise, orientation held, the
+    first 8 s of the cube, the start and the first corner, where the max was): the probe's
+    cycles are logged as closed_loop:probe (6 x 11 + 3) and not counted; the max is below 1 mm
+    and below the same controller's without the probe (configs/controller_encoders.yaml)."""
+    with_probe, phases = _cube(_setup("plant_unseen.yaml"), 8.0)
+    without, phases_without = _cube(_setup("plant_unseen.yaml", "controller_encoders.yaml"), 8.0)
+    assert phases.count("closed_loop:probe") == 6 * 11 + 3 and "closed_loop:probe" not in phases_without
+    assert with_probe["cycles"] == without["cycles"] == phases.count("closed_loop")
+    assert with_probe["max_mm"] < 1.0 and with_probe["max_mm"] < 0.9 * without["max_mm"]
+
+
+def test_default_controller_does_not_hurt_the_default_arm() -> None:
+    """configs/plant.yaml, the first 16 s of the cube, orientation free: the default controller's
+    mean and max are within the issue's bound for the default arm (0.18 / 0.86 mm with vision;
+    truth-noise here is noisier: 0.25 / 0.86)."""
+    res, _ = _cube(_setup("plant.yaml"), 16.0, orientation="none")
+    assert res["mean_mm"] <= 0.25 and res["max_mm"] <= 0.86
+
+
+class _PositionOnly:
+    """A tip sensor that drops the orientation (as the reference marker's tracker gives)."""
+
+    def __init__(self, inner: object) -> None:
+        self.inner = inner
+
+    def measure(self, frame: object, axis_hint_world: object = None) -> TipMeasurement:
+        m = self.inner.measure(frame, axis_hint_world)  # type: ignore[attr-defined]
+        return dataclasses.replace(m, R_world=None, roll_known=False)
+
+
+def test_without_a_six_dof_pose_the_probe_is_skipped_and_says_so(capsys: pytest.CaptureFixture[str]) -> None:
+    """A tracker without orientation: one line on stderr, nothing probed, the play learnt online."""
+    from wristmark.rig.loop.servo_session import PointHold
+    from wristmark.rig.recording.run_log import RunLog
+    from wristmark.rig.targets.orientation_path import start_configuration
+    from wristmark.rig.targets.trajectories import workspace_centre
+    from wristmark.sim.setup import make_direct_loop
+
+    setup = _setup("plant_unseen.yaml")
+    traj = PointHold(np.array([workspace_centre(setup.params)]), 1.0, hold=0.6)
+    loop = make_direct_loop(setup, start_configuration(setup.params, traj.sample(0.0)[0]), closed_loop=True, seed=0)
+    loop.sensor = _PositionOnly(loop.sensor)
+    ctrl = loop.controller
+    assert ctrl is not None and ctrl.wants_play_probe
+    started: list[object] = []
+    start_play = ctrl.start_play
+
+    def spy(fits: object, *args: object) -> object:
+        started.append(fits)
+        return start_play(fits, *args)  # type: ignore[arg-type]
+
+    ctrl.start_play = spy  # type: ignore[method-assign,assignment]
+    log = RunLog()
+    loop.run(traj, "point", True, log, settle=0.6)
+    assert loop.play_probe_note == NO_POSE and loop.play_fits is None
+    assert started == [None] and not ctrl.wants_play_probe  # not seeded: the play is learnt online
+    assert not [r for r in log.records if r.phase == "point:probe"] and log.phase("point")

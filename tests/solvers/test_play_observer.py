@@ -1,0 +1,206 @@
+"""The encoders' dead-band inversion (solvers/play_observer.py): the observed play output, the
+inverse through a lagged play, learning, rounding, and the closed loop on an unseen arm."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from wristmark.models.errors import ConfigError
+from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark.solvers.controller import ControllerConfig, make_controller
+from wristmark.solvers.play_observer import PlayObserverInverse
+
+P = RobotParams()
+PLAY = np.array([0.006, 8e-5, 8e-5, 8e-5, 7e-5, 7e-5])
+DT, TAU = 0.06, 0.07  # the loop's cycle, the motor's lag [s]
+
+
+def _play_operator(y: np.ndarray, motor: np.ndarray, play: np.ndarray) -> np.ndarray:
+    return np.clip(y, motor - play / 2, motor + play / 2)
+
+
+def _known(play: np.ndarray = PLAY, **kw: float) -> PlayObserverInverse:
+    """An inversion given the true play (no learning)."""
+    args = dict(start=1.0, fraction=1.0, learn=False, lead=0.0) | kw
+    return PlayObserverInverse(play, 0.01, **args)  # type: ignore[arg-type]
+
+
+def test_observer_tracks_the_play_output_from_the_encoders() -> None:
+    """Motor readings through a play: once the motor has touched an edge of the band, the
+    observed output is the true one to within the micro-unit rounding."""
+    inv = _known()
+    y = np.zeros(6) + 0.3 * PLAY  # the output sits off the middle of the band at the start
+    for k in range(200):
+        m = 2 * PLAY * np.sin(2 * np.pi * k * DT / 3.0 + np.arange(6))
+        y = _play_operator(y, m, PLAY)
+        inv.observe(m)
+        if k > 60:
+            assert inv.output is not None
+            np.testing.assert_allclose(inv.output, y, rtol=0, atol=1.01e-6)
+
+
+def _through_lagged_play(inv: PlayObserverInverse | None, n: int = 300,
+                         jitter: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """A slow sine command through a first-order motor and a play; returns the arm's output and
+    the nominal command, per cycle."""
+    alpha = 1.0 - np.exp(-DT / TAU)
+    y, m, ys, us = np.zeros(6), np.zeros(6), [], []
+    for k in range(n):
+        u = 3 * PLAY * np.sin(2 * np.pi * k * DT / 6.0 + np.arange(6))
+        if jitter is not None:
+            u = u + jitter[k]
+        target = u
+        if inv is not None:
+            inv.observe(m)
+            target = u + inv.offset(u, DT)
+        for _ in range(60):  # 1 ms steps within the cycle
+            m = m + (1.0 - (1.0 - alpha) ** (1 / 60)) * (target - m)
+            y = _play_operator(y, m, PLAY)
+        ys.append(y.copy())
+        us.append(u)
+    return np.array(ys), np.array(us)
+
+
+def test_inverse_cancels_a_lagged_play() -> None:
+    """The arm's output follows the nominal command (one cycle behind, the motor's lag) much closer
+    with the inversion than without: the play's half-width lag goes away."""
+    errs = {}
+    for name, inv in (("off", None), ("on", _known(lead=0.03))):
+        y, u = _through_lagged_play(inv)
+        errs[name] = np.max(np.abs(y[100:] - u[99:-1]) / PLAY, axis=0)
+    assert np.all(errs["off"] > 0.45)
+    assert np.all(errs["on"] < 0.5 * errs["off"])
+
+
+def test_one_micrometre_of_rounding_moves_the_output_by_no_more_than_it() -> None:
+    """The same commands, rounded to micro-units or with +-1 um of jitter: a change of side a
+    cycle early or late moves the motor inside the band, so the output moves by no more than
+    the command's own change (far less than the play: the Schmitt trigger's failure)."""
+    rng = np.random.default_rng(0)
+    base, _ = _through_lagged_play(_known(fraction=0.75, lead=0.03))
+    jittered, _ = _through_lagged_play(_known(fraction=0.75, lead=0.03), jitter=rng.uniform(-1e-6, 1e-6, (300, 6)))
+    assert np.max(np.abs(jittered - base)[:, 1:]) < 5e-6  # the backbones [m]; the play is 70-80 um
+
+
+@pytest.mark.parametrize("share", [0.25, 0.5])
+def test_play_learnt_from_the_encoders_loop(share: float) -> None:
+    """An integrating loop (feedback on the arm's output) through a play, a triangle path: the
+    learnt play starts at 0.1 x the bound and ends within 10 % of the true play plus the
+    documented bias 2 x path rate x the loop's delay (one step)."""
+    true_play = share * PLAY
+    inv = PlayObserverInverse(PLAY, 0.01, start=0.1, fraction=0.75, learn=True)
+    dt, y, a, r, m = 0.01, np.zeros(6), np.zeros(6), np.zeros(6), np.zeros(6)
+    rate = 5 * PLAY  # [unit/s]
+    for k in range(8000):
+        v = rate * np.sign(np.sin(2 * np.pi * k * dt / 4.0 + 0.3))  # reverses every 2 s
+        r = r + v * dt
+        a = a + (v + 15.0 * (r - y)) * dt
+        inv.observe(m)  # no motor lag here: the encoders read the last command
+        m = a + inv.offset(a, dt, v)
+        y = _play_operator(y, m, true_play)
+    np.testing.assert_allclose(inv.play, true_play + 2 * rate * dt, rtol=0.1)
+
+
+def test_controller_without_encoders_is_the_plain_controller() -> None:
+    """A controller with the encoders' inversion on stepped without readings (the paper's
+    interface, unit tests) inverts nothing; with readings it does."""
+    cfg = ControllerConfig(backlash_compensation=True, backlash_method="encoders", backlash_start=1.0)
+    plain = make_controller(P, dataclasses.replace(cfg, backlash_compensation=False))
+    comp = make_controller(P, cfg)
+    assert comp.uses_encoders and not plain.uses_encoders
+    psi = np.asarray(HOME_PSI, float)
+    p_des = np.array([0.002, 0.0, 0.0])
+    a, b = psi.copy(), psi.copy()
+    from wristmark.models.actuation import actuators_from_psi
+    from wristmark.models.kinematics import tip_position
+
+    for _ in range(5):
+        p = tip_position(P, a)
+        a = plain.step(a, p, p + p_des, None, 0.06).psi_next
+        b = comp.step(b, p, p + p_des, None, 0.06).psi_next
+    np.testing.assert_allclose(a, b, atol=1e-12)
+    c = comp.step(b, tip_position(P, b), tip_position(P, b) + p_des, None, 0.06,
+                  encoders=actuators_from_psi(P, b)).psi_next
+    c2 = comp.step(c, tip_position(P, c), tip_position(P, c) + p_des, None, 0.06,
+                   encoders=actuators_from_psi(P, c)).psi_next
+    d = plain.step(c, tip_position(P, c), tip_position(P, c) + p_des, None, 0.06).psi_next
+    assert np.max(np.abs(actuators_from_psi(P, c2) - actuators_from_psi(P, d))) > 1e-5
+
+
+def test_config_rejects_bad_method_and_margin() -> None:
+    with pytest.raises(ConfigError, match="backlash_method"):
+        ControllerConfig(backlash_method="guess").validate()
+    with pytest.raises(ConfigError, match="backlash_margin"):
+        ControllerConfig(backlash_margin=-0.1).validate()
+
+
+def test_encoders_file_applies_to_the_qp_only() -> None:
+    """configs/controller_encoders.yaml turns the encoders' inversion on for the qp kind; the paper
+    kind runs without it (backlash_kinds), and an unknown kind in that list is refused."""
+    from wristmark.sim.setup import default_config
+
+    cfg = ControllerConfig.load(default_config("controller_encoders.yaml"))
+    assert cfg.backlash_compensation and cfg.backlash_method == "encoders"
+    assert make_controller(P, cfg).uses_encoders
+    paper = make_controller(P, dataclasses.replace(cfg, kind="paper"))
+    assert paper.compensator is None and not paper.uses_encoders
+    with pytest.raises(ConfigError, match="backlash_kinds"):
+        dataclasses.replace(cfg, backlash_kinds=("pid",)).validate()
+
+
+def _first_reversal(inv: PlayObserverInverse, steps: int = 260) -> None:
+    """test_play_learnt_from_the_encoders_loop's loop up to just after its first reversal's verdict."""
+    dt, y, a, r, m = 0.01, np.zeros(6), np.zeros(6), np.zeros(6), np.zeros(6)
+    rate = 5 * PLAY
+    for k in range(steps):
+        v = rate * np.sign(np.sin(2 * np.pi * k * dt / 4.0 + 0.3))
+        r = r + v * dt
+        a = a + (v + 15.0 * (r - y)) * dt
+        inv.observe(m)
+        m = a + inv.offset(a, dt, v)
+        y = _play_operator(y, m, 0.5 * PLAY)
+
+
+def test_a_start_move_makes_the_first_reversal_learnt_at_the_normal_rate() -> None:
+    """Actuators the start ramp moved further than their play estimate learn their first reversal
+    at ``rate`` (0.3 of the way from the start); the others replace the start with it."""
+    plain = PlayObserverInverse(PLAY, 0.01, start=0.1, fraction=0.75, learn=True)
+    moved = PlayObserverInverse(PLAY, 0.01, start=0.1, fraction=0.75, learn=True)
+    before = np.array([0.1, 0.02, 0.0, 0.0, 0.0, 0.0])
+    after = before + np.array([0.01, 1e-3, 1e-4, 1e-6, -1e-3, 0.0])  # moved: 0, 1, 2, 4 (> 0.1 x PLAY)
+    moved.after_move(before, after)
+    _first_reversal(plain)
+    _first_reversal(moved)
+    start = 0.1 * PLAY
+    assert np.all(np.abs(plain.play - start) > 0.3 * start)  # the first verdict was given
+    step_plain, step_moved = plain.play - start, moved.play - start
+    was_moved = np.array([True, True, True, False, True, False])
+    np.testing.assert_allclose(step_moved[was_moved], 0.3 * step_plain[was_moved], rtol=1e-9)
+    np.testing.assert_array_equal(moved.play[~was_moved], plain.play[~was_moved])
+
+
+def test_the_loop_tells_the_controller_where_its_start_ramp_left_the_play() -> None:
+    """ServoLoop.start_at on an arm resting at home: the actuators its ramp moved are marked; an
+    arm already at the start gets no ramp and nothing is marked."""
+    from wristmark.models.config_files import default_config
+    from wristmark.models.ik import solve_tip_ik
+    from wristmark.models.kinematics import tip_position
+    from wristmark.rig.link.actuator_link import DirectLink
+    from wristmark.rig.loop.rig_config import RigConfig
+    from wristmark.rig.loop.servo_loop import ServoLoop
+    from wristmark.sim.plant import TruePlant
+    from wristmark.sim.plant_params import PlantParams
+
+    home = np.array(HOME_PSI, float)
+    start = solve_tip_ik(P, tip_position(P, home) + [0.01, -0.005, 0.008], home).psi
+    learnt = {}
+    for name, rest in (("home", home), ("start", start)):
+        ctrl = make_controller(P, ControllerConfig.load(default_config("controller.yaml")))
+        assert ctrl.uses_encoders and ctrl.compensator is not None
+        loop = ServoLoop(P, RigConfig(sensor="truth-noise"), DirectLink(TruePlant(P, PlantParams(), psi0=rest)),
+                         controller=ctrl)
+        loop.start_at(start)
+        learnt[name] = ctrl.compensator.inverse._learnt.copy()  # type: ignore[attr-defined]
+    assert learnt["home"][0] > 0 and np.count_nonzero(learnt["home"]) >= 3
+    assert not np.any(learnt["start"])

@@ -1,0 +1,200 @@
+"""The marker chain (step 5 of cvs.corners.detector, paper Fig. 4).
+
+Candidates are tried in decreasing normalised CL order until one is an X-corner that grows a
+chain of ``min_corners``: the second corner is the nearest found by moving the window along the
+four edge directions; then the chain grows outward both ways along the local edge direction
+closest to the last step (turned by half the change of that edge since the previous corner: the
+corner circle's image is curved) until the searched distance exceeds ``stop_ratio`` times the
+last spacing. Consecutive corners alternate in polarity.
+
+A window search moves the paper's 10x10 square (widened across the step to 20% of the distance
+so that a curved corner circle stays inside it) in half-window steps and takes the first window
+whose CL maximum is an X-corner of the other polarity, with an edge along the step and a
+grey-level range at least ``contrast_ratio`` times that of the current corner (rejects X-like
+texture next to the marker). Candidates are X-tested lazily, when they are reached as a seed or
+as a window's maximum (the visiting order, hence the chain, is that of testing all of them).
+
+All of it is numba-compiled (measured on 1080p marker ROIs: ~0.06 ms per image with the X-corner
+tests, against ~1.3 ms for the Python search over batch-tested candidates it replaces).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numba
+import numpy as np
+
+from wristmark.cvs.corners.likelihood import CornerCandidates
+from wristmark.cvs.corners.xcorner_test import NBINS, classify_candidate
+from wristmark.cvs.corners.xcorners import DetectorSettings, IntArray
+
+_MAX_CHAIN = 64  # corners per chain, at most
+# The compiled functions pass three tuples:
+#   c   = (xs, ys, normalised CL, grey range, tested, ok, |CC|, polarity, edges) of the candidates
+#   im  = (grey, I_x, I_y, histogram scratch)
+#   prm = (half_window, template_scale, cc_min, contrast_ratio, cos(edge_tol), max_step_px,
+#          stop_ratio, min_corners, max_seeds, seed_candidates)
+
+
+@numba.njit(cache=True, nogil=True)
+def _xtest(c: Any, im: Any, prm: Any, k: int) -> None:  # pragma: no cover
+    """The X-corner test of candidate k (cvs.corners.xcorner_test), once; im = (grey, I_x, I_y, scratch)."""
+    xs, ys, _, _, tested, ok, cc, pol, edges = c
+    classify_candidate(im[0], im[1], im[2], xs, ys, k, prm[0], prm[1], prm[2], tested, ok, cc, pol, edges, im[3])
+
+
+@numba.njit(cache=True, nogil=True)
+def _search(
+    c: Any, im: Any, prm: Any, cur: int, dx: float, dy: float, max_dist: float, used: Any
+) -> int:  # pragma: no cover
+    """The window search from candidate ``cur`` along unit (dx, dy) up to ``max_dist`` [px]
+    (module doc); the candidate index or -1."""
+    xs, ys, cln, rng, _, ok, _, pol, edges = c
+    r = prm[0]
+    min_rng = np.float32(prm[3] * np.float64(rng[cur]))
+    cos_tol = prm[4]
+    px, py = np.float64(xs[cur]), np.float64(ys[cur])
+    want = -pol[cur]
+    n = xs.size
+    band = np.empty(n, np.int64)
+    al = np.empty(n)
+    ac = np.empty(n)
+    nb = 0
+    for k in range(n):
+        rx, ry = xs[k] - px, ys[k] - py
+        a = rx * dx + ry * dy
+        b = abs(rx * (-dy) + ry * dx)
+        if a > 1.0 and a <= max_dist + r and b <= max(r, 0.2 * (a + r)):
+            band[nb], al[nb], ac[nb] = k, a, b
+            nb += 1
+    if nb == 0:
+        return -1
+    band, al, ac = band[:nb], al[:nb], ac[:nb]
+    o1 = np.argsort(ac, kind="mergesort")
+    order = o1[np.argsort(al[o1], kind="mergesort")]  # by (along, across, index)
+    t = float(r + 1)
+    while t <= max_dist + 1e-9:
+        lat = max(r, 0.2 * t)
+        best = -1
+        for j in order:
+            if abs(al[j] - t) <= r and ac[j] <= lat:
+                k = band[j]
+                if best < 0 or cln[k] > cln[best]:  # the window's CL maximum (first of equals)
+                    best = k
+        t += r
+        if best < 0:
+            continue
+        k = best
+        if used[k]:
+            continue
+        _xtest(c, im, prm, k)  # lazily: only window maxima need the X-corner test
+        if not ok[k] or pol[k] != want or rng[k] < min_rng:
+            continue
+        sx, sy = xs[k] - px, ys[k] - py
+        dist = math.hypot(sx, sy)
+        if dist < 2.0 or dist > max_dist + r:
+            continue
+        ux, uy = sx / dist, sy / dist
+        along_a = abs(math.cos(edges[k, 0]) * ux + math.sin(edges[k, 0]) * uy)
+        along_b = abs(math.cos(edges[k, 1]) * ux + math.sin(edges[k, 1]) * uy)
+        if max(along_a, along_b) < cos_tol:
+            continue
+        return k
+    return -1
+
+
+@numba.njit(cache=True, nogil=True)
+def _best_edge(edges: Any, k: int, ux: float, uy: float) -> tuple[float, float]:  # pragma: no cover
+    """The edge direction (of four) of candidate k closest to unit vector (ux, uy)."""
+    bx, by, bd = 0.0, 0.0, -1.0
+    for j in range(2):
+        cx, cy = math.cos(edges[k, j]), math.sin(edges[k, j])
+        d = cx * ux + cy * uy
+        if abs(d) > bd:
+            sign = 1.0 if d >= 0.0 else -1.0
+            bx, by, bd = sign * cx, sign * cy, abs(d)
+    return bx, by
+
+
+@numba.njit(cache=True, nogil=True)
+def _grow(c: Any, im: Any, prm: Any, seed: int, out: Any) -> int:  # pragma: no cover
+    """The chain through ``seed`` written to ``out`` in order along the chain; its length."""
+    xs, ys, _, _, _, _, _, _, edges = c
+    used = np.zeros(xs.size, np.bool_)
+    used[seed] = True
+    best, best_d = -1, math.inf
+    for j in range(2):
+        for sign in (1.0, -1.0):
+            ea = edges[seed, j]
+            k = _search(c, im, prm, seed, sign * math.cos(ea), sign * math.sin(ea), prm[5], used)
+            if k >= 0:
+                d = math.hypot(xs[k] - np.float64(xs[seed]), ys[k] - np.float64(ys[seed]))
+                if d < best_d:
+                    best, best_d = k, d
+    if best < 0:
+        out[0] = seed
+        return 1
+    buf = np.empty(2 * _MAX_CHAIN + 2, np.int64)
+    head, tail = _MAX_CHAIN, _MAX_CHAIN + 2  # chain = buf[head:tail]
+    buf[head], buf[head + 1] = seed, best
+    used[best] = True
+    for forward in (True, False):
+        while tail - head < _MAX_CHAIN:
+            cur, prev = (buf[tail - 1], buf[tail - 2]) if forward else (buf[head], buf[head + 1])
+            sx, sy = xs[cur] - np.float64(xs[prev]), ys[cur] - np.float64(ys[prev])
+            dist = math.hypot(sx, sy)
+            ux, uy = sx / dist, sy / dist
+            cx, cy = _best_edge(edges, cur, ux, uy)
+            qx, qy = _best_edge(edges, prev, ux, uy)
+            a = math.atan2(cy, cx)  # the current edge turned on by half its change since prev
+            da = math.atan2(qx * cy - qy * cx, qx * cx + qy * cy)
+            k = _search(c, im, prm, cur, math.cos(a + 0.5 * da), math.sin(a + 0.5 * da), prm[6] * dist, used)
+            if k < 0:
+                break
+            used[k] = True
+            if forward:
+                buf[tail] = k
+                tail += 1
+            else:
+                head -= 1
+                buf[head] = k
+    n = tail - head
+    out[:n] = buf[head:tail]
+    return n
+
+
+@numba.njit(cache=True, nogil=True)
+def _chain_kernel(c: Any, im: Any, prm: Any) -> Any:  # pragma: no cover
+    """Seeds in decreasing normalised CL order until a chain of min_corners (module doc)."""
+    ok = c[5]
+    min_corners, max_seeds, seed_candidates = prm[7], prm[8], prm[9]
+    n = min(c[0].size, seed_candidates)
+    out = np.empty(_MAX_CHAIN, np.int64)
+    seeds = 0
+    for k in range(n):
+        _xtest(c, im, prm, k)  # lazily: a seed's test only when it is reached
+        if not ok[k]:
+            continue
+        m = _grow(c, im, prm, k, out)
+        if m >= min_corners:
+            return out[:m].copy()
+        seeds += 1
+        if seeds >= max_seeds:
+            break
+    return out[:0].copy()
+
+
+def find_chain(cands: CornerCandidates, s: DetectorSettings) -> IntArray:
+    """Candidate indices of the marker chain (module doc), ordered along the chain; empty when
+    no seed grows a chain of ``s.min_corners``."""
+    c = cands
+    arrays = (c.xs, c.ys, c.cln, c.rng, c.tested, c.ok, c.cc, c.pol, c.edges)
+    prm = (
+        int(s.half_window), float(s.template_scale), float(s.cc_min), float(s.contrast_ratio),
+        math.cos(math.radians(s.edge_tol_deg)), float(s.max_step_px), float(s.stop_ratio), int(s.min_corners),
+        int(s.max_seeds), int(s.seed_candidates),
+    )
+    chain: IntArray = _chain_kernel(arrays, (c.gray, c.ix, c.iy, np.empty((2, NBINS))), prm)
+    return chain

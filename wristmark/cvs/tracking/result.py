@@ -1,0 +1,51 @@
+"""One stereo pair's tracking result (cvs.tracking.tracker.MarkerTracker.track)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from wristmark.cvs.marker.decode import CodeReading
+from wristmark.cvs.tracking.stereo_match import StereoMatch
+from wristmark.cvs.tracking.stereo_pose import MarkerPose
+
+Array = NDArray[np.float64]
+IntArray = NDArray[np.int_]
+
+
+@dataclass(frozen=True)
+class TrackResult:
+    """One stereo pair's tracking result (left camera frame {ll}, metres).
+
+    ok: a pose was found and passed the checks; reason: why not ('' when ok); tip_left, tip_world
+    [m] (tip_world None without world_T_left); T_left_marker: 4x4 pose of {wm} in {ll};
+    corners_left/right: detected corners in raw pixels (N, 2); rms_px [px]; time_ms: total [ms];
+    timings: ms per stage (detect, match, init, solve); pose: the solver result when one ran;
+    axis_source: what fixed the direction of z_wm ('hint', 'previous', 'image', 'default' or
+    'code' or 'none'; '' when not ok); axis_score: the image evidence in [-1, 1] for the
+    returned direction (NaN when the image was not asked); roll_known: a coded sleeve's code
+    was read, T_left_marker is the absolute pose (roll included) and ids_left / ids_right the
+    absolute corner ids of corners_left / right (-1: not used); otherwise roll is known modulo
+    one column and ids are None; code: the code reading (coded sleeves).
+    """
+
+    ok: bool
+    reason: str
+    tip_left: Array | None
+    tip_world: Array | None
+    T_left_marker: Array | None
+    corners_left: Array
+    corners_right: Array
+    rms_px: float
+    time_ms: float
+    timings: dict[str, float]
+    pose: MarkerPose | None = None
+    match: StereoMatch | None = None
+    axis_source: str = ""
+    axis_score: float = float("nan")
+    roll_known: bool = False
+    ids_left: IntArray | None = None
+    ids_right: IntArray | None = None
+    code: CodeReading | None = None

@@ -1,0 +1,85 @@
+"""What configures the stereo tracker (cvs.tracking.tracker): its settings and its corner
+detectors (the paper's, with the saddle detector as fallback and second try)."""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+from wristmark.cvs.marker.decode import CodeReadSettings
+from wristmark.cvs.tracking.axis import AxisEvidenceSettings
+from wristmark.cvs.tracking.stereo_pose import PoseSettings
+from wristmark.models.errors import InputError
+
+
+class CornerDetector(Protocol):
+    """What the tracker needs from a detector (cvs.corners.detector.MarkerCornerDetector):
+    ``detect`` gets grey frames (or grey / BGR ones with a ``roi``), ``track`` grey or BGR ones (it
+    converts only what it searches); ``previous_roi`` is the box ``track`` searches first, or None;
+    ``follow`` centres the next one on corners found otherwise."""
+
+    def detect(self, gray: Any, roi: Any = None) -> Any: ...
+
+    def track(self, gray: Any) -> Any: ...
+
+    def previous_roi(self, shape: tuple[int, ...]) -> Any: ...
+
+    def follow(self, corners: Any) -> None: ...
+
+
+@dataclass(frozen=True)
+class TrackerSettings:
+    """min_corners: per camera [-]; min_pairs: stereo pairs needed [-]; max_dy_px: rectified-y
+    tolerance of a pair [px]; max_rms_px: largest accepted reprojection RMS [px]; good_rms_px: in
+    ROI tracking, an RMS of the fit from the previous pose that ends the search over start poses
+    [px]; a cold pair tries every start and keeps the best (local minima of eq. 16 sit near
+    0.8-1 px at 0.2 px corner noise, but with 4 nearly collinear corners a wrong pose can fit to
+    0.3 px while the true one fits to the noise level); detector:
+    'auto' (the paper's detector if installed, else the saddle fallback; when the paper's
+    detector finds no marker in a pair, the saddle detector gets one try on the same pair),
+    'paper' or 'saddle'; pose: solver settings; axis: the image evidence for the direction of
+    z_wm (cvs.tracking.axis); code: reading a coded sleeve's cells (cvs.marker.decode);
+    prior_max_move_m [m], prior_max_turn_deg [deg], prior_max_px [px]: the previous pair's pose
+    is a prior for the direction only if this pair's fit is within these of it (translation,
+    rotation modulo the corner symmetry, the previous pose's corners on this pair's left
+    detections: small motion, same corners); strict_direction: never a direction that only the
+    default prior (+x) or one-band image evidence gave (cvs.tracking.axis.axis_evidence_strict):
+    'direction ambiguous' instead (``wristmark track --strict-direction``);
+    max_single_view_shift_m [m]: a fit that uses corners seen in one view only (no stereo
+    partner) is refused when the tip moves more than this without them, where at least 3 stereo
+    pairs fit on their own (2 pairs determine the pose no better than the fit): few corners on one arc
+    of the sleeve leave its axis weakly determined, and one such corner off by a pixel at the
+    chain's end tilted the fit 3-5 mm off in the virtual lab (docs/results.md)."""
+
+    min_corners: int = 3
+    min_pairs: int = 2
+    max_dy_px: float = 2.0
+    max_rms_px: float = 0.75
+    good_rms_px: float = 0.4
+    detector: str = "auto"
+    pose: PoseSettings = field(default_factory=PoseSettings)
+    axis: AxisEvidenceSettings = field(default_factory=AxisEvidenceSettings)
+    code: CodeReadSettings = field(default_factory=CodeReadSettings)
+    prior_max_move_m: float = 0.003
+    prior_max_turn_deg: float = 15.0
+    prior_max_px: float = 6.0
+    strict_direction: bool = False
+    max_single_view_shift_m: float = 0.001
+
+
+def make_detector(kind: str) -> CornerDetector:
+    """A corner detector of ``kind`` ('auto', 'paper', 'saddle'; InputError for another)."""
+    if kind not in ("auto", "paper", "saddle"):
+        raise InputError(f"unknown detector '{kind}' (valid: auto, paper, saddle)")
+    if kind in ("auto", "paper"):
+        try:
+            mod = importlib.import_module("wristmark.cvs.corners.detector")
+            det: CornerDetector = mod.MarkerCornerDetector()
+            return det
+        except ImportError as e:
+            if kind == "paper":
+                raise InputError("the paper's detector (cvs.corners.detector) is not installed") from e
+    from wristmark.cvs.corners.saddle import SaddleCornerDetector
+
+    return SaddleCornerDetector()

@@ -1,0 +1,407 @@
+"""The stereo tracking pipeline of paper Sec. III: corners -> correspondence -> pose -> tip.
+
+``MarkerTracker.track(left_img, right_img)`` runs, per stereo pair: the corner detector in each
+image (ROI tracking from pair to pair, whole frame when lost), rectified-y correspondence with
+relative indices (cvs.tracking.stereo_match), the homography start (eq. 14-15, or triangulation + Kabsch
+when a camera sees fewer than 4 corners or the homography start does not converge), the CasADi
+stereo solve (eq. 16) and the tip (eq. 5). It returns ``ok=False`` with a reason rather than a
+doubtful pose: no marker, too few corners, no stereo pairs, a residual above ``max_rms_px``, or
+a fit that hinges on corners seen in one view only (the best fit of the stereo pairs alone puts
+the tip more than ``max_single_view_shift_m`` away).
+``track_corners`` takes corners directly (controller loops, baselines, tests).
+
+The sleeve looks the same after a half turn about x_wm, so which way z_wm (distal) points is
+decided after the solve, and never guessed: a coded sleeve's code (cvs.marker.decode: the
+absolute pose, roll included, ``roll_known``); else a caller's ``axis_hint_left`` (e.g. the
+kinematic model's marker axis in a servo loop); else the previous pair's pose, but only when
+this fit is consistent with it (chains found in the previous ROIs, small motion: within
+``prior_max_move_m``, ``prior_max_turn_deg`` and ``prior_max_px``) and the image
+(cvs.tracking.axis) does not contradict it; else decisive image evidence (the arm's body
+continues behind the sleeve, nothing lies beyond the tip), and last the default prior
+``PoseSettings.axis_hint_left`` (+x: the arm enters from the left). With
+``TrackerSettings.strict_direction`` the image evidence must hold in both of its bands
+(cvs.tracking.axis.axis_evidence_strict) and there is no default: otherwise the result is
+``ok=False`` with reason "direction ambiguous" (never a guess; a distal tool as wide as the arm
+with no body behind the sleeve fools the lenient evidence). ``TrackResult.axis_source`` says which one
+decided.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from dataclasses import replace
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from wristmark.cvs.camera import StereoCamera
+from wristmark.cvs.gray_image import check_view, to_gray
+from wristmark.cvs.marker.decode import CodeDecoder
+from wristmark.cvs.tracking.axis import axis_evidence, axis_evidence_strict
+from wristmark.cvs.tracking.homography_init import homography_pose
+from wristmark.cvs.tracking.result import Array, IntArray, TrackResult
+from wristmark.cvs.tracking.rigid_fit import kabsch, roll_about_z
+from wristmark.cvs.tracking.settings import CornerDetector, TrackerSettings, make_detector
+from wristmark.cvs.tracking.stereo_match import StereoMatch, StereoRectifier, match_corners
+from wristmark.cvs.tracking.stereo_pose import MarkerPose, StereoPoseSolver
+from wristmark.models.errors import InputError
+from wristmark.models.marker import MarkerModel
+
+__all__ = ["CornerDetector", "MarkerTracker", "TrackResult", "TrackerSettings", "kabsch"]
+
+
+class MarkerTracker:
+    """Stereo tip tracker for one calibration and marker; keeps ROI state between pairs. Poses in
+    {ll} [m]; the tip also in {w} when the calibration has ``world_T_left``."""
+
+    def __init__(self, camera: StereoCamera, marker: MarkerModel, settings: TrackerSettings | None = None) -> None:
+        self.settings = settings or TrackerSettings()
+        camera.validate()
+        marker.validate()
+        self.camera, self.marker = camera, marker
+        self.rectifier = StereoRectifier(camera)
+        self.solver = StereoPoseSolver(camera, marker, self.settings.pose)
+        self.detector_left = make_detector(self.settings.detector)
+        self.detector_right = make_detector(self.settings.detector)
+        T_rl = np.eye(4)
+        T_rl[:3, :3], T_rl[:3, 3] = camera.R, camera.T
+        self._T_left_right = np.linalg.inv(T_rl)
+        self._tracking = False
+        self._continuous = False  # this pair's chains were found in the previous pair's ROIs
+        self._last_pose: MarkerPose | None = None  # the previous pair's good pose
+        self._last_fit_px = float("inf")  # RMS of the previous pose's corners on this pair's [px]
+        self._last_shift = 0  # even index shift from the previous pair's fit to this pair's (tracking)
+        self._last_oriented = False  # the previous pose's direction was decided
+        self.decoder = None if marker.code is None else CodeDecoder(camera, marker, self.settings.code)
+        self._second: tuple[CornerDetector, CornerDetector] | None = None
+        self._use_second = self.settings.detector == "auto" and type(self.detector_left).__name__ != (
+            "SaddleCornerDetector")
+        cv2.setNumThreads(1)
+
+    def _fail(self, reason: str, cl: Array, cr: Array, t0: float, timings: dict[str, float], **kw: Any) -> TrackResult:
+        return TrackResult(
+            False, reason, None, None, None, cl, cr, float("nan"), 1e3 * (time.perf_counter() - t0), timings, **kw
+        )
+
+    def track(self, left_img: Any, right_img: Any, axis_hint_left: Array | None = None) -> TrackResult:
+        """Track the marker in one stereo pair (grayscale or BGR uint8 images of the calibrated
+        size). In ROI tracking only the boxes around the previous corners are converted to grey
+        and searched; whole frames are converted once, when a whole-frame search is needed.
+        ``axis_hint_left``: expected direction of z_wm (distal) in {ll}, if the caller knows it."""
+        t0 = time.perf_counter()
+        self._continuous = False
+        il = check_view(left_img, self.camera.image_size, "left")
+        ir = check_view(right_img, self.camera.image_size, "right")
+        res, full = self._track_in_rois(il, ir, t0) if self._tracking else (None, (None, None))
+        if res is None or not res.ok:
+            # cold, or the ROIs lost the marker: the whole frames (a side already searched whole
+            # in this pair is not searched again: the search is a function of the image)
+            t1 = time.perf_counter()
+            t_roi = 0.0 if res is None else res.timings.get("detect", 0.0)
+            if res is None or not any(c is not None and len(c.corners) < self.settings.min_corners for c in full):
+                il, ir = to_gray(il), to_gray(ir)
+                dl = full[0] if full[0] is not None else self.detector_left.detect(il)
+                dr = full[1] if full[1] is not None else self.detector_right.detect(ir)
+                res = self.track_corners(dl.corners, dr.corners, dl.polarity, dr.polarity, _t0=t0)
+            res.timings["detect"] = t_roi + 1e3 * (time.perf_counter() - t1)
+        if not res.ok and self._use_second:
+            # 'auto': one try with the other detector (different failure modes, same pose gates)
+            t2 = time.perf_counter()
+            il, ir = to_gray(il), to_gray(ir)
+            second = self._second_detectors()
+            sl, sr = second[0].detect(il), second[1].detect(ir)
+            t_second = 1e3 * (time.perf_counter() - t2)
+            res2 = self.track_corners(sl.corners, sr.corners, sl.polarity, sr.polarity, _t0=t0)
+            if res2.ok:
+                res = res2
+            res.timings["second_detector"] = t_second
+        found = res.ok
+        if res.ok:
+            t3 = time.perf_counter()
+            res = self._orient(res, (il, ir), axis_hint_left)
+            res.timings["axis"] = 1e3 * (time.perf_counter() - t3)
+            res = replace(res, time_ms=1e3 * (time.perf_counter() - t0))
+        self._tracking = found  # an ambiguous direction keeps the corners' ROIs
+        self._last_pose = res.pose if found else None
+        self._last_oriented = res.ok
+        return res
+
+    def _second_detectors(self) -> tuple[CornerDetector, CornerDetector]:
+        """The saddle detector of each view ('auto': the second try), made on first use."""
+        if self._second is None:
+            self._second = (make_detector("saddle"), make_detector("saddle"))
+        return self._second
+
+    def _track_in_rois(self, il: Any, ir: Any, t0: float) -> tuple[TrackResult | None, tuple[Any, Any]]:
+        """ROI tracking (paper III.A(1)): each view's detector in the box around its previous
+        corners. A view whose box misses the marker is searched whole, after (with 'auto') one try of
+        the second detector in both views' boxes: a miss of one detector in one view (the paper's
+        detector lost 1-2 % of the lab's frames at half size that the saddle detector found at once)
+        then costs two small boxes, not a whole-frame search of both views with both detectors (80-
+        100 ms at 960 x 540, the servo loop's cycle overrun). Returns the result (None when neither
+        view has a box) and the chains of the views searched whole here (None where not)."""
+        n = self.settings.min_corners
+        boxes = (self.detector_left.previous_roi(il.shape), self.detector_right.previous_roi(ir.shape))
+        if boxes[0] is None and boxes[1] is None:
+            return None, (None, None)
+        dets = (self.detector_left, self.detector_right)
+        chains: list[Any] = [None if b is None else d.detect(img, b) for d, img, b in zip(dets, (il, ir), boxes)]
+        missed = [c is None or len(c.corners) < n for c in chains]
+        self._continuous = not any(missed)  # the previous pose is a start and a prior only then
+        if any(missed) and self._use_second and boxes[0] is not None and boxes[1] is not None:
+            t1 = time.perf_counter()
+            second = self._second_detectors()
+            sl, sr = second[0].detect(il, boxes[0]), second[1].detect(ir, boxes[1])
+            t_box = 1e3 * (time.perf_counter() - t1)
+            if min(len(sl.corners), len(sr.corners)) >= n:
+                res = self.track_corners(sl.corners, sr.corners, sl.polarity, sr.polarity, _t0=t0)
+                if res.ok:
+                    res.timings["detect"] = 1e3 * (time.perf_counter() - t0) - t_box
+                    res.timings["second_detector_roi"] = t_box
+                    for d, c in zip(dets, (sl, sr)):  # the next pair's boxes follow the marker
+                        d.follow(c.corners)
+                    return res, (None, None)
+        full: list[Any] = [None, None]
+        for k in (0, 1):
+            if missed[k]:  # that view whole, as the detector's own ``track`` would
+                full[k] = chains[k] = dets[k].detect(to_gray((il, ir)[k]))
+        t_det = 1e3 * (time.perf_counter() - t0)
+        dl, dr = chains
+        res = self.track_corners(dl.corners, dr.corners, dl.polarity, dr.polarity, _t0=t0)
+        res.timings["detect"] = t_det
+        return res, (full[0], full[1])
+
+    def _single_view_shift(self, best: MarkerPose, idx_l: IntArray, ul: Array, idx_r: IntArray, ur: Array,
+                           m: StereoMatch) -> float:
+        """How far [m] the tip of the fit ``best`` lies from the best fit of the stereo pairs only,
+        over the same start poses (0 when every corner has its partner, when fewer than 3 pairs
+        leave the pairs' own fit no better determined than ``best``, or when they give no fit)."""
+        common = np.intersect1d(idx_l, idx_r)
+        in_l, in_r = np.isin(idx_l, common), np.isin(idx_r, common)
+        if (in_l.all() and in_r.all()) or common.size < 3:
+            return 0.0
+        kept = (self._last_shift, self._last_fit_px)  # the previous start's bookkeeping is this pair's
+        pairs_only: MarkerPose | None = None
+        for T0 in self._start_poses(idx_l[in_l], ul[in_l], idx_r[in_r], ur[in_r], m):
+            pose = self.solver.solve(idx_l[in_l], ul[in_l], idx_r[in_r], ur[in_r], T0)
+            if np.isfinite(pose.rms_px) and (pairs_only is None or pose.rms_px < pairs_only.rms_px):
+                pairs_only = pose
+        self._last_shift, self._last_fit_px = kept
+        if pairs_only is None:
+            return 0.0
+        # the fitted poses' tips (T_fit: the same sense of the indices in both; the reported tips may
+        # differ by the half turn the axis prior applies to each fit on its own)
+        tips = [self.solver._tips(pose.T_fit)[0] for pose in (pairs_only, best)]
+        return float(np.linalg.norm(tips[0] - tips[1]))
+
+    def _orient(self, res: TrackResult, images: tuple[NDArray[np.uint8], NDArray[np.uint8]],
+                hint: Array | None) -> TrackResult:
+        """Fix the direction of z_wm (and, with a readable code, the roll) of a good fit: the
+        code (coded sleeves), a caller's hint, else the previous pair's pose where this fit is
+        consistent with it and the image does not contradict it, else decisive image evidence,
+        else (not strict_direction) the default prior; otherwise ok false, 'direction ambiguous'."""
+        assert res.pose is not None
+        pose, score = res.pose, float("nan")
+        if self.decoder is not None:
+            t = time.perf_counter()
+            reading = self.decoder.read(images, pose.T_fit)
+            res.timings["code"] = 1e3 * (time.perf_counter() - t)
+            res = replace(res, code=reading)
+            if reading.ok and reading.T_fit_abs is not None:
+                T = pose.T_fit @ reading.T_fit_abs
+                tip_left, tip_world = self.solver._tips(T)
+                pose = replace(pose, T_left_marker=T, tip_left=tip_left, tip_world=tip_world)
+                m = res.match
+                n = self.marker.columns
+                ids_l = None if m is None else reading.absolute_ids(m.index_left, n)
+                ids_r = None if m is None else reading.absolute_ids(m.index_right, n)
+                return replace(res, tip_left=tip_left, tip_world=tip_world, T_left_marker=T, pose=pose,
+                               axis_source="code", roll_known=True, ids_left=ids_l, ids_right=ids_r)
+        z = pose.T_left_marker[:3, 2]
+        want: Array | None = None
+        source = "none"
+        if hint is not None:
+            want, source = np.asarray(hint, float).reshape(3), "hint"
+        else:
+            strict, ax = self.settings.strict_direction, self.settings.axis
+            evidence = axis_evidence_strict if strict else axis_evidence
+            prior = self._consistent_prior(pose)
+            # with a consistent prior the image need only not contradict it: the left image suffices
+            score = evidence(images, self.camera, self.marker, pose.T_left_marker, ax, left_only=prior is not None)
+            decided = abs(score) >= (ax.decide_strict if strict else ax.decide)
+            if prior is not None:
+                if not decided or (score > 0) == (float(z @ prior) > 0):
+                    want, source = prior, "previous"
+            elif decided:
+                want, source = (z if score > 0 else -z), "image"
+            elif not strict and self.settings.pose.axis_hint_left is not None:
+                want, source = np.asarray(self.settings.pose.axis_hint_left, float), "default"
+        if want is None:
+            return replace(res, ok=False, reason="direction ambiguous", tip_left=None, tip_world=None,
+                           T_left_marker=None, axis_source="", axis_score=score)
+        if float(np.dot(z, want)) < 0:
+            pose, score = self.solver.half_turned(pose), -score
+        return replace(res, tip_left=pose.tip_left, tip_world=pose.tip_world, T_left_marker=pose.T_left_marker,
+                       pose=pose, axis_source=source, axis_score=score)
+
+    def _consistent_prior(self, pose: MarkerPose) -> Array | None:
+        """The previous pair's z_wm direction in {ll} if it may serve as a prior for this fit:
+        the chains were found in the previous ROIs, the previous direction was decided, and this
+        fit moved little from the previous one (TrackerSettings.prior_*); else None."""
+        prev = self._last_pose
+        if not (self._continuous and self._last_oriented and prev is not None):
+            return None
+        s = self.settings
+        T_prev = prev.T_fit @ roll_about_z(self._last_shift * self.marker.beta)  # in this pair's indices
+        if np.linalg.norm(pose.T_fit[:3, 3] - T_prev[:3, 3]) > s.prior_max_move_m:
+            return None
+        dR = T_prev[:3, :3].T @ pose.T_fit[:3, :3]
+        if np.degrees(np.arccos(np.clip((np.trace(dR) - 1.0) / 2.0, -1.0, 1.0))) > s.prior_max_turn_deg:
+            return None
+        if self._last_fit_px > s.prior_max_px:
+            return None
+        return np.asarray(prev.T_left_marker[:3, 2], float)
+
+    def reset(self) -> None:
+        """Forget the ROI state: the next pair is searched in the whole frames."""
+        self._tracking = self._continuous = self._last_oriented = False
+        self._last_pose = None
+
+    def _start_poses(
+        self, idx_l: IntArray, ul: Array, idx_r: IntArray, ur: Array, m: StereoMatch
+    ) -> Iterator[Array]:
+        """Start poses, most likely first, each computed only when the ones before it did not
+        give a good fit: the previous pair's pose (tracking), the homography of the camera with
+        more corners (paper eq. 14-15), both planar solutions of cv2 IPPE (the homography's
+        mirror-tilt ambiguity) and triangulation + Kabsch."""
+        self._last_shift, self._last_fit_px = 0, float("inf")
+        if self._continuous and self._last_pose is not None:
+            yield self._previous_start(idx_l, ul)
+        pts = self.solver.marker_points
+        use_left = idx_l.size >= idx_r.size
+        idx, uv, cam = (idx_l, ul, self.camera.left) if use_left else (idx_r, ur, self.camera.right)
+        T_fix = np.eye(4) if use_left else self._T_left_right
+        if idx.size >= 4:
+            H: Array | None = None
+            try:
+                H = T_fix @ homography_pose(cam, pts(idx), uv)
+            except (InputError, np.linalg.LinAlgError):
+                pass
+            if H is not None:
+                yield H
+            ippe: list[Array] = []
+            try:
+                n, rvecs, tvecs, _ = cv2.solvePnPGeneric(
+                    pts(idx), uv, np.asarray(cam.K, float), np.asarray(cam.dist, float), flags=cv2.SOLVEPNP_IPPE
+                )
+                for rv, tv in zip(rvecs[:n], tvecs[:n]):
+                    T = np.eye(4)
+                    T[:3, :3], T[:3, 3] = cv2.Rodrigues(rv)[0], np.asarray(tv).reshape(3)
+                    ippe.append(T_fix @ T)
+            except cv2.error:
+                pass
+            yield from ippe
+        if m.n_pairs >= 3:
+            X = cv2.triangulatePoints(
+                self.rectifier.P1, self.rectifier.P2, m.rect_left[m.pairs[:, 0]].T, m.rect_right[m.pairs[:, 1]].T
+            )
+            X = (X[:3] / X[3]).T @ np.asarray(self.rectifier.R1)  # rectified-left -> {ll}
+            yield kabsch(pts(m.index_left[m.pairs[:, 0]]), X)
+
+    def _previous_start(self, idx: IntArray, uv: Array) -> Array:
+        """The previous pair's fitted pose in this pair's relative indices. The chain's first
+        corner can change from pair to pair (a corner appears or leaves at its end), which
+        shifts the indices by an even k (polarity fixes the parity): the start is the previous
+        pose rolled by the k beta that best puts its corners on this pair's left detections."""
+        assert self._last_pose is not None
+        T = self._last_pose.T_fit
+        n, beta = self.marker.columns, self.marker.beta
+        ks = np.arange(0, n, 2)
+        P = np.concatenate([self.solver.marker_points(idx + k) for k in ks])  # {wm}, model index i + k
+        proj = self.camera.project_left(P @ T[:3, :3].T + T[:3, 3]).reshape(ks.size, -1, 2)
+        err = np.sqrt(((proj - uv[None]) ** 2).sum(axis=2).mean(axis=1))
+        j = int(np.argmin(err))
+        k = int(ks[j])
+        self._last_shift, self._last_fit_px = k, float(err[j])
+        return T @ roll_about_z(k * beta)  # maps model point i to where the previous pose had i + k
+
+    def track_corners(
+        self,
+        corners_left: Array,
+        corners_right: Array,
+        polarity_left: Array | None = None,
+        polarity_right: Array | None = None,
+        _t0: float | None = None,
+    ) -> TrackResult:
+        """Pose and tip from raw-pixel corners (N, 2) of each image and optional polarities (+-1)."""
+        t0 = time.perf_counter() if _t0 is None else _t0
+        s = self.settings
+        cl = np.asarray(corners_left, float).reshape(-1, 2)
+        cr = np.asarray(corners_right, float).reshape(-1, 2)
+        timings: dict[str, float] = {}
+        if cl.shape[0] == 0 and cr.shape[0] == 0:
+            return self._fail("no marker found in either image", cl, cr, t0, timings)
+        if min(cl.shape[0], cr.shape[0]) < s.min_corners:
+            return self._fail(
+                f"too few marker corners (left {cl.shape[0]}, right {cr.shape[0]}; need {s.min_corners} each)",
+                cl,
+                cr,
+                t0,
+                timings,
+            )
+        t1 = time.perf_counter()
+        pl = None if polarity_left is None else np.asarray(polarity_left, int)
+        pr = None if polarity_right is None else np.asarray(polarity_right, int)
+        m = match_corners(self.rectifier, cl, cr, pl, pr, s.max_dy_px)
+        timings["match"] = 1e3 * (time.perf_counter() - t1)
+        if m.n_pairs < s.min_pairs:
+            return self._fail(
+                f"only {m.n_pairs} left/right corner pairs (need {s.min_pairs})", cl, cr, t0, timings, match=m
+            )
+        kl, kr = m.index_left >= 0, m.index_right >= 0
+        idx_l, ul, idx_r, ur = m.index_left[kl], cl[kl], m.index_right[kr], cr[kr]
+        starts = self._start_poses(idx_l, ul, idx_r, ur, m)
+        best: MarkerPose | None = None
+        t_init = t_solve = 0.0
+        while True:  # tracking: stop at a good fit from the previous pose; else the best of all starts
+            t2 = time.perf_counter()
+            T0 = next(starts, None)
+            t3 = time.perf_counter()
+            t_init += t3 - t2
+            if T0 is None:
+                break
+            pose = self.solver.solve(idx_l, ul, idx_r, ur, T0)
+            t_solve += time.perf_counter() - t3
+            if np.isfinite(pose.rms_px) and (best is None or pose.rms_px < best.rms_px):
+                best = pose
+            if self._continuous and best is not None and best.rms_px <= s.good_rms_px:
+                break
+        timings["init"], timings["solve"] = 1e3 * t_init, 1e3 * t_solve
+        if best is None:
+            return self._fail(
+                "no start pose (need 4 corners in one image or 3 stereo pairs)", cl, cr, t0, timings, match=m
+            )
+        doubt = ""
+        if not best.rms_px <= s.max_rms_px or best.T_left_marker[2, 3] <= 0:
+            doubt = f"reprojection RMS {best.rms_px:.2f} px above {s.max_rms_px} px: corners do not fit the marker"
+        elif (shift := self._single_view_shift(best, idx_l, ul, idx_r, ur, m)) > s.max_single_view_shift_m:
+            doubt = f"the fit hinges on corners seen in one view only (the tip moves {1e3 * shift:.1f} mm without them)"
+        if doubt:
+            return self._fail(doubt, cl, cr, t0, timings, pose=best, match=m)
+        return TrackResult(
+            True,
+            "",
+            best.tip_left,
+            best.tip_world,
+            best.T_left_marker,
+            cl,
+            cr,
+            best.rms_px,
+            1e3 * (time.perf_counter() - t0),
+            timings,
+            pose=best,
+            match=m,
+        )

@@ -1,0 +1,191 @@
+"""The play probe: the servo loop measures each actuator's play before a closed-loop walk.
+
+Run by :class:`rig.loop.servo_loop.ServoLoop` between the closed loop's first settle and a second,
+short one, when the controller asks for it (``play_probe: true`` with the encoders' dead-band
+inversion, solvers/play_observer.py). The controller's feedback is paused: each actuator in
+turn, the others held at the settled command, follows a triangle of ``play_probe_amplitude`` x
+its largest play (out, back through, return: it ends moving up, at the settled command) over
+``play_probe_time`` seconds, one target per cycle within the velocity limits. Every cycle the
+frame is measured and the encoders read; the tracker's 6-DoF tip pose turned into actuator
+values by the nominal pose IK (models/pose_ik.py, models/actuation.py) is the arm side, the
+encoders interpolated to the frame's capture time (on the wall clock they are read after the
+frame arrived) the motor side; solvers/play_probe_fit.py fits the play per actuator. The
+inversion then starts from the fitted play, on a known side and place in the band. Each motor's
+first-order lag is fitted too, from the targets sent and the encoders read alone (both stamped
+on the loop's clock; no pose needed), for the inversion's reversal burst (``backlash_motor_burst``).
+
+Assumes a 6-DoF pose: without one (the reference marker, or a coded marker whose roll code was
+not read at the end of the settle) nothing moves, the loop's ``play_probe_note`` says so (the
+experiments put it in result.json; not on stderr, where a run prints only its one-line stop), and
+the inversion learns the play online at the reversals as without a probe. The probe's cycles are logged as
+``phase + ':probe'`` and are not counted in the walk's errors; more than the rig's
+``max_lost_cycles`` probe cycles in a row without a pose hold the arm and stop the run
+(MarkerLostError), as in the loop. Works the same on the simulated
+bench and on the hardware path (GET_STATE gives the encoders, the frames the pose).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
+from wristmark.models.kinematics import forward_kinematics
+from wristmark.models.limits import clamp_psi, clamp_velocity
+from wristmark.models.pose_ik import solve_pose_ik
+from wristmark.models.units import on_micro_grid
+from wristmark.rig.loop.servo_cycle import CycleOutcome, CycleTarget, MarkerLostError, PhaseStats, TrackingMemory
+from wristmark.rig.recording.run_log import RunLog
+from wristmark.solvers.play_probe_fit import PlayFit, fit_motor_lag, fit_play
+
+if TYPE_CHECKING:
+    from wristmark.rig.loop.servo_loop import ServoLoop
+
+Array = NDArray[np.float64]
+RESTORE_CYCLES = 3  # cycles the probe waits after its last command (the motor's lag is ~0.07 s)
+NO_POSE = "play probe skipped: the tracker gives no 6-DoF pose (position-only marker or roll code not read); " \
+          "the play is learnt online at the reversals"
+
+
+def triangle(n: int, amplitude: float) -> Array:
+    """Offsets of one actuator for the probe's n cycles: 0 -> +A -> -A -> 0 (ends moving up)."""
+    x = np.arange(1, n + 1) / n
+    return np.interp(x, [0.0, 0.25, 0.75, 1.0], [0.0, amplitude, -amplitude, 0.0])
+
+
+@dataclasses.dataclass
+class ProbeSamples:
+    """Per cycle: the actuator probed, the encoders at the frame's capture and the arm-side
+    actuator values from the measured pose (NaN when not measured) [rad, m, m, m, m, m]."""
+
+    probed: list[int] = dataclasses.field(default_factory=list)
+    motor: list[Array] = dataclasses.field(default_factory=list)
+    arm: list[Array] = dataclasses.field(default_factory=list)
+
+
+def probe_report(fits: list[PlayFit] | None, note: str) -> list[dict[str, Any]] | str | None:
+    """What a result file says of the probe: the fits per actuator (SI units), why it was
+    skipped, or None when it was not asked for."""
+    if fits is not None:
+        return [dataclasses.asdict(f) for f in fits]
+    return note or None
+
+
+def run_play_probe(loop: ServoLoop, template: CycleTarget, phase: str, log: RunLog, memory: TrackingMemory,
+                   stats: PhaseStats) -> list[PlayFit] | None:
+    """Probe every actuator's play from the loop's settled command and hand the fits to the
+    controller (None when skipped: no 6-DoF pose). ``template`` is the target logged."""
+    ctrl, sensor = loop.controller, loop.sensor
+    assert ctrl is not None and sensor is not None and loop.psi_cmd is not None
+    meas0 = loop.last_measurement
+    if meas0 is None or meas0.R_world is None or not meas0.roll_known:
+        loop.play_probe_note = NO_POSE
+        ctrl.start_play(None)
+        return None
+    cfg, params, dt = ctrl.config, loop.params, loop.rig.control_dt
+    base = loop.psi_cmd.copy()
+    a0 = actuators_from_psi(params, base)
+    play_max = np.asarray(cfg.backlash_play_max, float)
+    n = max(4, int(round(cfg.play_probe_time / dt)))
+    samples = ProbeSamples()
+    reads: list[tuple[float, Array]] = []  # (time on the frames' clock, encoders)
+    hint, psi = base, base
+    lost = 0  # consecutive probe cycles without a measured pose
+    raw: list[PlayFit] = []
+    sends: list[tuple[float, Array]] = []  # (time on the frames' clock, actuator targets) of this actuator's probe
+    for j in range(6):
+        first_read = len(reads)
+        sends.clear()
+        # cycle i: sample (the arm after i targets), then send target i + 1; sample 0 is taken
+        # before the actuator moves, the last one a cycle after its last target (the settled command)
+        offsets = triangle(n, cfg.play_probe_amplitude * float(play_max[j]))
+        for i in range(n + 1):
+            target = dataclasses.replace(template, k=len(samples.probed), t=loop.t + dt, settling=False)
+            loop.advance_to(target.t)
+            hint, ok = _sample(loop, target, phase, log, memory, stats, j, samples, reads, hint)
+            lost = 0 if ok else lost + 1
+            if lost > loop.rig.max_lost_cycles:  # as in the loop: a lost marker holds the arm
+                loop.link.hold()
+                at = loop.elapsed(target.t)
+                stats.stopped = f"marker lost for {lost} cycles during the play probe at t = {at:.2f} s"
+                raise MarkerLostError(stats.stopped + ": arm held", stats)
+            if i < n:
+                a = a0.copy()
+                a[j] += offsets[i]
+                want = clamp_psi(params, psi_from_actuators(params, a, delta_hint=base))
+                psi = clamp_psi(params, psi + clamp_velocity(params, (want - psi) / dt) * dt)
+                loop.psi_cmd = psi
+                loop.send(psi)
+                sends.append((loop.now(), actuators_from_psi(params, psi)))
+        # fitted at once, a cycle's work (on the wall clock the box's watchdog wants a command
+        # every 250 ms: six fits at the end were 0.47 s of silence in the virtual lab)
+        loop.send(psi)
+        rows = np.flatnonzero(np.asarray(samples.probed) == j)
+        fit = fit_play(np.asarray(samples.motor)[rows, j], np.asarray(samples.arm)[rows, j], float(play_max[j]))
+        seg = reads[first_read:]  # the motor's lag from the encoders alone (no pose needed)
+        tau = fit_motor_lag(np.array([t for t, _ in sends]), np.array([a[j] for _, a in sends]),
+                            np.array([t for t, _ in seg]), np.array([m[j] for _, m in seg]))
+        raw.append(dataclasses.replace(fit, motor_tau=tau))
+    fits = _carry(raw, samples, np.asarray([m for _, m in reads]))
+    # the nominal command: the output as it was before the probe (known where the fit is trusted)
+    u = np.array([f.first_output if f.ok else a0[j] for j, f in enumerate(fits)])
+    out = ctrl.start_play(fits, reads[-1][1], psi_from_actuators(params, u, delta_hint=base))
+    loop.psi_cmd = base if out is None else out
+    loop.send(loop.psi_cmd)
+    for _ in range(RESTORE_CYCLES):  # the motors reach it before the feedback resumes
+        target = dataclasses.replace(template, k=len(samples.probed), t=loop.t + dt, settling=False)
+        loop.advance_to(target.t)
+        _sample(loop, target, phase, log, memory, stats, 5, samples, reads, hint)
+    return fits
+
+
+def _sample(loop: ServoLoop, target: CycleTarget, phase: str, log: RunLog, memory: TrackingMemory,
+            stats: PhaseStats, j: int, samples: ProbeSamples, reads: list[tuple[float, Array]],
+            hint: Array) -> tuple[Array, bool]:
+    """One probe cycle's frame, encoders and pose, logged as actuator ``j``'s sample; returns the
+    pose IK's solution (the next start) and whether a pose was measured."""
+    assert loop.sensor is not None and loop.psi_cmd is not None
+    params = loop.params
+    t_wall = time.monotonic()
+    frame = loop.take_frame(target, phase, memory, stats)
+    reads.append((loop.now(), on_micro_grid(loop.link.measured_actuators())))
+    truth = loop.observe()
+    axis = forward_kinematics(params, loop.psi_cmd).T_world_marker[:3, 2]  # which way the marker points
+    meas = None if frame is None else loop.sensor.measure(frame, axis_hint_world=axis)
+    y = np.full(6, np.nan)
+    ok = meas is not None and meas.ok and meas.p_world is not None and meas.R_world is not None
+    if ok and meas is not None:
+        sol = solve_pose_ik(params, meas.p_world, meas.R_world, hint)
+        hint = sol.psi
+        y = actuators_from_psi(params, sol.psi)
+    samples.probed.append(j)
+    samples.motor.append(_encoders_at(reads, meas.t_capture if meas is not None else reads[-1][0]))
+    samples.arm.append(y)
+    rec = loop.record(target, t_wall, phase + ":probe", CycleOutcome(meas, truth, ok, False, 0.0), float("nan"))
+    log.add(rec)
+    if callable(loop.on_cycle):
+        loop.on_cycle(rec)
+    return hint, ok
+
+
+def _encoders_at(reads: list[tuple[float, Array]], t: float) -> Array:
+    """The encoders interpolated (linearly, held beyond the ends) to the instant ``t``."""
+    ts = np.array([r[0] for r in reads])
+    ms = np.array([r[1] for r in reads])
+    return np.array([np.interp(t, ts, ms[:, i]) for i in range(6)])
+
+
+def _carry(fits: list[PlayFit], samples: ProbeSamples, reads: Array) -> list[PlayFit]:
+    """Each actuator's fit with its last output carried on through the later encoder readings."""
+    probed = np.asarray(samples.probed)
+    out = []
+    for j, f in enumerate(fits):
+        o = f.last_output
+        for m in reads[np.flatnonzero(probed == j)[-1] + 1:, j]:
+            o = float(np.clip(o, m - f.play / 2, m + f.play / 2))
+        out.append(dataclasses.replace(f, last_output=o))
+    return out

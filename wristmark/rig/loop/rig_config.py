@@ -1,0 +1,145 @@
+"""Configuration of the simulated rig and its servo loop (configs/rig.yaml); SI units."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from wristmark.models.config_io import from_mapping, load_yaml
+from wristmark.models.errors import ConfigError
+
+SENSOR_KINDS = ("vision", "truth-noise")
+NOISE_LEVELS = ("none", "default", "strong")
+PHASE_LOCKS = ("none", "capture", "arrival")  # rig frame_phase_lock
+
+
+@dataclass(frozen=True)
+class RigConfig:
+    """How the simulated bench runs.
+
+    control_dt: servo cycle [s] (paper: 60 ms). vision_latency: capture -> command applied [s]
+    (paper: ~45 ms of image processing). plant_dt: plant integration step [s].
+    sensor: "vision" renders stereo images and tracks the marker (default, the real pipeline);
+    "truth-noise" is an explicit fast option: the true tip plus Gaussian noise.
+    gate: largest accepted jump between consecutive measurements [m]; model_gate: largest
+    accepted distance between a measurement and the model's commanded tip [m].
+    max_lost_cycles: consecutive cycles without a measurement after which the loop stops.
+    settle_time: closed-loop approach to the trajectory's start before logging metrics [s].
+    feedforward_preview, feedforward_lead: the feed-forward tip velocity takes the desired path
+    ``preview`` [s] ahead plus a first-order lead of ``lead`` [s] (rig.targets.trajectories.feedforward_velocity).
+    frame_wait: on the wall clock (a camera), how long a cycle waits for a frame that arrived
+    after it began (after its nominal start when it began over half this late) before it takes
+    the newest older one [s] (0: never wait); a cycle without any new frame holds the arm like a
+    lost marker. image_scale: the simulated bench renders at this
+    fraction of the calibrated resolution; on hardware, the camera delivers it (the calibration
+    is scaled to match). delay_compensation: the controller gets the measured tip moved on by
+    the nominal model's predicted motion from the frame's capture to the command
+    (rig.loop.delay_compensation; the model: the commands sent, through a first-order lag of
+    ``delay_compensation_tau`` [s] per actuator, 0 = at once; the model's motion mapped by a
+    3x3 matrix fitted to the measured motion between consecutive frames, forgetting with the
+    time constant ``delay_compensation_learn_window`` [s], 0 = the model as it is:
+    rig.loop.motion_correction). tracking_budget: on the wall
+    clock, how long a cycle waits for its frame's tracking before it holds the arm for that
+    cycle (rig.loop.tip_sensors.DeadlineTipSensor; with ``frame_wait`` it keeps every cycle under the
+    actuator box's 250 ms watchdog). command_phase: on the wall clock, a closed-loop cycle's
+    command goes out this long after the cycle began [s] (at once when it is ready later; 0: always
+    at once): a fixed instant in every cycle, so the arm's response to the command is the same in
+    each cycle whatever the frame's arrival and tracking time (the simulated bench sends it
+    ``vision_latency`` after the capture). reuse_measurement_age: on the wall clock, a cycle
+    without a new frame steps the controller with the last accepted measurement moved on by the
+    delay compensation when that is at most this old at the cycle's start [s] (0: such a cycle
+    holds the arm; a marker not found or rejected always holds it). frame_phase_lock: on the wall
+    clock, shift the cycle grid (a bounded step per cycle, rig.loop.frame_phase_lock) so that each
+    frame is captured ('capture', from the frames' capture stamps) or arrives ('arrival') at the
+    host ``frame_lock_phase`` [s] after a cycle's nominal start (negative: before it); 'none': the
+    grid stays where the run started. For a camera whose period equals or divides ``control_dt``
+    (frames must arrive within ``frame_wait`` of a cycle's start). frame_age: the simulated
+    bench's frames show the arm this long [s] before the cycle's start and are stamped so (a
+    camera whose frames reach the host that late, e.g. the virtual lab's at 1080p); capture to
+    command is then ``frame_age + vision_latency`` (vision sensor only; at most 1 s).
+    vision_latency, frame_age, plant_dt, sensor, truth_noise_rms, render_noise, tracker_rms and
+    realtime concern the simulated bench only.
+    """
+
+    control_dt: float = 0.060
+    vision_latency: float = 0.045
+    plant_dt: float = 0.001
+    sensor: str = "vision"
+    truth_noise_rms: float = 0.0002  # [m] 3D RMS of the truth-noise sensor
+    image_scale: float = 1.0  # render at this fraction of the calibrated resolution
+    render_noise: str = "default"
+    tracker_rms: float = 0.00012  # [m] optical tracker (Polaris Vega: 0.12 mm RMS)
+    gate: float = 0.004  # [m]
+    model_gate: float = 0.025  # [m]
+    max_lost_cycles: int = 25
+    settle_time: float = 1.5  # [s]
+    feedforward_preview: float = 0.035  # [s] desired path previewed this far ahead (loop delay)
+    feedforward_lead: float = 0.06  # [s] first-order lead on the feed-forward (actuator lag)
+    seed: int = 0
+    realtime: bool = False
+    frame_wait: float = 0.04  # [s] wall clock: longest wait of a cycle for a fresh frame
+    delay_compensation: bool = True
+    delay_compensation_tau: float = 0.0  # [s] actuator lag assumed by the compensation's model
+    delay_compensation_learn_window: float = 5.0  # [s] memory of the compensation's learnt motion map (0: off)
+    tracking_budget: float = 0.15  # [s] wall clock: longest wait of a cycle for its frame's tracking
+    command_phase: float = 0.0  # [s] wall clock: a cycle's command goes out this long after its start
+    reuse_measurement_age: float = 0.0  # [s] wall clock: a cycle without a frame reuses a measurement this old
+    frame_phase_lock: str = "none"  # wall clock: lock the cycle grid to the frames' capture or arrival
+    frame_lock_phase: float = 0.0  # [s] with the lock: frames captured / arriving this long after a cycle's start
+    frame_age: float = 0.0  # [s] simulated bench: its frames show the arm this long before the cycle's start
+
+    def validate(self) -> None:
+        """Raise ConfigError naming the offending key."""
+        for k in ("control_dt", "plant_dt", "image_scale", "gate", "model_gate", "tracking_budget"):
+            if getattr(self, k) <= 0:
+                raise ConfigError(f"'{k}' must be > 0, got {getattr(self, k)}")
+        for k in ("vision_latency", "truth_noise_rms", "tracker_rms", "settle_time", "feedforward_preview",
+                  "feedforward_lead", "frame_wait", "delay_compensation_tau", "delay_compensation_learn_window",
+                  "command_phase", "reuse_measurement_age", "frame_age"):
+            if getattr(self, k) < 0:
+                raise ConfigError(f"'{k}' must be >= 0, got {getattr(self, k)}")
+        if self.vision_latency >= self.control_dt:
+            raise ConfigError(
+                f"'vision_latency' ({self.vision_latency} s) must be shorter than 'control_dt' "
+                f"({self.control_dt} s): the paper sets the cycle longer than the processing time"
+            )
+        if self.delay_compensation_learn_window > 600.0:
+            raise ConfigError(f"'delay_compensation_learn_window' must be at most 600 s, "
+                              f"got {self.delay_compensation_learn_window}")
+        if self.frame_age > 1.0:
+            raise ConfigError(f"'frame_age' must be at most 1 s, got {self.frame_age}")
+        if self.frame_age > 0 and self.sensor != "vision":
+            raise ConfigError("'frame_age' needs 'sensor: vision' (it ages rendered frames)")
+        if self.frame_wait >= self.control_dt:
+            raise ConfigError(f"'frame_wait' ({self.frame_wait} s) must be shorter than 'control_dt' "
+                              f"({self.control_dt} s)")
+        if self.command_phase >= self.control_dt:
+            raise ConfigError(f"'command_phase' ({self.command_phase} s) must be shorter than 'control_dt' "
+                              f"({self.control_dt} s)")
+        if self.frame_phase_lock not in PHASE_LOCKS:
+            raise ConfigError(f"'frame_phase_lock' must be one of {', '.join(PHASE_LOCKS)}, "
+                              f"got {self.frame_phase_lock!r}")
+        if not -self.control_dt < self.frame_lock_phase < self.frame_wait:
+            raise ConfigError(f"'frame_lock_phase' ({self.frame_lock_phase} s) must be within "
+                              f"(-control_dt, frame_wait) = ({-self.control_dt:g}, {self.frame_wait:g}) s")
+        if self.frame_wait + self.tracking_budget > 0.2:
+            raise ConfigError(f"'frame_wait' + 'tracking_budget' ({self.frame_wait + self.tracking_budget:g} s) must "
+                              "not exceed 0.2 s: a cycle must stay well within the actuator box's 250 ms watchdog")
+        if self.plant_dt > self.control_dt:
+            raise ConfigError("'plant_dt' must not exceed 'control_dt'")
+        if self.sensor not in SENSOR_KINDS:
+            raise ConfigError(f"'sensor' must be one of {', '.join(SENSOR_KINDS)}, got {self.sensor!r}")
+        if self.render_noise not in NOISE_LEVELS:
+            raise ConfigError(
+                f"'render_noise' must be one of {', '.join(NOISE_LEVELS)}, got {self.render_noise!r}"
+            )
+        if self.max_lost_cycles < 1:
+            raise ConfigError(f"'max_lost_cycles' must be >= 1, got {self.max_lost_cycles}")
+
+    @classmethod
+    def load(cls, path: str | Path) -> RigConfig:
+        """Load configs/rig.yaml-style files (flat mapping, or under a 'rig' key)."""
+        data = load_yaml(path)
+        if set(data) == {"rig"}:
+            data = data["rig"]
+        return from_mapping(cls, data, str(path))

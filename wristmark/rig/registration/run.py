@@ -1,0 +1,95 @@
+"""Collecting registration observations from any rig: move, settle, grab, track, read encoders.
+
+A :class:`RegistrationRig` moves the arm and hands out stereo images: the simulated bench
+(sim/registration_bench.py) or the actuator box over serial plus a frame source
+(rig/registration/hardware.py). :func:`collect` visits every chosen pose twice, approached from
+either side (rig.registration.poses.APPROACH), tracks the marker in {ll} each time and records an
+:class:`Observation` per visit (the rows of the registration log, rig/registration/log.py).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+from tqdm import tqdm
+
+from wristmark.cvs.tracking.tracker import MarkerTracker
+from wristmark.models.actuation import actuators_from_psi
+from wristmark.models.kinematics import forward_kinematics
+from wristmark.models.robot_params import RobotParams
+from wristmark.rig.registration.poses import APPROACH
+from wristmark.solvers.registration import RegistrationPose
+
+Array = NDArray[np.float64]
+
+
+class RegistrationRig(Protocol):
+    """What registration needs from a rig."""
+
+    def move_to(self, psi: Array) -> None:
+        """Move to configuration psi within the velocity limits and wait until settled."""
+
+    def measured_psi(self) -> Array:
+        """Configuration from the encoders now [rad, m, rad, rad, rad, rad]."""
+
+    def grab(self) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+        """A stereo pair captured after the last move settled (left, right)."""
+
+
+@dataclass(frozen=True)
+class Observation:
+    """One visit: pose index, approach side (-1/+1), commanded and measured psi, and the tracked
+    pose of {wm} in {ll} (4x4 [m], None when not tracked: ``reason``), its RMS [px]."""
+
+    pose: int
+    approach: int
+    psi_cmd: Array
+    psi_meas: Array
+    T_left_marker: Array | None
+    rms_px: float = float("nan")
+    reason: str = ""
+
+    @property
+    def ok(self) -> bool:
+        """Whether the marker was tracked."""
+        return self.T_left_marker is not None
+
+
+def collect(rig: RegistrationRig, tracker: MarkerTracker, params: RobotParams, poses: list[Array],
+            host_world_T_left: Array | None, progress: bool = True) -> list[Observation]:
+    """Visit each pose from both sides and track the marker (hint: the model's axis, when the host
+    has a world_T_left; else the tracker decides from the images)."""
+    out = []
+    visits = [(i, s) for i in range(len(poses)) for s in (-1, 1)]
+    for i, side in tqdm(visits, desc="register", unit="visit", disable=not progress, leave=False):
+        q = np.asarray(poses[i], float)
+        rig.move_to(q + side * APPROACH)
+        rig.move_to(q)
+        meas = rig.measured_psi()
+        left, right = rig.grab()
+        hint = None
+        if host_world_T_left is not None:
+            hint = np.asarray(host_world_T_left)[:3, :3].T @ forward_kinematics(params, meas).T_world_marker[:3, 2]
+        tracker.reset()
+        res = tracker.track(left, right, axis_hint_left=hint)
+        T = np.asarray(res.T_left_marker, float) if res.ok and res.T_left_marker is not None else None
+        out.append(Observation(i, side, q, np.asarray(meas, float), T, float(res.rms_px), res.reason if T is None
+                               else ""))
+    return out
+
+
+def registration_poses(params: RobotParams, observations: list[Observation]) -> list[RegistrationPose]:
+    """The tracked observations as solver inputs (encoder psi, centre and z axis in {ll})."""
+    return [RegistrationPose(o.psi_meas, o.T_left_marker[:3, 3], o.T_left_marker[:3, 2],
+                             f"pose {o.pose}{'-' if o.approach < 0 else '+'}", motion_sign(params, o))
+            for o in observations if o.T_left_marker is not None]
+
+
+def motion_sign(params: RobotParams, o: Observation) -> Array:
+    """Sign of each actuator's last motion before observation ``o``: from psi_cmd + approach *
+    APPROACH to psi_cmd."""
+    a = actuators_from_psi(params, o.psi_cmd)
+    return np.sign(a - actuators_from_psi(params, o.psi_cmd + o.approach * APPROACH))

@@ -1,0 +1,130 @@
+"""Desired tip paths: the paper's cube (IV.C) and the incremental accuracy targets (IV.B); a path
+may carry an orientation for the tip frame (rig/targets/orientation_path.py: none | hold | follow)."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Self
+
+import numpy as np
+from numpy.typing import NDArray
+
+from wristmark.models.kinematics import tip_position
+from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark.rig.targets.orientation_path import OrientationPath, orientation_path
+
+Array = NDArray[np.float64]
+CUBE_SIZE = (0.040, 0.020, 0.040)  # [m] edges along x_w, y_w (depth from the camera), z_w (paper: 40 x 20 x 40 mm)
+CUBE_SPEED = 0.010  # [m/s] (paper: 10 mm/s)
+
+# Corner order of a walk that covers all 12 edges of a box (4 edges twice): bottom square,
+# up, top square, the remaining verticals and back to the start (a closed walk).
+# Signs of (x, y, z) relative to the centre.
+_CUBE_WALK = [(-1, -1, -1), (1, -1, -1), (1, 1, -1), (-1, 1, -1), (-1, -1, -1), (-1, -1, 1),
+              (1, -1, 1), (1, 1, 1), (-1, 1, 1), (-1, -1, 1), (1, -1, 1), (1, -1, -1),
+              (1, 1, -1), (1, 1, 1), (-1, 1, 1), (-1, 1, -1), (-1, -1, -1)]
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Piecewise-linear path through ``waypoints`` (N,3) [m] at ``speed`` [m/s]; ``orientation``:
+    the tip frame's desired orientation along it (None: position only)."""
+
+    waypoints: Array
+    speed: float
+    orientation: OrientationPath | None = None
+
+    @property
+    def orientation_mode(self) -> str:
+        """none | hold | follow."""
+        return "none" if self.orientation is None else self.orientation.mode
+
+    def with_orientation(self, mode: str, params: RobotParams) -> Self:
+        """The same path asking for the orientation ``mode`` (none | hold | follow) of the tip frame."""
+        return dataclasses.replace(self, orientation=orientation_path(mode, params, lambda t: self.sample(t)[0],
+                                                                      self.duration))
+
+    def sample_orientation(self, t: float) -> tuple[Array, Array] | None:
+        """Desired tip-frame rotation (3x3) in {w} and angular velocity [rad/s] in {w} at time t
+        (None: the path asks for none)."""
+        return None if self.orientation is None else self.orientation.sample(t)
+
+    @property
+    def times(self) -> Array:
+        """Arrival time at each waypoint [s]."""
+        seg = np.linalg.norm(np.diff(self.waypoints, axis=0), axis=1)
+        return np.concatenate([[0.0], np.cumsum(seg) / self.speed])
+
+    @property
+    def duration(self) -> float:
+        """Total time [s]."""
+        return float(self.times[-1])
+
+    def sample(self, t: float) -> tuple[Array, Array]:
+        """Desired position [m] and velocity [m/s] at time t (held at the ends)."""
+        ts = self.times
+        if t <= 0.0:
+            return self.waypoints[0].copy(), np.zeros(3)
+        if t >= ts[-1]:
+            return self.waypoints[-1].copy(), np.zeros(3)
+        i = int(np.searchsorted(ts, t, side="right")) - 1
+        a, b = self.waypoints[i], self.waypoints[i + 1]
+        d = b - a
+        L = float(np.linalg.norm(d))
+        u = d / L
+        return a + u * self.speed * (t - ts[i]), u * self.speed
+
+    def truncated(self, duration: float) -> Trajectory:
+        """The first ``duration`` seconds of the path (the whole path if it is shorter)."""
+        if not duration > 0:
+            raise ValueError(f"duration must be > 0 s, got {duration}")
+        ts = self.times
+        if duration >= ts[-1]:
+            return self
+        k = int(np.searchsorted(ts, duration, side="right"))
+        end = self.sample(duration)[0]
+        pts = np.vstack([self.waypoints[:k], end]) if not np.isclose(ts[k - 1], duration) else self.waypoints[:k]
+        orient = None if self.orientation is None else self.orientation.shifted(duration)
+        return Trajectory(pts, self.speed, orient)
+
+
+def feedforward_velocity(traj: Trajectory, t: float, dt: float, preview: float, lead: float) -> Array:
+    """Tip velocity [m/s] that moves a command from p_ff(t) to p_ff(t + dt) over one cycle of
+    ``dt`` [s], where p_ff(s) = p_des(s + preview) + lead * v_des(s + preview): the desired path
+    ``preview`` [s] ahead (the loop's delay) plus a first-order lead of ``lead`` [s] (the
+    actuators' lag; at a corner the lead turns the change of velocity into a short burst)."""
+    p0, v0 = traj.sample(t + preview)
+    p1, v1 = traj.sample(t + dt + preview)
+    return (p1 + lead * v1 - p0 - lead * v0) / dt
+
+
+def workspace_centre(params: RobotParams) -> Array:
+    """The cube's centre in {w}: the tip at the home configuration [m]."""
+    return tip_position(params, HOME_PSI)
+
+
+def cube_trajectory(centre_world: Array, size: tuple[float, float, float] = CUBE_SIZE,
+                    speed: float = CUBE_SPEED) -> Trajectory:
+    """All 12 edges of a box of edge lengths ``size`` (x_w, y_w, z_w) [m] around the centre."""
+    c = np.asarray(centre_world, float)
+    half = 0.5 * np.asarray(size, float)
+    pts = np.array([c + half * np.array(s) for s in _CUBE_WALK])
+    return Trajectory(pts, speed)
+
+
+def accuracy_targets(centre_world: Array, n: int = 40, seed: int = 0, box: float = 0.030,
+                     step: tuple[float, float] = (0.002, 0.006)) -> Array:
+    """``n`` positions (n,3) [m] reached by incremental moves of ``step`` length inside a cube of
+    edge ``box`` around the centre (paper IV.B)."""
+    rng = np.random.default_rng(seed)
+    c = np.asarray(centre_world, float)
+    p = c.copy()
+    out: list[Array] = []
+    while len(out) < n:
+        d = rng.normal(size=3)
+        q = p + d / np.linalg.norm(d) * rng.uniform(*step)
+        if np.all(np.abs(q - c) <= box / 2):
+            p = q
+            out.append(p.copy())
+    return np.asarray(out)

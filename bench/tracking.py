@@ -19,7 +19,7 @@ folder. Per pair, measured in the same run:
 Corner RMS [px] is against the true corners (detections within 2 px of a corner with
 cos_view > 0), tip error [mm] against truth.json.
 - coded: the same poses rendered with the coded sleeve (``--coded``, default
-  configs/marker_coded.yaml; DESIGN.md "The coded marker"), tracked by the first detector
+  configs/marker_coded.yaml; docs/design.md "The coded marker"), tracked by the first detector
   listed, side by side with the reference sleeve ("reference": that detector's tracker on the
   reference pairs, measured again in the same loop): success rate, roll_known rate, roll error
   [deg] (rotation about z_wm of R_true^T R), rotation error [deg] (the whole rotation, roll

@@ -1,4 +1,4 @@
-"""Independent checkers for wristmark's tests and benchmarks, written only from DESIGN.md.
+"""Independent checkers for wristmark's tests and benchmarks, written only from docs/design.md.
 
 Nothing here imports ``wristmark`` and ``wristmark`` never imports this package
 (tests/project/test_layers.py checks both), so a check here cannot share a mistake with the code it checks:

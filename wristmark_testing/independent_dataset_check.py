@@ -1,6 +1,6 @@
-"""Independent checker of the stereo dataset contract of DESIGN.md ("Stereo dataset format").
+"""Independent checker of the stereo dataset contract of docs/design.md ("Stereo dataset format").
 
-Written from DESIGN.md alone: it uses only numpy, scipy, opencv, yaml and json, never the project's
+Written from docs/design.md alone: it uses only numpy, scipy, opencv, yaml and json, never the project's
 packages, so that it checks our renderer (``wristmark render``) against the contract rather than itself.
 
 Checks (tolerances below): the files; calib.yaml keys and shapes (K, dist, proper R, T in metres, optional
@@ -9,7 +9,7 @@ every corner uv = cv2.projectPoints of the posed corner (right eye through R, T)
 pixels agree with truth (cv2.cornerSubPix from 1-1.5 px away, and a fit of the ideal pattern); the patch
 colours follow the pattern. It also scores ``wristmark track --json`` output against truth.json.
 
-Frames and units (DESIGN.md): SI (metres, radians); {ll} is the left camera frame (OpenCV: x right,
+Frames and units (docs/design.md): SI (metres, radians); {ll} is the left camera frame (OpenCV: x right,
 y down, z along the optical axis); ``X_right = R X_left + T``; pixel (0, 0) is the centre of the top-left
 pixel; truth ``R, t`` is the pose of the marker frame {wm} in {ll}; corner i of the marker is
 ``[r cos(i beta), r sin(i beta), 0]`` in {wm}; ``uv`` are raw (distorted) pixels.
@@ -133,7 +133,7 @@ def _check_rotation(Rm: np.ndarray, name: str, errors: list[str]) -> None:
 
 
 def check_calib(path: Path, errors: list[str]) -> tuple[tuple[int, int], Camera, Camera] | None:
-    """Check calib.yaml against DESIGN.md and return ((width, height) [px], left, right) or None."""
+    """Check calib.yaml against docs/design.md and return ((width, height) [px], left, right) or None."""
     data = yaml.safe_load(path.read_text())
     if not isinstance(data, dict):
         errors.append("calib.yaml: not a mapping")
@@ -452,7 +452,7 @@ class _Tally:
 
 
 def check_dataset(folder: str | Path, seed: int = 0, model_fit: bool = True) -> dict[str, Any]:
-    """Check a dataset folder against DESIGN.md; returns a JSON-able summary with ``violations``.
+    """Check a dataset folder against docs/design.md; returns a JSON-able summary with ``violations``.
 
     Measured quantities: ``proj_err_max_px`` (truth uv vs projection), ``cos_err_max``, ``tip_err_max_m``,
     ``subpix`` (cornerSubPix vs truth: n, rms_px, max_px, bias_px), ``model_fit`` (image pattern vs truth by

@@ -1,11 +1,11 @@
-"""Independent stereo renderer of the wrist marker, written from DESIGN.md alone.
+"""Independent stereo renderer of the wrist marker, written from docs/design.md alone.
 
-It writes datasets in DESIGN.md's "Stereo dataset format" that the project's own renderer never made:
+It writes datasets in docs/design.md's "Stereo dataset format" that the project's own renderer never made:
 its own stereo camera (drawn per dataset), its own scene (a plain tube carrying the marker sleeve, a
 textured tissue-like plane behind it, a light at the endoscope tip between the eyes), its own optics and
 sensor model. Only numpy, opencv, yaml and json are used: never the project's packages.
 
-Conventions (DESIGN.md): SI units (metres, radians); OpenCV camera frames (x right, y down, z forward);
+Conventions (docs/design.md): SI units (metres, radians); OpenCV camera frames (x right, y down, z forward);
 {ll} is the left camera frame, ``X_right = R X_left + T``; pixel (0, 0) is the centre of the top-left
 pixel; the marker frame {wm} has z along the arm's distal direction and x through corner 0; corner i is
 ``[r cos(i beta), r sin(i beta), 0]``; upper-row (0 < z < row_height) patch k is black for even k. A coded
@@ -93,7 +93,7 @@ class Marker:
                 max([self.row_height] + [p[3] for p in self.patches]))
 
     def dark(self, ang: np.ndarray, z: np.ndarray) -> np.ndarray:
-        """True where the sleeve is dark at angles ang [rad] and heights z [m] (DESIGN.md)."""
+        """True where the sleeve is dark at angles ang [rad] and heights z [m] (docs/design.md)."""
         a = np.mod(ang, 2 * math.pi)
         k = np.minimum((a / self.beta).astype(np.int64), self.columns - 1)
         out = (np.abs(z) < self.row_height) & ((k % 2 == 0) == (z > 0))
@@ -518,7 +518,7 @@ def sensor(rad: np.ndarray, rng: np.random.Generator, look: Look, exposure: floa
 
 
 def write_calib(path: Path, rig: Rig) -> None:
-    """calib.yaml in DESIGN.md's format (SI; no world_T_left)."""
+    """calib.yaml in docs/design.md's format (SI; no world_T_left)."""
     data = {
         "image_size": [int(rig.size[0]), int(rig.size[1])],
         "left": {"K": rig.left.K.tolist(), "dist": rig.left.dist.tolist()},
@@ -619,7 +619,7 @@ def glare_look(jpeg: int | None = None, gray: bool = False, direction: str = "ri
 
 def main(argv: list[str] | None = None) -> int:
     """Command line of the independent renderer; prints a JSON summary."""
-    p = argparse.ArgumentParser(description="independent stereo renderer of the wrist marker (DESIGN.md format)")
+    p = argparse.ArgumentParser(description="independent stereo renderer of the wrist marker (docs/design.md format)")
     p.add_argument("--out", required=True)
     p.add_argument("--pairs", type=int, default=5)
     p.add_argument("--seed", type=int, default=0)

@@ -1,4 +1,4 @@
-"""An independent implementation of DESIGN.md's kinematic chain, for tests only.
+"""An independent implementation of docs/design.md's kinematic chain, for tests only.
 
 Written straight from the contract with 4x4 homogeneous matrices and no code shared with
 ``models``: segment t maps {tb} -> {te} by p = L/theta [cos d (1 - cos t), sin d (cos t - 1),
@@ -57,7 +57,7 @@ def segment(L: float, theta: float, delta: float) -> np.ndarray:
 def chain(lengths: dict[str, float], psi: np.ndarray, stem_bend: float = 0.0) -> dict[str, np.ndarray]:
     """Frames in {w}: keys 1b, 1e, 2b, 2e, marker, tip. ``stem_bend`` [rad]: the exposed stem
     (length d) bent as one more constant-curvature segment in segment 1's plane (the simulated
-    arm's stem coupling); 0: the straight stem Tz(d) of DESIGN.md."""
+    arm's stem coupling); 0: the straight stem Tz(d) of docs/design.md."""
     phi, d, t1, d1, t2, d2 = (float(x) for x in psi)
     out = {"1b": Rz(phi) @ (Tz(d) if stem_bend == 0.0 else segment(d, stem_bend, d1))}
     out["1e"] = out["1b"] @ segment(lengths["L1"], t1, d1)

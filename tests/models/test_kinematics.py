@@ -1,4 +1,4 @@
-"""Closed-form chain vs an independent 4x4 implementation of DESIGN.md; Jacobian vs FD."""
+"""Closed-form chain vs an independent 4x4 implementation of docs/design.md; Jacobian vs FD."""
 
 from __future__ import annotations
 

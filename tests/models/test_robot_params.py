@@ -1,4 +1,4 @@
-"""models/robot_params.py: the tip offset is the marker's, defined once (DESIGN.md: the marker
+"""models/robot_params.py: the tip offset is the marker's, defined once (docs/design.md: the marker
 file's ``tip_offset``); a robot file that states a different one is refused, naming the file."""
 
 from __future__ import annotations

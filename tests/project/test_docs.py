@@ -28,10 +28,10 @@ def _help_texts() -> dict[str, str]:
 
 
 def test_nothing_points_to_a_file_outside_the_repository() -> None:
-    """DESIGN.md is not shipped: README, docs, configs and --help must not send users there."""
-    hits = [str(p.relative_to(ROOT)) for p in USER_FILES if "DESIGN.md" in p.read_text()]
-    hits += [f"wristmark {name} --help" for name, text in _help_texts().items() if "DESIGN.md" in text]
-    assert not hits, "DESIGN.md is mentioned in: " + ", ".join(hits)
+    """docs/design.md is not shipped: README, docs, configs and --help must not send users there."""
+    hits = [str(p.relative_to(ROOT)) for p in USER_FILES if "docs/design.md" in p.read_text()]
+    hits += [f"wristmark {name} --help" for name, text in _help_texts().items() if "docs/design.md" in text]
+    assert not hits, "docs/design.md is mentioned in: " + ", ".join(hits)
 
 
 def test_every_link_and_docs_path_exists() -> None:

@@ -128,7 +128,7 @@ def test_the_known_edges_of_the_tree_are_found() -> None:
 
 
 def test_the_independent_checkers_share_nothing_with_the_library() -> None:
-    """wristmark_testing (written from DESIGN.md only) imports no wristmark module, and the library
+    """wristmark_testing (written from docs/design.md only) imports no wristmark module, and the library
     never imports it."""
     import wristmark_testing
 

@@ -260,7 +260,7 @@ def test_device_to_host_types_are_unknown_to_the_device() -> None:
     assert out == [P.Error(P.ERR_UNKNOWN_TYPE, seq=8), P.Error(P.ERR_UNKNOWN_TYPE, seq=7)]
 
 
-# -- an independent client: bytes built by hand from DESIGN.md ---------------------------------
+# -- an independent client: bytes built by hand from docs/design.md ---------------------------------
 def _crc(data: bytes) -> int:
     crc = 0xFFFF
     for b in data:

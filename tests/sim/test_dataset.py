@@ -1,4 +1,4 @@
-"""Stereo dataset folder: write and read back (DESIGN.md "Stereo dataset format")."""
+"""Stereo dataset folder: write and read back (docs/design.md "Stereo dataset format")."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""`wristmark render` output checked against DESIGN.md's dataset contract by an independent checker.
+"""`wristmark render` output checked against docs/design.md's dataset contract by an independent checker.
 
 The checker (wristmark_testing/independent_dataset_check.py) uses only numpy / opencv / yaml / json. Here it runs on
 a small set written by the CLI (subprocess), on corrupted copies (it must catch each corruption) and on a

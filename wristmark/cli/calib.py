@@ -1,4 +1,4 @@
-"""``wristmark calib {convert,show}``: read any calibration form of DESIGN.md (project YAML,
+"""``wristmark calib {convert,show}``: read any calibration form of docs/design.md (project YAML,
 OpenCV FileStorage, ROS camera_info pair ``LEFT.yaml,RIGHT.yaml``, Kalibr camchain) and write it
 as the project's YAML, or print a summary (focal lengths, baseline, field of view, overlap)."""
 

@@ -1,6 +1,6 @@
 """``wristmark calibrate``: stereo calibration from board image pairs or a frame source.
 
-``--board chessboard:CxR:SQUARE | charuco:CxR:SQUARE:MARKER:DICT`` (DESIGN.md "Calibration
+``--board chessboard:CxR:SQUARE | charuco:CxR:SQUARE:MARKER:DICT`` (docs/design.md "Calibration
 files"), ``LEFT RIGHT [LEFT RIGHT ...]`` or ``--source SPEC`` (a dataset folder, video, camera
 or bag: cvs.sources.open_source), ``--out C.yaml`` (refused if it exists, unless ``--force``),
 ``--report DIR``. Dropped views are named on stderr; ``--json`` prints the result on stdout.

@@ -1,5 +1,5 @@
 """``wristmark register``: find world_T_left (pose of {ll} in {w}) by moving the arm and tracking
-the marker (DESIGN.md "Registration").
+the marker (docs/design.md "Registration").
 
 Sources of observations: the simulated bench (default, in-process: ``--plant P``, whose
 ``camera_offset`` moves the true camera), ``--serial PORT --camera SPEC`` (hardware or the

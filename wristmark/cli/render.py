@@ -1,4 +1,4 @@
-"""``wristmark render``: write a synthetic stereo dataset (DESIGN.md "Stereo dataset format")."""
+"""``wristmark render``: write a synthetic stereo dataset (docs/design.md "Stereo dataset format")."""
 
 from __future__ import annotations
 

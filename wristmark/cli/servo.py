@@ -2,7 +2,7 @@
 
 The hardware path, ``--serial PORT --camera SPEC``: an actuator box on a serial port (hardware,
 the virtual lab's ``wristmark emulator --pty --camera-port``, any pyserial URL) and a stereo
-camera named by a frame-source SPEC (DESIGN.md "Stereo frame sources"), in real time on the
+camera named by a frame-source SPEC (docs/design.md "Stereo frame sources"), in real time on the
 host's monotonic clock; the tip comes only from tracking the camera's frames, and nothing of
 the simulated bench is imported.
 

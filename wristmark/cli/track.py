@@ -1,4 +1,4 @@
-"""``wristmark track``: tip and marker pose in each stereo frame (DESIGN.md "Command line",
+"""``wristmark track``: tip and marker pose in each stereo frame (docs/design.md "Command line",
 "Stereo frame sources", "Recording").
 
 Frames come from ``LEFT RIGHT ...`` image pairs or ``--source SPEC`` (dataset folder, video,
@@ -139,7 +139,7 @@ def _ids(res: Any) -> dict[str, list[int | None]] | None:
 
 
 def result_fields(res: Any) -> dict[str, Any]:
-    """The JSON fields of one TrackResult after left/right (DESIGN.md order)."""
+    """The JSON fields of one TrackResult after left/right (docs/design.md order)."""
     out: dict[str, Any] = {"ok": res.ok}
     if res.ok and res.T_left_marker is not None and res.tip_left is not None:
         out |= {

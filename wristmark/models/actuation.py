@@ -1,6 +1,6 @@
 """Actuation map psi <-> actuator coordinates a = [phi, d, s1a, s1b, s2a, s2b] (SI).
 
-Derivation (push-pull backbones at pitch radius r_b, DESIGN.md): a backbone at angle sigma in
+Derivation (push-pull backbones at pitch radius r_b, docs/design.md): a backbone at angle sigma in
 {tb} sits at r_b [cos sigma, sin sigma]. Our segment bends towards the direction
 [cos delta, -sin delta] (paper eq. 1), so a backbone's length changes by
 -r_b theta cos(sigma + delta). We define the actuator displacement s as the *pull* (shortening,

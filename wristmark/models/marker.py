@@ -1,4 +1,4 @@
-"""The wrist marker (DESIGN.md "The wrist marker", "The coded marker"): a checkered sleeve.
+"""The wrist marker (docs/design.md "The wrist marker", "The coded marker"): a checkered sleeve.
 
 Frame {wm} at the sleeve centre, z along the arm's distal direction, x through corner 0.
 Two rows of ``columns`` patches; column k spans [k beta, (k+1) beta) from x towards y. Upper row

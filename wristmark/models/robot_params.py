@@ -1,4 +1,4 @@
-"""Geometry and limits of the continuum manipulator (DESIGN.md, "The manipulator"); SI units."""
+"""Geometry and limits of the continuum manipulator (docs/design.md, "The manipulator"); SI units."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ class RobotParams:
     """Reference continuum arm. Lengths [m], angles [rad], velocities [rad/s or m/s].
 
     psi = [phi, d, theta1, delta1, theta2, delta2]. ``tip_offset`` ({wm} -> tip) belongs to the
-    marker (DESIGN.md: the marker file's ``tip_offset``): :func:`load_robot` copies it from the
+    marker (docs/design.md: the marker file's ``tip_offset``): :func:`load_robot` copies it from the
     marker, and a robot file need not (and the shipped one does not) state it.
     """
 

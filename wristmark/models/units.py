@@ -1,4 +1,4 @@
-"""Unit constants shared by the layers: the actuator wire's resolution (DESIGN.md, the serial
+"""Unit constants shared by the layers: the actuator wire's resolution (docs/design.md, the serial
 protocol) is one micro-unit of the SI unit (1 urad, 1 um)."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""URDF of the arm: stem joints plus pseudo-rigid segments in the chord construction (DESIGN.md).
+"""URDF of the arm: stem joints plus pseudo-rigid segments in the chord construction (docs/design.md).
 
 Kinematic tree (all lengths [m], angles [rad]), root link ``incision`` = {w}:
 

@@ -5,7 +5,7 @@ Bytes in, bytes out (:meth:`ActuatorEmulator.receive`), or served on a fresh pse
 emulator's clock (wall clock by default; pass a simulated clock to share time with a loop)
 before every answer and every ~10 ms while serving, so the watchdog fires on time.
 
-Safety (DESIGN.md): SET_TARGET only when enabled and not emergency-stopped; a target outside
+Safety (docs/design.md): SET_TARGET only when enabled and not emergency-stopped; a target outside
 :func:`models.limits.actuator_bounds` is rejected whole (ERROR 5, flag bit3, the arm holds);
 enabled and silent (no SET_TARGET / GET_STATE) for more than ``watchdog_s`` -> hold, disable,
 watchdog flag until the next ENABLE; ESTOP holds at once and leaves only GET_STATE, PING,

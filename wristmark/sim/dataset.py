@@ -1,4 +1,4 @@
-"""The stereo dataset folder of DESIGN.md: calib.yaml, marker.yaml, pair_NN_left.png,
+"""The stereo dataset folder of docs/design.md: calib.yaml, marker.yaml, pair_NN_left.png,
 pair_NN_right.png and truth.json (pose of {wm} and tip in the left camera frame, metres;
 corners in raw pixels with cos_view)."""
 
@@ -57,7 +57,7 @@ def _corners_json(cs: tuple[CornerTruth, ...]) -> list[dict[str, Any]]:
 
 
 def truth_entry(n: int, frame: RenderedPair) -> dict[str, Any]:
-    """The truth.json object of pair ``n`` (DESIGN.md)."""
+    """The truth.json object of pair ``n`` (docs/design.md)."""
     return {
         "pair": n,
         "R": frame.T_left_marker[:3, :3].tolist(),

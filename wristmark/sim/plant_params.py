@@ -1,4 +1,4 @@
-"""How the simulated true arm differs from the model (DESIGN.md "Plant file"); SI units.
+"""How the simulated true arm differs from the model (docs/design.md "Plant file"); SI units.
 
 Every key is optional; zero (or one, for gains) means ideal.
 """

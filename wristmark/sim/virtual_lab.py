@@ -1,5 +1,5 @@
 """The virtual lab: one process plays the actuator box and the stereo endoscope, so that a host
-sees only what it would see in a lab, serial bytes and a video stream (DESIGN.md "The virtual lab").
+sees only what it would see in a lab, serial bytes and a video stream (docs/design.md "The virtual lab").
 
 :class:`VirtualLab` drives the simulated true arm from an actuator-box emulator on a new pty
 (protocol v1, wall clock) and, in a camera thread, samples that arm in wall-clock time at up to

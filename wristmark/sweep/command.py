@@ -1,6 +1,6 @@
 """``wristmark sweep SPEC.yaml --out DIR [--workers N | --scheduler ADDRESS]``: many seeded
 experiment runs over a grid and/or random samples of options and configuration keys, on
-dask.distributed (DESIGN.md "Sweeps"; the SPEC: sweep/spec.py).
+dask.distributed (docs/design.md "Sweeps"; the SPEC: sweep/spec.py).
 
 Every trial is checked before any starts (a bad SPEC: one line, exit 2). ``DIR/results.csv``
 gains a row as each trial finishes; run the same command again to finish an interrupted sweep.

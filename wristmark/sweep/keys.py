@@ -1,4 +1,4 @@
-"""The keys a sweep SPEC may name (DESIGN.md "Sweeps"): ``wristmark experiment`` options and
+"""The keys a sweep SPEC may name (docs/design.md "Sweeps"): ``wristmark experiment`` options and
 dotted configuration keys.
 
 An option key is the name of a ``wristmark experiment`` option (``latency``, ``dt``, ``sensor``,

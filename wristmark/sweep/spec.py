@@ -1,4 +1,4 @@
-"""A sweep SPEC (DESIGN.md "Sweeps"): parsed, validated and expanded into trials.
+"""A sweep SPEC (docs/design.md "Sweeps"): parsed, validated and expanded into trials.
 
 ```yaml
 experiment: cube                 # cube | point | accuracy | load

@@ -1,4 +1,4 @@
-"""The coded sleeve (DESIGN.md "The coded marker", docs/marker_code.md): its code's Hamming margin,
+"""The coded sleeve (docs/design.md "The coded marker", docs/marker_code.md): its code's Hamming margin,
 its marker file, and reading it in rendered pairs: identities right or ``roll_known`` false, never a
 wrong id, and the full rotation (roll included) within 1 degree."""
 
@@ -182,7 +182,7 @@ def test_one_spoiled_code_cell_never_gives_a_wrong_id(roll_frames: list[tuple[Re
 
 
 def test_independent_renderer_draws_the_code_and_track_reads_it(tmp_path: Path) -> None:
-    """The independent renderer (written from DESIGN.md, patches included) with the coded marker file,
+    """The independent renderer (written from docs/design.md, patches included) with the coded marker file,
     the tip pointing either way: `wristmark track` gives roll_known with the true corner ids and the
     full rotation within 1 degree, or roll_known false without ids."""
     import json

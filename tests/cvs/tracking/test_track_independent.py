@@ -1,7 +1,7 @@
 """`wristmark track` on stereo sets it has never seen, from the independent renderer.
 
-wristmark_testing/independent_render.py (numpy / opencv only, written from DESIGN.md) draws its own stereo endoscope
-(fx 1200-1500 px, 4-6 mm baseline, k1 in [-0.3, -0.15] with k2, p1, p2, a small rotation between the
+wristmark_testing/independent_render.py (numpy / opencv only, written from docs/design.md) draws its own
+stereo endoscope (fx 1200-1500 px, 4-6 mm baseline, k1 in [-0.3, -0.15] with k2, p1, p2, a small rotation between the
 eyes), ray-casts the marker sleeve on a plain tube before a textured tissue plane and adds optics blur,
 gamma and shot + read noise. The tracker (subprocess, `--json`) must find the marker in nearly every pair
 with a tip error (vs truth.json, both in the left camera frame) well under 0.2 mm.
@@ -25,7 +25,7 @@ if not WRISTMARK.exists():  # pragma: no cover - other installs
 
 
 def test_renderer_rays_invert_the_projection() -> None:
-    """Rays cast from cv2.projectPoints pixels pass through the 3D point (both eyes, frames of DESIGN.md),
+    """Rays cast from cv2.projectPoints pixels pass through the 3D point (both eyes, frames of docs/design.md),
     and the ray through a true corner hits the sleeve at that corner."""
     rng = np.random.default_rng(1)
     rig = ind.random_rig(rng)
@@ -64,7 +64,7 @@ def test_track_independent_1080p(tmp_path: Path) -> None:
 
 
 def test_track_independent_other_marker(tmp_path: Path) -> None:
-    """2 pairs (1440x810) with a 14-column sleeve of radius 4 mm (marker.yaml of DESIGN.md), JPEG 90."""
+    """2 pairs (1440x810) with a 14-column sleeve of radius 4 mm (marker.yaml of docs/design.md), JPEG 90."""
     out = tmp_path / "ind14"
     ind.render_dataset(out, pairs=2, seed=22, scale=0.75, marker=ind.Marker(radius=0.004, columns=14),
                        look=ind.Look(jpeg=90))

@@ -1,11 +1,11 @@
-"""Stereo calibration files: every form of DESIGN.md "Calibration files", one reader per format.
+"""Stereo calibration files: every form of docs/design.md "Calibration files", one reader per format.
 
 ``load_calibration(SPEC)`` picks the reader from SPEC and the file's content:
 
 - ``LEFT.yaml,RIGHT.yaml`` -> a ROS camera_info pair (:mod:`cvs.calibration.ros_files`);
 - OpenCV FileStorage (``%YAML:1.0`` header, XML, or opencv-matrix nodes) -> :mod:`cvs.calibration.opencv_files`;
 - a YAML mapping with ``cam0`` -> a Kalibr camchain (:mod:`cvs.calibration.kalibr_files`);
-- otherwise DESIGN.md's YAML (:mod:`cvs.calibration.yaml_files`).
+- otherwise docs/design.md's YAML (:mod:`cvs.calibration.yaml_files`).
 
 Every loaded calibration is validated (:func:`cvs.calibration.checks.validated`); errors are one-line
 :class:`ConfigError` messages naming the file, the key and the fix. Units: metres, pixels.
@@ -26,7 +26,7 @@ from wristmark.models.errors import ConfigError
 
 __all__ = ["load_calibration", "calibration_mapping", "calibration_from_mapping", "save_calibration", "validated"]
 
-calibration_from_mapping = from_yaml_mapping  # DESIGN.md's calibration mapping -> validated StereoCamera
+calibration_from_mapping = from_yaml_mapping  # docs/design.md's calibration mapping -> validated StereoCamera
 
 
 def _existing(path: Path) -> Path:

@@ -1,4 +1,4 @@
-"""Registration files (DESIGN.md "Registration"): ``world_T_left`` (4x4, pose of {ll} in {w},
+"""Registration files (docs/design.md "Registration"): ``world_T_left`` (4x4, pose of {ll} in {w},
 metres), ``rms_m`` (residual RMS of the marker centres [m]) and ``poses`` (how many). The one
 place that reads them; ``--registration FILE`` on track, experiment, servo and register goes
 through :func:`apply_registration`."""

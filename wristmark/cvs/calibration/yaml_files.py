@@ -1,4 +1,4 @@
-"""DESIGN.md's calibration YAML (image_size, left/right K and dist, R, T, world_T_left) [m, px]."""
+"""docs/design.md's calibration YAML (image_size, left/right K and dist, R, T, world_T_left) [m, px]."""
 
 from __future__ import annotations
 
@@ -38,7 +38,7 @@ def _camera(data: Any, name: str, src: str) -> Camera:
 
 
 def from_yaml_mapping(data: dict[str, Any], src: str) -> StereoCamera:
-    """A validated StereoCamera from DESIGN.md's mapping (``src`` names the file in errors): the
+    """A validated StereoCamera from docs/design.md's mapping (``src`` names the file in errors): the
     one mapping -> camera function (calibration files, run records' config.json, replay)."""
     unknown = sorted(set(data) - YAML_KEYS)
     if unknown:
@@ -59,7 +59,7 @@ def from_yaml_mapping(data: dict[str, Any], src: str) -> StereoCamera:
 
 
 def calibration_mapping(cam: StereoCamera) -> dict[str, Any]:
-    """The calibration as DESIGN.md's YAML mapping (plain lists, SI units): the one camera ->
+    """The calibration as docs/design.md's YAML mapping (plain lists, SI units): the one camera ->
     mapping function (calibration files, run records' config.json); :func:`from_yaml_mapping`
     reads it back."""
     out: dict[str, Any] = {

@@ -1,4 +1,4 @@
-"""Stereo frames and the protocol every frame source implements (DESIGN.md "Stereo frame sources").
+"""Stereo frames and the protocol every frame source implements (docs/design.md "Stereo frame sources").
 
 A :class:`StereoFrame` is what a stereo endoscope hands out: the left and right 8-bit images,
 the capture time on the host's ``time.monotonic()`` clock [s] and the frame's index. A

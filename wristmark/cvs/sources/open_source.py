@@ -1,4 +1,4 @@
-"""Turn a ``--source`` / ``--camera`` SPEC (DESIGN.md "Stereo frame sources") into a
+"""Turn a ``--source`` / ``--camera`` SPEC (docs/design.md "Stereo frame sources") into a
 :class:`cvs.sources.frames.StereoSource`.
 
 | SPEC | source |

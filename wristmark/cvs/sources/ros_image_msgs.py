@@ -21,7 +21,7 @@ IMAGE_TYPES = (IMAGE, COMPRESSED)
 
 
 def typestore() -> Any:
-    """rosbags' ROS 2 Humble typestore (the message types of DESIGN.md "Recording")."""
+    """rosbags' ROS 2 Humble typestore (the message types of docs/design.md "Recording")."""
     from rosbags.typesys import Stores, get_typestore
 
     return get_typestore(Stores.ROS2_HUMBLE)

@@ -1,4 +1,4 @@
-"""Actuator serial protocol v1 (DESIGN.md "Actuator serial protocol (v1)"): packets and framing.
+"""Actuator serial protocol v1 (docs/design.md "Actuator serial protocol (v1)"): packets and framing.
 
 On the wire every packet is ``COBS(type u8 | seq u8 | payload | crc u16 LE) + 0x00`` with
 crc = CRC-16/CCITT-FALSE over type, seq and payload; integers are little-endian. Actuator

@@ -76,7 +76,7 @@ def angle_stats_deg(errors_rad: Array) -> dict[str, float]:
 
 
 def orientation_summary(records: list[CycleRecord]) -> dict[str, float]:
-    """The result JSON's orientation fields of a phase [deg] (DESIGN.md names):
+    """The result JSON's orientation fields of a phase [deg] (docs/design.md names):
     orientation_mean_deg / orientation_max_deg (tracker vs desired), the same noise-free
     (orientation_true_*) and for the z axis alone (axis_*)."""
     trk, true, axis = (angle_stats_deg(orientation_errors(records, "R_trk")),

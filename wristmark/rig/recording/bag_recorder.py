@@ -1,4 +1,4 @@
-"""Record a tracking or servo run as a ROS 2 bag in MCAP (DESIGN.md "Recording"), with rosbags.
+"""Record a tracking or servo run as a ROS 2 bag in MCAP (docs/design.md "Recording"), with rosbags.
 
 Topics: ``/stereo/left/image_raw`` and ``/stereo/right/image_raw`` (``sensor_msgs/msg/Image``
 bgr8 or mono8, or ``sensor_msgs/msg/CompressedImage`` jpeg with ``jpeg=True``, frame ids

@@ -2,7 +2,7 @@
 
 Per control cycle the loop hands over (never waiting) the frame it used, the marker pose it
 measured and the actuators commanded and measured; a writer thread serialises them with
-:class:`rig.recording.bag_recorder.BagRecorder` (topics of DESIGN.md "Recording"). When the writer falls
+:class:`rig.recording.bag_recorder.BagRecorder` (topics of docs/design.md "Recording"). When the writer falls
 behind, whole cycles are dropped and counted rather than slowing the loop.
 """
 

@@ -1,7 +1,7 @@
-"""What a trajectory asks of the tip frame's orientation (DESIGN.md, "Orientation in the loop").
+"""What a trajectory asks of the tip frame's orientation (docs/design.md, "Orientation in the loop").
 
 Modes: ``none`` (position only, as the paper), ``hold`` (the tip frame's orientation at the
-start, kept while the tip walks the path) and ``follow`` (our definition; DESIGN.md only names
+start, kept while the tip walks the path) and ``follow`` (our definition; docs/design.md only names
 it): the orientation the nominal model gives the tip frame along the path when the tip follows
 it by position-only IK from the start (what the open loop of a position trajectory commands),
 so that the closed loop turns the true tool as the plan turns it. The start's orientation is the

@@ -5,7 +5,7 @@ checkered marker sleeve, gripper) ray-cast through the camera's exact distortion
 ``settings.supersampling`` samples per pixel axis over a cached tissue background, then the
 optics of :mod:`sim.render.optics` and the sensor of :mod:`sim.render.sensor`. Ground truth
 (pose of {wm} in {ll}, tip in {ll}, raw pixel corners with their cos_view per camera) follows
-DESIGN.md's truth.json.
+docs/design.md's truth.json.
 
 Only what changes is rendered: the optics of the background are computed once per renderer;
 each frame ray-casts the arm's tiles into a radiance buffer holding the background, blurs only

@@ -16,7 +16,8 @@ import numpy as np
 
 from wristmark.models.kinematics import tip_position
 from wristmark.models.robot_params import HOME_PSI, RobotParams
-from wristmark.solvers.controller import ControllerConfig, make_controller
+from wristmark.solvers.controller import ControllerConfig
+from wristmark.solvers.controller_registry import make_controller
 from wristmark.solvers.qp_controller import BoxQp
 
 

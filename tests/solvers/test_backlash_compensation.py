@@ -9,7 +9,8 @@ import pytest
 from wristmark.models.limits import psi_bounds
 from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.solvers.backlash_compensation import BacklashInverse
-from wristmark.solvers.controller import ControllerConfig, make_controller
+from wristmark.solvers.controller import ControllerConfig
+from wristmark.solvers.controller_registry import make_controller
 from wristmark.solvers.tip_integral import TipErrorIntegral
 
 P = RobotParams()

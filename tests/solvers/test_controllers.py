@@ -13,8 +13,9 @@ from wristmark.models.errors import ConfigError
 from wristmark.models.kinematics import tip_jacobian, tip_position
 from wristmark.models.limits import psi_bounds
 from wristmark.models.robot_params import HOME_PSI, RobotParams
-from wristmark.solvers.controller import ControllerConfig, make_controller
-from wristmark.solvers.paper_controller import sr_pseudo_inverse
+from wristmark.solvers.controller import ControllerConfig
+from wristmark.solvers.controller_registry import make_controller
+from wristmark.solvers.pseudo_inverse import sr_pseudo_inverse
 from wristmark.solvers.qp_controller import BoxQp
 
 P = RobotParams()

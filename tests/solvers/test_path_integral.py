@@ -8,7 +8,8 @@ import pytest
 from wristmark.models.errors import ConfigError
 from wristmark.models.kinematics import tip_position
 from wristmark.models.robot_params import HOME_PSI, RobotParams
-from wristmark.solvers.controller import ControllerConfig, make_controller
+from wristmark.solvers.controller import ControllerConfig
+from wristmark.solvers.controller_registry import make_controller
 from wristmark.solvers.tip_integral import TipErrorIntegral
 
 DT = 0.06

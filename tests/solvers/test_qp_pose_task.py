@@ -14,7 +14,8 @@ from wristmark.models.kinematics import forward_kinematics
 from wristmark.models.limits import psi_bounds
 from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.models.so3 import angle_between, axis_angle_between, rotation_error
-from wristmark.solvers.controller import ControllerConfig, OrientationTask, make_controller
+from wristmark.solvers.controller import ControllerConfig, OrientationTask
+from wristmark.solvers.controller_registry import make_controller
 
 P = RobotParams()
 HOME = np.array(HOME_PSI)

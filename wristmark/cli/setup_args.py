@@ -60,7 +60,7 @@ def setup_from_args(args: argparse.Namespace, simulated: bool = True, **rig_over
 
     simulated: a SimSetup (the simulated bench, with its plant file); False: a LoopSetup for the
     hardware path (the simulated bench is not imported; its options are refused)."""
-    from wristmark.solvers.controller import make_controller
+    from wristmark.solvers.controller_registry import make_controller
 
     setup: LoopSetup
     if simulated:

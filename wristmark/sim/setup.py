@@ -28,7 +28,7 @@ from wristmark.sim.plant_params import PlantParams
 from wristmark.sim.render.rendered_source import RenderedStereoSource
 from wristmark.sim.truth import SimulatedTruth
 from wristmark.sim.truth_sensor import NoisyTruthSensor, TruthClockSource
-from wristmark.solvers.controller import make_controller
+from wristmark.solvers.controller_registry import make_controller
 
 Array = NDArray[np.float64]
 __all__ = ["CONFIG_DIR", "SimSetup", "default_config", "load_setup", "make_measurement", "make_plant",

@@ -11,7 +11,8 @@ does not import CasADi.
 TYPE_CHECKING = False  # typing.TYPE_CHECKING without importing typing (mypy reads it as True)
 
 if TYPE_CHECKING:
-    from wristmark.solvers.controller import Controller, ControllerConfig, ControlStep, make_controller
+    from wristmark.solvers.controller import Controller, ControllerConfig, ControlStep
+    from wristmark.solvers.controller_registry import make_controller
     from wristmark.solvers.paper_controller import PaperController
     from wristmark.solvers.qp_controller import QpController
     from wristmark.solvers.registration import RegistrationPose, RegistrationResult, solve_registration, transform_error

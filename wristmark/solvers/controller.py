@@ -1,4 +1,4 @@
-"""The controller interface, its configuration, and the registry of kinds.
+"""The controller interface and its configuration (the registry of kinds: solvers/controller_registry.py).
 
 A controller turns the commanded configuration psi_cmd, the measured tip p_meas and the desired
 tip p_des (+ its velocity v_des) into the next commanded configuration (paper eq. 21:
@@ -266,7 +266,7 @@ class Controller(abc.ABC):
         """Joint rates [rad/s, m/s] for a tip velocity ``v_tip`` [m/s] in {w} with no error and no
         limits (default: eq. 19, the 6x6 Jacobian's pseudo-inverse with zero angular rate); also
         maps a tip displacement [m] to joint displacements."""
-        from wristmark.solvers.paper_controller import sr_pseudo_inverse
+        from wristmark.solvers.pseudo_inverse import sr_pseudo_inverse
 
         J = tip_jacobian(self.params, psi)
         return sr_pseudo_inverse(J, self.config.gamma, self.config.xi) @ np.concatenate([v_tip, np.zeros(3)])
@@ -330,16 +330,3 @@ def make_inverse(config: ControllerConfig) -> BacklashInverse:
         return PlayObserverInverse(play_max, config.backlash_margin, freeze=config.backlash_freeze,
                                    motor_burst=config.backlash_motor_burst, **common)  # type: ignore[arg-type]
     return BacklashInverse(play_max, config.backlash_hysteresis, **common)  # type: ignore[arg-type]
-
-
-def make_controller(params: RobotParams, config: ControllerConfig) -> Controller:
-    """Build the controller ``config.kind``; an unknown kind lists the valid ones."""
-    if config.kind == "paper":
-        from wristmark.solvers.paper_controller import PaperController
-
-        return PaperController(params, config)
-    if config.kind == "qp":
-        from wristmark.solvers.qp_controller import QpController
-
-        return QpController(params, config)
-    raise ConfigError(f"unknown controller kind {config.kind!r}; valid kinds: {', '.join(CONTROLLER_KINDS)}")

@@ -25,16 +25,9 @@ from numpy.typing import NDArray
 from wristmark.models.kinematics import tip_jacobian
 from wristmark.models.limits import psi_bounds
 from wristmark.solvers.controller import Controller, OrientationTask
+from wristmark.solvers.pseudo_inverse import sr_pseudo_inverse
 
 Array = NDArray[np.float64]
-
-
-def sr_pseudo_inverse(J: Array, gamma: float, xi: float) -> Array:
-    """Eq. 20: damped pseudo-inverse when the smallest singular value is below xi."""
-    s = np.linalg.svd(J, compute_uv=False)
-    if s[-1] < xi:
-        return np.asarray(J.T @ np.linalg.inv(J @ J.T + gamma * np.eye(J.shape[0])), float)
-    return np.asarray(np.linalg.pinv(J), float)
 
 
 class PaperController(Controller):

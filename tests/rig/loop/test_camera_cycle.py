@@ -21,7 +21,8 @@ from wristmark.rig.loop.servo_loop import PhaseStats, ServoLoop
 from wristmark.rig.loop.tip_sensors import TipMeasurement
 from wristmark.rig.recording.run_log import RunLog
 from wristmark.rig.targets.trajectories import Trajectory
-from wristmark.solvers.controller import ControllerConfig, make_controller
+from wristmark.solvers.controller import ControllerConfig
+from wristmark.solvers.controller_registry import make_controller
 
 P = RobotParams()
 IMG = np.zeros((4, 4), np.uint8)

@@ -31,7 +31,8 @@ from wristmark.sim.plant import TruePlant
 from wristmark.sim.plant_params import PlantParams
 from wristmark.sim.truth import SimulatedTruth
 from wristmark.sim.truth_sensor import NoisyTruthSensor, TruthClockSource
-from wristmark.solvers.controller import ControllerConfig, make_controller
+from wristmark.solvers.controller import ControllerConfig
+from wristmark.solvers.controller_registry import make_controller
 
 P = RobotParams()
 PSI_A = np.array(HOME_PSI, float)

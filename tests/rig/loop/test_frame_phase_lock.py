@@ -17,7 +17,8 @@ from wristmark.rig.loop.frame_phase_lock import MAX_STEP, FramePhaseLock
 from wristmark.rig.loop.rig_config import RigConfig
 from wristmark.rig.loop.servo_loop import ServoLoop
 from wristmark.rig.recording.run_log import RunLog
-from wristmark.solvers.controller import ControllerConfig, make_controller
+from wristmark.solvers.controller import ControllerConfig
+from wristmark.solvers.controller_registry import make_controller
 
 DT = 0.06  # [s] the loop's cycle and the camera's period
 TRANSPORT = 0.012  # [s] capture -> arrival of every frame

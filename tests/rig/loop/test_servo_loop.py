@@ -25,7 +25,8 @@ from wristmark.sim.plant_params import PlantParams
 from wristmark.sim.setup import load_setup, make_direct_loop
 from wristmark.sim.truth import SimulatedTruth
 from wristmark.sim.truth_sensor import NoisyTruthSensor, TruthClockSource
-from wristmark.solvers.controller import ControllerConfig, make_controller
+from wristmark.solvers.controller import ControllerConfig
+from wristmark.solvers.controller_registry import make_controller
 
 P = RobotParams()
 PLANT = PlantParams(bend_gain=(0.95, 0.92), plane_offset=(0.02, -0.03), actuator_tau=0.03,

@@ -173,7 +173,7 @@ def run_servo(setup: LoopSetup, traj: Trajectory, session: ServoSession, psi0: A
     cycle and is closed at the end."""
     from wristmark.rig.link.actuator_driver import ActuatorError, ActuatorEStopped, ActuatorNotEnabled
     from wristmark.rig.loop.servo_loop import CameraStalledError, MarkerLostError, ServoLoop
-    from wristmark.solvers.controller import make_controller
+    from wristmark.solvers.controller_registry import make_controller
 
     opts = session.options
     rig = dataclasses.replace(setup.rig, realtime=(opts.realtime or opts.pace) and opts.kind == "direct")

@@ -1,6 +1,7 @@
 """The play probe: the servo loop measures each actuator's play before a closed-loop walk.
 
-Run by :class:`rig.loop.servo_loop.ServoLoop` between the closed loop's first settle and a second,
+Run by :class:`rig.loop.servo_loop.ServoLoop` (through the narrow view of it in
+rig/loop/probe_loop.py, :class:`ProbeLoop`) between the closed loop's first settle and a second,
 short one, when the controller asks for it (``play_probe: true`` with the encoders' dead-band
 inversion, solvers/play_observer.py). The controller's feedback is paused: each actuator in
 turn, the others held at the settled command, follows a triangle of ``play_probe_amplitude`` x
@@ -28,22 +29,18 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
-from wristmark.models.kinematics import forward_kinematics
 from wristmark.models.limits import clamp_psi, clamp_velocity
 from wristmark.models.pose_ik import solve_pose_ik
 from wristmark.models.units import on_micro_grid
-from wristmark.rig.loop.servo_cycle import CycleOutcome, CycleTarget, MarkerLostError, PhaseStats, TrackingMemory
-from wristmark.rig.recording.run_log import RunLog
+from wristmark.rig.loop.probe_loop import ProbeLoop
+from wristmark.rig.loop.servo_cycle import CycleOutcome, CycleTarget
 from wristmark.solvers.play_probe_fit import PlayFit, fit_motor_lag, fit_play
-
-if TYPE_CHECKING:
-    from wristmark.rig.loop.servo_loop import ServoLoop
 
 Array = NDArray[np.float64]
 RESTORE_CYCLES = 3  # cycles the probe waits after its last command (the motor's lag is ~0.07 s)
@@ -75,15 +72,13 @@ def probe_report(fits: list[PlayFit] | None, note: str) -> list[dict[str, Any]] 
     return note or None
 
 
-def run_play_probe(loop: ServoLoop, template: CycleTarget, phase: str, log: RunLog, memory: TrackingMemory,
-                   stats: PhaseStats) -> list[PlayFit] | None:
+def run_play_probe(loop: ProbeLoop, template: CycleTarget) -> list[PlayFit] | None:
     """Probe every actuator's play from the loop's settled command and hand the fits to the
     controller (None when skipped: no 6-DoF pose). ``template`` is the target logged."""
-    ctrl, sensor = loop.controller, loop.sensor
-    assert ctrl is not None and sensor is not None and loop.psi_cmd is not None
+    ctrl = loop.controller
     meas0 = loop.last_measurement
     if meas0 is None or meas0.R_world is None or not meas0.roll_known:
-        loop.play_probe_note = NO_POSE
+        loop.skip(NO_POSE)
         ctrl.start_play(None)
         return None
     cfg, params, dt = ctrl.config, loop.params, loop.rig.control_dt
@@ -104,26 +99,21 @@ def run_play_probe(loop: ServoLoop, template: CycleTarget, phase: str, log: RunL
         # before the actuator moves, the last one a cycle after its last target (the settled command)
         offsets = triangle(n, cfg.play_probe_amplitude * float(play_max[j]))
         for i in range(n + 1):
-            target = dataclasses.replace(template, k=len(samples.probed), t=loop.t + dt, settling=False)
-            loop.advance_to(target.t)
-            hint, ok = _sample(loop, target, phase, log, memory, stats, j, samples, reads, hint)
+            target = dataclasses.replace(template, k=len(samples.probed), t=loop.next_cycle(), settling=False)
+            hint, ok = _sample(loop, target, j, samples, reads, hint)
             lost = 0 if ok else lost + 1
             if lost > loop.rig.max_lost_cycles:  # as in the loop: a lost marker holds the arm
-                loop.link.hold()
-                at = loop.elapsed(target.t)
-                stats.stopped = f"marker lost for {lost} cycles during the play probe at t = {at:.2f} s"
-                raise MarkerLostError(stats.stopped + ": arm held", stats)
+                loop.lost_marker(f"marker lost for {lost} cycles during the play probe", target.t)
             if i < n:
                 a = a0.copy()
                 a[j] += offsets[i]
                 want = clamp_psi(params, psi_from_actuators(params, a, delta_hint=base))
                 psi = clamp_psi(params, psi + clamp_velocity(params, (want - psi) / dt) * dt)
-                loop.psi_cmd = psi
-                loop.send(psi)
+                loop.command(psi)
                 sends.append((loop.now(), actuators_from_psi(params, psi)))
         # fitted at once, a cycle's work (on the wall clock the box's watchdog wants a command
         # every 250 ms: six fits at the end were 0.47 s of silence in the virtual lab)
-        loop.send(psi)
+        loop.command(psi)
         rows = np.flatnonzero(np.asarray(samples.probed) == j)
         fit = fit_play(np.asarray(samples.motor)[rows, j], np.asarray(samples.arm)[rows, j], float(play_max[j]))
         seg = reads[first_read:]  # the motor's lag from the encoders alone (no pose needed)
@@ -134,28 +124,22 @@ def run_play_probe(loop: ServoLoop, template: CycleTarget, phase: str, log: RunL
     # the nominal command: the output as it was before the probe (known where the fit is trusted)
     u = np.array([f.first_output if f.ok else a0[j] for j, f in enumerate(fits)])
     out = ctrl.start_play(fits, reads[-1][1], psi_from_actuators(params, u, delta_hint=base))
-    loop.psi_cmd = base if out is None else out
-    loop.send(loop.psi_cmd)
+    loop.command(base if out is None else out)
     for _ in range(RESTORE_CYCLES):  # the motors reach it before the feedback resumes
-        target = dataclasses.replace(template, k=len(samples.probed), t=loop.t + dt, settling=False)
-        loop.advance_to(target.t)
-        _sample(loop, target, phase, log, memory, stats, 5, samples, reads, hint)
+        target = dataclasses.replace(template, k=len(samples.probed), t=loop.next_cycle(), settling=False)
+        _sample(loop, target, 5, samples, reads, hint)
     return fits
 
 
-def _sample(loop: ServoLoop, target: CycleTarget, phase: str, log: RunLog, memory: TrackingMemory,
-            stats: PhaseStats, j: int, samples: ProbeSamples, reads: list[tuple[float, Array]],
+def _sample(loop: ProbeLoop, target: CycleTarget, j: int, samples: ProbeSamples, reads: list[tuple[float, Array]],
             hint: Array) -> tuple[Array, bool]:
     """One probe cycle's frame, encoders and pose, logged as actuator ``j``'s sample; returns the
     pose IK's solution (the next start) and whether a pose was measured."""
-    assert loop.sensor is not None and loop.psi_cmd is not None
     params = loop.params
     t_wall = time.monotonic()
-    frame = loop.take_frame(target, phase, memory, stats)
-    reads.append((loop.now(), on_micro_grid(loop.link.measured_actuators())))
-    truth = loop.observe()
-    axis = forward_kinematics(params, loop.psi_cmd).T_world_marker[:3, 2]  # which way the marker points
-    meas = None if frame is None else loop.sensor.measure(frame, axis_hint_world=axis)
+    reading = loop.sense(target)
+    reads.append((reading.t_read, on_micro_grid(reading.encoders)))
+    meas = reading.meas
     y = np.full(6, np.nan)
     ok = meas is not None and meas.ok and meas.p_world is not None and meas.R_world is not None
     if ok and meas is not None:
@@ -165,10 +149,7 @@ def _sample(loop: ServoLoop, target: CycleTarget, phase: str, log: RunLog, memor
     samples.probed.append(j)
     samples.motor.append(_encoders_at(reads, meas.t_capture if meas is not None else reads[-1][0]))
     samples.arm.append(y)
-    rec = loop.record(target, t_wall, phase + ":probe", CycleOutcome(meas, truth, ok, False, 0.0), float("nan"))
-    log.add(rec)
-    if callable(loop.on_cycle):
-        loop.on_cycle(rec)
+    loop.log_cycle(target, t_wall, CycleOutcome(meas, reading.truth, ok, False, 0.0))
     return hint, ok
 
 

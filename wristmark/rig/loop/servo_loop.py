@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import NoReturn
 
 import numpy as np
 from numpy.typing import NDArray
@@ -48,6 +49,7 @@ from wristmark.rig.loop.frame_feed import FrameFeed
 from wristmark.rig.loop.frame_phase_lock import FramePhaseLock
 from wristmark.rig.loop.ground_truth import NO_TRUTH, GroundTruth, TruthSample
 from wristmark.rig.loop.motion_correction import MotionCorrection
+from wristmark.rig.loop.probe_loop import ProbeReading
 from wristmark.rig.loop.progress import PhaseProgress
 from wristmark.rig.loop.rig_config import RigConfig
 from wristmark.rig.loop.servo_cycle import (
@@ -209,7 +211,7 @@ class ServoLoop:
             lead_in = n_settle + 10**6  # the first settle sees no preview of the walk's start
             self._cycles(traj, phase, closed_loop, log, stats, memory, bar, n_settle, lead_in)
             start = cycle_target(traj, self.rig, 0, self.t, lead_in)
-            self.play_fits = run_play_probe(self, start, phase, log, memory, stats)
+            self.play_fits = run_play_probe(_ProbeView(self, phase, log, memory, stats), start)
             memory.last_ok, n_settle = None, n_after  # the probe moved the tip: no jump gate just after it
         self._cycles(traj, phase, closed_loop, log, stats, memory, bar, n_settle + n_traj, n_settle, n_after)
         bar.close()
@@ -430,3 +432,81 @@ class ServoLoop:
         assert self.psi_cmd is not None
         arrival = self.frames.last_arrival if self.frames is not None and self.wall_clock else None
         return cycle_record(self.params, self.psi_cmd, target, t_wall, phase, outcome, latency_s, arrival)
+
+
+class _ProbeView:
+    """The loop as the play probe sees it (rig.loop.probe_loop.ProbeLoop), bound to the closed-loop
+    phase it runs in: its log, tracking memory and counters."""
+
+    def __init__(self, loop: ServoLoop, phase: str, log: RunLog, memory: TrackingMemory, stats: PhaseStats) -> None:
+        self.loop, self.phase, self.log, self.memory, self.stats = loop, phase, log, memory, stats
+
+    @property
+    def params(self) -> RobotParams:
+        """The nominal arm model."""
+        return self.loop.params
+
+    @property
+    def rig(self) -> RigConfig:
+        """The rig's settings."""
+        return self.loop.rig
+
+    @property
+    def controller(self) -> Controller:
+        """The closed loop's controller."""
+        assert self.loop.controller is not None
+        return self.loop.controller
+
+    @property
+    def psi_cmd(self) -> Array:
+        """The configuration last commanded [rad, m, ...]."""
+        assert self.loop.psi_cmd is not None
+        return self.loop.psi_cmd
+
+    @property
+    def last_measurement(self) -> TipMeasurement | None:
+        """The loop's last measurement."""
+        return self.loop.last_measurement
+
+    def now(self) -> float:
+        """The time on the frames' clock [s]."""
+        return self.loop.now()
+
+    def next_cycle(self) -> float:
+        """Time on by one control cycle; the new cycle's start [s]."""
+        t = self.loop.t + self.loop.rig.control_dt
+        self.loop.advance_to(t)
+        return t
+
+    def command(self, psi: Array) -> None:
+        """Make ``psi`` the command and send it."""
+        self.loop.psi_cmd = psi
+        self.loop.send(psi)
+
+    def sense(self, target: CycleTarget) -> ProbeReading:
+        """The frame measured (the commanded marker axis as the hint), the encoders, the truth."""
+        loop = self.loop
+        assert loop.sensor is not None and loop.psi_cmd is not None
+        frame = loop.take_frame(target, self.phase, self.memory, self.stats)
+        t_read, encoders = loop.now(), loop.link.measured_actuators()
+        truth = loop.observe()
+        axis = forward_kinematics(loop.params, loop.psi_cmd).T_world_marker[:3, 2]  # which way the marker points
+        meas = None if frame is None else loop.sensor.measure(frame, axis_hint_world=axis)
+        return ProbeReading(meas, t_read, encoders, truth)
+
+    def log_cycle(self, target: CycleTarget, t_wall: float, outcome: CycleOutcome) -> None:
+        """Log a probe cycle under ``phase + ':probe'`` and hand it to ``on_cycle``."""
+        rec = self.loop.record(target, t_wall, self.phase + ":probe", outcome, float("nan"))
+        self.log.add(rec)
+        if callable(self.loop.on_cycle):
+            self.loop.on_cycle(rec)
+
+    def lost_marker(self, what: str, t: float) -> NoReturn:
+        """Hold the arm, stop the phase, raise MarkerLostError."""
+        self.loop.link.hold()
+        self.stats.stopped = f"{what} at t = {self.loop.elapsed(t):.2f} s"
+        raise MarkerLostError(self.stats.stopped + ": arm held", self.stats)
+
+    def skip(self, note: str) -> None:
+        """Note why the probe did not run."""
+        self.loop.play_probe_note = note

@@ -5,15 +5,20 @@ Layering, lowest first: models < cvs < solvers < rig < viz < sim < cli < sweep (
 a command line; ``wristmark sweep`` is named in cli/main.py's COMMAND_MODULES). The package root
 (wristmark/__init__.py, __main__.py) stands above them all; its private helper
 wristmark/_lazy.py (the lazy public names of every package, standard library only) lies below them all.
+
+And no two modules import each other, directly or round a longer loop (the same walk, as a graph of
+modules: see :func:`module_graph`).
 """
 
 from __future__ import annotations
 
 import ast
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
 import wristmark
+from wristmark._lazy import public_names
 
 LAYERS = ("models", "cvs", "solvers", "rig", "viz", "sim", "cli", "sweep")
 BASE = ("wristmark._lazy",)  # below every layer: imports nothing of wristmark
@@ -37,6 +42,12 @@ def _module_name(rel: str) -> list[str]:
     return parts[:-1] if parts[-1] == "__init__" else parts
 
 
+def _is_package(module: str) -> bool:
+    """Whether a dotted name is a package of wristmark (a folder with an ``__init__.py``)."""
+    parts = module.split(".")
+    return parts[0] == "wristmark" and (PACKAGE.joinpath(*parts[1:]) / "__init__.py").is_file()
+
+
 def imports_in(source: str, rel: str) -> list[Edge]:
     """Every wristmark module imported by ``source``, the text of wristmark/``rel``, wherever
     the import statement stands."""
@@ -52,7 +63,7 @@ def imports_in(source: str, rel: str) -> list[Edge]:
                 names = [".".join([*base, node.module] if node.module else base)]
             else:
                 names = [node.module or ""]
-            if names[0] in ("wristmark", *(f"wristmark.{x}" for x in LAYERS)):  # from wristmark import sim
+            if _is_package(names[0]):  # from wristmark import sim, from wristmark.rig.link import protocol
                 names = [f"{names[0]}.{a.name}" for a in node.names]
         else:
             continue
@@ -85,6 +96,119 @@ def upward_edges() -> list[Edge]:
             if dst is None or LAYERS.index(dst) > LAYERS.index(src):
                 bad.append(e)
     return bad
+
+
+def module_of(path: Path) -> str:
+    """The dotted module name of a file of the package (a package's ``__init__.py``: the package)."""
+    return ".".join(["wristmark", *_module_name(path.relative_to(PACKAGE).as_posix())])
+
+
+def file_of(module: str) -> Path | None:
+    """The file of a dotted wristmark module (a package's ``__init__.py``), None when it is none."""
+    parts = module.split(".")
+    if parts[0] != "wristmark":
+        return None
+    base = PACKAGE.joinpath(*parts[1:])
+    for path in (base / "__init__.py", base.parent / f"{base.name}.py"):
+        if path.is_file():
+            return path
+    return None
+
+
+def target_module(name: str) -> str:
+    """The module an imported dotted name lands in: the name itself when it is a module; a package's
+    public name (its lazy API, wristmark/_lazy.py) the module that defines it; any other attribute
+    the module that holds it."""
+    if file_of(name) is not None:
+        return name
+    parent, _, attr = name.rpartition(".")
+    init = file_of(parent)
+    if init is not None and init.name == "__init__.py":
+        exported = public_names(init)
+        if attr in exported:
+            module, real = exported[attr]
+            return target_module(f"{module}.{real}")
+    return target_module(parent)
+
+
+def _shown(module: str) -> str:
+    """A module of the graph as its file, wristmark/..."""
+    path = file_of(module)
+    return module if path is None else path.relative_to(PACKAGE.parent).as_posix()
+
+
+def _api_block_lines(source: str) -> set[int]:
+    """The lines of a package ``__init__``'s ``if TYPE_CHECKING:`` API block (not its ``else:``)."""
+    lines: set[int] = set()
+    for node in ast.parse(source).body:
+        if isinstance(node, ast.If) and isinstance(node.test, ast.Name) and node.test.id == "TYPE_CHECKING":
+            lines.update(range(node.body[0].lineno, (node.body[-1].end_lineno or node.body[-1].lineno) + 1))
+    return lines
+
+
+def module_graph() -> dict[str, dict[str, list[Edge]]]:
+    """Every module of wristmark/ -> the modules it imports -> the import statements that do it.
+
+    All of :func:`imports_in`'s imports count (module level, inside functions, under TYPE_CHECKING),
+    each landing in :func:`target_module`, except a package ``__init__``'s TYPE_CHECKING API block:
+    that block only lists the public names for mypy and the lazy ``__getattr__`` of
+    wristmark/_lazy.py (which imports a name's module when the name is first used, and is no import
+    of the package's); an importer of a public name gets an edge to the module that defines it."""
+    graph: dict[str, dict[str, list[Edge]]] = {}
+    for path in sorted(PACKAGE.rglob("*.py")):
+        source = path.read_text()
+        skip = _api_block_lines(source) if path.name == "__init__.py" else set()
+        here = graph.setdefault(module_of(path), {})
+        for e in imports_in(source, path.relative_to(PACKAGE).as_posix()):
+            if e.line not in skip:
+                here.setdefault(target_module(e.module), []).append(e)
+    return graph
+
+
+def strongly_connected(graph: Mapping[str, Iterable[str]]) -> list[list[str]]:
+    """The strongly connected components of a directed graph (node -> its successors), each
+    sorted (Tarjan's algorithm, iterative: no recursion limit)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        work.append((v, iter(sorted(graph.get(v, ())))))
+
+    for root in sorted(graph):
+        if root in index:
+            continue
+        work: list[tuple[str, Iterable[str]]] = []
+        visit(root)
+        while work:
+            v, successors = work[-1]
+            for w in successors:
+                if w not in index:
+                    visit(w)
+                    break
+                if w in on_stack:
+                    low[v] = min(low[v], index[w])
+            else:  # every successor done: v closes its component if it is the root of one
+                work.pop()
+                if work:
+                    low[work[-1][0]] = min(low[work[-1][0]], low[v])
+                if low[v] == index[v]:
+                    component: list[str] = []
+                    while not component or component[-1] != v:
+                        component.append(stack.pop())
+                        on_stack.discard(component[-1])
+                    found.append(sorted(component))
+    return found
+
+
+def import_cycles(graph: Mapping[str, Iterable[str]]) -> list[list[str]]:
+    """The components of more than one node: each a set of modules that import each other round a loop."""
+    return sorted(c for c in strongly_connected(graph) if len(c) > 1)
 
 
 def test_every_subpackage_has_a_layer() -> None:
@@ -143,3 +267,47 @@ def test_the_independent_checkers_share_nothing_with_the_library() -> None:
     shared += [f"wristmark/{path.relative_to(PACKAGE)} imports wristmark_testing"
                for path in sorted(PACKAGE.rglob("*.py")) if "wristmark_testing" in path.read_text()]
     assert not shared, "\n".join(shared)
+
+
+def test_no_import_cycle_between_modules() -> None:
+    """No two modules of wristmark/ import each other, directly or through others: the module graph
+    (:func:`module_graph`: imports inside functions and under TYPE_CHECKING count) has no strongly
+    connected component of more than one module. A package ``__init__``'s TYPE_CHECKING API block
+    and the lazy public names of wristmark/_lazy.py are not edges of a cycle (the block only names
+    the public API; an import of a public name is an edge to the module defining it)."""
+    graph = module_graph()
+    report = []
+    for cycle in import_cycles(graph):
+        report.append(f"{len(cycle)} modules import each other: "
+                      + ", ".join(map(_shown, cycle)))
+        report += [f"    {e}" for m in cycle for n in cycle for e in graph[m].get(n, [])]
+    assert not report, "import cycles:\n" + "\n".join(report)
+
+
+def test_the_cycle_finder_finds_a_planted_cycle() -> None:
+    """The finder itself, on small graphs: a planted three-module loop and a two-module one are
+    found (not the module that only imports into a loop, nor a chain); a graph without loops has none."""
+    planted = {"a": ["b"], "b": ["c"], "c": ["a", "d"], "d": [], "e": ["a"], "f": ["g"], "g": ["f", "h"]}
+    assert import_cycles(planted) == [["a", "b", "c"], ["f", "g"]]
+    assert sorted(map(tuple, strongly_connected(planted))) == [("a", "b", "c"), ("d",), ("e",), ("f", "g"), ("h",)]
+    assert import_cycles({"a": ["b", "c"], "b": ["c"], "c": [], "d": ["a"]}) == []
+    chain = {f"m{i}": [f"m{i + 1}"] for i in range(5000)}  # deep: no recursion limit
+    assert import_cycles(chain) == [] and import_cycles({**chain, "m5000": ["m0"]}) == [sorted([*chain, "m5000"])]
+
+
+def test_the_graph_lands_imports_in_modules() -> None:
+    """Imported names land in modules: a module, a package's public name (its defining module),
+    another attribute (its module); ``from package import submodule`` is seen at any depth; a
+    package's API block is no edge, and the real tree's known edges are there."""
+    assert target_module("wristmark.rig.link.protocol") == "wristmark.rig.link.protocol"
+    assert target_module("wristmark.solvers.make_controller") == "wristmark.solvers.controller_registry"
+    assert target_module("wristmark.MarkerTracker") == "wristmark.cvs.tracking.tracker"
+    assert target_module("wristmark.__version__") == "wristmark"
+    assert target_module("wristmark.rig.loop.play_probe.NO_POSE") == "wristmark.rig.loop.play_probe"
+    edges = imports_in("from wristmark.rig.link import protocol as P\n", "sim/x.py")
+    assert [e.module for e in edges] == ["wristmark.rig.link.protocol"]
+    graph = module_graph()
+    assert set(graph["wristmark.solvers"]) == {"wristmark._lazy"}  # the API block is not an edge
+    assert "wristmark.rig.link.protocol" in graph["wristmark.rig.link.actuator_driver"]
+    assert "wristmark.solvers.controller" in graph["wristmark.solvers.paper_controller"]
+    assert "wristmark.cvs.calibration.load" in graph["wristmark.rig.loop.loop_setup"]  # inside a function

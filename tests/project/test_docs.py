@@ -115,6 +115,14 @@ def test_every_link_and_docs_path_exists() -> None:
     assert (ROOT / "docs" / "formats.md").is_file() and (ROOT / "docs" / "command-line.md").is_file()
 
 
+def test_the_index_lists_every_page() -> None:
+    """docs/index.md links every page of docs/ (sub-folders have their own index page)."""
+    index = (ROOT / "docs" / "index.md").read_text()
+    linked = set(re.findall(r"\]\(([^)#\s]+)", index))
+    unlisted = [p.name for p in sorted((ROOT / "docs").glob("*.md")) if p.name not in linked]
+    assert not unlisted, f"docs/index.md does not list: {unlisted}"
+
+
 def _tour_commands() -> list[list[str]]:
     text = (ROOT / "README.md").read_text()
     block = re.search(r"## Quick tour\n+```sh\n(.*?)```", text, re.S)

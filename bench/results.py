@@ -121,10 +121,13 @@ def render_cube(r: dict[str, Any]) -> list[str]:
     if c.get("vision_ms_median"):
         extra.append(f"tracking in the loop {_f(c['vision_ms_median'], 1)} ms per stereo pair (median)")
     probe = c.get("play_probe")
-    if isinstance(probe, dict) and probe.get("note"):
-        extra.append(f"play probe: {probe['note']}")
-    elif isinstance(probe, dict):
-        extra.append("play probe ran before the walk (fits in result.json)")
+    if isinstance(probe, str):
+        extra.append(probe)
+    elif isinstance(probe, list) and probe:
+        taus = [1000 * f["motor_tau"] for f in probe if f.get("motor_tau") == f.get("motor_tau") and f.get("motor_tau")]
+        lag = f", motor lags {min(taus):.1f}-{max(taus):.1f} ms" if taus else ""
+        extra.append(f"play probe before the walk: {sum(bool(f.get('ok')) for f in probe)} of {len(probe)} fits "
+                     f"accepted{lag} (the fits in result.json)")
     if c.get("stopped"):
         extra.append(f"**stopped: {c['stopped']}**")
     return [*lines, "", "; ".join(extra) + "."]
@@ -503,7 +506,8 @@ def readme_table(stored: dict[str, tuple[dict[str, Any], dict[str, Any]]]) -> li
         ]
     if "cube_unseen" in stored:
         c = stored["cube_unseen"][0]
-        rows.append(f"| cube, an arm never used for tuning, closed loop mean / max [mm] | - | {_mm(c['closed_loop'])} "
+        rows.append("| cube, an arm never used for tuning (coded sleeve, orientation held), closed loop mean / max "
+                    f"[mm] | - | {_mm(c['closed_loop'])} "
                     "| `bench/results.py --only cube_unseen` |")
     if "accuracy" in stored:
         a = stored["accuracy"][0]

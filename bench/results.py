@@ -415,6 +415,7 @@ def run_entry(e: Entry) -> bool:
     if e.clean:
         shutil.rmtree(ROOT / e.clean, ignore_errors=True)
     started = dt.datetime.now(dt.UTC)
+    commit = _commit()  # the build measured: before the run (the tree may change while it runs)
     load0 = os.getloadavg()[0]
     t0 = time.monotonic()
     print(f"[{e.name}] {e.command}  (limit {e.timeout_s:.0f} s)", file=sys.stderr, flush=True)
@@ -445,7 +446,7 @@ def run_entry(e: Entry) -> bool:
         return False
     (out / f"{e.name}.json").write_text(json.dumps(data, indent=1, default=str))
     meta = {"command": e.command, "started_utc": started.strftime("%Y-%m-%d %H:%M"), "wall_s": round(wall, 1),
-            "commit": _commit(), "cpus": os.cpu_count(), "load_start": round(load0, 1),
+            "commit": commit, "cpus": os.cpu_count(), "load_start": round(load0, 1),
             "load_end": round(os.getloadavg()[0], 1)}
     (out / f"{e.name}.meta.json").write_text(json.dumps(meta, indent=1))
     print(f"[{e.name}] done in {wall:.0f} s", file=sys.stderr, flush=True)

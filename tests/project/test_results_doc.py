@@ -83,3 +83,16 @@ def test_the_script_rewrites_only_the_blocks() -> None:
     assert new == text.replace("old 9.9", "Command: `x`\n\nnew 2.5")
     readme = "a\n<!-- results-table:start -->\n| old |\n<!-- results-table:end -->\nb\n"
     assert script.rewrite_readme(readme, ["| new |"]) == readme.replace("| old |", "| new |")
+
+
+def test_a_command_runs_under_its_time_limit_and_keeps_its_json(tmp_path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    script = _results_script()
+    monkeypatch.setattr(script, "OUT", tmp_path)  # ROOT / an absolute path is that path
+    fast = script.Entry("fast", "t", (sys.executable, "-c", "print('{\"x\": 1.5}')"), 30, lambda d: [str(d["x"])])
+    assert script.run_entry(fast)
+    assert (tmp_path / "fast.json").read_text().replace(" ", "").replace("\n", "") == '{"x":1.5}'
+    meta = (tmp_path / "fast.meta.json").read_text()
+    assert '"command"' in meta and '"wall_s"' in meta and '"commit"' in meta
+    slow = script.Entry("slow", "t", (sys.executable, "-c", "import time; time.sleep(60)"), 0.5, lambda d: [])
+    assert not script.run_entry(slow)
+    assert not (tmp_path / "slow.json").exists()

@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: setup run test lint typecheck pytest bench browser rtsp-server clean examples
+.PHONY: setup run test lint typecheck pytest bench results browser rtsp-server clean examples
 
 setup: $(STAMP)
 
@@ -44,7 +44,12 @@ examples: setup
 
 bench: setup
 	mkdir -p runs/bench
-	for b in bench/*.py; do echo "== $$b"; $(PY) $$b | tee runs/bench/$$(basename $$b .py).json; done
+	for b in bench/*.py; do [ $$b = bench/results.py ] && continue; echo "== $$b"; $(PY) $$b | tee runs/bench/$$(basename $$b .py).json; done
+
+# docs/results.md's generated tables and the README's results table, from the canonical commands
+# (bench/results.py --list); ONLY=name runs one of them.
+results: setup
+	$(PY) bench/results.py $(if $(ONLY),--only $(ONLY))
 
 clean:
 	rm -rf $(VENV) runs .pytest_cache .mypy_cache .ruff_cache *.egg-info

@@ -2,7 +2,7 @@
 closed-loop mean / max of the optical tracker's error [mm], the noise-free max and where the
 largest errors are (walk time [s]). The same closed loop as `wristmark experiment cube --marker
 configs/marker_coded.yaml --orientation hold --plant P --seed S [--sensor ...]` (its open loop is
-skipped: half the time with vision); used for docs/results.md, "the motor's lag at a reversal".
+skipped: half the time with vision); used for docs/notes/motor-lag-burst.md.
 
     .venv/bin/python bench/closed_cube.py CONTROLLER.yaml|- truth-noise|vision PLANT.yaml:SEED ...
 """

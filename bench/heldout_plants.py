@@ -5,7 +5,8 @@ setting was tuned on. Ranges bracket configs/plant.yaml and configs/plant_unseen
     .venv/bin/python bench/heldout_plants.py [--n 4] [--seed 2026] [--out DIR]
 
 A new seed into a new folder gives arms nobody has looked at (the 2026 set was looked at while
-the compensation was developed; docs/results.md reports a fresh set too).
+the compensation was developed; docs/notes/motor-lag-burst.md reports a
+validation set drawn with --seed 31).
 """
 
 from __future__ import annotations

@@ -41,7 +41,7 @@ configuration, the lab's through the emulator's ``--psi0`` (the in-process bench
 began there); ``home``: at the emulator's home, from where the loop's start ramps it, in the lab
 and (``open_sim_session(rest=...)``) in process alike. The two differ in where each motor sits in
 its play when the walk begins, which at 1080p's timing changes the error by more than the lab's
-transport does (docs/results.md, "the same start for both loops").
+transport does (docs/notes/virtual-lab-timing.md).
 Usage: .venv/bin/python bench/virtual_lab.py [--duration S] [--scales 1 0.5] [--skip-video] [--camera-matched]
        [--phase-lock none]
        [--plant configs/plant_unseen.yaml --marker configs/marker_coded.yaml --orientation hold]

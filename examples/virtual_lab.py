@@ -75,7 +75,7 @@ def main() -> None:
         truth_csv, log_csv = Path(tmp) / "truth.csv", Path(tmp) / "log.csv"
         # Real-time scheduling where the host allows it, for the lab and this loop alike: on a
         # loaded machine at normal priority the loop loses whole cycles and the lab's frames come
-        # late, and the arm holds while the cube moves on (measured: docs/results.md).
+        # late, and the arm holds while the cube moves on (measured: docs/notes/virtual-lab-timing.md).
         realtime = realtime_scheduling(20, keep=False)
         lab, pty, url = start_lab(scale, truth_csv, realtime)  # the lab asks for its own priorities
         try:

@@ -48,7 +48,7 @@ class BacklashInverse:
     towards it by ``rate`` per reversal, within [0, play_max]. Known bias: F_j also holds the
     loop's lag behind the path (output behind command by the path rate x the loop's delay),
     which turns round with the motion, so b_est = b + 2 |rate| x delay: the estimate errs high,
-    most on an arm with little play (docs/results.md, "Unseen arms").
+    most on an arm with little play (docs/notes/dead-band-inversion.md).
 
     Lead (``lead`` [s], 0 = none): the motor follows its target through a first-order lag, so a
     step of the offset by b at a reversal takes the lag's time constant to cross the play while

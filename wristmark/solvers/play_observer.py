@@ -33,13 +33,13 @@ Without encoder readings (a controller stepped without them) it inverts nothing:
 Held point (``freeze`` [s], 0 = off): once the desired path has stood still that long (its
 actuator rates exactly zero: a point hold, or a settle), the sides no longer change until it moves
 again. At a held point the nominal command moves only by the measurement noise, and every change
-of side would send the motor across the band without moving the arm (docs/results.md: the
+of side would send the motor across the band without moving the arm (docs/notes/play-probe.md: the
 commanded and measured stem then differ by up to 7.8 mrad at the virtual lab's held point).
 
 Reversal burst from the motor's lag (``motor_burst``, ``backlash_motor_burst``): the lead's burst
 is a fixed multiple of the offset's jump, right for a motor of ~the lead's lag; a slower motor
-crosses the band over two or three cycles while the arm stands (docs/results.md, "the motor's lag
-at a reversal": the 75 ms motors of an unseen arm at a corner where both first backbones reverse).
+crosses the band over two or three cycles while the arm stands (docs/notes/motor-lag-burst.md:
+ the 75 ms motors of an unseen arm at a corner where both first backbones reverse).
 With the motors' first-order lags tau measured by the play probe from the encoders
 (:meth:`seed`), the flip cycle of an actuator whose motor has not reached the new side's edge
 sends instead the target that brings the motor from its reading to the steady target in one
@@ -48,7 +48,7 @@ motors, their lags constant after the probe; without a probed lag the lead's bur
 
 Also assumed: the encoders read the motor (before the play) when the frame is taken; the play is
 constant per actuator and below ``play_max``; the feedback-share learning's assumptions (see
-:class:`BacklashInverse`). Measured limits (docs/results.md, "encoders"): the insertion's play is
+:class:`BacklashInverse`). Measured limits (docs/notes/dead-band-inversion.md): the insertion's play is
 learnt poorly (its path rate is the tip's speed, so the learning's bias is large) and is often
 clipped at its bound.
 """
@@ -118,7 +118,7 @@ class PlayObserverInverse(BacklashInverse):
         ends with its output dragged at an edge of its band, not in its middle, and its first
         reversals are learnt at ``rate`` instead of averaged (replacing the low start at the first
         one). Measured, the mechanism not isolated: with the averaging, an arm ramped from home
-        to the cube's start oscillated across its play on the walk's first edge (docs/results.md,
+        to the cube's start oscillated across its play on the walk's first edge (docs/notes/virtual-lab-timing.md,
         "the same start for both loops")."""
         moved = np.abs(on_micro_grid(motor_after) - on_micro_grid(motor_before)) > self.play
         self._learnt = np.where(moved, np.maximum(self._learnt, 1.0 / max(self.rate, 1e-9)), self._learnt)

@@ -107,7 +107,7 @@ def _solve(A: Any, b: Any, x: Any) -> bool:  # pragma: no cover
 
 # One function on purpose (~100 lines): split into @njit helpers (window gathering, normal
 # equations, step update) it gave identical results but ran 1.0-1.09x slower (median 1.013,
-# six in-process A/B runs of 600 alternating rounds; docs/results.md "Layers"), and the fit is
+# six in-process A/B runs of 600 alternating rounds; docs/notes/renderer.md), and the fit is
 # on the tracker's hot path, so it stays whole.
 @numba.njit(cache=True, nogil=True)
 def _htm_kernel(img: Any, ci: Any, sw: Any, th: Any, r: int, iters: int) -> None:  # pragma: no cover

@@ -50,7 +50,7 @@ class TrackerSettings:
     partner) is refused when the tip moves more than this without them, where at least 3 stereo
     pairs fit on their own (2 pairs determine the pose no better than the fit): few corners on one arc
     of the sleeve leave its axis weakly determined, and one such corner off by a pixel at the
-    chain's end tilted the fit 3-5 mm off in the virtual lab (docs/results.md)."""
+    chain's end tilted the fit 3-5 mm off in the virtual lab (docs/notes/corner-accuracy-on-curved-markers.md)."""
 
     min_corners: int = 3
     min_pairs: int = 2

@@ -145,6 +145,30 @@ class Segment:
                               f"got {list(a.angles)}")
 
 
+@dataclass(frozen=True, eq=False)
+class ArmLayout:
+    """Where each quantity of an ArmSpec sits, as numpy arrays (N segments): segment
+    ``lengths`` and ``spacers`` [m]; stem indices of the ``revolute`` and ``prismatic`` joints;
+    per segment the index of theta in psi (``theta_index``) and of delta in psi extended by the
+    ``planar_values`` [rad] (``delta_index``); the non-planar segments (``bending``) and their
+    delta's index in psi (``bending_delta_index``); the same as plain Python values for the
+    one-configuration path: ``terms`` per segment (length, spacer, theta index, delta index or -1
+    if planar, the planar angle or 0), ``revolute_list``, ``prismatic_list``."""
+
+    lengths: Array
+    spacers: Array
+    revolute: NDArray[np.int_]
+    prismatic: NDArray[np.int_]
+    theta_index: NDArray[np.int_]
+    delta_index: NDArray[np.int_]
+    planar_values: Array
+    bending: NDArray[np.int_]
+    bending_delta_index: NDArray[np.int_]
+    terms: tuple[tuple[float, float, int, int, float], ...]  # per segment: L, spacer, theta idx, delta idx or -1, plane
+    revolute_list: tuple[int, ...]
+    prismatic_list: tuple[int, ...]
+
+
 @dataclass(frozen=True)
 class ArmSpec:
     """A continuum arm (module doc): ``stem`` joints, 1-4 ``segments`` (proximal first),
@@ -182,12 +206,12 @@ class ArmSpec:
             seen[j.name] = j.name
 
     # -- sizes and names ---------------------------------------------------------------
-    @property
+    @cached_property
     def n(self) -> int:
         """Number of configuration variables (length of psi)."""
         return len(self.stem) + sum(s.variables for s in self.segments)
 
-    @property
+    @cached_property
     def m(self) -> int:
         """Number of actuators."""
         return len(self.stem) + sum(s.actuators for s in self.segments)
@@ -216,6 +240,28 @@ class ArmSpec:
             else:
                 out += [f"s{t}{chr(ord('a') + k)}" for k in range(len(s.actuation.angles))]
         return tuple(out)
+
+    @cached_property
+    def layout(self) -> ArmLayout:
+        """Index arrays and per-segment constants for the vectorised kinematics (cached)."""
+        planar = [t for t, s in enumerate(self.segments) if s.planar is not None]
+        delta = [d if d is not None else self.n + planar.index(t) for t, d in enumerate(self.delta_index)]
+        bending = [t for t, d in enumerate(self.delta_index) if d is not None]
+        return ArmLayout(
+            lengths=np.array([s.length for s in self.segments]),
+            spacers=np.array([s.spacer for s in self.segments]),
+            revolute=np.array([i for i, j in enumerate(self.stem) if j.joint == "revolute_z"], dtype=int),
+            prismatic=np.array([i for i, j in enumerate(self.stem) if j.joint == "prismatic_z"], dtype=int),
+            theta_index=np.array(self.theta_index, dtype=int),
+            delta_index=np.array(delta, dtype=int),
+            planar_values=np.array([self.segments[t].planar for t in planar], dtype=float),
+            bending=np.array(bending, dtype=int),
+            bending_delta_index=np.array([self.delta_index[t] for t in bending], dtype=int),
+            terms=tuple((s.length, s.spacer, ti, -1 if di is None else di, s.planar or 0.0)
+                        for s, ti, di in zip(self.segments, self.theta_index, self.delta_index)),
+            revolute_list=tuple(i for i, j in enumerate(self.stem) if j.joint == "revolute_z"),
+            prismatic_list=tuple(i for i, j in enumerate(self.stem) if j.joint == "prismatic_z"),
+        )
 
     @cached_property
     def theta_index(self) -> tuple[int, ...]:

@@ -34,6 +34,8 @@ from wristmark.models.errors import InputError
 Array = NDArray[np.float64]
 Index = NDArray[np.int_]
 
+_EXACT_ZERO = 1e-15  # |cos|, |sin| of an actuator angle below this is 0 (pi/2 in floats has cos 6e-17)
+
 
 @dataclass(frozen=True, eq=False)
 class _Maps:
@@ -69,7 +71,9 @@ def _build(spec: ArmSpec) -> _Maps:
             copy_act += list(range(rows.start, rows.stop))
         else:
             sig = np.array(seg.actuation.angles)
-            cols = np.stack([np.cos(sig), -np.sin(sig)], -1) * seg.actuation.pitch_radius  # (k, 2)
+            cols = np.stack([np.cos(sig), -np.sin(sig)], -1)
+            cols[np.abs(cols) < _EXACT_ZERO] = 0.0  # right angles exactly: [0, pi/2] gives s_b = -r theta sin(delta)
+            cols *= seg.actuation.pitch_radius  # (k, 2)
             first = 0 if kind == "tendons" else t
             for j in range(first, t + 1):
                 M[rows, 2 * j : 2 * j + 2] = cols

@@ -107,10 +107,11 @@ def _bend(spec: ArmSpec, q: Array) -> tuple[Array, Array]:
 def _float_chain(spec: ArmSpec, q: list[float]) -> tuple[tuple[Rot, Vec], ...]:
     """Float poses in {w} of {1b}, {1e}, ..., {Nb}, {Ne}, {wm}, tip (see kinematics._compose)."""
     lay = spec.layout
-    phi = sum(q[i] for i in lay.revolute_list)
+    rev, pri = lay.revolute_list, lay.prismatic_list
+    phi = q[rev[0]] if len(rev) == 1 else sum(q[i] for i in rev)  # one joint: its value as is (-0.0 stays)
     c, s = math.cos(phi), math.sin(phi)
     R: Rot = (c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0)
-    p: Vec = (0.0, 0.0, sum(q[i] for i in lay.prismatic_list))
+    p: Vec = (0.0, 0.0, q[pri[0]] if len(pri) == 1 else sum(q[i] for i in pri))
     out: list[tuple[Rot, Vec]] = []
     for length, spacer, ti, di, plane in lay.terms:
         if out:

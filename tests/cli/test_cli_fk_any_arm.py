@@ -1,5 +1,6 @@
 """`wristmark fk` on any arm: format-2 robot files, n values of psi, the actuator coordinates;
-the reference arm's tip, marker and Jacobian exactly as models.kinematics gives them."""
+the reference arm's tip, marker and Jacobian exactly as models.kinematics gives them. And
+`wristmark urdf` for a format-2 file; other commands refuse one in a line saying where it is read."""
 
 from __future__ import annotations
 
@@ -18,9 +19,13 @@ from wristmark.models.actuation import actuators_from_psi
 from wristmark.models.arm_actuation import arm_actuators
 from wristmark.models.arm_kinematics import arm_frames, arm_tip_jacobian
 from wristmark.models.arm_spec import load_arm
+from wristmark.models.arm_urdf import generate_arm_urdf
 from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.errors import ConfigError
 from wristmark.models.kinematics import forward_kinematics, tip_jacobian
-from wristmark.models.robot_params import RobotParams
+from wristmark.models.marker import MarkerModel
+from wristmark.models.robot_params import RobotParams, load_robot
+from wristmark.models.urdf import generate_urdf
 
 ROOT = Path(__file__).resolve().parents[2]
 ROBOTS = CONFIG_DIR / "robots"
@@ -87,3 +92,36 @@ def test_a_user_runs_it_on_a_shipped_arm(tmp_path: Path) -> None:
     assert r.returncode == 0, r.stderr
     # straight: 20 + 35 + 5 mm, and the marker's 15 mm tip offset
     assert "[0.000, 0.000, 75.000] mm" in r.stdout
+
+
+def test_urdf_of_a_format_2_arm(tmp_path: Path) -> None:
+    out = tmp_path / "tendon3.urdf"
+    code, stdout, err = cli_run("urdf", "--robot", str(ROBOTS / "tendon3.yaml"), "--out", str(out), "--links", "2",
+                                "--json")
+    assert code == 0, err
+    assert json.loads(stdout) == {"urdf": str(out), "links_per_segment": 2}
+    text = out.read_text()
+    assert text == generate_arm_urdf(load_arm(ROBOTS / "tendon3.yaml"), 2)
+    assert 'name="seg3_end"' in text and 'name="phi"' not in text
+
+
+def test_the_flat_file_still_gives_todays_urdf(tmp_path: Path) -> None:
+    out = tmp_path / "arm.urdf"
+    code, _, err = cli_run("urdf", "--robot", "configs/robot.yaml", "--out", str(out), "--links", "3")
+    assert code == 0, err
+    assert out.read_text() == generate_urdf(RobotParams(), 3)
+
+
+def test_commands_not_yet_wired_refuse_a_format_2_file_in_one_line() -> None:
+    """The loop's commands read the robot through RobotParams (load_robot) until the wiring."""
+    for load in (RobotParams.load, lambda p: load_robot(p, MarkerModel())):
+        with pytest.raises(ConfigError, match="format-2 robot file .* 'wristmark fk' and 'wristmark urdf'") as e:
+            load(ROBOTS / "tendon3.yaml")
+        assert "\n" not in str(e.value) and str(ROBOTS / "tendon3.yaml") in str(e.value)
+
+
+def cli_run(*argv: str) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = cli.main(list(argv))
+    return code, out.getvalue(), err.getvalue()

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import yaml
 
-from wristmark.models.arm_spec import ArmSpec, load_arm
+from wristmark.models.arm_spec import ArmSpec, load_arm, robot_file_format
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.errors import ConfigError, WristmarkError
 from wristmark.models.marker import MarkerModel
@@ -160,3 +160,17 @@ def test_bad_files_are_one_line_errors_naming_the_key(tmp_path: Path, data: dict
 def test_the_base_mapping_is_valid(tmp_path: Path) -> None:
     spec = load_arm(_write(tmp_path, BASE))
     assert (spec.n, spec.m, spec.name) == (6, 7, "probe")
+
+
+def test_robot_file_format() -> None:
+    assert robot_file_format(CONFIG_DIR / "robot.yaml") == 1
+    assert all(robot_file_format(ROBOTS / name) == 2 for name in SHIPPED)
+
+
+def test_built_in_code_is_validated_too() -> None:
+    spec = ArmSpec.from_params(RobotParams())
+    bad = replace(spec, segments=(replace(spec.segments[0], planar=math.nan, max_velocity=(1.0,)),))
+    with pytest.raises(ConfigError, match=r"segments\[0\].planar: expected a finite angle"):
+        bad.validate()
+    with pytest.raises(ConfigError, match="segments: expected 1 to 4"):
+        replace(spec, segments=()).validate()

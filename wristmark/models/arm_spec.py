@@ -115,6 +115,8 @@ class Segment:
             raise ConfigError(f"{key}.spacer: expected >= 0 [m], got {self.spacer}")
         if index == 0 and self.spacer != 0:
             raise ConfigError(f"{key}.spacer: the first segment starts at {{1b}} and has no spacer, got {self.spacer}")
+        if self.planar is not None and not math.isfinite(self.planar):
+            raise ConfigError(f"{key}.planar: expected a finite angle [rad], got {self.planar}")
         want = "1 entry (theta; the segment is planar)" if self.planar is not None else "2 entries (theta, delta)"
         if len(self.max_velocity) != self.variables:
             raise ConfigError(f"{key}.max_velocity: expected {want}, got {len(self.max_velocity)}")
@@ -368,8 +370,18 @@ def load_arm(path: str | Path, marker: MarkerModel | None = None) -> ArmSpec:
     reference-arm file (no ``format`` key, :class:`RobotParams`). With ``marker``, its tip
     offset [m] replaces the default."""
     data = load_section(path, "robot")
-    if {"format", "segments", "stem"} & set(data):
+    if _is_format_2(data):
         spec = ArmSpec.from_mapping(data, str(path))
     else:
         spec = ArmSpec.from_params(RobotParams.load(path))
     return spec.with_marker(marker) if marker is not None else spec
+
+
+def _is_format_2(data: dict[str, Any]) -> bool:
+    return bool({"format", "segments", "stem"} & set(data))
+
+
+def robot_file_format(path: str | Path) -> int:
+    """2 for a robot file in format 2 (it has ``format``, ``segments`` or ``stem``), else 1
+    (the reference arm's flat file)."""
+    return 2 if _is_format_2(load_section(path, "robot")) else 1

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
+from pathlib import Path
 
 from wristmark.models.arm_spec import ArmSpec, Segment
 from wristmark.models.errors import ConfigError, InputError
@@ -146,3 +147,15 @@ def generate_arm_urdf(spec: ArmSpec, links_per_segment: int = 8, marker: MarkerM
     b.joint("tip_mount", "fixed", "marker", "tip", xyz=(0.0, 0.0, spec.tip_offset))
     ET.indent(b.robot)
     return '<?xml version="1.0"?>\n' + ET.tostring(b.robot, encoding="unicode") + "\n"
+
+
+def write_arm_urdf(path: str | Path, spec: ArmSpec, links_per_segment: int = 8,
+                   marker: MarkerModel | None = None) -> Path:
+    """Write :func:`generate_arm_urdf`'s text to ``path``; return the path."""
+    p = Path(path)
+    text = generate_arm_urdf(spec, links_per_segment, marker)
+    try:
+        p.write_text(text)
+    except OSError as e:
+        raise InputError(f"cannot write URDF to {p}: {e.strerror or e}") from e
+    return p

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from wristmark.models.arm_kinematics import check_arm_psi
+from wristmark.models.arm_kinematics import bend_angles, check_arm_psi
 from wristmark.models.arm_spec import ArmSpec
 from wristmark.models.errors import InputError
 
@@ -86,10 +86,7 @@ def _build(spec: ArmSpec) -> _Maps:
 
 def _bend_vectors(spec: ArmSpec, q: Array) -> tuple[Array, Array, Array]:
     """theta, delta (..., N) and the bend vectors [x_1, y_1, ...] (..., 2N) of psi."""
-    lay = spec.layout
-    if lay.planar_values.size:
-        q = np.concatenate([q, np.broadcast_to(lay.planar_values, (*q.shape[:-1], lay.planar_values.size))], -1)
-    th, de = q[..., lay.theta_index], q[..., lay.delta_index]
+    th, de = bend_angles(spec, q)
     xy = np.stack([th * np.cos(de), th * np.sin(de)], -1).reshape(*th.shape[:-1], 2 * th.shape[-1])
     return th, de, xy
 

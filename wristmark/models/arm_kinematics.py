@@ -7,12 +7,13 @@ Rz(delta), p = L [cos(delta) f, -sin(delta) f, g]); a planar segment's delta is 
 ``planar`` angle. Every stem joint acts along or about the z axis of {w} (each keeps that axis),
 so a revolute column of the Jacobian is [-y_tip, x_tip, 0, 0, 0, 1] and a prismatic one
 [0, 0, 1, 0, 0, 0], whatever their order. For the reference arm (ArmSpec.from_params) this is
-models.kinematics' chain: frames and Jacobian agree to ~1e-16 (tests/models/test_arm_kinematics.py).
+models.kinematics' chain: one configuration's frames and Jacobian are its numbers bit for bit,
+a batch's agree to ~1e-16 (tests/models/test_arm_kinematics.py).
 
 Two evaluations of the same formulas: one configuration (psi of shape (n,), the controller's
 hot path) runs on plain Python floats segment by segment with models.kinematics' helpers, as
 today's reference chain does (numpy calls on 3x3 arrays cost more than the arithmetic; for the
-reference arm the numbers are then bit for bit models.kinematics'); a batch (psi of shape
+reference arm the numbers are then models.kinematics'); a batch (psi of shape
 (..., n) with leading axes) is vectorised with numpy: all segments and configurations at once, the
 chain in one 4x4 product per segment. Both agree to ~1e-16 (tests). Units SI: [m], [rad].
 """
@@ -96,8 +97,9 @@ class ArmPoses:
         return self.T_world_tip[..., :3, 3]
 
 
-def _bend(spec: ArmSpec, q: Array) -> tuple[Array, Array]:
-    """Each segment's theta and delta (the planar angle for a planar segment), shape (..., N)."""
+def bend_angles(spec: ArmSpec, q: Array) -> tuple[Array, Array]:
+    """Each segment's theta and delta [rad] from psi ``q`` (..., n), shape (..., N) each; a planar
+    segment's delta is its fixed plane."""
     lay = spec.layout
     if lay.planar_values.size:
         q = np.concatenate([q, np.broadcast_to(lay.planar_values, (*q.shape[:-1], lay.planar_values.size))], -1)
@@ -138,7 +140,7 @@ def arm_frames(spec: ArmSpec, psi: object) -> ArmPoses:
 def _batch_frames(spec: ArmSpec, q: Array) -> ArmPoses:
     """arm_frames for psi of shape (..., n), vectorised over the batch and the segments."""
     lay = spec.layout
-    th, de = _bend(spec, q)
+    th, de = bend_angles(spec, q)
     f, g, df, dg = f_g_array(th)
     c, s = np.cos(de), np.sin(de)
     S = np.sin(th)

@@ -174,3 +174,12 @@ def test_built_in_code_is_validated_too() -> None:
         bad.validate()
     with pytest.raises(ConfigError, match="segments: expected 1 to 4"):
         replace(spec, segments=()).validate()
+
+
+def test_an_empty_stem_may_be_written_either_way(tmp_path: Path) -> None:
+    for text in ("stem: []\n", "stem:\n"):
+        path = tmp_path / "bare.yaml"
+        body = yaml.safe_dump({k: v for k, v in json.loads(json.dumps(BASE)).items() if k != "stem"})
+        path.write_text(text + body)
+        spec = load_arm(path)
+        assert spec.stem == () and spec.names == ("theta1", "delta1", "theta2", "delta2")

@@ -337,6 +337,8 @@ class ArmSpec:
             raise ConfigError(f"{source}: tip_offset: belongs to the marker file (its tip_offset); remove it here")
         if "format" not in data:
             raise ConfigError(f"{source}: format: expected 2 for a robot file with stem and segments")
+        if "stem" in data and data["stem"] is None:  # "stem:" with nothing under it: no stem joints
+            data = {**data, "stem": []}
         _require_keys(data, source)
         return from_mapping(cls, data, source)
 

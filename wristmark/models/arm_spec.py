@@ -201,11 +201,11 @@ class ArmSpec:
             j.check(f"stem[{i}]")
         for t, s in enumerate(self.segments):
             s.check(f"segments[{t}]", t, self.outer_diameter / 2.0)
-        seen: dict[str, str] = {}
+        seen = set(self.segment_names)
         for i, j in enumerate(self.stem):
-            if j.name in seen or j.name in self.segment_names:
+            if j.name in seen:
                 raise ConfigError(f"stem[{i}].name: {j.name!r} is given twice (configuration names must differ)")
-            seen[j.name] = j.name
+            seen.add(j.name)
 
     # -- sizes and names ---------------------------------------------------------------
     @cached_property

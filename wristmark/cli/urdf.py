@@ -1,4 +1,5 @@
-"""``wristmark urdf``: write the pseudo-rigid URDF of the arm (stem joints + chord segments)."""
+"""``wristmark urdf``: write the pseudo-rigid URDF of the arm (stem joints + chord segments); any arm
+with a format-2 robot file (docs/your-arm.md)."""
 
 from __future__ import annotations
 
@@ -28,6 +29,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from wristmark.models.arm_spec import load_arm, robot_file_format
+    from wristmark.models.arm_urdf import write_arm_urdf
     from wristmark.models.marker import MarkerModel
     from wristmark.models.robot_params import load_robot
     from wristmark.models.urdf import write_urdf
@@ -35,9 +38,14 @@ def run(args: argparse.Namespace) -> int:
     if args.links < 1:
         raise InputError(f"--links must be >= 1, got {args.links}")
     marker = MarkerModel.load(args.marker) if args.marker else None
-    params = load_robot(args.robot, marker or MarkerModel())
-    claim_outputs(files=[args.out], force=args.force)
-    path = write_urdf(args.out, params, args.links, marker)
+    if args.robot and robot_file_format(args.robot) == 2:  # any arm (docs/your-arm.md)
+        spec = load_arm(args.robot, marker or MarkerModel())
+        claim_outputs(files=[args.out], force=args.force)
+        path = write_arm_urdf(args.out, spec, args.links, marker)
+    else:
+        params = load_robot(args.robot, marker or MarkerModel())
+        claim_outputs(files=[args.out], force=args.force)
+        path = write_urdf(args.out, params, args.links, marker)
     if args.json:
         print(json.dumps({"urdf": str(path), "links_per_segment": args.links}))
     else:

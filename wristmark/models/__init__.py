@@ -3,7 +3,9 @@ marker's geometry and the configuration files.
 
 Frames (docs/conventions.md): {w} the robot base at the incision, {wm} the wrist marker, the tip
 ``tip_offset`` beyond {wm} along its z axis. Units SI: lengths [m], angles [rad];
-psi = [phi, d, theta1, delta1, theta2, delta2] [rad, m, rad, rad, rad, rad].
+psi = [phi, d, theta1, delta1, theta2, delta2] [rad, m, rad, rad, rad, rad] for the reference arm;
+any arm of a format-2 robot file (``ArmSpec``, docs/your-arm.md) has the ``arm_*`` functions,
+sized from the arm (n configuration variables, m actuators).
 
 The names below are imported on first use (``wristmark/_lazy.py``).
 """
@@ -12,8 +14,13 @@ TYPE_CHECKING = False  # typing.TYPE_CHECKING without importing typing (mypy rea
 
 if TYPE_CHECKING:
     from wristmark.models.actuation import actuator_jacobian, actuators_from_psi, psi_from_actuators
+    from wristmark.models.arm_actuation import arm_actuator_jacobian, arm_actuators, arm_psi_from_actuators
+    from wristmark.models.arm_kinematics import ArmPoses, arm_frames, arm_tip_jacobian, arm_tip_position
+    from wristmark.models.arm_pinocchio import PinocchioAnyArm
     from wristmark.models.arm_shape import ArmShape
     from wristmark.models.arm_shape import arm_shape as arm_shape_of
+    from wristmark.models.arm_spec import Actuation, ArmSpec, Segment, StemJoint, load_arm
+    from wristmark.models.arm_urdf import generate_arm_urdf
     from wristmark.models.config_files import default_config, find_config, shipped_configs
     from wristmark.models.config_io import from_mapping, load_yaml, save_yaml, to_mapping
     from wristmark.models.errors import ConfigError, InputError, LimitError, WristmarkError

@@ -53,8 +53,14 @@ class RobotParams:
 
     @classmethod
     def load(cls, path: str | Path) -> RobotParams:
-        """Load from YAML; the file may be the robot mapping itself or hold it under 'robot'."""
-        return from_mapping(cls, load_section(path, "robot"), str(path))
+        """Load from YAML; the file may be the robot mapping itself or hold it under 'robot'.
+        A format-2 file (any arm, docs/your-arm.md) is refused here, saying where it is read."""
+        data = load_section(path, "robot")
+        if "format" in data:
+            raise ConfigError(f"{path}: format: {data['format']!r}: a format-2 robot file (any arm, "
+                              "docs/your-arm.md) is read by 'wristmark fk' and 'wristmark urdf' so far; "
+                              "this takes the reference arm's flat file (docs/formats.md)")
+        return from_mapping(cls, data, str(path))
 
     def with_marker(self, marker: MarkerModel) -> RobotParams:
         """These parameters carrying ``marker``'s tip offset [m]."""

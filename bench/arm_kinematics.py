@@ -17,8 +17,7 @@ from collections.abc import Callable
 import numpy as np
 
 from wristmark.models.arm_kinematics import arm_frames, arm_tip_jacobian
-from wristmark.models.arm_spec import ArmSpec, load_arm
-from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.arm_spec import ArmSpec, load_arm, shipped_robot_files
 from wristmark.models.kinematics import forward_kinematics, tip_jacobian
 from wristmark.models.robot_params import RobotParams
 
@@ -43,7 +42,7 @@ def main() -> int:
     args = ap.parse_args()
     params = RobotParams()
     arms = {"reference (robot.yaml)": ArmSpec.from_params(params)}
-    arms |= {p.name: load_arm(p) for p in sorted((CONFIG_DIR / "robots").glob("*.yaml"))}
+    arms |= {p.name: load_arm(p) for p in shipped_robot_files()}
     ref_psis = list(_psis(arms["reference (robot.yaml)"], args.calls))
 
     def today(psi: np.ndarray) -> object:

@@ -17,13 +17,12 @@ from hypothesis import strategies as st
 from tests.models.arm_strategies import psis, robot_files, spec_of
 from wristmark.models.actuation import actuator_jacobian, actuators_from_psi, psi_from_actuators
 from wristmark.models.arm_actuation import arm_actuator_jacobian, arm_actuators, arm_psi_from_actuators
-from wristmark.models.arm_spec import ArmSpec, load_arm
-from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.arm_spec import ArmSpec, load_arm, shipped_robot_files
 from wristmark.models.errors import InputError
 from wristmark.models.robot_params import RobotParams
 
 PARAMS = RobotParams()
-ROBOTS = {p.name: load_arm(p) for p in sorted((CONFIG_DIR / "robots").glob("*.yaml"))}
+ROBOTS = {p.name: load_arm(p) for p in shipped_robot_files()}
 REFERENCE = [ArmSpec.from_params(PARAMS), ROBOTS["paper.yaml"]]
 SEEDED = settings(max_examples=60, derandomize=True, deadline=None,
                   suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])

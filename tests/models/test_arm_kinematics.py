@@ -151,7 +151,7 @@ def test_a_planar_segment_is_a_bending_one_at_its_fixed_plane(theta: float) -> N
 
 def test_an_empty_stem_is_the_stem_at_zero() -> None:
     paper = REFERENCE["paper.yaml"]
-    bare = replace(paper, stem=())
+    bare = replace(paper, stem=(), home=None)
     bare.validate()
     assert bare.n == 4
     psi = np.array([0.8, -2.0, 1.3, 0.4])

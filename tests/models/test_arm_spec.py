@@ -11,14 +11,14 @@ import numpy as np
 import pytest
 import yaml
 
-from wristmark.models.arm_spec import ArmSpec, load_arm, robot_file_format
+from wristmark.models.arm_spec import ArmSpec, load_arm, robot_file_format, shipped_robot_files
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.errors import ConfigError, WristmarkError
 from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import RobotParams
 
 ROBOTS = CONFIG_DIR / "robots"
-SHIPPED = sorted(p.name for p in ROBOTS.glob("*.yaml"))
+SHIPPED = [p.name for p in shipped_robot_files()]  # not their <name>_plant.yaml
 
 BASE = {
     "format": 2,

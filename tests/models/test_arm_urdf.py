@@ -17,14 +17,13 @@ from hypothesis import strategies as st
 from tests.models.arm_strategies import psis
 from wristmark.models.arm_kinematics import arm_frames, arm_tip_jacobian
 from wristmark.models.arm_pinocchio import PinocchioAnyArm
-from wristmark.models.arm_spec import ArmSpec, load_arm
+from wristmark.models.arm_spec import ArmSpec, load_arm, shipped_robot_files
 from wristmark.models.arm_urdf import arm_frame_names, generate_arm_urdf
-from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.errors import ConfigError, InputError
 from wristmark.models.pinocchio_model import PinocchioArm
 from wristmark.models.robot_params import HOME_PSI, RobotParams
 
-ROBOTS = {p.name: load_arm(p) for p in sorted((CONFIG_DIR / "robots").glob("*.yaml"))}
+ROBOTS = {p.name: load_arm(p) for p in shipped_robot_files()}
 SEEDED = settings(max_examples=25, derandomize=True, deadline=None)
 LINKS = [1, 3, 8]
 

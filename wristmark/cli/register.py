@@ -21,7 +21,8 @@ import numpy as np
 from wristmark.cli.common_options import add_config_option, add_force_argument, add_json_flag, set_example
 from wristmark.cli.option_types import float_in, int_in, positive_float, seed_int
 from wristmark.models.config_files import default_config
-from wristmark.models.errors import InputError
+from wristmark.models.errors import ConfigError, InputError
+from wristmark.models.robot_params import RobotParams
 from wristmark.rig.recording.output_dir import claim_outputs
 
 REPLY_TIMEOUT_S = 0.2  # [s] per attempt at a reply from the actuator box (3 retries)
@@ -67,13 +68,17 @@ def _observe_sim(args: argparse.Namespace, progress: bool) -> tuple[Any, list, d
     from wristmark.solvers.registration import transform_error
 
     setup = load_setup(robot=args.robot, marker=args.marker, camera=args.calib, plant=args.plant)
+    params = setup.params
+    if not isinstance(params, RobotParams):
+        raise ConfigError("wristmark register: the hand-eye registration models the reference arm only so far "
+                          "(its arm correction: gains, stem coupling); a format-2 robot file is not supported yet")
     if args.registration:
         setup = setup.with_changes(registration=load_registration(args.registration).world_T_left)
     if args.image_scale is not None:
         setup = setup.with_changes(rig=dataclasses.replace(setup.rig, image_scale=args.image_scale))
     cam = setup.tracking_camera
     poses = choose_poses(setup.params, args.poses, cam, setup.marker, seed=args.seed)
-    obs = collect(SimRegistrationRig(setup, seed=args.seed), MarkerTracker(cam, setup.marker), setup.params, poses,
+    obs = collect(SimRegistrationRig(setup, seed=args.seed), MarkerTracker(cam, setup.marker), params, poses,
                   cam.T_world_left, progress)
     truth = np.asarray(setup.true_camera.T_world_left, float)
     t, r = transform_error(truth, np.asarray(cam.T_world_left, float))

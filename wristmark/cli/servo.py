@@ -153,11 +153,11 @@ def build_trajectory(setup: LoopSetup, kind: str, point: list[float] | None, dur
 
 def start_configuration(setup: LoopSetup, traj: Trajectory) -> Array:
     """IK of the trajectory's start (raises InputError when it is out of reach)."""
+    from wristmark.models.arm_spec import home_psi
     from wristmark.models.ik import solve_tip_ik
-    from wristmark.models.robot_params import HOME_PSI
 
     p0 = traj.sample(0.0)[0]
-    ik = solve_tip_ik(setup.params, p0, np.asarray(HOME_PSI, float))
+    ik = solve_tip_ik(setup.params, p0, home_psi(setup.params))
     if not ik.error <= 1e-4:
         raise InputError(f"the start point {np.round(1000 * p0, 2).tolist()} mm is out of reach of the arm "
                          f"(IK misses it by {1000 * ik.error:.2f} mm)")

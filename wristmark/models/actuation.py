@@ -22,16 +22,20 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from wristmark.models.arm_actuation import arm_actuator_jacobian, arm_actuators, arm_psi_from_actuators
+from wristmark.models.arm_spec import Arm, ArmSpec
+from wristmark.models.errors import InputError
 from wristmark.models.kinematics import check_psi
-from wristmark.models.robot_params import RobotParams
 
 Array = NDArray[np.float64]
 
 ACTUATOR_NAMES = ("phi", "d", "s1a", "s1b", "s2a", "s2b")
 
 
-def actuators_from_psi(params: RobotParams, psi: object) -> Array:
-    """Actuator coordinates [rad, m, m, m, m, m] for configuration psi."""
+def actuators_from_psi(params: Arm, psi: object) -> Array:
+    """Actuator coordinates [rad, m, m, m, m, m] for configuration psi (any arm: models.arm_actuation)."""
+    if isinstance(params, ArmSpec):
+        return arm_actuators(params, check_psi(psi, params))
     q = check_psi(psi)
     a = np.empty(6)
     a[0], a[1] = q[0], q[1]
@@ -42,12 +46,17 @@ def actuators_from_psi(params: RobotParams, psi: object) -> Array:
     return a
 
 
-def psi_from_actuators(params: RobotParams, a: object, delta_hint: object = None) -> Array:
+def psi_from_actuators(params: Arm, a: object, delta_hint: object = None) -> Array:
     """Configuration psi [rad, m, rad, rad, rad, rad] from actuator coordinates [rad, m, m, m, m, m].
 
     At theta = 0 the bending-plane angle is undefined; it is then taken from ``delta_hint``
     (a psi whose delta entries are used), else 0.
     """
+    if isinstance(params, ArmSpec):
+        a1 = np.asarray(a, float)
+        if a1.ndim != 1:
+            raise InputError(f"actuators must have {params.m} entries, got shape {a1.shape}")
+        return arm_psi_from_actuators(params, a1, delta_hint)
     x = check_psi(a)
     q = np.empty(6)
     q[0], q[1] = x[0], x[1]
@@ -60,9 +69,11 @@ def psi_from_actuators(params: RobotParams, a: object, delta_hint: object = None
     return q
 
 
-def actuator_jacobian(params: RobotParams, psi: object) -> Array:
+def actuator_jacobian(params: Arm, psi: object) -> Array:
     """6x6 d(actuators)/d(psi) at psi [rad, m, rad, rad, rad, rad]: rows follow the actuators
     [rad, m, m, m, m, m], columns follow psi."""
+    if isinstance(params, ArmSpec):
+        return arm_actuator_jacobian(params, check_psi(psi, params))
     q = check_psi(psi)
     J = np.eye(6)
     for t in range(2):

@@ -31,7 +31,7 @@ from wristmark.models.constant_curvature import Rot, Vec, segment_pose
 from wristmark.models.errors import InputError
 
 # the reference chain's float helpers, shared so the two chains compute alike
-from wristmark.models.kinematics import _along_z, _compose, _homogeneous_stack, _segment_columns
+from wristmark.models.float_chain import _along_z, _compose, _homogeneous_stack, _segment_columns
 
 Array = NDArray[np.float64]
 

@@ -11,9 +11,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from wristmark.models.arm_kinematics import bend_angles
+from wristmark.models.arm_spec import Arm, ArmSpec
 from wristmark.models.constant_curvature import segment_point
 from wristmark.models.kinematics import ArmFrames, check_psi, forward_kinematics
-from wristmark.models.robot_params import RobotParams
 
 Array = NDArray[np.float64]
 
@@ -22,8 +23,8 @@ Array = NDArray[np.float64]
 class ArmShape:
     """Shape of the arm in {w} [m].
 
-    centreline: (N, 3) backbone points from the incision to the end ring {2e}, in order.
-    distal_start: index in ``centreline`` of the first point of segment 2's base ring {2b}.
+    centreline: (N, 3) backbone points from the incision to the last end ring ({2e}), in order.
+    distal_start: index in ``centreline`` of the first point of the last segment's base ring ({2b}).
     frames: poses of the chain's frames (marker {wm}, tip, ...).
     radius: outer radius of the arm's tube [m].
     """
@@ -51,7 +52,7 @@ def _segment_samples(T_base: Array, length: float, theta: float, delta: float, n
 
 
 def shape_from_frames(
-    params: RobotParams,
+    params: Arm,
     psi: object,
     frames: ArmFrames,
     stem_points: Array | None = None,
@@ -59,18 +60,24 @@ def shape_from_frames(
 ) -> ArmShape:
     """Assemble an ArmShape from frames; segments are sampled along their arcs with ``psi``'s
     bends. ``stem_points`` (M, 3) in {w} replaces the straight stem from the incision to {1b}."""
-    q = check_psi(psi)
-    L1, L2 = params.segment_lengths
+    q = check_psi(psi, params)
     if stem_points is None:
         stem = np.array([[0.0, 0.0, 0.0], frames.T_world_1b[:3, 3]])
     else:
         stem = np.asarray(stem_points, float).reshape(-1, 3)
+    if isinstance(params, ArmSpec):
+        th, de = bend_angles(params, q)
+        segs = [_segment_samples(T, s.length, float(th[t]), float(de[t]), samples_per_segment)
+                for t, (T, s) in enumerate(zip(frames.segment_bases, params.segments))]
+        centre = np.vstack([stem[:-1], *segs])
+        return ArmShape(centre, len(centre) - len(segs[-1]), frames, params.outer_diameter / 2.0)
+    L1, L2 = params.segment_lengths
     seg1 = _segment_samples(frames.T_world_1b, L1, q[2], q[3], samples_per_segment)
     seg2 = _segment_samples(frames.T_world_2b, L2, q[4], q[5], samples_per_segment)
     centre = np.vstack([stem[:-1], seg1, seg2])
     return ArmShape(centre, len(stem) - 1 + len(seg1), frames, params.outer_diameter / 2.0)
 
 
-def arm_shape(params: RobotParams, psi: object, samples_per_segment: int = 24) -> ArmShape:
+def arm_shape(params: Arm, psi: object, samples_per_segment: int = 24) -> ArmShape:
     """Nominal (model) shape of the arm in {w} [m] at configuration psi [rad, m, rad, rad, rad, rad]."""
     return shape_from_frames(params, psi, forward_kinematics(params, psi), None, samples_per_segment)

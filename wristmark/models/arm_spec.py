@@ -37,13 +37,14 @@ from numpy.typing import NDArray
 from wristmark.models.config_io import from_mapping, load_section
 from wristmark.models.errors import ConfigError
 from wristmark.models.marker import MarkerModel
-from wristmark.models.robot_params import RobotParams
+from wristmark.models.robot_params import HOME_PSI, RobotParams
 
 Array = NDArray[np.float64]
 
 JOINT_TYPES = ("revolute_z", "prismatic_z")
 ACTUATION_TYPES = ("push_pull", "tendons", "direct")
 MAX_SEGMENTS = 4
+HOME_BEND = 1.0  # [rad] total bend of the default home (ArmSpec.default_home)
 _RANK_TOL = 1e-6  # |sin| or |cos| below which actuator directions count as parallel / blind
 
 
@@ -184,6 +185,7 @@ class ArmSpec:
     outer_diameter: float = 0.0074
     tip_offset: float = 0.015
     format: int = 2
+    home: tuple[float, ...] | None = None  # psi at rest; None: default_home()
 
     def validate(self) -> None:
         """Raise ConfigError with the key of the first bad value (e.g. ``segments[1].length``)."""
@@ -201,6 +203,13 @@ class ArmSpec:
             j.check(f"stem[{i}]")
         for t, s in enumerate(self.segments):
             s.check(f"segments[{t}]", t, self.outer_diameter / 2.0)
+        if self.home is not None:
+            if len(self.home) != self.n:
+                raise ConfigError(f"home: expected {self.n} entries [{', '.join(self.names)}], got {len(self.home)}")
+            lo, hi = self.bounds()
+            for i, v in enumerate(self.home):
+                if not (math.isfinite(v) and lo[i] <= v <= hi[i]):
+                    raise ConfigError(f"home[{i}] ({self.names[i]}): expected within [{lo[i]}, {hi[i]}], got {v}")
         seen = set(self.segment_names)
         for i, j in enumerate(self.stem):
             if j.name in seen:
@@ -300,6 +309,25 @@ class ArmSpec:
                 hi += [s.theta_max, math.inf]
         return np.array(lo), np.array(hi)
 
+    def home_psi(self) -> Array:
+        """The configuration at rest (the robot file's ``home``, else :meth:`default_home`)."""
+        return np.array(self.home if self.home is not None else self.default_home(), dtype=float)
+
+    def default_home(self) -> tuple[float, ...]:
+        """Home when the robot file states none: revolute stem joints at 0 (clipped into their
+        range), prismatic ones at mid-range; the segments bent in their plane delta = 0 (a planar
+        segment: along its plane) by a total of 1 rad shared in proportion to their lengths (each
+        at most 0.8 theta_max): the marker's axis tilted towards x_w, seen side-on by a camera
+        facing the arm along y_w (the simulated bench's, sim.setup.camera_for_arm), with room
+        to bend further and back around it (the cube of the experiments)."""
+        out = [min(max(0.0, j.range[0]), j.range[1]) if j.joint == "revolute_z" else 0.5 * (j.range[0] + j.range[1])
+               for j in self.stem]
+        total = sum(s.length for s in self.segments)
+        for s in self.segments:
+            th = min(HOME_BEND * s.length / total, 0.8 * s.theta_max)
+            out += [th] if s.planar is not None else [th, 0.0]
+        return tuple(out)
+
     def velocity_limits(self) -> Array:
         """|psi_dot| limits in psi's order [rad/s or m/s]."""
         out = [j.max_velocity for j in self.stem]
@@ -326,7 +354,7 @@ class ArmSpec:
             for t in range(2)
         )
         spec = cls(segments=segs, stem=stem, name=name, marker_offset=params.marker_offset,
-                   outer_diameter=params.outer_diameter, tip_offset=params.tip_offset)
+                   outer_diameter=params.outer_diameter, tip_offset=params.tip_offset, home=HOME_PSI)
         spec.validate()
         return spec
 
@@ -341,6 +369,54 @@ class ArmSpec:
             data = {**data, "stem": []}
         _require_keys(data, source)
         return from_mapping(cls, data, source)
+
+
+Arm = RobotParams | ArmSpec
+"""The arm the loop carries: the reference arm's flat parameters or any arm (the model
+functions of models.kinematics, limits, actuation, ik take either)."""
+
+
+def as_spec(arm: Arm) -> ArmSpec:
+    """``arm`` as an ArmSpec (the reference arm's through :meth:`ArmSpec.from_params`, cached)."""
+    if isinstance(arm, ArmSpec):
+        return arm
+    return _spec_of_params(arm)
+
+
+_SPEC_CACHE: dict[RobotParams, ArmSpec] = {}
+
+
+def _spec_of_params(params: RobotParams) -> ArmSpec:
+    spec = _SPEC_CACHE.get(params)
+    if spec is None:
+        spec = _SPEC_CACHE[params] = ArmSpec.from_params(params)
+    return spec
+
+
+def home_psi(arm: Arm) -> Array:
+    """The arm's home configuration: HOME_PSI for the reference arm's flat parameters."""
+    return arm.home_psi() if isinstance(arm, ArmSpec) else np.asarray(HOME_PSI, float)
+
+
+def arm_names(arm: Arm) -> tuple[str, ...]:
+    """Names of psi's entries (the reference arm: phi, d, theta1, delta1, theta2, delta2)."""
+    return as_spec(arm).names
+
+
+def actuator_names(arm: Arm) -> tuple[str, ...]:
+    """Names of the actuators (the reference arm: phi, d, s1a, s1b, s2a, s2b)."""
+    return as_spec(arm).actuator_names
+
+
+def log_psi_names(arm: Arm) -> tuple[str, ...] | None:
+    """The names a run log gives psi's entries: None for the reference arm's flat parameters
+    (log.csv keeps psi_cmd_0..5), the arm's names otherwise."""
+    return None if isinstance(arm, RobotParams) else arm.names
+
+
+def arm_size(arm: Arm) -> tuple[int, int]:
+    """(n, m): configuration variables and actuators (the reference arm: 6, 6)."""
+    return (6, 6) if isinstance(arm, RobotParams) else (arm.n, arm.m)
 
 
 _REQUIRED = {"stem": ("joint", "name", "range", "max_velocity"),
@@ -379,8 +455,26 @@ def load_arm(path: str | Path, marker: MarkerModel | None = None) -> ArmSpec:
     return spec.with_marker(marker) if marker is not None else spec
 
 
+def load_loop_arm(path: str | Path | None, marker: MarkerModel) -> Arm:
+    """The arm a servo loop carries, with ``marker``'s tip offset: the reference arm's
+    RobotParams for the flat file (or None: the default arm; models.robot_params.load_robot), an
+    ArmSpec for a format-2 file."""
+    if path is not None and robot_file_format(path) == 2:
+        return load_arm(path, marker)
+    from wristmark.models.robot_params import load_robot
+
+    return load_robot(path, marker)
+
+
 def _is_format_2(data: dict[str, Any]) -> bool:
     return bool({"format", "segments", "stem"} & set(data))
+
+
+def shipped_robot_files() -> list[Path]:
+    """The robot files shipped in configs/robots/ (not their ``<name>_plant.yaml`` plant files)."""
+    from wristmark.models.config_files import CONFIG_DIR
+
+    return sorted(p for p in (CONFIG_DIR / "robots").glob("*.yaml") if not p.stem.endswith("_plant"))
 
 
 def robot_file_format(path: str | Path) -> int:

@@ -15,10 +15,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from wristmark.models.arm_spec import Arm
 from wristmark.models.errors import InputError
 from wristmark.models.kinematics import check_psi, forward_kinematics, tip_jacobian
 from wristmark.models.limits import clamp_psi
-from wristmark.models.robot_params import RobotParams
 
 Array = NDArray[np.float64]
 
@@ -37,7 +37,7 @@ class IkResult:
     converged: bool
 
 
-def _tip_error(params: RobotParams, q: Array, target: Array) -> tuple[Array, Array]:
+def _tip_error(params: Arm, q: Array, target: Array) -> tuple[Array, Array]:
     frames = forward_kinematics(params, q)
     e = target - frames.tip
     J = tip_jacobian(params, q, frames)[:3]
@@ -45,7 +45,7 @@ def _tip_error(params: RobotParams, q: Array, target: Array) -> tuple[Array, Arr
 
 
 def solve_tip_ik(
-    params: RobotParams,
+    params: Arm,
     p_world_target: object,
     psi_start: object,
     tol: float = 1e-7,
@@ -65,7 +65,7 @@ def solve_tip_ik(
         raise InputError(f"IK target must be 3 numbers [m] in {{w}}, got {p_world_target!r}") from exc
     if target.shape != (3,) or not np.all(np.isfinite(target)):
         raise InputError(f"IK target must be 3 finite numbers [m] in {{w}}, got {target.tolist()}")
-    q = clamp_psi(params, check_psi(psi_start))
+    q = clamp_psi(params, check_psi(psi_start, params))
     e, J = _tip_error(params, q, target)
     err = float(np.linalg.norm(e))
     lam = damping

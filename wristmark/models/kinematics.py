@@ -19,15 +19,24 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from wristmark.models.constant_curvature import Rot, Vec, f_g, segment_pose
+from wristmark.models.arm_kinematics import arm_frames, arm_tip_jacobian, check_arm_psi
+from wristmark.models.arm_spec import Arm, ArmSpec
+from wristmark.models.constant_curvature import Rot, Vec, segment_pose
 from wristmark.models.errors import InputError
+from wristmark.models.float_chain import _along_z, _compose, _homogeneous_stack, _segment_columns
 from wristmark.models.robot_params import RobotParams
 
 Array = NDArray[np.float64]
 
 
-def check_psi(psi: object) -> Array:
-    """Return psi as a finite float array of shape (6,); raise InputError otherwise."""
+def check_psi(psi: object, arm: Arm | None = None) -> Array:
+    """Return psi as a finite float array of shape (n,) (6 for the reference arm, ``arm.n`` for
+    an ArmSpec ``arm``); raise InputError otherwise."""
+    if isinstance(arm, ArmSpec):
+        q = check_arm_psi(arm, psi)
+        if q.ndim != 1:
+            raise InputError(f"psi must have {arm.n} entries [{', '.join(arm.names)}], got shape {q.shape}")
+        return q
     a = np.asarray(psi, dtype=float)
     if a.shape != (6,):
         raise InputError(
@@ -40,7 +49,9 @@ def check_psi(psi: object) -> Array:
 
 @dataclass(frozen=True)
 class ArmFrames:
-    """Poses in {w} of the arm's frames for one configuration [m]."""
+    """Poses in {w} of the arm's frames for one configuration [m]. For an arm of N segments
+    (ArmSpec) {1b}, {1e} are the first segment's base and end rings, {2b}, {2e} the last one's,
+    and ``segment_bases`` / ``segment_ends`` give every segment's (the reference arm: two)."""
 
     T_world_1b: Array
     T_world_1e: Array
@@ -48,48 +59,23 @@ class ArmFrames:
     T_world_2e: Array
     T_world_marker: Array
     T_world_tip: Array
+    bases: Array | None = None  # (N, 4, 4) for an ArmSpec; None: [1b, 2b]
+    ends: Array | None = None  # (N, 4, 4) for an ArmSpec; None: [1e, 2e]
+
+    @property
+    def segment_bases(self) -> list[Array]:
+        """Each segment's base ring {tb} in {w}, proximal first."""
+        return [self.T_world_1b, self.T_world_2b] if self.bases is None else list(self.bases)
+
+    @property
+    def segment_ends(self) -> list[Array]:
+        """Each segment's end ring {te} in {w}, proximal first."""
+        return [self.T_world_1e, self.T_world_2e] if self.ends is None else list(self.ends)
 
     @property
     def tip(self) -> Array:
         """Tip position in {w} [m]."""
         return self.T_world_tip[:3, 3]
-
-
-def _compose(Ra: Rot, pa: Vec, Rb: Rot, pb: Vec) -> tuple[Rot, Vec]:
-    """(Ra, pa) * (Rb, pb) on plain floats: rotation row-major 9-tuple, translation 3-tuple."""
-    a0, a1, a2, a3, a4, a5, a6, a7, a8 = Ra
-    b0, b1, b2, b3, b4, b5, b6, b7, b8 = Rb
-    x, y, z = pb
-    # fmt: off
-    R = (
-        a0 * b0 + a1 * b3 + a2 * b6, a0 * b1 + a1 * b4 + a2 * b7, a0 * b2 + a1 * b5 + a2 * b8,
-        a3 * b0 + a4 * b3 + a5 * b6, a3 * b1 + a4 * b4 + a5 * b7, a3 * b2 + a4 * b5 + a5 * b8,
-        a6 * b0 + a7 * b3 + a8 * b6, a6 * b1 + a7 * b4 + a8 * b7, a6 * b2 + a7 * b5 + a8 * b8,
-    )
-    # fmt: on
-    p = (
-        a0 * x + a1 * y + a2 * z + pa[0],
-        a3 * x + a4 * y + a5 * z + pa[1],
-        a6 * x + a7 * y + a8 * z + pa[2],
-    )
-    return R, p
-
-
-def _along_z(R: Rot, p: Vec, dz: float) -> Vec:
-    """Origin of (R, p) * Tz(dz)."""
-    return (p[0] + R[2] * dz, p[1] + R[5] * dz, p[2] + R[8] * dz)
-
-
-def _homogeneous_stack(poses: list[tuple[Rot, Vec]]) -> Array:
-    """(n, 4, 4) array of the poses, filled in one numpy call."""
-    flat: list[float] = []
-    for R, p in poses:
-        flat += (R[0], R[1], R[2], p[0], R[3], R[4], R[5], p[1], R[6], R[7], R[8], p[2])
-        flat += _LAST_ROW
-    return np.fromiter(flat, np.float64, len(flat)).reshape(len(poses), 4, 4)
-
-
-_LAST_ROW = (0.0, 0.0, 0.0, 1.0)
 
 
 def _chain(params: RobotParams, q: list[float], stem_bend: float = 0.0) -> list[tuple[Rot, Vec]]:
@@ -109,49 +95,39 @@ def _chain(params: RobotParams, q: list[float], stem_bend: float = 0.0) -> list[
     return [(R1b, p1b), (R1e, p1e), (R1e, p2b), (R2e, p2e), (R2e, pm), (R2e, ptip)]
 
 
-def forward_kinematics(params: RobotParams, psi: object, stem_bend: float = 0.0) -> ArmFrames:
+def forward_kinematics(params: Arm, psi: object, stem_bend: float = 0.0) -> ArmFrames:
     """All frames of the chain in {w} [m] for configuration ``psi`` [rad, m, rad, rad, rad, rad].
     ``stem_bend`` [rad]: the exposed stem (incision to {1b}, length d) bent as a constant-curvature
-    arc in segment 1's plane (delta1), as the simulated true arm's stem coupling does; 0 (the model): straight."""
+    arc in segment 1's plane (delta1), as the simulated true arm's stem coupling does; 0 (the model): straight.
+    ``params`` may be any arm (ArmSpec, psi of its n entries)."""
+    if isinstance(params, ArmSpec):
+        return _spec_frames(params, psi, float(stem_bend))
     T = _homogeneous_stack(_chain(params, check_psi(psi).tolist(), float(stem_bend)))
     return ArmFrames(T[0], T[1], T[2], T[3], T[4], T[5])
 
 
-def tip_position(params: RobotParams, psi: object) -> Array:
+def _spec_frames(spec: ArmSpec, psi: object, stem_bend: float) -> ArmFrames:
+    """forward_kinematics of any arm; a bent stem moves every frame rigidly with {1b}."""
+    P = arm_frames(spec, check_psi(psi, spec))
+    B, E, M, T = P.T_world_base, P.T_world_end, P.T_world_marker, P.T_world_tip
+    if stem_bend != 0.0:
+        q = np.asarray(psi, float)
+        lay = spec.layout
+        phi = float(q[lay.revolute].sum())
+        d = float(q[lay.prismatic].sum())
+        d1 = spec.segments[0].planar if spec.delta_index[0] is None else float(q[spec.delta_index[0]])
+        Rb, pb = _compose((math.cos(phi), -math.sin(phi), 0.0, math.sin(phi), math.cos(phi), 0.0, 0.0, 0.0, 1.0),
+                          (0.0, 0.0, 0.0), *segment_pose(d, stem_bend, d1 or 0.0))
+        W = _homogeneous_stack([(Rb, pb)])[0] @ np.linalg.inv(B[0])
+        B, E, M, T = W @ B, W @ E, W @ M, W @ T
+    return ArmFrames(B[0], E[0], B[-1], E[-1], M, T, B, E)
+
+
+def tip_position(params: Arm, psi: object) -> Array:
     """Tip position in {w} [m]."""
+    if isinstance(params, ArmSpec):
+        return np.array(arm_frames(params, check_psi(psi, params)).tip)
     return np.array(_chain(params, check_psi(psi).tolist())[5][1])
-
-
-def _segment_columns(
-    length: float, theta: float, delta: float, Rb: Rot, p_end: Vec, p_tip: Vec
-) -> tuple[list[float], list[float]]:
-    """Tip Jacobian columns [theta, delta] of one segment: 6 linear and 6 angular entries,
-    row-major (3x2 each), in {w}. ``Rb`` is the segment base's rotation in {w}."""
-    f, g, df, dg = f_g(theta)
-    cd, sd = math.cos(delta), math.sin(delta)
-    S = math.sin(theta)
-    # local (base-frame) columns: Jv = L [cd df, -sd f; -sd df, -cd f; dg, 0],
-    # Jw = [sd, cd S; cd, -sd S; 0, -theta f]
-    r0, r1, r2, r3, r4, r5, r6, r7, r8 = Rb
-    lx, ly, lz = p_tip[0] - p_end[0], p_tip[1] - p_end[1], p_tip[2] - p_end[2]
-    # angular columns in {w}: R wt, R wd
-    atx, aty, atz = r0 * sd + r1 * cd, r3 * sd + r4 * cd, r6 * sd + r7 * cd
-    wdx, wdy, wdz = cd * S, -sd * S, -theta * f
-    adx = r0 * wdx + r1 * wdy + r2 * wdz
-    ady = r3 * wdx + r4 * wdy + r5 * wdz
-    adz = r6 * wdx + r7 * wdy + r8 * wdz
-    # linear columns: R v + w x lever
-    vtx, vty, vtz = length * cd * df, -length * sd * df, length * dg
-    vdx, vdy = -length * sd * f, -length * cd * f
-    lin = [
-        r0 * vtx + r1 * vty + r2 * vtz + aty * lz - atz * ly,
-        r0 * vdx + r1 * vdy + ady * lz - adz * ly,
-        r3 * vtx + r4 * vty + r5 * vtz + atz * lx - atx * lz,
-        r3 * vdx + r4 * vdy + adz * lx - adx * lz,
-        r6 * vtx + r7 * vty + r8 * vtz + atx * ly - aty * lx,
-        r6 * vdx + r7 * vdy + adx * ly - ady * lx,
-    ]
-    return lin, [atx, adx, aty, ady, atz, adz]
 
 
 def _pose_of(T: Array) -> tuple[Rot, Vec]:
@@ -160,12 +136,15 @@ def _pose_of(T: Array) -> tuple[Rot, Vec]:
     return (r[0], r[1], r[2], r[4], r[5], r[6], r[8], r[9], r[10]), (r[3], r[7], r[11])
 
 
-def tip_jacobian(params: RobotParams, psi: object, frames: ArmFrames | None = None) -> Array:
+def tip_jacobian(params: Arm, psi: object, frames: ArmFrames | None = None) -> Array:
     """6x6 Jacobian: rows 0-2 tip linear velocity, rows 3-5 tip-frame angular velocity, in {w}.
 
     Columns follow psi_dot = [phi_dot, d_dot, theta1_dot, delta1_dot, theta2_dot, delta2_dot].
     ``frames`` (from :func:`forward_kinematics` at the same psi) saves recomputing the chain.
+    Any arm (ArmSpec): 6 x n, columns in psi's order.
     """
+    if isinstance(params, ArmSpec):
+        return arm_tip_jacobian(params, check_psi(psi, params))
     q = check_psi(psi).tolist()
     if frames is None:
         chain = _chain(params, q)

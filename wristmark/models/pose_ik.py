@@ -16,11 +16,11 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
 
+from wristmark.models.arm_spec import Arm, arm_size
 from wristmark.models.errors import InputError
 from wristmark.models.ik import solve_tip_ik
 from wristmark.models.kinematics import check_psi, forward_kinematics, tip_jacobian
 from wristmark.models.limits import clamp_psi, psi_bounds
-from wristmark.models.robot_params import RobotParams
 from wristmark.models.so3 import rotation_error
 
 Array = NDArray[np.float64]
@@ -35,7 +35,7 @@ class PoseIkResult:
     orientation_error: float
 
 
-def solve_pose_ik(params: RobotParams, p_world_target: object, R_world_target: object, psi_start: object,
+def solve_pose_ik(params: Arm, p_world_target: object, R_world_target: object, psi_start: object,
                   orientation_scale: float = 0.03, tol: float = 1e-10) -> PoseIkResult:
     """Configuration whose nominal tip is at ``p_world_target`` (3,) [m] with the tip frame's
     orientation ``R_world_target`` (3x3), both in {w}; starts from ``psi_start``. An unreachable
@@ -46,7 +46,7 @@ def solve_pose_ik(params: RobotParams, p_world_target: object, R_world_target: o
         raise InputError(f"pose IK needs a finite position (3,) [m] and rotation (3, 3), got {p.shape} and {R.shape}")
     s = float(orientation_scale)
     lo, hi = psi_bounds(params)
-    q0 = np.clip(clamp_psi(params, check_psi(psi_start)), lo, hi)
+    q0 = np.clip(clamp_psi(params, check_psi(psi_start, params)), lo, hi)
 
     def residual(q: Array) -> Array:
         f = forward_kinematics(params, q)
@@ -63,9 +63,10 @@ def solve_pose_ik(params: RobotParams, p_world_target: object, R_world_target: o
     return PoseIkResult(q, float(np.linalg.norm(r[:3])), float(np.linalg.norm(r[3:]) / s))
 
 
-def nominal_ik(params: RobotParams, p_world: Array, R_world: Array | None, psi_start: Array) -> Array:
+def nominal_ik(params: Arm, p_world: Array, R_world: Array | None, psi_start: Array) -> Array:
     """The open loop's command: position IK of the tip ``p_world`` [m] in {w}, or pose IK when a
-    tip-frame orientation ``R_world`` (3x3, {w}) is asked for too."""
-    if R_world is None:
+    tip-frame orientation ``R_world`` (3x3, {w}) is asked for too. An arm of fewer than 6
+    configuration variables cannot hold a pose: position only (the orientation is dropped)."""
+    if R_world is None or arm_size(params)[0] < 6:
         return solve_tip_ik(params, p_world, psi_start).psi
     return solve_pose_ik(params, p_world, R_world, psi_start).psi

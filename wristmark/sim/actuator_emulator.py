@@ -24,11 +24,12 @@ from collections.abc import Callable
 import numpy as np
 
 from wristmark.models.arm_shape import ArmShape
+from wristmark.models.arm_spec import Arm
 from wristmark.models.errors import WristmarkError
 from wristmark.models.limits import actuator_bounds
 from wristmark.models.plant_interface import ActuatedArm
-from wristmark.models.robot_params import RobotParams
 from wristmark.rig.link import protocol as P
+from wristmark.rig.link.actuator_driver import check_protocol_arm
 
 _POLL_S = 0.01  # serve loop wake-up period [s]: watchdog and arm advance resolution
 
@@ -36,12 +37,13 @@ _POLL_S = 0.01  # serve loop wake-up period [s]: watchdog and arm advance resolu
 class ActuatorEmulator:
     """Device side of protocol v1 around an arm. Thread-safe: one lock guards the state."""
 
-    def __init__(self, arm: ActuatedArm, params: RobotParams, watchdog_s: float = 0.25,
+    def __init__(self, arm: ActuatedArm, params: Arm, watchdog_s: float = 0.25,
                  clock: Callable[[], float] = time.monotonic) -> None:
         if watchdog_s <= 0:
             raise WristmarkError(f"watchdog_s must be > 0 s, got {watchdog_s}")
         self.arm = arm
         self.params = params
+        check_protocol_arm(params)
         self.watchdog_s = float(watchdog_s)
         self.clock = clock
         self.lo, self.hi = actuator_bounds(params)

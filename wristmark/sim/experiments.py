@@ -11,10 +11,10 @@ from typing import Any
 
 import numpy as np
 
+from wristmark.models.arm_spec import as_spec, home_psi, log_psi_names
 from wristmark.models.errors import ConfigError
 from wristmark.models.ik import solve_tip_ik
 from wristmark.models.kinematics import forward_kinematics
-from wristmark.models.robot_params import HOME_PSI
 from wristmark.rig.loop.metrics import (
     corner_overshoot,
     error_stats,
@@ -99,7 +99,7 @@ def run_point(setup: SimSetup, out_dir: Path, point: np.ndarray | None = None, p
     from wristmark.rig.loop.servo_session import POINT_HOLD_S, PointHold
 
     p = workspace_centre(setup.params) if point is None else np.asarray(point, float)
-    miss = solve_tip_ik(setup.params, p, np.asarray(HOME_PSI)).error
+    miss = solve_tip_ik(setup.params, p, home_psi(setup.params)).error
     if not miss <= 1e-4:
         raise ConfigError(f"the point {np.round(1000 * p, 2).tolist()} mm is out of reach of the arm "
                           f"(IK misses it by {1000 * miss:.2f} mm)")
@@ -120,7 +120,7 @@ def run_open_closed(setup: SimSetup, traj: Trajectory, experiment: str, out_dir:
     write_json(out_dir / "config.json", {"experiment": experiment, **setup.describe()})
     centre = workspace_centre(setup.params)
     psi0 = start_configuration(setup.params, traj.sample(0.0)[0])
-    log = RunLog()
+    log = RunLog(psi_names=log_psi_names(setup.params))
     stats = {}
     open_loop = make_direct_loop(setup, psi0, closed_loop=False, seed=seed)
     open_loop.on_cycle = on_cycle
@@ -150,6 +150,9 @@ def run_open_closed(setup: SimSetup, traj: Trajectory, experiment: str, out_dir:
         "run_dir": str(out_dir),
     }
     res["ratio"] = res["closed_loop"]["mean_mm"] / res["open_loop"]["mean_mm"]
+    if log.psi_names is not None:  # any arm but the reference arm's flat file: which arm, by its names
+        spec = as_spec(setup.params)
+        res["arm"] = {"name": spec.name, "configuration": list(spec.names), "actuators": list(spec.actuator_names)}
     probe = probe_report(closed.play_fits, closed.play_probe_note)  # the play probe (rig/loop/play_probe.py)
     if probe is not None:
         res["closed_loop"]["play_probe"] = probe
@@ -209,7 +212,7 @@ def run_accuracy(setup: SimSetup, out_dir: Path, n: int = 40, progress: bool = T
     out_dir.mkdir(parents=True, exist_ok=True)
     write_json(out_dir / "config.json", {"experiment": "accuracy", **setup.describe()})
     targets = accuracy_targets(workspace_centre(setup.params), n=n, seed=seed)
-    psi = np.asarray(HOME_PSI, float)
+    psi = home_psi(setup.params)
     plant = make_plant(setup, psi)
     frames, sensor = make_measurement(setup, plant, lambda: plant.time, seed)
     tracker = OpticalTracker(setup.rig.tracker_rms, seed=seed + 7)

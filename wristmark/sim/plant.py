@@ -15,16 +15,17 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
 from wristmark.models.arm_shape import ArmShape, shape_from_frames
+from wristmark.models.arm_spec import Arm, ArmSpec, arm_size
 from wristmark.models.constant_curvature import rot_z, segment_point
 from wristmark.models.errors import InputError
 from wristmark.models.kinematics import ArmFrames, check_psi, forward_kinematics
-from wristmark.models.robot_params import RobotParams
 from wristmark.sim.plant_params import PlantParams
 
 Array = NDArray[np.float64]
@@ -45,12 +46,21 @@ class TruePlant:
     so that :meth:`true_shape_at` can give its shape at an earlier instant (a camera whose frames
     are that old; 0: no memory)."""
 
-    def __init__(self, params: RobotParams, plant: PlantParams, psi0: Array | None = None,
+    def __init__(self, params: Arm, plant: PlantParams, psi0: Array | None = None,
                  dt_internal: float = 1e-3, history: float = 0.0) -> None:
         self.params = params
-        self.plant = plant
+        n, m = arm_size(params)
+        segments = len(params.segments) if isinstance(params, ArmSpec) else 2
+        self.plant = plant = plant.for_arm(segments, m)
+        self._m = m
+        # any arm: the true arm's planar segments bend in their plane turned by the plane offset
+        self._true: Arm = params
+        if isinstance(params, ArmSpec):
+            self._true = replace(params, segments=tuple(
+                replace(sg, planar=sg.planar + plant.plane_offset[t]) if sg.planar is not None else sg
+                for t, sg in enumerate(params.segments)))
         self.dt_internal = float(dt_internal)
-        q0 = check_psi(psi0 if psi0 is not None else np.zeros(6))
+        q0 = check_psi(psi0 if psi0 is not None else np.zeros(n), params)
         a0 = actuators_from_psi(params, q0)
         self._target = a0.copy()
         self._motor = a0.copy()
@@ -69,10 +79,10 @@ class TruePlant:
         return self._time
 
     def command(self, actuators: Array) -> None:
-        """Set actuator targets [rad, m, m, m, m, m]."""
+        """Set actuator targets [rad, m, m, m, m, m] (any arm: its m actuators)."""
         a = np.asarray(actuators, float)
-        if a.shape != (6,) or not np.all(np.isfinite(a)):
-            raise InputError(f"actuator targets must be 6 finite numbers, got {a}")
+        if a.shape != (self._m,) or not np.all(np.isfinite(a)):
+            raise InputError(f"actuator targets must be {self._m} finite numbers, got {a}")
         self._target = a.copy()
 
     def hold(self) -> None:
@@ -104,7 +114,7 @@ class TruePlant:
     def true_shape(self) -> ArmShape:
         """The true arm's shape now."""
         psi, frames, stem = self._state()
-        return shape_from_frames(self.params, psi, frames, stem_points=stem)
+        return shape_from_frames(self._true, psi, frames, stem_points=stem)
 
     def true_shape_at(self, t: float) -> ArmShape:
         """The true arm's shape at the earlier instant ``t`` [s] of its clock: its backbones'
@@ -119,7 +129,7 @@ class TruePlant:
         outs = np.array([p[1] for p in self._past])
         output = np.array([np.interp(t, ts, outs[:, i]) for i in range(outs.shape[1])])
         psi, frames, stem = self._bend(psi_from_actuators(self.params, output, self._delta_hint))
-        return shape_from_frames(self.params, psi, frames, stem_points=stem)
+        return shape_from_frames(self._true, psi, frames, stem_points=stem)
 
     # -- truth -----------------------------------------------------------------------------
     @property
@@ -141,12 +151,24 @@ class TruePlant:
     def _chain(self, q: Array) -> tuple[ArmFrames, Array]:
         """The model's chain (models.kinematics) with the stem bent by stem_coupling x theta1, and
         points along the bent stem."""
+        if isinstance(self._true, ArmSpec):
+            spec = self._true
+            lay = spec.layout
+            th1 = float(q[spec.theta_index[0]])
+            de1 = spec.segments[0].planar if spec.delta_index[0] is None else float(q[spec.delta_index[0]])
+            theta_s = self.plant.stem_coupling * th1
+            R_w_s = rot_z(float(q[lay.revolute].sum()))
+            d = float(q[lay.prismatic].sum())
+            stem = np.array([R_w_s @ segment_point(d, theta_s, de1 or 0.0, s) for s in np.linspace(0, 1, 8)])
+            return forward_kinematics(spec, q, stem_bend=theta_s), stem
         theta_s = self.plant.stem_coupling * q[2]
         R_w_s = rot_z(q[0])
         stem = np.array([R_w_s @ segment_point(q[1], theta_s, q[3], s) for s in np.linspace(0, 1, 8)])
         return forward_kinematics(self.params, q, stem_bend=theta_s), stem
 
     def _bend(self, q_out: Array) -> tuple[Array, ArmFrames, Array]:
+        if isinstance(self._true, ArmSpec):
+            return self._bend_any(self._true, q_out)
         P = self.plant
         q = q_out.copy()
         for t in range(2):
@@ -160,5 +182,29 @@ class TruePlant:
                 m_loc = T_base[:3, :3].T @ M
                 th, de = _add_bend(q[2 + 2 * t], q[3 + 2 * t], m_loc[:2] / P.segment_stiffness[t])
                 q[2 + 2 * t], q[3 + 2 * t] = th, de
+            frames, stem = self._chain(q)
+        return q, frames, stem
+
+    def _bend_any(self, spec: ArmSpec, q_out: Array) -> tuple[Array, ArmFrames, Array]:
+        """:meth:`_bend` for any arm: per segment the gain on theta and the offset on delta (a
+        planar segment's offset is in its turned plane), then the tip load's bend."""
+        P = self.plant
+        q = q_out.copy()
+        idx = list(zip(spec.theta_index, spec.delta_index))
+        for t, (ti, di) in enumerate(idx):
+            q[ti] *= P.bend_gain[t]
+            if di is not None:
+                q[di] += P.plane_offset[t]
+        frames, stem = self._chain(q)
+        F = np.asarray(P.tip_force, float)
+        if np.any(F != 0.0):
+            for t, ((ti, di), T_base) in enumerate(zip(idx, frames.segment_bases)):
+                M = np.cross(frames.tip - T_base[:3, 3], F)
+                dv = (T_base[:3, :3].T @ M)[:2] / P.segment_stiffness[t]
+                if di is None:  # planar: the load's bend along the plane, theta [sin p, cos p]
+                    plane = spec.segments[t].planar or 0.0
+                    q[ti] += dv[0] * math.sin(plane) + dv[1] * math.cos(plane)
+                else:
+                    q[ti], q[di] = _add_bend(q[ti], q[di], dv)
             frames, stem = self._chain(q)
         return q, frames, stem

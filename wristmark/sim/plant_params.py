@@ -6,8 +6,9 @@ Every key is optional; zero (or one, for gains) means ideal.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -26,17 +27,19 @@ class PlantParams:
     segment 1's plane [-]. backlash: dead-band per actuator [rad, m, m, m, m, m].
     actuator_tau: first-order lag of every actuator [s]. tip_force: constant force at the tip
     in {w} [N]. segment_stiffness: bending stiffness turning load moments into bend [N m/rad].
+    bend_gain, plane_offset and segment_stiffness have one entry per segment of the arm, backlash
+    one per actuator (:meth:`for_arm`; a planar segment's plane_offset turns its fixed plane).
     camera_offset: [x, y, z, rx, ry, rz] (metres; rotation vector, rad) expressed in {ll}: the
     simulated camera truly sits at world_T_left @ T(offset) while the host believes world_T_left.
     """
 
-    bend_gain: tuple[float, float] = (1.0, 1.0)
-    plane_offset: tuple[float, float] = (0.0, 0.0)
+    bend_gain: tuple[float, ...] = (1.0, 1.0)
+    plane_offset: tuple[float, ...] = (0.0, 0.0)
     stem_coupling: float = 0.0
-    backlash: tuple[float, float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    backlash: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     actuator_tau: float = 0.0
     tip_force: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    segment_stiffness: tuple[float, float] = (0.40, 0.15)
+    segment_stiffness: tuple[float, ...] = (0.40, 0.15)
     camera_offset: tuple[float, float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     def validate(self) -> None:
@@ -65,6 +68,27 @@ class PlantParams:
             raise ConfigError(f"'camera_offset' rotation vector must be within 0.5 rad, "
                               f"got {list(self.camera_offset[3:])}")
 
+    def for_arm(self, segments: int, actuators: int, source: str = "<plant>") -> PlantParams:
+        """These errors checked against an arm of ``segments`` segments and ``actuators``
+        actuators: a per-segment key needs one entry per segment, ``backlash`` one per actuator
+        (ConfigError naming the key and the expected length). A key left at its default (the
+        ideal arm; the default stiffness) is sized to the arm."""
+        sizes = {"bend_gain": segments, "plane_offset": segments, "segment_stiffness": segments,
+                 "backlash": actuators}
+        default = PlantParams()
+        changes: dict[str, Any] = {}
+        for key, want in sizes.items():
+            have = getattr(self, key)
+            if len(have) == want:
+                continue
+            if have == getattr(default, key):
+                changes[key] = _default_sized(key, want)
+                continue
+            what = "segment" if key != "backlash" else "actuator"
+            raise ConfigError(f"{source}: '{key}' must have {want} entries (one per {what} of the arm), "
+                              f"got {len(have)}")
+        return replace(self, **changes) if changes else self
+
     def camera_offset_transform(self) -> NDArray[np.float64]:
         """T(offset): 4x4 pose of the true {ll} in the believed {ll} [m]."""
         T = np.eye(4)
@@ -76,3 +100,11 @@ class PlantParams:
     def load(cls, path: str | Path) -> PlantParams:
         """Load and validate a plant file."""
         return from_mapping(cls, load_yaml(path), str(path))
+
+
+def _default_sized(key: str, n: int) -> tuple[float, ...]:
+    """The default (ideal) value of a per-segment or per-actuator key for ``n`` entries; the
+    default stiffness: the reference arm's proximal 0.40 N m/rad, then its distal 0.15."""
+    if key == "segment_stiffness":
+        return (0.40,) + (0.15,) * (n - 1)
+    return ((1.0,) if key == "bend_gain" else (0.0,)) * n

@@ -7,7 +7,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
-from wristmark.models.robot_params import HOME_PSI
+from wristmark.models.arm_spec import home_psi
 from wristmark.sim.render.settings import noise_preset
 from wristmark.sim.render.stereo_renderer import StereoRenderer
 from wristmark.sim.setup import SimSetup, make_plant
@@ -21,10 +21,10 @@ class SimRegistrationRig:
 
     def __init__(self, setup: SimSetup, seed: int = 0) -> None:
         self.setup = setup
-        self.plant = make_plant(setup, np.asarray(HOME_PSI, float))
+        self.plant = make_plant(setup, home_psi(setup.params))
         self.renderer = StereoRenderer(setup.render_camera, setup.marker, noise_preset(setup.rig.render_noise),
                                        seed=seed)
-        self._hint = np.asarray(HOME_PSI, float)
+        self._hint = home_psi(setup.params)
 
     def move_to(self, psi: Array) -> None:
         """Command psi and let the plant settle (the lag is exact; no ramp is needed in simulation)."""

@@ -14,9 +14,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera
+from wristmark.models.arm_spec import Arm, ArmSpec, arm_size, home_psi, robot_file_format
 from wristmark.models.config_files import CONFIG_DIR, default_config
 from wristmark.models.config_io import to_mapping
+from wristmark.models.kinematics import forward_kinematics
+from wristmark.models.marker import MarkerModel
 from wristmark.models.plant_interface import ActuatedArm
+from wristmark.models.robot_params import RobotParams
 from wristmark.rig.link.actuator_link import DirectLink
 from wristmark.rig.loop.frame_feed import FrameFeed, SynchronousFeed
 from wristmark.rig.loop.loop_setup import LoopSetup, config_paths, load_loop_setup
@@ -69,10 +73,40 @@ def load_setup(
 ) -> SimSetup:
     """Load every configuration (None -> the file in configs/), validated."""
     base = load_loop_setup(robot=robot, marker=marker, camera=camera, rig=rig, controller=controller)
-    plant_path = config_paths(plant=plant)["plant"]
-    return SimSetup(params=base.params, marker=base.marker, camera=base.camera, rig=base.rig,
+    plant_path = Path(plant) if plant else arm_plant_file(robot) or config_paths(plant=plant)["plant"]
+    n_seg = len(base.params.segments) if isinstance(base.params, ArmSpec) else 2
+    the_plant = PlantParams.load(plant_path).for_arm(n_seg, arm_size(base.params)[1], str(plant_path))
+    cam = base.camera if camera is not None else camera_for_arm(base.camera, base.params, base.marker)
+    return SimSetup(params=base.params, marker=base.marker, camera=cam, rig=base.rig,
                     controller=base.controller, sources={**base.sources, "plant": str(plant_path)},
-                    plant=PlantParams.load(plant_path))
+                    plant=the_plant)
+
+
+def arm_plant_file(robot: str | Path | None) -> Path | None:
+    """The plant file shipped beside a format-2 robot file (``<name>_plant.yaml``, e.g.
+    configs/robots/tendon3_plant.yaml), if there is one: the default plant of that arm."""
+    if robot is None or robot_file_format(robot) != 2:
+        return None
+    p = Path(robot).with_name(Path(robot).stem + "_plant.yaml")
+    return p if p.is_file() else None
+
+
+def camera_for_arm(camera: StereoCamera, arm: Arm, marker: MarkerModel) -> StereoCamera:
+    """The default endoscope (configs/camera.yaml, placed for the reference arm: its home tip
+    ~80 mm ahead, the marker axis horizontal in the image) moved to frame ``arm``'s workspace:
+    translated by the difference of the two arms' home marker centres, so it sees the arm's
+    marker at home where it sees the reference arm's (both bent in the x_w-z_w plane). The
+    reference arm (flat file) keeps the file's pose."""
+    if not isinstance(arm, ArmSpec) or camera.T_world_left is None:
+        return camera
+    ref = RobotParams().with_marker(marker)
+    shift = (forward_kinematics(arm, home_psi(arm)).T_world_marker[:3, 3]
+             - forward_kinematics(ref, home_psi(ref)).T_world_marker[:3, 3])
+    if not np.any(np.abs(shift) > 1e-12):
+        return camera
+    W = np.array(camera.T_world_left, float)
+    W[:3, 3] += shift
+    return dataclasses.replace(camera, T_world_left=W)
 
 
 def make_measurement(setup: SimSetup, arm: ActuatedArm, clock: Callable[[], float],

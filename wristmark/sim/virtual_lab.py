@@ -34,9 +34,9 @@ import numpy as np
 
 from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera
 from wristmark.cvs.sources.mjpeg_server import MjpegServer
+from wristmark.models.arm_spec import Arm, home_psi
 from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
-from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.rig.loop.realtime_priority import MAX_PRIORITY, check_realtime_priority, request_realtime_priority
 from wristmark.sim.actuator_emulator import ActuatorEmulator
 from wristmark.sim.dense_truth import TRUTH_HEADER, DenseTruthArm
@@ -108,7 +108,7 @@ class VirtualLab:
     (:mod:`sim.dense_truth`; same CSV format as ``truth_out``).
     """
 
-    def __init__(self, params: RobotParams, plant: PlantParams, calibration: StereoCamera, marker: MarkerModel,
+    def __init__(self, params: Arm, plant: PlantParams, calibration: StereoCamera, marker: MarkerModel,
                  camera: LabCamera | None = None, psi0: Any = None, watchdog_s: float = 0.25,
                  truth_out: str | Path | None = None, rt_priority: int | None = None, render_rt: bool = True,
                  emulator_factory: Callable[..., ActuatorEmulator] | None = None,
@@ -122,7 +122,8 @@ class VirtualLab:
             calibration = dataclasses.replace(calibration, T_world_left=W)
         cam = calibration if self.options.image_scale == 1.0 else scaled_stereo_camera(calibration,
                                                                                      self.options.image_scale)
-        self.arm = LockedArm(TruePlant(params, plant, psi0=np.asarray(psi0 if psi0 is not None else HOME_PSI, float)))
+        start = np.asarray(psi0, float) if psi0 is not None else home_psi(params)
+        self.arm = LockedArm(TruePlant(params, plant, psi0=start))
         self.dense_truth = DenseTruthArm(self.arm) if truth_dense_out else None
         if self.dense_truth is not None:
             self.arm = self.dense_truth  # the emulator advances it: the true tip logged every few ms

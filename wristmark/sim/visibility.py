@@ -8,10 +8,10 @@ from numpy.typing import NDArray
 from wristmark.cvs.camera import StereoCamera
 from wristmark.cvs.marker.in_view import marker_in_view
 from wristmark.models.arm_shape import ArmShape, arm_shape
+from wristmark.models.arm_spec import Arm, home_psi
 from wristmark.models.errors import InputError
 from wristmark.models.limits import clamp_psi
 from wristmark.models.marker import MarkerModel
-from wristmark.models.robot_params import HOME_PSI, RobotParams
 
 Array = NDArray[np.float64]
 
@@ -28,16 +28,16 @@ def marker_visible(
 
 
 def random_visible_psi(
-    params: RobotParams,
+    params: Arm,
     camera: StereoCamera,
     marker: MarkerModel,
     rng: np.random.Generator,
     spread: tuple[float, ...],
     max_tries: int = 400,
 ) -> Array:
-    """A configuration drawn uniformly within ``spread`` around HOME_PSI, clamped to the joint
+    """A configuration drawn uniformly within ``spread`` around the arm's home, clamped to the joint
     limits, at which the marker is visible to both cameras."""
-    home = np.asarray(HOME_PSI, float)
+    home = home_psi(params)
     half = np.asarray(spread, float)
     for _ in range(max_tries):
         q = clamp_psi(params, home + rng.uniform(-half, half))

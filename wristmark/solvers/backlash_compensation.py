@@ -27,8 +27,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.models.actuation import actuator_jacobian, actuators_from_psi, psi_from_actuators
-from wristmark.models.limits import wrap_angle
-from wristmark.models.robot_params import RobotParams
+from wristmark.models.arm_spec import Arm
+from wristmark.models.limits import delta_indices, wrap_angle
 
 Array = NDArray[np.float64]
 
@@ -81,12 +81,12 @@ class BacklashInverse:
         ``keep_estimate``, the learnt play."""
         if not keep_estimate or not hasattr(self, "play"):
             self.play = self.start * self.play_max
-            self._learnt = np.zeros(6)  # reversals learnt from, per actuator
-        self.direction = np.zeros(6)
+            self._learnt = np.zeros(self.play_max.size)  # reversals learnt from, per actuator
+        self.direction = np.zeros(self.play_max.size)
         self.extreme: Array | None = None
         self.time = 0.0
-        self._fb = np.zeros(6)
-        self._off = np.zeros(6)
+        self._fb = np.zeros(self.play_max.size)
+        self._off = np.zeros(self.play_max.size)
         self._history: list[tuple[float, Array]] = []
         self._open: list[tuple[int, float, float, float, float]] = []  # j, due, F before, dir, jump
 
@@ -118,7 +118,7 @@ class BacklashInverse:
         if self.extreme is None:
             self.extreme = a.copy()
             self._last = a.copy()
-        path = np.zeros(6) if a_dot_path is None else np.asarray(a_dot_path, float) * dt
+        path = np.zeros(a.size) if a_dot_path is None else np.asarray(a_dot_path, float) * dt
         self._fb = self._fb + (a - self._last) - path
         self._last = a.copy()
         self._history.append((self.time, self._fb.copy()))
@@ -163,15 +163,16 @@ class CommandCompensator:
     turns the controller's next nominal configuration into the one to send. A configuration
     that is not the last one returned (a new phase, a held arm restarted elsewhere) resets it."""
 
-    def __init__(self, params: RobotParams, inverse: BacklashInverse) -> None:
+    def __init__(self, params: Arm, inverse: BacklashInverse) -> None:
         self.params = params
         self.inverse = inverse
-        self._offset = np.zeros(6)
+        self._offset = np.zeros(inverse.play_max.size)
+        self._deltas = delta_indices(params)
         self._last_out: Array | None = None
 
     def reset(self, keep_estimate: bool = False) -> None:
         """Forget the offset, the directions and (unless ``keep_estimate``) the learnt play."""
-        self._offset = np.zeros(6)
+        self._offset = np.zeros(self.inverse.play_max.size)
         self._last_out = None
         self.inverse.reset(keep_estimate)
 
@@ -203,6 +204,6 @@ class CommandCompensator:
 
     def _to_psi(self, a: Array, near: Array) -> Array:
         q = psi_from_actuators(self.params, a, delta_hint=near)
-        for i in (3, 5):  # the bending-plane angle nearest the reference (no 2 pi jumps)
+        for i in self._deltas:  # the bending-plane angle nearest the reference (no 2 pi jumps)
             q[i] = near[i] + wrap_angle(float(q[i] - near[i]))
         return q

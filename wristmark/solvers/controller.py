@@ -17,11 +17,11 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from wristmark.models.arm_spec import Arm, ArmSpec, actuator_names, arm_size
 from wristmark.models.config_io import from_mapping, load_yaml
 from wristmark.models.errors import ConfigError
 from wristmark.models.kinematics import check_psi, tip_jacobian
 from wristmark.models.limits import clamp_psi, clamp_velocity, psi_bounds
-from wristmark.models.robot_params import RobotParams
 from wristmark.solvers.backlash_compensation import BacklashInverse, CommandCompensator
 from wristmark.solvers.play_probe_fit import PlayFit
 
@@ -126,8 +126,9 @@ class ControllerConfig:
                   "backlash_freeze"):
             if getattr(self, k) < 0:
                 raise ConfigError(f"'{k}' must be >= 0, got {getattr(self, k)}")
-        if len(self.backlash_play_max) != 6 or min(self.backlash_play_max) < 0:
-            raise ConfigError(f"'backlash_play_max' must be 6 values >= 0, got {list(self.backlash_play_max)}")
+        if not self.backlash_play_max or min(self.backlash_play_max) < 0:
+            raise ConfigError(f"'backlash_play_max' must be values >= 0 (one per actuator), "
+                              f"got {list(self.backlash_play_max)}")
         for k in ("backlash_start", "backlash_fraction", "backlash_learning_rate"):
             if not 0.0 <= getattr(self, k) <= 1.0:
                 raise ConfigError(f"'{k}' must be in [0, 1], got {getattr(self, k)}")
@@ -150,6 +151,24 @@ class ControllerConfig:
             raise ConfigError(f"'integral_mode' must be one of {', '.join(INTEGRAL_MODES)}, got {self.integral_mode!r}")
         if self.qp_solver not in ("daqp", "qpoases"):
             raise ConfigError(f"'qp_solver' must be daqp or qpoases, got {self.qp_solver!r}")
+
+    def play_max_for(self, arm: Arm) -> Array:
+        """``backlash_play_max`` for ``arm``'s actuators: one entry per actuator as given; the
+        reference arm's six entries [phi, d, s1a, s1b, s2a, s2b] given for another arm are sized
+        to it by kind (revolute stem joints and direct actuators: phi's, prismatic: d's, pull
+        actuators: the largest backbone entry); any other length is refused (ConfigError naming
+        the key, the expected length and the actuators)."""
+        m = arm_size(arm)[1]
+        given = np.asarray(self.backlash_play_max, float)
+        if given.size == m:
+            return given
+        if given.size == 6 and isinstance(arm, ArmSpec):
+            out = [given[0] if j.joint == "revolute_z" else given[1] for j in arm.stem]
+            for s in arm.segments:
+                out += [given[0] if s.actuation.type == "direct" else float(given[2:].max())] * s.actuators
+            return np.array(out)
+        raise ConfigError(f"'backlash_play_max' must have {m} entries (one per actuator: "
+                          f"{', '.join(actuator_names(arm))}), got {given.size}")
 
     @classmethod
     def load(cls, path: str | Path) -> ControllerConfig:
@@ -200,12 +219,15 @@ class Controller(abc.ABC):
 
     supports_orientation = False
 
-    def __init__(self, params: RobotParams, config: ControllerConfig) -> None:
+    def __init__(self, params: Arm, config: ControllerConfig) -> None:
         self.params = params
         self.config = config
+        self.n = arm_size(params)[0]
         self.compensator: CommandCompensator | None = None
+        # per actuator: the largest play assumed (ConfigError when the config's list does not fit the arm)
+        self.play_max = config.play_max_for(params) if config.backlash_compensation else np.zeros(arm_size(params)[1])
         if config.backlash_compensation and config.kind in config.backlash_kinds:
-            self.compensator = CommandCompensator(params, make_inverse(config))
+            self.compensator = CommandCompensator(params, make_inverse(config, self.play_max))
         # the servo loop passes the encoder readings to step() when this is true
         self.uses_encoders = self.compensator is not None and config.backlash_method == "encoders"
         self.play_probed = False  # a play probe (rig/loop/play_probe.py) has run, or was skipped
@@ -233,7 +255,7 @@ class Controller(abc.ABC):
                           np.array([f.ok for f in fits]), relearn=self.config.play_probe_learning,
                           motor_tau=np.array([f.motor_tau for f in fits]))
         comp.inverse.observe(np.asarray(encoders, float))
-        nominal = clamp_psi(self.params, check_psi(psi_nominal))
+        nominal = clamp_psi(self.params, check_psi(psi_nominal, self.params))
         out = clamp_psi(self.params, comp.compensate(nominal, self.config.dt))
         comp.commit(nominal, out)
         return out
@@ -269,6 +291,8 @@ class Controller(abc.ABC):
         from wristmark.solvers.pseudo_inverse import sr_pseudo_inverse
 
         J = tip_jacobian(self.params, psi)
+        if self.n < 6:  # fewer joints than a pose: the position rows alone
+            return sr_pseudo_inverse(J[:3], self.config.gamma, self.config.xi) @ v_tip
         return sr_pseudo_inverse(J, self.config.gamma, self.config.xi) @ np.concatenate([v_tip, np.zeros(3)])
 
     @abc.abstractmethod
@@ -292,7 +316,10 @@ class Controller(abc.ABC):
         if orientation is not None and not self.supports_orientation:
             raise ConfigError(f"the {self.config.kind!r} controller is position-only; orientation control "
                               f"needs the qp controller")
-        psi_in = clamp_psi(self.params, check_psi(psi_cmd))
+        if orientation is not None and self.n < 6:
+            raise ConfigError(f"the arm has {self.n} joints: it cannot hold a tip orientation as well as a position "
+                              f"(orientation control needs 6 or more)")
+        psi_in = clamp_psi(self.params, check_psi(psi_cmd, self.params))
         comp = self.compensator
         psi = psi_in if comp is None else comp.nominal(psi_in)
         if comp is not None and encoders is not None:
@@ -319,11 +346,12 @@ class Controller(abc.ABC):
 CONTROLLER_KINDS = ("paper", "qp")
 
 
-def make_inverse(config: ControllerConfig) -> BacklashInverse:
-    """The dead-band inversion ``config.backlash_method`` with the config's settings."""
+def make_inverse(config: ControllerConfig, play_max: Array | None = None) -> BacklashInverse:
+    """The dead-band inversion ``config.backlash_method`` with the config's settings (``play_max``
+    per actuator: the arm's, :meth:`ControllerConfig.play_max_for`; None: the config's list)."""
     common = dict(start=config.backlash_start, fraction=config.backlash_fraction, learn=config.backlash_learning,
                   window=config.backlash_window, rate=config.backlash_learning_rate, lead=config.backlash_lead)
-    play_max = np.asarray(config.backlash_play_max, float)
+    play_max = np.asarray(config.backlash_play_max if play_max is None else play_max, float)
     if config.backlash_method == "encoders":
         from wristmark.solvers.play_observer import PlayObserverInverse
 

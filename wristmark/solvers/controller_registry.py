@@ -7,12 +7,12 @@ configuration they validate (``backlash_kinds``)."""
 
 from __future__ import annotations
 
+from wristmark.models.arm_spec import Arm
 from wristmark.models.errors import ConfigError
-from wristmark.models.robot_params import RobotParams
 from wristmark.solvers.controller import CONTROLLER_KINDS, Controller, ControllerConfig
 
 
-def make_controller(params: RobotParams, config: ControllerConfig) -> Controller:
+def make_controller(params: Arm, config: ControllerConfig) -> Controller:
     """Build the controller ``config.kind``; an unknown kind lists the valid ones."""
     if config.kind == "paper":
         from wristmark.solvers.paper_controller import PaperController

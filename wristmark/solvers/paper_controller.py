@@ -41,17 +41,19 @@ class PaperController(Controller):
         dp = p_des - p_meas
         n = float(np.linalg.norm(dp))
         if n == 0.0:
-            return np.zeros(6), np.zeros(3), "at-target"
+            return np.zeros(psi.size), np.zeros(3), "at-target"
         speed = min(cfg.v_xlim, n / dt) if cfg.saturate_near_target else cfg.v_xlim
         v = speed * dp / n
         J = tip_jacobian(self.params, psi)
         twist = np.concatenate([v, np.zeros(3)])
+        if self.n < 6:  # fewer joints than a pose (eq. 19 asks for a zero angular rate): position rows only
+            J, twist = J[:3], v
         psi_dot = sr_pseudo_inverse(J, cfg.gamma, cfg.xi) @ twist
         if not cfg.lock_saturated_joints:
             return psi_dot, v, "ok"
         lo, hi = psi_bounds(self.params)
-        free = np.ones(6, bool)
-        for _ in range(6):  # lock the joints the step would push through a limit, solve again
+        free = np.ones(psi.size, bool)
+        for _ in range(psi.size):  # lock the joints the step would push through a limit, solve again
             nxt = psi + psi_dot * dt
             out = free & (((nxt < lo) & (psi_dot < 0)) | ((nxt > hi) & (psi_dot > 0)))
             if not out.any():

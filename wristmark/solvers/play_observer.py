@@ -92,8 +92,8 @@ class PlayObserverInverse(BacklashInverse):
         self._seed: tuple[NDArray[np.bool_], Array] | None = None
         self._motor: Array | None = None  # the last encoder readings (micro-units)
         if not keep_estimate:
-            self._fixed = np.zeros(6, bool)  # plays measured by a probe and not learnt any more
-            self.motor_tau = np.full(6, math.nan)  # the motors' lags measured by a probe [s] (NaN: unknown)
+            self._fixed = np.zeros(self.play_max.size, bool)  # plays measured by a probe and not learnt any more
+            self.motor_tau = np.full(self.play_max.size, math.nan)  # the motors' lags from a probe [s] (NaN: unknown)
 
     def seed(self, play: Array, output: Array, known: NDArray[np.bool_], relearn: bool = True,
              motor_tau: Array | None = None) -> None:
@@ -162,12 +162,12 @@ class PlayObserverInverse(BacklashInverse):
         """The side each actuator's motor pushes on: where the nominal command ``a`` left the band."""
         d = self.direction
         if self.output is None:
-            return np.zeros(6, bool), d
+            return np.zeros(d.size, bool), d
         e = on_micro_grid(a - self.output)
         eps = self.margin * self.play_max
         new = np.where(e > eps, 1.0, np.where(e < -eps, -1.0, d))
         if self.freeze > 0.0 and self._stood >= self.freeze - 1e-9:  # a held point: noise must not walk
-            return np.zeros(6, bool), np.where(d != 0.0, d, new)  # the motors across the band: sides stay
+            return np.zeros(d.size, bool), np.where(d != 0.0, d, new)  # the motors across the band: sides stay
         return (new != d) & (d != 0.0), new
 
     def _learn(self, flip: NDArray[np.bool_], old: Array, new: Array) -> None:

@@ -29,39 +29,39 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
+from wristmark.models.arm_spec import Arm, ArmSpec
 from wristmark.models.kinematics import tip_jacobian
-from wristmark.models.limits import psi_bounds
-from wristmark.models.robot_params import RobotParams
+from wristmark.models.limits import psi_bounds, velocity_limits
 from wristmark.models.so3 import axis_error, rotation_error
 from wristmark.solvers.controller import Controller, ControllerConfig, OrientationTask
 from wristmark.solvers.tip_integral import TipErrorIntegral
 
 Array = NDArray[np.float64]
-_N_IN = 36 + 6 + 6 + 6
-
-
 class BoxQp:
-    """min 1/2 x'Hx + g'x  s.t. lo <= x <= hi (6 variables), CasADi conic through a buffer."""
+    """min 1/2 x'Hx + g'x  s.t. lo <= x <= hi (``n`` variables), CasADi conic through a buffer."""
 
-    def __init__(self, solver: str = "daqp") -> None:
-        x = ca.MX.sym("packed", _N_IN)
-        H = ca.reshape(x[:36], 6, 6)
+    def __init__(self, solver: str = "daqp", n: int = 6) -> None:
+        self.n = n
+        nn = n * n
+        x = ca.MX.sym("packed", nn + 3 * n)
+        H = ca.reshape(x[:nn], n, n)
         opts = {"printLevel": "none"} if solver == "qpoases" else {}
-        conic = ca.conic("box_qp", solver, {"h": ca.Sparsity.dense(6, 6), "a": ca.Sparsity(0, 6)}, opts)
-        sol = conic(h=H, g=x[36:42], lbx=x[42:48], ubx=x[48:54])
+        conic = ca.conic("box_qp", solver, {"h": ca.Sparsity.dense(n, n), "a": ca.Sparsity(0, n)}, opts)
+        sol = conic(h=H, g=x[nn:nn + n], lbx=x[nn + n:nn + 2 * n], ubx=x[nn + 2 * n:nn + 3 * n])
         self.function = ca.Function("box_qp_packed", [x], [ca.densify(sol["x"])])
-        self._in = np.zeros(_N_IN)
-        self._out = np.zeros(6)
+        self._in = np.zeros(nn + 3 * n)
+        self._out = np.zeros(n)
         self._buf, self._eval = self.function.buffer()
         self._buf.set_arg(0, memoryview(self._in))  # type: ignore[arg-type, call-arg]
         self._buf.set_res(0, memoryview(self._out))  # type: ignore[arg-type, call-arg]
 
     def solve(self, H: Array, g: Array, lo: Array, hi: Array) -> Array:
-        """Minimiser x (6,)."""
-        self._in[:36] = np.asarray(H, float).ravel(order="F")
-        self._in[36:42] = g
-        self._in[42:48] = lo
-        self._in[48:54] = hi
+        """Minimiser x (n,)."""
+        n, nn = self.n, self.n * self.n
+        self._in[:nn] = np.asarray(H, float).ravel(order="F")
+        self._in[nn:nn + n] = g
+        self._in[nn + n:nn + 2 * n] = lo
+        self._in[nn + 2 * n:] = hi
         self._eval()
         return self._out.copy()
 
@@ -79,12 +79,18 @@ class QpController(Controller):
 
     supports_orientation = True
 
-    def __init__(self, params: RobotParams, config: ControllerConfig) -> None:
+    def __init__(self, params: Arm, config: ControllerConfig) -> None:
         super().__init__(params, config)
-        self.qp = BoxQp(config.qp_solver)
+        self.qp = BoxQp(config.qp_solver, self.n)
         lev = config.lever
-        self._S2 = np.diag([lev, 1.0, lev, lev, lev, lev]) ** 2
-        self._vmax = np.asarray(params.max_velocity, float)
+        # S: rad -> tip metres (lever) for every joint but the prismatic ones (already metres);
+        # with n > 6 this damping picks the least-motion solution among the redundant ones
+        if isinstance(params, ArmSpec):
+            prismatic = set(params.layout.prismatic_list)
+            self._S2 = np.diag([1.0 if i in prismatic else lev for i in range(self.n)]) ** 2
+        else:
+            self._S2 = np.diag([lev, 1.0, lev, lev, lev, lev]) ** 2
+        self._vmax = velocity_limits(params)
         self._lo, self._hi = psi_bounds(params)
         self.integral = TipErrorIntegral(config.ki, config.integral_speed_limit)
 
@@ -151,5 +157,5 @@ class QpController(Controller):
         hi = np.maximum(hi, 0.0)
         x = self.qp.solve(H, g, lo, hi)
         if not np.all(np.isfinite(x)):
-            return np.zeros(6), v_ref, "qp-failed"
+            return np.zeros(self.n), v_ref, "qp-failed"
         return x, v_ref, "ok"

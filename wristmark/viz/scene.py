@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera
 from wristmark.models.arm_shape import arm_shape
+from wristmark.models.errors import ConfigError
 from wristmark.models.kinematics import check_psi, forward_kinematics
 from wristmark.models.marker import MarkerModel
 from wristmark.models.pinocchio_model import PinocchioArm
@@ -76,6 +77,9 @@ class SceneConfig:
         """The scene of a loop's setup; a simulated bench's (sim.setup.SimSetup) also gives the
         true arm's stem coupling (hardware: none known, 0)."""
         plant = getattr(setup, "plant", None)
+        if not isinstance(setup.params, RobotParams):
+            raise ConfigError("the 3D view (Meshcat) draws the reference arm only so far (its pseudo-rigid model, "
+                              "models.pinocchio_model); run without --view for another arm")
         return cls(setup.params, setup.marker, setup.camera, float(getattr(plant, "stem_coupling", 0.0)))
 
 

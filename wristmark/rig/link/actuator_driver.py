@@ -26,7 +26,8 @@ import serial
 from numpy.typing import NDArray
 
 from wristmark.models.actuation import ACTUATOR_NAMES, actuators_from_psi, psi_from_actuators
-from wristmark.models.errors import LimitError, WristmarkError
+from wristmark.models.arm_spec import Arm, arm_size
+from wristmark.models.errors import ConfigError, LimitError, WristmarkError
 from wristmark.models.limits import actuator_bounds
 from wristmark.models.robot_params import RobotParams
 from wristmark.rig.link import protocol as P
@@ -113,6 +114,15 @@ class DeviceState:
         return cls(P.si_from_micro(s.positions_micro), s.flags, s.clock_ms)
 
 
+def check_protocol_arm(params: Arm) -> None:
+    """Raise ConfigError unless protocol v1 can carry the arm's actuators (6: the reference arm's
+    layout; protocol v2 with n actuators is planned, docs/design.md)."""
+    m = arm_size(params)[1]
+    if m != 6:
+        raise ConfigError(f"the actuator box speaks protocol v1, which carries 6 actuators; this arm has {m} "
+                          f"(protocol v2, any count, is planned): use the in-process link (the simulated bench)")
+
+
 class ActuatorDriver:
     """Request/response client of one actuator box (protocol v1).
 
@@ -122,14 +132,15 @@ class ActuatorDriver:
     """
 
     def __init__(self, url_or_path: str, baudrate: int = 115200, timeout: float = 0.05, retries: int = 2,
-                 params: RobotParams | None = None) -> None:
+                 params: Arm | None = None) -> None:
         if timeout <= 0 or retries < 0:
             raise LimitError(f"timeout must be > 0 s and retries >= 0, got {timeout}, {retries}")
         self.url = url_or_path
         self.baudrate = int(baudrate)
         self.timeout = float(timeout)
         self.retries = int(retries)
-        self.params = params if params is not None else RobotParams()
+        self.params: Arm = params if params is not None else RobotParams()
+        check_protocol_arm(self.params)
         self._parser = P.StreamParser()
         self._seq = 0
         self._psi_hint: Array | None = None

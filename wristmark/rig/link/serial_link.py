@@ -28,8 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from wristmark.models.arm_spec import Arm
 from wristmark.models.limits import actuator_bounds
-from wristmark.models.robot_params import RobotParams
 from wristmark.rig.link.actuator_driver import (
     PORT_ERRORS,
     ActuatorDriver,
@@ -88,7 +88,7 @@ class SerialLink:
         self.clock = clock
         self.keepalive_s = float(keepalive_s)
         self.pace = bool(pace)
-        self.params: RobotParams = driver.params
+        self.params: Arm = driver.params
         self.state: DeviceState | None = None
         self.stats = LinkStats()
         self.t = clock() if clock is not None else 0.0

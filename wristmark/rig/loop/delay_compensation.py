@@ -32,8 +32,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
+from wristmark.models.arm_spec import Arm
 from wristmark.models.kinematics import tip_position
-from wristmark.models.robot_params import RobotParams
 from wristmark.rig.loop.motion_correction import MotionCorrection
 
 Array = NDArray[np.float64]
@@ -57,7 +57,7 @@ class DelayCompensator:
     its oldest entry); correction: the learnt map of the model's motion to the arm's (None: the
     model as it is)."""
 
-    def __init__(self, params: RobotParams, tau: float = 0.0, horizon: float = 1.0,
+    def __init__(self, params: Arm, tau: float = 0.0, horizon: float = 1.0,
                  correction: MotionCorrection | None = None) -> None:
         if not (math.isfinite(tau) and tau >= 0):
             raise ValueError(f"tau must be >= 0 s, got {tau}")

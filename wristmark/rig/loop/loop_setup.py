@@ -16,11 +16,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera
+from wristmark.models.arm_spec import Arm, load_loop_arm
 from wristmark.models.config_files import default_config
 from wristmark.models.config_io import load_section, to_mapping
 from wristmark.models.errors import ConfigError
 from wristmark.models.marker import MarkerModel
-from wristmark.models.robot_params import RobotParams, load_robot
 from wristmark.rig.loop.rig_config import RigConfig
 from wristmark.solvers.controller import ControllerConfig
 
@@ -32,7 +32,7 @@ Array = NDArray[np.float64]
 class LoopSetup:
     """Robot, marker, stereo calibration, loop and controller configuration of a servo run."""
 
-    params: RobotParams
+    params: Arm
     marker: MarkerModel
     camera: StereoCamera
     rig: RigConfig
@@ -100,7 +100,7 @@ def load_loop_setup(robot: str | Path | None = None, marker: str | Path | None =
     the_marker = MarkerModel.load(paths["marker"])
     loop = RigConfig.load(paths["rig"])
     return LoopSetup(
-        params=load_robot(paths["robot"], the_marker),
+        params=load_loop_arm(paths["robot"], the_marker),
         marker=the_marker,
         camera=cam,
         rig=loop,

@@ -35,6 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
+from wristmark.models.arm_spec import arm_size
 from wristmark.models.limits import clamp_psi, clamp_velocity
 from wristmark.models.pose_ik import solve_pose_ik
 from wristmark.models.units import on_micro_grid
@@ -44,6 +45,8 @@ from wristmark.solvers.play_probe_fit import PlayFit, fit_motor_lag, fit_play
 
 Array = NDArray[np.float64]
 RESTORE_CYCLES = 3  # cycles the probe waits after its last command (the motor's lag is ~0.07 s)
+FEW_JOINTS = ("play probe skipped: the arm has fewer than 6 joints, so a measured pose does not give its actuators "
+              "(the play is learnt online)")
 NO_POSE = "play probe skipped: the tracker gives no 6-DoF pose (position-only marker or roll code not read); " \
           "the play is learnt online at the reversals"
 
@@ -77,6 +80,10 @@ def run_play_probe(loop: ProbeLoop, template: CycleTarget) -> list[PlayFit] | No
     controller (None when skipped: no 6-DoF pose). ``template`` is the target logged."""
     ctrl = loop.controller
     meas0 = loop.last_measurement
+    if arm_size(loop.params)[0] < 6:
+        loop.skip(FEW_JOINTS)
+        ctrl.start_play(None)
+        return None
     if meas0 is None or meas0.R_world is None or not meas0.roll_known:
         loop.skip(NO_POSE)
         ctrl.start_play(None)
@@ -84,7 +91,7 @@ def run_play_probe(loop: ProbeLoop, template: CycleTarget) -> list[PlayFit] | No
     cfg, params, dt = ctrl.config, loop.params, loop.rig.control_dt
     base = loop.psi_cmd.copy()
     a0 = actuators_from_psi(params, base)
-    play_max = np.asarray(cfg.backlash_play_max, float)
+    play_max = np.asarray(ctrl.play_max, float)
     n = max(4, int(round(cfg.play_probe_time / dt)))
     samples = ProbeSamples()
     reads: list[tuple[float, Array]] = []  # (time on the frames' clock, encoders)
@@ -92,7 +99,7 @@ def run_play_probe(loop: ProbeLoop, template: CycleTarget) -> list[PlayFit] | No
     lost = 0  # consecutive probe cycles without a measured pose
     raw: list[PlayFit] = []
     sends: list[tuple[float, Array]] = []  # (time on the frames' clock, actuator targets) of this actuator's probe
-    for j in range(6):
+    for j in range(a0.size):
         first_read = len(reads)
         sends.clear()
         # cycle i: sample (the arm after i targets), then send target i + 1; sample 0 is taken
@@ -127,7 +134,7 @@ def run_play_probe(loop: ProbeLoop, template: CycleTarget) -> list[PlayFit] | No
     loop.command(base if out is None else out)
     for _ in range(RESTORE_CYCLES):  # the motors reach it before the feedback resumes
         target = dataclasses.replace(template, k=len(samples.probed), t=loop.next_cycle(), settling=False)
-        _sample(loop, target, 5, samples, reads, hint)
+        _sample(loop, target, a0.size - 1, samples, reads, hint)
     return fits
 
 
@@ -140,7 +147,7 @@ def _sample(loop: ProbeLoop, target: CycleTarget, j: int, samples: ProbeSamples,
     reading = loop.sense(target)
     reads.append((reading.t_read, on_micro_grid(reading.encoders)))
     meas = reading.meas
-    y = np.full(6, np.nan)
+    y = np.full(reading.encoders.size, np.nan)
     ok = meas is not None and meas.ok and meas.p_world is not None and meas.R_world is not None
     if ok and meas is not None:
         sol = solve_pose_ik(params, meas.p_world, meas.R_world, hint)
@@ -157,7 +164,7 @@ def _encoders_at(reads: list[tuple[float, Array]], t: float) -> Array:
     """The encoders interpolated (linearly, held beyond the ends) to the instant ``t``."""
     ts = np.array([r[0] for r in reads])
     ms = np.array([r[1] for r in reads])
-    return np.array([np.interp(t, ts, ms[:, i]) for i in range(6)])
+    return np.array([np.interp(t, ts, ms[:, i]) for i in range(ms.shape[1])])
 
 
 def _carry(fits: list[PlayFit], samples: ProbeSamples, reads: Array) -> list[PlayFit]:

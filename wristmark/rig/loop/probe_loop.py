@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 if TYPE_CHECKING:
-    from wristmark.models.robot_params import RobotParams
+    from wristmark.models.arm_spec import Arm
     from wristmark.rig.loop.ground_truth import TruthSample
     from wristmark.rig.loop.rig_config import RigConfig
     from wristmark.rig.loop.servo_cycle import CycleOutcome, CycleTarget
@@ -42,7 +42,7 @@ class ProbeLoop(Protocol):
     """The servo loop as the play probe sees it: one closed-loop phase, feedback paused."""
 
     @property
-    def params(self) -> RobotParams:
+    def params(self) -> Arm:
         """The nominal arm model."""
         ...
 

@@ -11,10 +11,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from wristmark.models.arm_spec import Arm
 from wristmark.models.errors import WristmarkError
 from wristmark.models.kinematics import tip_position
-from wristmark.models.limits import clamp_psi, wrap_angle
-from wristmark.models.robot_params import RobotParams
+from wristmark.models.limits import clamp_psi, delta_indices, velocity_limits, wrap_angle
 from wristmark.rig.loop.ground_truth import TruthSample
 from wristmark.rig.loop.rig_config import RigConfig
 from wristmark.rig.loop.tip_sensors import TipMeasurement
@@ -24,13 +24,13 @@ from wristmark.rig.targets.trajectories import Trajectory, feedforward_velocity
 Array = NDArray[np.float64]
 
 
-def ramp_to(params: RobotParams, start: Array, target: Array, dt: float) -> list[Array]:
+def ramp_to(params: Arm, start: Array, target: Array, dt: float) -> list[Array]:
     """Intermediate configurations from ``start`` to ``target`` (both excluded), one per cycle of
     ``dt`` [s], each step within the joint velocity limits; bending-plane angles take the short way."""
     diff = np.asarray(target, float) - np.asarray(start, float)
-    for i in (3, 5):  # delta1, delta2 [rad]: the short way (phi is not wrapped: the stem has end stops)
+    for i in delta_indices(params):  # delta1, delta2 [rad]: the short way (phi is not wrapped: the stem has end stops)
         diff[i] = wrap_angle(float(diff[i]))
-    steps = int(np.ceil(np.max(np.abs(diff) / (np.asarray(params.max_velocity, float) * dt)) - 1e-9))
+    steps = int(np.ceil(np.max(np.abs(diff) / (velocity_limits(params) * dt)) - 1e-9))
     return [clamp_psi(params, np.asarray(start, float) + diff * (k / steps)) for k in range(1, steps)]
 
 
@@ -125,7 +125,7 @@ def cycle_target(traj: Trajectory, rig: RigConfig, k: int, t_k: float, n_settle:
     return CycleTarget(k, t_k, k < n_settle, p_des, v_des, p_next, R, w, R_next)
 
 
-def cycle_record(params: RobotParams, psi_cmd: Array, target: CycleTarget, t_wall: float, phase: str,
+def cycle_record(params: Arm, psi_cmd: Array, target: CycleTarget, t_wall: float, phase: str,
                  outcome: CycleOutcome, latency_s: float, arrival: float | None = None) -> CycleRecord:
     """The log record of a cycle: its target, the command ``psi_cmd`` [rad, m] in force, the
     outcome's measurement and truth; ``latency_s`` capture -> command [s]; ``arrival`` the frame's

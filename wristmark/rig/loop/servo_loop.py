@@ -37,12 +37,12 @@ from numpy.typing import NDArray
 
 from wristmark.cvs.sources.frames import FrameSourceError, StereoFrame
 from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
+from wristmark.models.arm_spec import Arm, home_psi
 from wristmark.models.errors import WristmarkError
 from wristmark.models.ik import solve_tip_ik
 from wristmark.models.kinematics import forward_kinematics
 from wristmark.models.limits import clamp_psi
 from wristmark.models.pose_ik import nominal_ik
-from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.rig.link.actuator_link import ActuatorLink
 from wristmark.rig.loop.delay_compensation import DelayCompensator
 from wristmark.rig.loop.frame_feed import FrameFeed
@@ -87,7 +87,7 @@ class ServoLoop:
 
     def __init__(
         self,
-        params: RobotParams,
+        params: Arm,
         rig: RigConfig,
         link: ActuatorLink,
         *,
@@ -180,7 +180,7 @@ class ServoLoop:
 
     def params_home(self) -> Array:
         """Home configuration used as the IK start."""
-        return np.asarray(HOME_PSI, float)
+        return home_psi(self.params)
 
     # -- one phase -----------------------------------------------------------------------
     def run(self, traj: Trajectory, phase: str, closed_loop: bool, log: RunLog, settle: float = 0.0,
@@ -442,7 +442,7 @@ class _ProbeView:
         self.loop, self.phase, self.log, self.memory, self.stats = loop, phase, log, memory, stats
 
     @property
-    def params(self) -> RobotParams:
+    def params(self) -> Arm:
         """The nominal arm model."""
         return self.loop.params
 

@@ -3,8 +3,10 @@
 ``log.csv`` columns (SI: s, m, rad): t (the loop's clock: simulated time, or the wall clock's
 on hardware), t_wall (the cycle's ``time.monotonic()``), phase, p_des_{x,y,z}, p_cmd_{x,y,z}
 (model tip at the commanded configuration), p_est_{x,y,z} (vision estimate, empty when none),
-p_true_{x,y,z}, p_trk_{x,y,z} (optical tracker), psi_cmd_0..5, psi_true_0..5 (the truth columns
-are empty without a ground-truth observer: on hardware), meas_ok, rejected, vision_ms, ctrl_us,
+p_true_{x,y,z}, p_trk_{x,y,z} (optical tracker), psi_cmd_0..5, psi_true_0..5 (the reference arm;
+any other arm (a format-2 robot file): psi_cmd_<name>, psi_true_<name> per entry of its psi, e.g.
+psi_cmd_d, psi_cmd_theta1, psi_cmd_delta1, ...; the truth columns are empty without a
+ground-truth observer: on hardware), meas_ok, rejected, vision_ms, ctrl_us,
 t_capture (the measured frame's capture time on the frames' clock [s], empty without a frame),
 latency_ms (capture -> command of the cycle's accepted measurement [ms], empty otherwise),
 transport_ms (capture -> the frame available to the loop [ms]: the part of the latency before
@@ -33,16 +35,23 @@ from wristmark.models.so3 import angle_between, rotvec
 Array = NDArray[np.float64]
 
 _XYZ = ("x", "y", "z")
-COLUMNS: tuple[str, ...] = (
-    ("t", "t_wall", "phase")
-    + tuple(f"p_{k}_{a}" for k in ("des", "cmd", "est", "true", "trk") for a in _XYZ)
-    + tuple(f"psi_cmd_{i}" for i in range(6))
-    + tuple(f"psi_true_{i}" for i in range(6))
-    + ("meas_ok", "rejected", "vision_ms", "ctrl_us", "t_capture", "latency_ms",
-       "transport_ms")
-    + tuple(f"rot_{k}_{a}" for k in ("des", "est", "true", "trk") for a in _XYZ)
-    + ("orientation_error",)
-)
+def log_columns(psi_names: tuple[str, ...] | None = None) -> tuple[str, ...]:
+    """log.csv's columns; ``psi_names``: the arm's names of psi's entries (None: the reference
+    arm's columns psi_cmd_0..5, psi_true_0..5)."""
+    tags = tuple(str(i) for i in range(6)) if psi_names is None else psi_names
+    return (
+        ("t", "t_wall", "phase")
+        + tuple(f"p_{k}_{a}" for k in ("des", "cmd", "est", "true", "trk") for a in _XYZ)
+        + tuple(f"psi_cmd_{i}" for i in tags)
+        + tuple(f"psi_true_{i}" for i in tags)
+        + ("meas_ok", "rejected", "vision_ms", "ctrl_us", "t_capture", "latency_ms",
+           "transport_ms")
+        + tuple(f"rot_{k}_{a}" for k in ("des", "est", "true", "trk") for a in _XYZ)
+        + ("orientation_error",)
+    )
+
+
+COLUMNS: tuple[str, ...] = log_columns()
 
 
 @dataclass
@@ -105,6 +114,7 @@ class RunLog:
     """All cycles of one or more phases of a run (:class:`CycleRecord`: {w} [m], [s])."""
 
     records: list[CycleRecord] = field(default_factory=list)
+    psi_names: tuple[str, ...] | None = None  # the arm's psi names (None: the reference arm, psi_cmd_0..5)
 
     def add(self, rec: CycleRecord) -> None:
         """Append a cycle."""
@@ -118,7 +128,7 @@ class RunLog:
         """Write log.csv."""
         with open(path, "w", newline="") as f:
             w = csv.writer(f)
-            w.writerow(COLUMNS)
+            w.writerow(log_columns(self.psi_names))
             for r in self.records:
                 w.writerow(r.row())
 

@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.models.actuation import actuators_from_psi
-from wristmark.models.robot_params import RobotParams
+from wristmark.models.arm_spec import Arm
 from wristmark.rig.recording.bag_recorder import BagRecorder
 from wristmark.rig.recording.run_log import CycleRecord
 
@@ -29,7 +29,7 @@ class ServoRecorder:
     """Records cycles to ``path`` (.mcap, must not exist); jpeg: images as CompressedImage;
     world_T_left: poses also in ``world``."""
 
-    def __init__(self, path: str, params: RobotParams, jpeg: bool = False, world_T_left: Array | None = None) -> None:
+    def __init__(self, path: str, params: Arm, jpeg: bool = False, world_T_left: Array | None = None) -> None:
         self.params = params
         self.bag = BagRecorder(path, jpeg=jpeg, world_T_left=world_T_left)
         self.cycles = 0

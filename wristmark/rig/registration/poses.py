@@ -15,28 +15,28 @@ from scipy.stats import qmc
 
 from wristmark.cvs.camera import StereoCamera
 from wristmark.cvs.marker.in_view import marker_in_view
+from wristmark.models.arm_spec import Arm, home_psi
 from wristmark.models.errors import InputError
 from wristmark.models.ik import solve_tip_ik
 from wristmark.models.kinematics import forward_kinematics, tip_position
 from wristmark.models.limits import within_limits
 from wristmark.models.marker import MarkerModel
-from wristmark.models.robot_params import HOME_PSI, RobotParams
 
 Array = NDArray[np.float64]
 HALF_BOX = (0.018, 0.009, 0.018)  # [m] half extent of the target box around the workspace centre (cube: 20/10/20)
 APPROACH = np.array([0.02, 0.0005, 0.03, 0.05, 0.03, 0.05])  # [rad, m, rad, rad, rad, rad] approach offset
 
 
-def choose_poses(params: RobotParams, n: int, camera: StereoCamera | None, marker: MarkerModel,
+def choose_poses(params: Arm, n: int, camera: StereoCamera | None, marker: MarkerModel,
                  seed: int = 0, half_box: tuple[float, float, float] = HALF_BOX) -> list[Array]:
     """``n`` configurations (see the module docstring); InputError when too few qualify."""
     if n < 1:
         raise InputError(f"--poses must be >= 1, got {n}")
-    centre = tip_position(params, HOME_PSI)
+    centre = tip_position(params, home_psi(params))
     draws = qmc.Halton(d=3, scramble=True, seed=seed).random(max(64, 8 * n))
     W_inv = None if camera is None or camera.T_world_left is None else np.linalg.inv(camera.T_world_left)
     out: list[Array] = []
-    home = np.asarray(HOME_PSI, float)
+    home = home_psi(params)
     for u in draws:
         target = centre + (2.0 * u - 1.0) * np.asarray(half_box)
         ik = solve_tip_ik(params, target, home)

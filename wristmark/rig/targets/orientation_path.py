@@ -18,10 +18,10 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation, Slerp
 
+from wristmark.models.arm_spec import Arm, home_psi
 from wristmark.models.errors import ConfigError
 from wristmark.models.ik import solve_tip_ik
 from wristmark.models.kinematics import forward_kinematics
-from wristmark.models.robot_params import HOME_PSI, RobotParams
 
 Array = NDArray[np.float64]
 ORIENTATION_MODES = ("none", "hold", "follow")
@@ -72,12 +72,12 @@ class OrientationPath:
                                np.concatenate([self.rotations[keep], R_end[None]]))
 
 
-def start_configuration(params: RobotParams, p_start: Array) -> Array:
+def start_configuration(params: Arm, p_start: Array) -> Array:
     """The start configuration of a path: position IK of its first point from home."""
-    return solve_tip_ik(params, np.asarray(p_start, float), np.asarray(HOME_PSI, float)).psi
+    return solve_tip_ik(params, np.asarray(p_start, float), home_psi(params)).psi
 
 
-def orientation_path(mode: str, params: RobotParams, positions: object, duration: float) -> OrientationPath | None:
+def orientation_path(mode: str, params: Arm, positions: object, duration: float) -> OrientationPath | None:
     """The orientation a trajectory asks for: None for ``none``; ``positions(t)`` gives the
     desired tip [m] at time t [s] along a path of ``duration`` [s] (``follow`` samples it every
     FOLLOW_STEP_S)."""

@@ -10,8 +10,8 @@ from typing import Self
 import numpy as np
 from numpy.typing import NDArray
 
+from wristmark.models.arm_spec import Arm, home_psi
 from wristmark.models.kinematics import tip_position
-from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.rig.targets.orientation_path import OrientationPath, orientation_path
 
 Array = NDArray[np.float64]
@@ -40,7 +40,7 @@ class Trajectory:
         """none | hold | follow."""
         return "none" if self.orientation is None else self.orientation.mode
 
-    def with_orientation(self, mode: str, params: RobotParams) -> Self:
+    def with_orientation(self, mode: str, params: Arm) -> Self:
         """The same path asking for the orientation ``mode`` (none | hold | follow) of the tip frame."""
         return dataclasses.replace(self, orientation=orientation_path(mode, params, lambda t: self.sample(t)[0],
                                                                       self.duration))
@@ -99,9 +99,9 @@ def feedforward_velocity(traj: Trajectory, t: float, dt: float, preview: float, 
     return (p1 + lead * v1 - p0 - lead * v0) / dt
 
 
-def workspace_centre(params: RobotParams) -> Array:
+def workspace_centre(params: Arm) -> Array:
     """The cube's centre in {w}: the tip at the home configuration [m]."""
-    return tip_position(params, HOME_PSI)
+    return tip_position(params, home_psi(params))
 
 
 def cube_trajectory(centre_world: Array, size: tuple[float, float, float] = CUBE_SIZE,

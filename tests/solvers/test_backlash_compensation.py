@@ -104,7 +104,9 @@ def test_config_rejects_bad_backlash_keys() -> None:
     from wristmark.models.errors import ConfigError
 
     with pytest.raises(ConfigError, match="backlash_play_max"):
-        ControllerConfig(backlash_play_max=(0.0, 1.0)).validate()
+        ControllerConfig(backlash_play_max=(0.0, -1.0)).validate()
+    with pytest.raises(ConfigError, match=r"'backlash_play_max' must have 6 entries \(one per actuator: phi, d, s1a"):
+        ControllerConfig(backlash_play_max=(0.0, 1.0)).play_max_for(RobotParams())
     with pytest.raises(ConfigError, match="backlash_fraction"):
         ControllerConfig(backlash_fraction=1.5).validate()
 
@@ -182,3 +184,19 @@ def test_config_rejects_a_negative_lead() -> None:
 
     with pytest.raises(ConfigError, match="backlash_lead"):
         ControllerConfig(backlash_lead=-0.01).validate()
+
+
+def test_play_max_is_sized_to_any_arm() -> None:
+    """The reference arm's six entries are sized to another arm by actuator kind; a list of the
+    arm's own length is taken as it is; any other length is refused naming the actuators."""
+    from wristmark.models.arm_spec import load_arm
+    from wristmark.models.config_files import CONFIG_DIR
+    from wristmark.models.errors import ConfigError
+
+    arm = load_arm(CONFIG_DIR / "robots" / "tendon3.yaml")  # d, then nine tendons
+    cfg = ControllerConfig(backlash_play_max=(0.012, 0.0002, 0.00016, 0.00016, 0.00016, 0.00017))
+    np.testing.assert_array_equal(cfg.play_max_for(arm), [0.0002] + [0.00017] * 9)
+    own = tuple(float(i) for i in range(arm.m))
+    np.testing.assert_array_equal(ControllerConfig(backlash_play_max=own).play_max_for(arm), own)
+    with pytest.raises(ConfigError, match=r"must have 10 entries \(one per actuator: d, s1a, s1b"):
+        ControllerConfig(backlash_play_max=(0.1, 0.1)).play_max_for(arm)

@@ -62,6 +62,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_force_argument(p)
 
 
+def psi_spread(params: object) -> tuple[float, ...]:
+    """PSI_SPREAD for the reference arm; any other arm: per entry of its psi the reference's
+    half-width of the same kind (revolute 0.25 rad, prismatic 0.012 m, theta 0.2 rad, delta 0.6 rad)."""
+    from wristmark.models.arm_spec import ArmSpec
+
+    if not isinstance(params, ArmSpec):
+        return PSI_SPREAD
+    out = [0.25 if j.joint == "revolute_z" else 0.012 for j in params.stem]
+    for s in params.segments:
+        out += [0.2] if s.planar is not None else [0.2, 0.6]
+    return tuple(out)
+
+
 def read_psi_file(path: str | Path) -> list[Array]:
     """Configurations from a text file: 6 numbers per line (spaces or commas), '#' comments."""
     p = Path(path)
@@ -88,9 +101,9 @@ def run(args: argparse.Namespace) -> int:
     from wristmark.cvs.calibration.load import load_calibration
     from wristmark.cvs.camera import scaled_stereo_camera
     from wristmark.models.arm_shape import arm_shape
+    from wristmark.models.arm_spec import ArmSpec, load_loop_arm
     from wristmark.models.limits import check_limits
     from wristmark.models.marker import MarkerModel
-    from wristmark.models.robot_params import load_robot
     from wristmark.sim.dataset import DatasetWriter
     from wristmark.sim.render.settings import RenderSettings, noise_preset
     from wristmark.sim.render.stereo_renderer import StereoRenderer
@@ -122,7 +135,11 @@ def run(args: argparse.Namespace) -> int:
     if args.scale != 1.0:
         camera = scaled_stereo_camera(camera, args.scale)
     marker = MarkerModel.load(args.marker) if args.marker else MarkerModel()
-    params = load_robot(args.robot, marker)
+    params = load_loop_arm(args.robot, marker)
+    if isinstance(params, ArmSpec) and not args.calib:  # the default endoscope framed on this arm
+        from wristmark.sim.setup import camera_for_arm
+
+        camera = camera_for_arm(camera, params, marker)
 
     given: list[Array] = [np.asarray(q, float) for q in (args.psi or [])]
     if args.psi_file:
@@ -137,7 +154,8 @@ def run(args: argparse.Namespace) -> int:
                 raise InputError(f"the marker is not seen by both cameras at psi = {np.round(q, 4).tolist()}")
     else:
         configs = [
-            random_visible_psi(params, camera, marker, rng, PSI_SPREAD, MAX_TRIES) for _ in range(args.pairs or 10)
+            random_visible_psi(params, camera, marker, rng, psi_spread(params), MAX_TRIES)
+            for _ in range(args.pairs or 10)
         ]
 
     claim_outputs(dirs=[args.out], force=args.force)

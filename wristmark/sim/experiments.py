@@ -153,6 +153,8 @@ def run_open_closed(setup: SimSetup, traj: Trajectory, experiment: str, out_dir:
     if log.psi_names is not None:  # any arm but the reference arm's flat file: which arm, by its names
         spec = as_spec(setup.params)
         res["arm"] = {"name": spec.name, "configuration": list(spec.names), "actuators": list(spec.actuator_names)}
+    if closed.controller is not None and closed.controller.compensation_note:
+        res["closed_loop"]["backlash_inversion"] = closed.controller.compensation_note
     probe = probe_report(closed.play_fits, closed.play_probe_note)  # the play probe (rig/loop/play_probe.py)
     if probe is not None:
         res["closed_loop"]["play_probe"] = probe

@@ -5,6 +5,8 @@ option), the tip sensor and the ground-truth observer."""
 from __future__ import annotations
 
 import dataclasses
+import itertools
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -91,22 +93,59 @@ def arm_plant_file(robot: str | Path | None) -> Path | None:
     return p if p.is_file() else None
 
 
+_MARGIN = 1.1
+
+
 def camera_for_arm(camera: StereoCamera, arm: Arm, marker: MarkerModel) -> StereoCamera:
-    """The default endoscope (configs/camera.yaml, placed for the reference arm: its home tip
-    ~80 mm ahead, the marker axis horizontal in the image) moved to frame ``arm``'s workspace:
-    translated by the difference of the two arms' home marker centres, so it sees the arm's
-    marker at home where it sees the reference arm's (both bent in the x_w-z_w plane). The
-    reference arm (flat file) keeps the file's pose."""
+    """The default endoscope (configs/camera.yaml, placed for the reference arm: the marker over
+    the experiments' cube in view, its axis across the image) moved to frame ``arm``'s workspace:
+    translated so that the centre of the arm's marker positions over the cube's corners (nominal
+    IK from home) sits where the reference arm's does, rolled about its optical axis so that the
+    arm's marker axis at home crosses the image as the reference arm's does, then backed off
+    along the optical axis (with 10 % margin) until the markers' spread in the image is no larger
+    than the reference arm's.
+    The reference arm (flat file) keeps the file's pose."""
     if not isinstance(arm, ArmSpec) or camera.T_world_left is None:
         return camera
-    ref = RobotParams().with_marker(marker)
-    shift = (forward_kinematics(arm, home_psi(arm)).T_world_marker[:3, 3]
-             - forward_kinematics(ref, home_psi(ref)).T_world_marker[:3, 3])
-    if not np.any(np.abs(shift) > 1e-12):
-        return camera
     W = np.array(camera.T_world_left, float)
-    W[:3, 3] += shift
+    ref = RobotParams().with_marker(marker)
+    ref_pts = _cube_markers(ref)
+    pts = _cube_markers(arm)
+    W[:3, 3] += pts.mean(0) - ref_pts.mean(0)
+    # rolled about its optical axis so that the arm's marker axis at home lies in the image as
+    # the reference arm's does (across the image; the cube's motion stays side-on)
+    a_ref = W[:3, :3].T @ forward_kinematics(ref, home_psi(ref)).T_world_marker[:3, 2]
+    a_arm = W[:3, :3].T @ forward_kinematics(arm, home_psi(arm)).T_world_marker[:3, 2]
+    roll = math.atan2(a_arm[1], a_arm[0]) - math.atan2(a_ref[1], a_ref[0])
+    c, s_ = math.cos(roll), math.sin(roll)
+    W[:3, :3] = W[:3, :3] @ np.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]])
+    depth = float(np.linalg.inv(W)[:3, :3][2] @ pts.mean(0) + np.linalg.inv(W)[2, 3])
+
+    def spread(P: Array, T: Array) -> Array:
+        inv = np.linalg.inv(T)
+        c = P @ inv[:3, :3].T + inv[:3, 3]
+        xy = c[:, :2] / c[:, 2:]
+        return np.asarray(xy.max(0) - xy.min(0))
+
+    ref_spread = spread(ref_pts, np.asarray(camera.T_world_left, float))
+    ratio = max(1.0, float(np.max(spread(pts, W) / ref_spread))) * _MARGIN
+    W[:3, 3] -= W[:3, 2] * depth * (ratio - 1.0)
     return dataclasses.replace(camera, T_world_left=W)
+
+
+def _cube_markers(arm: Arm) -> Array:
+    """Marker centres in {w} [m] with the tip at the cube's 8 corners around the workspace
+    centre (nominal IK from home)."""
+    from wristmark.models.ik import solve_tip_ik
+    from wristmark.rig.targets.trajectories import CUBE_SIZE
+
+    q0 = home_psi(arm)
+    centre = forward_kinematics(arm, q0).tip
+    out = []
+    for corner in itertools.product((-0.5, 0.5), repeat=3):
+        q = solve_tip_ik(arm, centre + np.multiply(corner, CUBE_SIZE), q0).psi
+        out.append(forward_kinematics(arm, q).T_world_marker[:3, 3])
+    return np.array(out)
 
 
 def make_measurement(setup: SimSetup, arm: ActuatedArm, clock: Callable[[], float],

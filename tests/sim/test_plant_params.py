@@ -93,8 +93,8 @@ def test_all_keys_round_trip(tmp_path: Path) -> None:
 )
 def test_validation_errors_name_key_and_file(tmp_path: Path, text: str, key: str) -> None:
     path = _write(tmp_path, text)
-    with pytest.raises(ConfigError) as info:
-        PlantParams.load(path)
+    with pytest.raises(ConfigError) as info:  # the lengths are checked against the arm: the reference arm's
+        PlantParams.load(path).for_arm(2, 6, str(path))
     msg = str(info.value)
     assert key in msg
     assert str(path) in msg

@@ -315,17 +315,19 @@ class ArmSpec:
 
     def default_home(self) -> tuple[float, ...]:
         """Home when the robot file states none: revolute stem joints at 0 (clipped into their
-        range), prismatic ones at mid-range; the segments bent in their plane delta = 0 (a planar
-        segment: along its plane) by a total of 1 rad shared in proportion to their lengths (each
-        at most 0.8 theta_max): the marker's axis tilted towards x_w, seen side-on by a camera
+        range), prismatic ones at mid-range; the segments bent in their plane delta = 0 by a total
+        of 1 rad shared in proportion to their lengths (each at most theta_max / 2; a planar segment
+        only if its plane is that one, 0 or pi, else straight): the marker's axis tilted towards
+        x_w, in the x_w-z_w plane, seen side-on by a camera
         facing the arm along y_w (the simulated bench's, sim.setup.camera_for_arm), with room
         to bend further and back around it (the cube of the experiments)."""
         out = [min(max(0.0, j.range[0]), j.range[1]) if j.joint == "revolute_z" else 0.5 * (j.range[0] + j.range[1])
                for j in self.stem]
-        total = sum(s.length for s in self.segments)
-        for s in self.segments:
-            th = min(HOME_BEND * s.length / total, 0.8 * s.theta_max)
-            out += [th] if s.planar is not None else [th, 0.0]
+        in_plane = [s.planar is None or abs(math.sin(s.planar)) < 1e-9 for s in self.segments]
+        total = sum(s.length for s, ok in zip(self.segments, in_plane) if ok)
+        for s, ok in zip(self.segments, in_plane):
+            th = min(HOME_BEND * s.length / total, 0.5 * s.theta_max) if ok else 0.0
+            out += [th if s.planar is None or math.cos(s.planar) > 0 else -th] if s.planar is not None else [th, 0.0]
         return tuple(out)
 
     def velocity_limits(self) -> Array:

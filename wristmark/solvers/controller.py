@@ -226,7 +226,13 @@ class Controller(abc.ABC):
         self.compensator: CommandCompensator | None = None
         # per actuator: the largest play assumed (ConfigError when the config's list does not fit the arm)
         self.play_max = config.play_max_for(params) if config.backlash_compensation else np.zeros(arm_size(params)[1])
-        if config.backlash_compensation and config.kind in config.backlash_kinds:
+        n, m = arm_size(params)
+        # the inversion offsets each actuator on its own: an arm with more actuators than joints
+        # (tendons, antagonistic pairs) maps actuators to psi by least squares, which drops them
+        self.compensation_note = "" if m == n or not config.backlash_compensation else (
+            f"dead-band inversion off: the arm's {m} actuators drive {n} joints (tendons or pairs), so an offset "
+            "of one actuator alone cannot be commanded; the feedback covers the play")
+        if config.backlash_compensation and config.kind in config.backlash_kinds and m == n:
             self.compensator = CommandCompensator(params, make_inverse(config, self.play_max))
         # the servo loop passes the encoder readings to step() when this is true
         self.uses_encoders = self.compensator is not None and config.backlash_method == "encoders"

@@ -49,3 +49,11 @@ def test_a_plant_file_sized_for_another_arm_is_refused_naming_the_key(tmp_path: 
         load_setup(robot=[p for p in ARMS if p.stem == "tendon3"][0], plant=bad)
     with pytest.raises(ConfigError, match=r"'backlash' must have 10 entries \(one per actuator of the arm\)"):
         PlantParams(backlash=(0.0, 0.0)).for_arm(3, 10)
+
+
+def test_the_v1_actuator_box_refuses_an_arm_of_another_actuator_count() -> None:
+    from wristmark.rig.link.actuator_driver import check_protocol_arm
+
+    setup = load_setup(robot=[p for p in ARMS if p.stem == "tendon3"][0])
+    with pytest.raises(ConfigError, match=r"protocol v1, which carries 6 actuators; this arm has 10 .*servo --direct"):
+        check_protocol_arm(setup.params)

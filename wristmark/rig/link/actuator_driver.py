@@ -120,7 +120,8 @@ def check_protocol_arm(params: Arm) -> None:
     m = arm_size(params)[1]
     if m != 6:
         raise ConfigError(f"the actuator box speaks protocol v1, which carries 6 actuators; this arm has {m} "
-                          f"(protocol v2, any count, is planned): use the in-process link (the simulated bench)")
+                          "(protocol v2, any count, is planned): on the simulated bench use the in-process link "
+                          "(wristmark servo --direct)")
 
 
 class ActuatorDriver:

@@ -5,7 +5,8 @@
     subject to  lo <= psi_dot <= hi
 
 Position only (no orientation task): W = orientation_weight I and w_ref = 0 (the tip frame's
-rotation is merely damped). With an :class:`OrientationTask` (the pose task): W =
+rotation is merely damped; W = 0 for an arm of fewer than 6 joints, which has no joint to spare
+for it). With an :class:`OrientationTask` (the pose task): W =
 pose_orientation_weight I and w_ref = w_des + sat(kr log(R_des R_meas^T), max_angular_speed)
 [rad/s] in {w}; when only the marker's axis z is known (the reference sleeve: roll modulo 30 deg)
 W = pose_orientation_weight (I - z z') + orientation_weight z z' and w_ref = (I - z z') (w_des +
@@ -91,6 +92,9 @@ class QpController(Controller):
         else:
             self._S2 = np.diag([lev, 1.0, lev, lev, lev, lev]) ** 2
         self._vmax = velocity_limits(params)
+        # keeping the tip frame's orientation (orientation_weight) needs spare joints: an arm of
+        # fewer than 6 has none once the position is served, and the term only makes it lag
+        self._keep_orientation = config.orientation_weight if self.n >= 6 else 0.0
         self._lo, self._hi = psi_bounds(params)
         self.integral = TipErrorIntegral(config.ki, config.integral_speed_limit)
 
@@ -102,7 +106,7 @@ class QpController(Controller):
     def _hessian(self, J: Array, W: Array | None = None) -> Array:
         cfg = self.config
         Jv, Jw = J[:3], J[3:]
-        W = cfg.orientation_weight * np.eye(3) if W is None else W
+        W = self._keep_orientation * np.eye(3) if W is None else W
         return 2.0 * (cfg.position_weight * Jv.T @ Jv + Jw.T @ W @ Jw + cfg.damping * self._S2)
 
     def orientation_reference(self, task: OrientationTask) -> tuple[Array, Array]:

@@ -34,7 +34,10 @@ INTEGRAL_MODES = ("plain", "path")
 
 @dataclass(frozen=True)
 class ControllerConfig:
-    """Controller settings (configs/controller.yaml, under 'controller:'); SI units.
+    """Controller settings (configs/controller.yaml, under 'controller:'); SI units. The defaults
+    are configs/controller.yaml's (tests/models/test_config_defaults.py): ``ControllerConfig()`` is
+    the controller the command line runs. A file that extends nothing keeps the meaning it had
+    before (:data:`LEGACY_DEFAULTS`).
 
     kind: "paper" (eq. 17-21) or "qp" (velocity-bounded QP). dt: servo cycle [s].
     paper: v_xlim constant tip speed [m/s]; gamma [m^2/s^2-free, eq. 20 damping]; xi threshold on
@@ -85,35 +88,35 @@ class ControllerConfig:
     max_correction_speed: float = 0.02
     feed_forward: bool = True
     damping: float = 1e-3
-    lever: float = 0.05
+    lever: float = 0.2
     orientation_weight: float = 1e-3
     position_weight: float = 1.0
     pose_orientation_weight: float = 1e-3
     kr: float = 8.0  # [1/s], = kp: the same bandwidth as the position task
     max_angular_speed: float = 0.5  # [rad/s]
     qp_solver: str = "daqp"
-    ki: float = 0.0
+    ki: float = 4.0
     integral_speed_limit: float = 0.003
-    integral_mode: str = "plain"
-    backlash_compensation: bool = False
+    integral_mode: str = "path"
+    backlash_compensation: bool = True
     backlash_play_max: tuple[float, ...] = (0.012, 0.0002, 0.00016, 0.00016, 0.00016, 0.00016)
-    backlash_start: float = 0.25
-    backlash_fraction: float = 0.5
+    backlash_start: float = 0.15
+    backlash_fraction: float = 0.75
     backlash_hysteresis: float = 0.1
     backlash_learning: bool = True
     backlash_window: float = 0.4
     backlash_learning_rate: float = 0.3
-    backlash_lead: float = 0.0
-    backlash_method: str = "schmitt"
-    backlash_margin: float = 0.02
-    backlash_freeze: float = 0.0
-    backlash_motor_burst: bool = False
-    backlash_kinds: tuple[str, ...] = ("paper", "qp")
-    play_probe: bool = False
+    backlash_lead: float = 0.03
+    backlash_method: str = "encoders"
+    backlash_margin: float = 0.01
+    backlash_freeze: float = 0.5
+    backlash_motor_burst: bool = True
+    backlash_kinds: tuple[str, ...] = ("qp",)
+    play_probe: bool = True
     play_probe_amplitude: float = 2.0
     play_probe_time: float = 0.6
     play_probe_settle: float = 0.6
-    play_probe_learning: bool = True
+    play_probe_learning: bool = False
 
     def validate(self) -> None:
         """Raise ConfigError naming the offending key."""
@@ -153,11 +156,34 @@ class ControllerConfig:
 
     @classmethod
     def load(cls, path: str | Path) -> ControllerConfig:
-        """Load from YAML (a 'controller:' mapping, or the mapping itself)."""
+        """Load from YAML (a 'controller:' mapping, or the mapping itself); a key the file does
+        not state takes its :data:`LEGACY_DEFAULTS` value, else the dataclass default."""
         data = load_yaml(path)
         if set(data) == {"controller"}:
             data = data["controller"] or {}
-        return from_mapping(cls, data, str(path))
+        return from_mapping(cls, {**LEGACY_DEFAULTS, **data}, str(path))
+
+
+# What a controller file meant by leaving these keys out before the dataclass's defaults became
+# configs/controller.yaml's (they were then configs/controller_plain.yaml's: the qp without
+# dead-band inversion, tip integral or play probe). A file keeps its meaning: a key it does not
+# state takes the value here, not the default above (docs/configuration.md, "Old files").
+LEGACY_DEFAULTS: dict[str, object] = {
+    "lever": 0.05,
+    "ki": 0.0,
+    "integral_mode": "plain",
+    "backlash_compensation": False,
+    "backlash_start": 0.25,
+    "backlash_fraction": 0.5,
+    "backlash_lead": 0.0,
+    "backlash_method": "schmitt",
+    "backlash_margin": 0.02,
+    "backlash_freeze": 0.0,
+    "backlash_motor_burst": False,
+    "backlash_kinds": ("paper", "qp"),
+    "play_probe": False,
+    "play_probe_learning": True,
+}
 
 
 @dataclass(frozen=True)

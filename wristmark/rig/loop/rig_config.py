@@ -15,7 +15,9 @@ PHASE_LOCKS = ("none", "capture", "arrival")  # rig frame_phase_lock
 
 @dataclass(frozen=True)
 class RigConfig:
-    """How the simulated bench runs.
+    """How the simulated bench and its servo loop run. The defaults are configs/rig.yaml's
+    (tests/models/test_config_defaults.py); a file that extends nothing keeps the meaning it had
+    before (:data:`LEGACY_DEFAULTS`).
 
     control_dt: servo cycle [s] (paper: 60 ms). vision_latency: capture -> command applied [s]
     (paper: ~45 ms of image processing). plant_dt: plant integration step [s].
@@ -79,11 +81,11 @@ class RigConfig:
     realtime: bool = False
     frame_wait: float = 0.04  # [s] wall clock: longest wait of a cycle for a fresh frame
     delay_compensation: bool = True
-    delay_compensation_tau: float = 0.0  # [s] actuator lag assumed by the compensation's model
+    delay_compensation_tau: float = 0.04  # [s] actuator lag assumed by the compensation's model
     delay_compensation_learn_window: float = 5.0  # [s] memory of the compensation's learnt motion map (0: off)
     tracking_budget: float = 0.15  # [s] wall clock: longest wait of a cycle for its frame's tracking
     command_phase: float = 0.0  # [s] wall clock: a cycle's command goes out this long after its start
-    reuse_measurement_age: float = 0.0  # [s] wall clock: a cycle without a frame reuses a measurement this old
+    reuse_measurement_age: float = 0.3  # [s] wall clock: a cycle without a frame reuses a measurement this old
     frame_phase_lock: str = "none"  # wall clock: lock the cycle grid to the frames' capture or arrival
     frame_lock_phase: float = 0.0  # [s] with the lock: frames captured / arriving this long after a cycle's start
     frame_age: float = 0.0  # [s] simulated bench: its frames show the arm this long before the cycle's start
@@ -142,4 +144,12 @@ class RigConfig:
         data = load_yaml(path)
         if set(data) == {"rig"}:
             data = data["rig"]
-        return from_mapping(cls, data, str(path))
+        return from_mapping(cls, {**LEGACY_DEFAULTS, **data}, str(path))
+
+
+# What a rig file meant by leaving these keys out before the dataclass's defaults became
+# configs/rig.yaml's: a key a file does not state takes the value here (docs/configuration.md).
+LEGACY_DEFAULTS: dict[str, object] = {
+    "delay_compensation_tau": 0.0,
+    "reuse_measurement_age": 0.0,
+}

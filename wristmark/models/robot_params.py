@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from wristmark.models.config_io import from_mapping, load_section
+from wristmark.models.config_io import from_mapping, load_layered
 from wristmark.models.errors import ConfigError
 from wristmark.models.marker import MarkerModel
 
@@ -54,7 +54,7 @@ class RobotParams:
     @classmethod
     def load(cls, path: str | Path) -> RobotParams:
         """Load from YAML; the file may be the robot mapping itself or hold it under 'robot'."""
-        return from_mapping(cls, load_section(path, "robot"), str(path))
+        return from_mapping(cls, load_layered(path, "robot"), str(path))
 
     def with_marker(self, marker: MarkerModel) -> RobotParams:
         """These parameters carrying ``marker``'s tip offset [m]."""
@@ -68,7 +68,7 @@ def load_robot(path: str | Path | None, marker: MarkerModel) -> RobotParams:
     if path is None:
         return RobotParams().with_marker(marker)
     params = RobotParams.load(path)
-    if "tip_offset" in load_section(path, "robot") and params.tip_offset != marker.tip_offset:
+    if "tip_offset" in load_layered(path, "robot") and params.tip_offset != marker.tip_offset:
         raise ConfigError(f"{path}: 'tip_offset' ({params.tip_offset} m) disagrees with the marker's "
                           f"({marker.tip_offset} m): the tip offset belongs to the marker file; remove it from {path}")
     return params.with_marker(marker)

@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from wristmark.models.config_io import from_mapping, load_yaml
+from wristmark.models.config_io import from_mapping, load_layered
 from wristmark.models.errors import ConfigError
 
 
@@ -75,4 +75,4 @@ class PlantParams:
     @classmethod
     def load(cls, path: str | Path) -> PlantParams:
         """Load and validate a plant file."""
-        return from_mapping(cls, load_yaml(path), str(path))
+        return from_mapping(cls, load_layered(path), str(path))

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from wristmark.models.config_io import from_mapping, load_yaml
+from wristmark.models.config_io import from_mapping, load_layered
 from wristmark.models.errors import ConfigError
 from wristmark.models.kinematics import check_psi, tip_jacobian
 from wristmark.models.limits import clamp_psi, clamp_velocity, psi_bounds
@@ -156,11 +156,10 @@ class ControllerConfig:
 
     @classmethod
     def load(cls, path: str | Path) -> ControllerConfig:
-        """Load from YAML (a 'controller:' mapping, or the mapping itself); a key the file does
-        not state takes its :data:`LEGACY_DEFAULTS` value, else the dataclass default."""
-        data = load_yaml(path)
-        if set(data) == {"controller"}:
-            data = data["controller"] or {}
+        """Load from YAML (a 'controller:' mapping, or the mapping itself; ``extends`` resolved:
+        docs/configuration.md); a key no file of the chain states takes its
+        :data:`LEGACY_DEFAULTS` value, else the dataclass default."""
+        data = load_layered(path, "controller")
         return from_mapping(cls, {**LEGACY_DEFAULTS, **data}, str(path))
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from wristmark.models.config_io import from_mapping, load_yaml
+from wristmark.models.config_io import from_mapping, load_layered
 from wristmark.models.errors import ConfigError
 
 SENSOR_KINDS = ("vision", "truth-noise")
@@ -141,10 +141,7 @@ class RigConfig:
     @classmethod
     def load(cls, path: str | Path) -> RigConfig:
         """Load configs/rig.yaml-style files (flat mapping, or under a 'rig' key)."""
-        data = load_yaml(path)
-        if set(data) == {"rig"}:
-            data = data["rig"]
-        return from_mapping(cls, {**LEGACY_DEFAULTS, **data}, str(path))
+        return from_mapping(cls, {**LEGACY_DEFAULTS, **load_layered(path, "rig")}, str(path))
 
 
 # What a rig file meant by leaving these keys out before the dataclass's defaults became

@@ -317,3 +317,4 @@ def test_the_sweeps_fingerprint_follows_a_base_file(tmp_path: Path) -> None:
     first = load_spec(spec).fingerprint()
     base.write_text(base.read_text().replace("actuator_tau: 0.04", "actuator_tau: 0.05"))
     assert load_spec(spec).fingerprint() != first
+

@@ -8,7 +8,8 @@ A dotted key ``NS.field[.index ...]`` changes one value of a configuration file:
 of plant, rig, controller, robot, marker, camera; list indices are integers
 (``plant.backlash.0``). The trial writes the changed file and passes it to the experiment
 (``--plant``, ``--rig``, ``--controller-config``, ...), so a trial is a plain
-``wristmark experiment`` run whose command line says everything.
+``wristmark experiment`` run whose command line says everything. A rig key may name its section
+of rig.yaml (``rig.loop.gate`` = ``rig.gate``).
 """
 
 from __future__ import annotations
@@ -185,6 +186,14 @@ def split_dotted(key: str) -> tuple[str, list[str]] | None:
         raise SpecError(f"unknown key '{key}': a dotted key starts with one of {', '.join(NAMESPACES)}")
     if not all(parts):
         raise SpecError(f"'{key}': empty part in a dotted key")
+    if ns == "rig" and len(parts) > 1 and parts[0] in ("loop", "bench"):  # rig.yaml's sections: rig.loop.gate
+        from wristmark.rig.loop.rig_config import section_of
+
+        where = section_of(parts[1])
+        if where is not None and where != parts[0]:
+            raise SpecError(f"unknown key '{key}': '{parts[1]}' is in rig.yaml's '{where}:' section "
+                            f"(rig.{where}.{parts[1]}, or rig.{parts[1]})")
+        parts = parts[1:]
     return ns, parts
 
 

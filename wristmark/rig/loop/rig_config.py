@@ -1,16 +1,29 @@
-"""Configuration of the simulated rig and its servo loop (configs/rig.yaml); SI units."""
+"""Configuration of the servo loop and of the simulated bench it runs on (configs/rig.yaml); SI units.
+
+A rig file has two sections: ``loop:``, what the servo loop needs on hardware as on the bench
+(the cycle, gates, feed-forward, delay compensation, frame handling on the wall clock), and
+``bench:``, what only the simulated bench uses (its latency, plant step, sensor, rendering
+noise, optical tracker, seed, pacing, frame age: :data:`BENCH_KEYS`). A flat file (every key at
+the top, the format before the sections) loads the same. One dataclass holds both, flat, so
+``rig.control_dt`` and a sweep's ``rig.sensor`` name a key as they always did.
+"""
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
-from wristmark.models.config_io import from_mapping, load_layered
+from wristmark.models.config_io import from_mapping, load_layered, to_mapping
 from wristmark.models.errors import ConfigError
 
 SENSOR_KINDS = ("vision", "truth-noise")
 NOISE_LEVELS = ("none", "default", "strong")
 PHASE_LOCKS = ("none", "capture", "arrival")  # rig frame_phase_lock
+# the keys only the simulated bench uses (rig.yaml's 'bench:'); every other key is the loop's
+BENCH_KEYS = ("vision_latency", "plant_dt", "sensor", "truth_noise_rms", "render_noise", "tracker_rms", "seed",
+              "realtime", "frame_age")
+SECTIONS = {"loop": "the servo loop, on hardware as on the bench", "bench": "the simulated bench only"}
 
 
 @dataclass(frozen=True)
@@ -59,8 +72,8 @@ class RigConfig:
     bench's frames show the arm this long [s] before the cycle's start and are stamped so (a
     camera whose frames reach the host that late, e.g. the virtual lab's at 1080p); capture to
     command is then ``frame_age + vision_latency`` (vision sensor only; at most 1 s).
-    vision_latency, frame_age, plant_dt, sensor, truth_noise_rms, render_noise, tracker_rms and
-    realtime concern the simulated bench only.
+    vision_latency, frame_age, plant_dt, sensor, truth_noise_rms, render_noise, tracker_rms, seed
+    and realtime concern the simulated bench only (:data:`BENCH_KEYS`, rig.yaml's ``bench:``).
     """
 
     control_dt: float = 0.060
@@ -140,8 +153,51 @@ class RigConfig:
 
     @classmethod
     def load(cls, path: str | Path) -> RigConfig:
-        """Load configs/rig.yaml-style files (flat mapping, or under a 'rig' key)."""
-        return from_mapping(cls, {**LEGACY_DEFAULTS, **load_layered(path, "rig")}, str(path))
+        """Load configs/rig.yaml-style files: ``loop:`` and ``bench:`` sections or a flat mapping,
+        either under a 'rig' key or not (``extends`` resolved: docs/configuration.md)."""
+        return from_mapping(cls, {**LEGACY_DEFAULTS, **load_layered(path, "rig", flat_rig_mapping)}, str(path))
+
+    def sections(self) -> dict[str, dict[str, object]]:
+        """The settings as rig.yaml lays them out: {'loop': {...}, 'bench': {...}}."""
+        flat = to_mapping(self)
+        return {"loop": {k: v for k, v in flat.items() if section_of(k) == "loop"},
+                "bench": {k: v for k, v in flat.items() if section_of(k) == "bench"}}
+
+
+def section_of(key: str) -> str | None:
+    """'loop' or 'bench': the section of rig.yaml ``key`` belongs to (None: not a rig key)."""
+    if key in BENCH_KEYS:
+        return "bench"
+    return "loop" if key in {f.name for f in dataclasses.fields(RigConfig)} else None
+
+
+def flat_rig_mapping(data: dict[str, object], source: str) -> dict[str, object]:
+    """One rig file's mapping, flat: the keys of its ``loop:`` and ``bench:`` sections (each must
+    be in its own section), or the flat mapping as it is. ConfigError (one line) names a key in
+    the wrong section, outside the sections, or unknown."""
+    if not any(k in SECTIONS for k in data):
+        return data
+    out: dict[str, object] = {}
+    for key in data:
+        if key not in SECTIONS:
+            where = section_of(key)
+            hint = f"put it under '{where}:'" if where else "not a rig key"
+            raise ConfigError(f"{source}: '{key}' is outside the 'loop:' and 'bench:' sections ({hint})")
+    for name in SECTIONS:
+        part = data.get(name)
+        if part is None:
+            continue
+        if not isinstance(part, dict):
+            raise ConfigError(f"{source}: '{name}' must be a mapping of keys to values")
+        for key, value in part.items():
+            where = section_of(str(key))
+            if where is None:
+                valid = sorted(f.name for f in dataclasses.fields(RigConfig) if section_of(f.name) == name)
+                raise ConfigError(f"{source}: unknown key '{name}.{key}' (valid keys: {', '.join(valid)})")
+            if where != name:
+                raise ConfigError(f"{source}: '{key}' belongs under '{where}:' ({SECTIONS[where]}), not '{name}:'")
+            out[str(key)] = value
+    return out
 
 
 # What a rig file meant by leaving these keys out before the dataclass's defaults became

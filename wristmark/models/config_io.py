@@ -195,6 +195,52 @@ def extends_chain(path: str | Path) -> list[Path]:
     return [p for p, _ in _chain(path, ANY_SECTION)]
 
 
+def flatten_sections(data: dict[str, Any], source: str, layout: dict[str, str],
+                     sections: dict[str, str]) -> dict[str, Any]:
+    """One file's mapping with its sections' keys brought to the top (a file laid out in
+    sections, e.g. rig.yaml's ``loop:`` and ``bench:``, and a flat one then mean the same).
+
+    ``layout``: each sectioned key -> the name of its section; ``sections``: each section's name
+    -> what it holds. A mapping without any section is returned as it is. In one with sections,
+    a sectioned key must be in its own section; other keys (e.g. ``kind``) stay at the top.
+    ConfigError (one line, naming the file) for a key in another section, outside its section,
+    unknown in a section, or a section that is not a mapping."""
+    if not any(k in sections for k in data):
+        return data
+    out: dict[str, Any] = {}
+    for key, value in data.items():
+        if key in sections:
+            continue
+        if key in layout:
+            raise ConfigError(f"{source}: '{key}' is outside the sections ({', '.join(sections)}): "
+                              f"put it under '{layout[key]}:'")
+        out[key] = value
+    for name in sections:
+        part = data.get(name)
+        if part is None:
+            continue
+        if not isinstance(part, dict):
+            raise ConfigError(f"{source}: '{name}' must be a mapping of keys to values")
+        for key, value in part.items():
+            where = layout.get(str(key))
+            if where is None:
+                valid = [k for k, s in layout.items() if s == name]
+                raise ConfigError(f"{source}: unknown key '{name}.{key}' (valid keys: {', '.join(valid)})")
+            if where != name:
+                raise ConfigError(f"{source}: '{key}' belongs under '{where}:' ({sections[where]}), not '{name}:'")
+            out[str(key)] = value
+    return out
+
+
+def sectioned(flat: dict[str, Any], layout: dict[str, str], sections: dict[str, str]) -> dict[str, Any]:
+    """The flat mapping laid out in sections (the inverse of :func:`flatten_sections`): keys
+    without a section first, then one mapping per section, in the order of ``sections``."""
+    out = {k: v for k, v in flat.items() if k not in layout}
+    for name in sections:
+        out[name] = {k: v for k, v in flat.items() if layout.get(k) == name}
+    return out
+
+
 def save_yaml(path: str | Path, data: dict[str, Any]) -> None:
     """Write ``data`` (plain Python types) as block-style YAML."""
     Path(path).write_text(yaml.safe_dump(data, sort_keys=False, default_flow_style=None))

@@ -1,6 +1,9 @@
 """How the simulated true arm differs from the model (docs/design.md "Plant file"); SI units.
 
-Every key is optional; zero (or one, for gains) means ideal.
+Every key is optional; zero (or one, for gains) means ideal. ``PlantParams()`` is therefore the
+ideal arm (configs/plant_ideal.yaml), the error model's zero; the command line's default
+configs/plant.yaml is the reference simulated arm, a deliberate set of errors
+(docs/configuration.md, "One default").
 """
 
 from __future__ import annotations

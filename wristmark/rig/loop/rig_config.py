@@ -13,8 +13,9 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
-from wristmark.models.config_io import from_mapping, load_layered, to_mapping
+from wristmark.models.config_io import flatten_sections, from_mapping, load_layered, sectioned, to_mapping
 from wristmark.models.errors import ConfigError
 
 SENSOR_KINDS = ("vision", "truth-noise")
@@ -28,7 +29,8 @@ SECTIONS = {"loop": "the servo loop, on hardware as on the bench", "bench": "the
 
 @dataclass(frozen=True)
 class RigConfig:
-    """How the simulated bench and its servo loop run. The defaults are configs/rig.yaml's
+    """How the servo loop and the simulated bench run (configs/rig.yaml's ``loop:`` and ``bench:``,
+    or a flat file: module doc). The defaults are configs/rig.yaml's
     (tests/models/test_config_defaults.py); a file that extends nothing keeps the meaning it had
     before (:data:`LEGACY_DEFAULTS`).
 
@@ -157,47 +159,24 @@ class RigConfig:
         either under a 'rig' key or not (``extends`` resolved: docs/configuration.md)."""
         return from_mapping(cls, {**LEGACY_DEFAULTS, **load_layered(path, "rig", flat_rig_mapping)}, str(path))
 
-    def sections(self) -> dict[str, dict[str, object]]:
+    def sections(self) -> dict[str, Any]:
         """The settings as rig.yaml lays them out: {'loop': {...}, 'bench': {...}}."""
-        flat = to_mapping(self)
-        return {"loop": {k: v for k, v in flat.items() if section_of(k) == "loop"},
-                "bench": {k: v for k, v in flat.items() if section_of(k) == "bench"}}
+        return sectioned(to_mapping(self), RIG_LAYOUT, SECTIONS)
 
 
-def section_of(key: str) -> str | None:
-    """'loop' or 'bench': the section of rig.yaml ``key`` belongs to (None: not a rig key)."""
-    if key in BENCH_KEYS:
-        return "bench"
-    return "loop" if key in {f.name for f in dataclasses.fields(RigConfig)} else None
+# each key -> its section of rig.yaml
+RIG_LAYOUT: dict[str, str] = {f.name: "bench" if f.name in BENCH_KEYS else "loop"
+                              for f in dataclasses.fields(RigConfig)}
 
 
-def flat_rig_mapping(data: dict[str, object], source: str) -> dict[str, object]:
-    """One rig file's mapping, flat: the keys of its ``loop:`` and ``bench:`` sections (each must
-    be in its own section), or the flat mapping as it is. ConfigError (one line) names a key in
-    the wrong section, outside the sections, or unknown."""
-    if not any(k in SECTIONS for k in data):
-        return data
-    out: dict[str, object] = {}
-    for key in data:
-        if key not in SECTIONS:
-            where = section_of(key)
-            hint = f"put it under '{where}:'" if where else "not a rig key"
-            raise ConfigError(f"{source}: '{key}' is outside the 'loop:' and 'bench:' sections ({hint})")
-    for name in SECTIONS:
-        part = data.get(name)
-        if part is None:
-            continue
-        if not isinstance(part, dict):
-            raise ConfigError(f"{source}: '{name}' must be a mapping of keys to values")
-        for key, value in part.items():
-            where = section_of(str(key))
-            if where is None:
-                valid = sorted(f.name for f in dataclasses.fields(RigConfig) if section_of(f.name) == name)
-                raise ConfigError(f"{source}: unknown key '{name}.{key}' (valid keys: {', '.join(valid)})")
-            if where != name:
-                raise ConfigError(f"{source}: '{key}' belongs under '{where}:' ({SECTIONS[where]}), not '{name}:'")
-            out[str(key)] = value
-    return out
+def flat_rig_mapping(data: dict[str, Any], source: str) -> dict[str, Any]:
+    """One rig file's mapping, flat: the keys of its ``loop:`` and ``bench:`` sections (each in
+    its own), or the flat mapping as it is (config_io.flatten_sections)."""
+    if any(k in SECTIONS for k in data):
+        loose = next((k for k in data if k not in SECTIONS and k not in RIG_LAYOUT), None)
+        if loose is not None:
+            raise ConfigError(f"{source}: '{loose}' is outside the 'loop:' and 'bench:' sections (not a rig key)")
+    return flatten_sections(data, source, RIG_LAYOUT, SECTIONS)
 
 
 # What a rig file meant by leaving these keys out before the dataclass's defaults became

@@ -6,6 +6,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from tests import old_defaults
 from wristmark.models.limits import psi_bounds
 from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.solvers.backlash_compensation import BacklashInverse
@@ -83,7 +84,7 @@ def test_integral_cancels_a_constant_velocity_disturbance() -> None:
 
 @pytest.mark.parametrize("kind", ["qp", "paper"])
 def test_compensated_steps_stay_within_limits(kind: str) -> None:
-    cfg = ControllerConfig(kind=kind, backlash_compensation=True, ki=3.0)
+    cfg = old_defaults.controller(kind=kind, backlash_compensation=True, ki=3.0)
     c = make_controller(P, cfg)
     rng = np.random.default_rng(3)
     psi = np.array(HOME_PSI, float)

@@ -108,7 +108,8 @@ def test_one_worker_gives_exactly_the_same_rows(spec_file: Path, two_workers: Pa
 def test_trials_equal_the_same_runs_of_wristmark_experiment(two_workers: Path, tmp_path: Path) -> None:
     """Each trial run by hand: plant and rig files written here from configs/, not by the sweep."""
     base = yaml.safe_load((CONFIG_DIR / "plant.yaml").read_text())
-    rig = dict(yaml.safe_load((CONFIG_DIR / "rig.yaml").read_text()), settle_time=0.5)
+    rig = yaml.safe_load((CONFIG_DIR / "rig.yaml").read_text())
+    rig["loop"]["settle_time"] = 0.5
     write_yaml(tmp_path / "rig.yaml", rig)
 
     def one(i: int, latency: float, backlash: float) -> dict:

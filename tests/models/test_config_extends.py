@@ -15,9 +15,10 @@ import numpy as np
 import pytest
 import yaml
 
+from tests.old_defaults import OLD_CONTROLLER
 from wristmark.cvs.calibration.load import load_calibration
 from wristmark.models.config_files import CONFIG_DIR, default_config
-from wristmark.models.config_io import extends_chain, merge_mappings
+from wristmark.models.config_io import extends_chain, from_mapping, load_layered, merge_mappings
 from wristmark.models.errors import ConfigError
 from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import RobotParams, load_robot
@@ -25,7 +26,7 @@ from wristmark.rig.loop.loop_setup import load_loop_setup
 from wristmark.rig.loop.rig_config import RigConfig
 from wristmark.sim.plant_params import PlantParams
 from wristmark.sim.render.settings import RenderSettings
-from wristmark.solvers.controller import ControllerConfig
+from wristmark.solvers.controller import ControllerConfig, flat_controller_mapping
 
 OLD_FILES = {
     "controller_plain.yaml": """\
@@ -160,11 +161,19 @@ camera_offset: [0.004, 0.003, -0.003, -0.03, 0.035, 0.03]
 """,
 }
 
-LOADERS: dict[str, Callable[[Path], Any]] = {
-    "controller_plain.yaml": ControllerConfig.load,
-    "controller_encoders.yaml": ControllerConfig.load,
-    "controller_backlash.yaml": ControllerConfig.load,
-    "plant_misplaced_camera.yaml": PlantParams.load,
+def old_controller(path: Path) -> ControllerConfig:
+    """An old full controller file as it loaded at 4c350e2: a key it does not state (one added
+    after it was written) took the dataclass default of then (tests/old_defaults.py)."""
+    data = load_layered(path, "controller", flat_controller_mapping)
+    return from_mapping(ControllerConfig, {**OLD_CONTROLLER, **data}, str(path))
+
+
+# the old full file's loader (as of 4c350e2) and the overlay's loader (today's)
+LOADERS: dict[str, tuple[Callable[[Path], Any], Callable[[Path], Any]]] = {
+    "controller_plain.yaml": (old_controller, ControllerConfig.load),
+    "controller_encoders.yaml": (old_controller, ControllerConfig.load),
+    "controller_backlash.yaml": (old_controller, ControllerConfig.load),
+    "plant_misplaced_camera.yaml": (PlantParams.load, PlantParams.load),
 }
 
 
@@ -179,7 +188,8 @@ def test_each_shipped_overlay_loads_to_what_its_old_full_file_gave(name: str, tm
     old.write_text(OLD_FILES[name])
     assert "extends" not in yaml.safe_load(OLD_FILES[name])
     assert "extends" in (CONFIG_DIR / name).read_text()
-    diff = differences(LOADERS[name](old), LOADERS[name](default_config(name)))
+    load_old, load_new = LOADERS[name]
+    diff = differences(load_old(old), load_new(default_config(name)))
     assert not diff, f"configs/{name} no longer means its old full file: " + "; ".join(diff)
 
 

@@ -38,7 +38,7 @@ class ControllerConfig:
     """Controller settings (configs/controller.yaml, under 'controller:', in the sections of
     :data:`CONTROLLER_SECTIONS` or flat); SI units. The defaults are configs/controller.yaml's
     (tests/models/test_config_defaults.py): ``ControllerConfig()`` is the controller the command
-    line runs. A file that extends nothing keeps the meaning it had before (:data:`LEGACY_DEFAULTS`).
+    line runs.
 
     kind: "paper" (eq. 17-21) or "qp" (velocity-bounded QP). dt: servo cycle [s].
     paper: v_xlim constant tip speed [m/s]; gamma [m^2/s^2-free, eq. 20 damping]; xi threshold on
@@ -158,10 +158,9 @@ class ControllerConfig:
     @classmethod
     def load(cls, path: str | Path) -> ControllerConfig:
         """Load from YAML (a 'controller:' mapping, or the mapping itself; ``extends`` resolved:
-        docs/configuration.md); a key no file of the chain states takes its
-        :data:`LEGACY_DEFAULTS` value, else the dataclass default."""
-        data = load_layered(path, "controller", flat_controller_mapping)
-        return from_mapping(cls, {**LEGACY_DEFAULTS, **data}, str(path))
+        docs/configuration.md); a key no file of the chain states takes the dataclass default
+        (configs/controller.yaml's)."""
+        return from_mapping(cls, load_layered(path, "controller", flat_controller_mapping), str(path))
 
     def sections(self) -> dict[str, Any]:
         """The settings as controller.yaml lays them out: kind and dt, then one mapping per
@@ -193,28 +192,6 @@ def flat_controller_mapping(data: dict[str, Any], source: str) -> dict[str, Any]
     """One controller file's mapping, flat: the keys of its sections (each in its own) next to
     kind and dt, or the flat mapping as it is (config_io.flatten_sections)."""
     return flatten_sections(data, source, CONTROLLER_LAYOUT, {k: v[0] for k, v in CONTROLLER_SECTIONS.items()})
-
-
-# What a controller file meant by leaving these keys out before the dataclass's defaults became
-# configs/controller.yaml's (they were then configs/controller_plain.yaml's: the qp without
-# dead-band inversion, tip integral or play probe). A file keeps its meaning: a key it does not
-# state takes the value here, not the default above (docs/configuration.md, "Old files").
-LEGACY_DEFAULTS: dict[str, object] = {
-    "lever": 0.05,
-    "ki": 0.0,
-    "integral_mode": "plain",
-    "backlash_compensation": False,
-    "backlash_start": 0.25,
-    "backlash_fraction": 0.5,
-    "backlash_lead": 0.0,
-    "backlash_method": "schmitt",
-    "backlash_margin": 0.02,
-    "backlash_freeze": 0.0,
-    "backlash_motor_burst": False,
-    "backlash_kinds": ("paper", "qp"),
-    "play_probe": False,
-    "play_probe_learning": True,
-}
 
 
 @dataclass(frozen=True)

@@ -31,8 +31,7 @@ SECTIONS = {"loop": "the servo loop, on hardware as on the bench", "bench": "the
 class RigConfig:
     """How the servo loop and the simulated bench run (configs/rig.yaml's ``loop:`` and ``bench:``,
     or a flat file: module doc). The defaults are configs/rig.yaml's
-    (tests/models/test_config_defaults.py); a file that extends nothing keeps the meaning it had
-    before (:data:`LEGACY_DEFAULTS`).
+    (tests/models/test_config_defaults.py); a key no file states takes that default.
 
     control_dt: servo cycle [s] (paper: 60 ms). vision_latency: capture -> command applied [s]
     (paper: ~45 ms of image processing). plant_dt: plant integration step [s].
@@ -157,7 +156,7 @@ class RigConfig:
     def load(cls, path: str | Path) -> RigConfig:
         """Load configs/rig.yaml-style files: ``loop:`` and ``bench:`` sections or a flat mapping,
         either under a 'rig' key or not (``extends`` resolved: docs/configuration.md)."""
-        return from_mapping(cls, {**LEGACY_DEFAULTS, **load_layered(path, "rig", flat_rig_mapping)}, str(path))
+        return from_mapping(cls, load_layered(path, "rig", flat_rig_mapping), str(path))
 
     def sections(self) -> dict[str, Any]:
         """The settings as rig.yaml lays them out: {'loop': {...}, 'bench': {...}}."""
@@ -177,11 +176,3 @@ def flat_rig_mapping(data: dict[str, Any], source: str) -> dict[str, Any]:
         if loose is not None:
             raise ConfigError(f"{source}: '{loose}' is outside the 'loop:' and 'bench:' sections (not a rig key)")
     return flatten_sections(data, source, RIG_LAYOUT, SECTIONS)
-
-
-# What a rig file meant by leaving these keys out before the dataclass's defaults became
-# configs/rig.yaml's: a key a file does not state takes the value here (docs/configuration.md).
-LEGACY_DEFAULTS: dict[str, object] = {
-    "delay_compensation_tau": 0.0,
-    "reuse_measurement_age": 0.0,
-}

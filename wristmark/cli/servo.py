@@ -61,6 +61,18 @@ from wristmark.rig.loop.servo_session import (
 from wristmark.rig.loop.servo_summary import percentiles_ms, summarize
 from wristmark.rig.recording.output_dir import claim_outputs
 from wristmark.rig.recording.run_log import write_json
+from wristmark.rig.targets.live_target import (
+    LIVE_KINDS,
+    MAX_SPEED,
+    TARGET_TIMEOUT_S,
+    LineSource,
+    LiveTargets,
+    LiveTrajectory,
+    Workspace,
+    live_trajectory,
+    open_line_source,
+    parse_target_spec,
+)
 from wristmark.rig.targets.orientation_path import ORIENTATION_MODES, check_orientation_mode
 from wristmark.rig.targets.trajectories import Trajectory
 
@@ -68,6 +80,7 @@ if TYPE_CHECKING:
     from wristmark.rig.loop.loop_setup import LoopSetup
 
 Array = NDArray[np.float64]
+LIVE_DURATION_S = 60.0  # [s] default run time with live targets
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -98,8 +111,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--timeout", type=positive_float(MAX_TIMEOUT_S), metavar="S",
                    help=f"reply timeout per attempt [s] (default {HW_TIMEOUT_S} real time, "
                         f"{SIM_TIMEOUT_S} simulated)")
-    p.add_argument("--trajectory", choices=("cube", "point"), default="cube",
-                   help="cube: the paper's cube walk (default); point: hold --point")
+    p.add_argument("--trajectory", choices=("cube", "point"),
+                   help="cube: the paper's cube walk (default); point: hold --point (same as --target)")
+    p.add_argument("--target", metavar="SPEC",
+                   help="what the tip follows: cube | point (built-in, as --trajectory) | stdin | "
+                        "tcp:127.0.0.1:PORT (JSON lines {\"t\": s, \"p\": [x, y, z], \"q\": [qx, qy, qz, qw]}, p in "
+                        "{w} in metres, q optional; PORT 0: any free port, printed on stderr) | ros2 (NS/servo_cp, "
+                        "needs --ros2); live targets: clamped to the workspace, speed bounded, held when silent")
+    p.add_argument("--target-timeout", type=positive_float(MAX_TIMEOUT_S), default=TARGET_TIMEOUT_S, metavar="S",
+                   help=f"live targets: a stream silent for S seconds holds the arm (default {TARGET_TIMEOUT_S:g})")
+    p.add_argument("--max-speed", type=positive_float(0.1), default=MAX_SPEED, metavar="M/S",
+                   help=f"live targets: the target's speed bound [m/s] (default {MAX_SPEED:g})")
     p.add_argument("--orientation", choices=ORIENTATION_MODES, default="none",
                    help="the tip frame's orientation: none (position only, as the paper; default), hold (the "
                         "start's, kept along the path) or follow (as the nominal model turns it); needs the qp "
@@ -107,7 +129,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--point", type=float_in(-MAX_POINT_M, MAX_POINT_M), nargs=3, metavar=("X", "Y", "Z"),
                    help="point to hold in {w} [m] (default: the workspace centre)")
     p.add_argument("--duration", type=positive_float(MAX_DURATION_S), metavar="S",
-                   help=f"run only the first S seconds of the trajectory (point: default {POINT_HOLD_S:g})")
+                   help=f"run only the first S seconds of the trajectory (point: default {POINT_HOLD_S:g}; "
+                        f"live targets: default {LIVE_DURATION_S:g})")
     p.add_argument("--settle", type=nonnegative_float(MAX_SETTLE_S), metavar="S",
                    help="closed-loop approach to the start [s] (rig file)")
     p.add_argument("--json", metavar="FILE.json", help=JSON_FILE_HELP.format(what="the result"))
@@ -133,8 +156,19 @@ def build_setup(args: argparse.Namespace) -> LoopSetup:
     return setup_from_args(args, simulated=args.serial is None, settle_time=args.settle)  # type: ignore[no-any-return]
 
 
+def target_kind(args: argparse.Namespace) -> tuple[str, int | None]:
+    """What the tip follows (cube | point | stdin | tcp | ros2) and the TCP port, from
+    ``--target`` or ``--trajectory`` (not both)."""
+    if args.target is not None and args.trajectory is not None:
+        raise InputError("give --target SPEC or --trajectory, not both")
+    kind, _, port = parse_target_spec(args.target or args.trajectory or "cube")
+    return kind, port
+
+
 def build_trajectory(setup: LoopSetup, kind: str, point: list[float] | None, duration: float | None) -> Trajectory:
-    """The cube walk around the workspace centre, or a held point; cut to ``duration`` [s]."""
+    """The cube walk around the workspace centre, or a held point; cut to ``duration`` [s]; a
+    live kind (stdin | tcp | ros2): waiting at the workspace centre for ``duration`` (default
+    LIVE_DURATION_S), its targets attached later (LiveTrajectory.with_follower)."""
     from wristmark.rig.targets.trajectories import CUBE_SIZE, CUBE_SPEED, cube_trajectory, workspace_centre
 
     if duration is not None and not (np.isfinite(duration) and duration > 0):
@@ -142,6 +176,8 @@ def build_trajectory(setup: LoopSetup, kind: str, point: list[float] | None, dur
     if point is not None and kind != "point":
         raise InputError("--point needs --trajectory point")
     centre = workspace_centre(setup.params)
+    if kind in LIVE_KINDS:
+        return live_trajectory(centre, duration if duration is not None else LIVE_DURATION_S, kind)
     if kind == "point":
         p = np.asarray(point if point is not None else centre, float)
         if not np.all(np.isfinite(p)):
@@ -268,17 +304,36 @@ def write_outputs(args: argparse.Namespace, setup: LoopSetup, out: ServoOutcome,
         write_json(args.json, res)
 
 
+def open_targets(args: argparse.Namespace, setup: LoopSetup, traj: Trajectory, port: int | None
+                 ) -> tuple[Trajectory, LiveTargets | None, LineSource | None]:
+    """A live trajectory's target store and its source (stdin, TCP; ros2: the bridge feeds it),
+    attached to the trajectory; built-in trajectories are returned as they are."""
+    if not isinstance(traj, LiveTrajectory):
+        return traj, None, None
+    targets = LiveTargets(Workspace.around(traj.waypoints[0]), timeout=args.target_timeout,
+                          name=f"--target {args.target}")
+    source = open_line_source(traj.kind, targets, port) if traj.kind in ("stdin", "tcp") else None
+    if source is not None and traj.kind == "tcp":
+        print(f"wristmark servo: taking targets on {source.describe}", file=sys.stderr, flush=True)
+    return traj.with_follower(targets, args.max_speed), targets, source
+
+
 def run(args: argparse.Namespace) -> int:
     check_link_options(args)
     setup = build_setup(args)
-    traj = build_trajectory(setup, args.trajectory, args.point, args.duration)
+    target, port = target_kind(args)
+    traj = build_trajectory(setup, target, args.point, args.duration)
     if check_orientation_mode(args.orientation, setup.controller.kind) != "none":
+        if isinstance(traj, LiveTrajectory) and args.orientation != "hold":
+            raise InputError("live targets take --orientation none or hold (q of each target turns the tip)")
         traj = traj.with_orientation(args.orientation, setup.params)
     psi0 = start_configuration(setup, traj)
     claim_outputs(dirs=[args.out], files=[args.json], force=args.force)  # after every option was validated
     kind = "serial" if args.serial else "direct" if args.direct else "emulator"
+    live = isinstance(traj, LiveTrajectory)  # a device steers in real time: the simulated bench is paced
     options = LinkOptions(kind=kind, port=args.serial, baudrate=args.baud, timeout=args.timeout,
-                          realtime=bool(args.realtime), pace=bool(args.pace or args.view))
+                          realtime=bool(args.realtime), pace=bool(args.pace or args.view or live))
+    traj, targets, source = open_targets(args, setup, traj, port)
     with _sigterm_as_interrupt():
         view = live_view(setup, args.host) if args.view else None
         try:
@@ -292,7 +347,13 @@ def run(args: argparse.Namespace) -> int:
         finally:
             if view is not None:
                 view.close()
+            if source is not None:
+                source.close()
     res = summarize(setup, traj, session, out)
+    if targets is not None:
+        res["trajectory"]["kind"] = target
+        res["targets"] = {"source": source.describe if source is not None else target,
+                          "max_speed_mps": args.max_speed, **targets.report()}
     if session.wall_clock:  # the host's own work after a frame's arrival, before the command instant
         res["latency"]["arrival_to_ready"] = percentiles_ms(np.asarray(out.ready_after_arrival_ms, float))
         res["latency"]["command_phase_ms"] = 1000.0 * setup.rig.command_phase

@@ -118,6 +118,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "tcp:127.0.0.1:PORT (JSON lines {\"t\": s, \"p\": [x, y, z], \"q\": [qx, qy, qz, qw]}, p in "
                         "{w} in metres, q optional; PORT 0: any free port, printed on stderr) | ros2 (NS/servo_cp, "
                         "needs --ros2); live targets: clamped to the workspace, speed bounded, held when silent")
+    p.add_argument("--ros2", nargs="?", const="wristmark", metavar="NS",
+                   help="join the ROS 2 graph (Cyclone DDS, no ROS needed; loopback only unless CYCLONEDDS_URI "
+                        "says otherwise): publish NS/measured_cp, NS/measured_js, NS/setpoint_js; with --target "
+                        "ros2 follow NS/servo_cp (default NS: wristmark; docs/ros2.md)")
     p.add_argument("--target-timeout", type=positive_float(MAX_TIMEOUT_S), default=TARGET_TIMEOUT_S, metavar="S",
                    help=f"live targets: a stream silent for S seconds holds the arm (default {TARGET_TIMEOUT_S:g})")
     p.add_argument("--max-speed", type=positive_float(0.1), default=MAX_SPEED, metavar="M/S",
@@ -318,11 +322,40 @@ def open_targets(args: argparse.Namespace, setup: LoopSetup, traj: Trajectory, p
     return traj.with_follower(targets, args.max_speed), targets, source
 
 
+def check_ros2(namespace: str) -> None:
+    """``--ros2 NS``: a valid namespace and cyclonedds installed (InputError, one line)."""
+    from wristmark.rig.ros2.bridge import clean_namespace
+    from wristmark.rig.ros2.dds_config import require_cyclonedds
+
+    try:
+        clean_namespace(namespace)
+    except ValueError as e:
+        raise InputError(f"--ros2: {e}") from None
+    require_cyclonedds("--ros2")
+
+
+def cycle_hook(view: Any, bridge: Any, session: ServoSession) -> Any:
+    """The loop's per-cycle hook: the live view's and the ROS 2 bridge's (None: neither)."""
+    if bridge is None:
+        return None if view is None else view.on_cycle
+
+    def hook(rec: Any) -> None:
+        bridge.on_cycle(rec, session.link)
+        if view is not None:
+            view.on_cycle(rec)
+
+    return hook
+
+
 def run(args: argparse.Namespace) -> int:
     check_link_options(args)
     setup = build_setup(args)
     target, port = target_kind(args)
     traj = build_trajectory(setup, target, args.point, args.duration)
+    if target == "ros2" and args.ros2 is None:
+        raise InputError("--target ros2 needs --ros2 [NS]: the targets come from NS/servo_cp")
+    if args.ros2 is not None:
+        check_ros2(args.ros2)
     if check_orientation_mode(args.orientation, setup.controller.kind) != "none":
         if isinstance(traj, LiveTrajectory) and args.orientation != "hold":
             raise InputError("live targets take --orientation none or hold (q of each target turns the tip)")
@@ -334,13 +367,19 @@ def run(args: argparse.Namespace) -> int:
     options = LinkOptions(kind=kind, port=args.serial, baudrate=args.baud, timeout=args.timeout,
                           realtime=bool(args.realtime), pace=bool(args.pace or args.view or live))
     traj, targets, source = open_targets(args, setup, traj, port)
+    bridge = None
     with _sigterm_as_interrupt():
         view = live_view(setup, args.host) if args.view else None
         try:
+            if args.ros2 is not None:
+                from wristmark.rig.ros2.bridge import Ros2Bridge
+
+                bridge = Ros2Bridge(args.ros2, setup.params, targets if target == "ros2" else None,
+                                    wall_clock=options.kind == "serial")
             session = open_session(setup, psi0, options, args)
             recorder = open_recorder(args, setup, session)
             out = run_servo(setup, traj, session, psi0, settle=setup.rig.settle_time,
-                            progress=not args.no_progress, on_cycle=None if view is None else view.on_cycle,
+                            progress=not args.no_progress, on_cycle=cycle_hook(view, bridge, session),
                             recorder=recorder, on_frame=None if view is None else view.on_frame)
             if view is not None and args.view_hold > 0:
                 view.hold(args.view_hold)
@@ -349,7 +388,11 @@ def run(args: argparse.Namespace) -> int:
                 view.close()
             if source is not None:
                 source.close()
+            if bridge is not None:
+                bridge.close()
     res = summarize(setup, traj, session, out)
+    if bridge is not None:
+        res["ros2"] = bridge.report()
     if targets is not None:
         res["trajectory"]["kind"] = target
         res["targets"] = {"source": source.describe if source is not None else target,

@@ -10,7 +10,6 @@ This module imports no cyclonedds; :func:`require_cyclonedds` checks that it is 
 
 from __future__ import annotations
 
-import importlib.util
 import os
 from collections.abc import MutableMapping
 from typing import Any
@@ -53,8 +52,11 @@ def domain_id(environ: MutableMapping[str, str] | None = None) -> int:
 
 def require_cyclonedds(what: str = "--ros2") -> None:
     """InputError (one line) when the optional ``cyclonedds`` is not installed."""
-    if importlib.util.find_spec("cyclonedds") is None:
-        raise InputError(f"{what} needs the Python package cyclonedds, which is not installed: {INSTALL_HINT}")
+    try:
+        import cyclonedds  # noqa: F401 - the check itself (a broken install fails here too)
+    except ImportError as e:
+        raise InputError(f"{what} needs the Python package cyclonedds, which cannot be imported ({e}): "
+                         f"{INSTALL_HINT}") from None
 
 
 def open_participant(environ: MutableMapping[str, str] | None = None) -> Any:

@@ -91,8 +91,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     link.add_argument("--direct", action="store_true",
                       help="in-process plant without serial bytes (the reference for the serial path)")
     p.add_argument("--camera", metavar="SPEC",
-                   help="with --serial: the stereo camera's frame source (/dev/videoN, http://..., a video; "
-                        "docs/frame_sources.md); the calibration is --calib")
+                   help="with --serial: the stereo camera's frame source (/dev/videoN, http://..., a video, "
+                        "ros2:LEFT,RIGHT; docs/frame_sources.md); the calibration is --calib")
     p.add_argument("--camera-timeout", type=positive_float(60.0), default=2.0, metavar="S",
                    help="with --camera: no frame for S seconds ends the camera's stream (default 2)")
     p.add_argument("--record", metavar="FILE.mcap",

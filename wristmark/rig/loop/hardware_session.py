@@ -29,7 +29,8 @@ def open_hardware_session(setup: LoopSetup, options: LinkOptions, camera: str, c
     camera_timeout: no new frame for this long ends the camera's stream [s] (the loop holds the
     arm well before, after ``max_lost_cycles`` cycles without a frame)."""
     from wristmark.cvs.sources.frames import FrameSourceError, check_frame_size
-    from wristmark.cvs.sources.open_source import SourceOptions, open_stereo_source
+    from wristmark.cvs.sources.open_source import SourceOptions
+    from wristmark.rig.ros2.image_source import open_frame_source
 
     if not options.port:
         raise ActuatorError("--serial needs a device path or pyserial URL")
@@ -39,7 +40,7 @@ def open_hardware_session(setup: LoopSetup, options: LinkOptions, camera: str, c
     try:
         link.probe()
         cam = setup.scaled_camera
-        source = open_stereo_source(camera, SourceOptions(layout=layout, timeout=camera_timeout))
+        source = open_frame_source(camera, SourceOptions(layout=layout, timeout=camera_timeout))  # also ros2:L,R
     except BaseException:
         link.close()
         raise

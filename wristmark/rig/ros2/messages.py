@@ -9,8 +9,9 @@ require_cyclonedds` says so in one line first. Units: seconds and nanoseconds, m
 
 # no ``from __future__ import annotations``: cyclonedds reads the field types at run time
 import math
+import struct
 from dataclasses import dataclass, field
-from typing import final
+from typing import TYPE_CHECKING, Any, final
 
 import cyclonedds.idl.types as t
 from cyclonedds.idl import IdlStruct
@@ -95,10 +96,97 @@ class JointState(IdlStruct, typename="sensor_msgs::msg::dds_::JointState_"):
     effort: t.sequence[t.float64] = field(default_factory=list)  # type: ignore[type-arg, assignment]  # cyclonedds' run-time types
 
 
+class _Cdr:
+    """Plain CDR (XCDR1) of the image messages, written here so that their pixels are read and
+    written as one block of bytes (cyclonedds' generic code handles uint8[] one element at a
+    time: seconds for a 1080p image). Offsets count from after the 4-byte encapsulation header."""
+
+    def __init__(self, data: bytes) -> None:
+        if len(data) < 4 or data[0] != 0 or data[1] not in (0, 1):
+            raise ValueError("not plain CDR (XCDR1)")
+        self.data = memoryview(data)
+        self.end = "<" if data[1] == 1 else ">"
+        self.pos = 4
+
+    def _align(self, n: int) -> None:
+        self.pos += (-(self.pos - 4)) % n
+
+    def u32(self) -> int:
+        self._align(4)
+        (v,) = struct.unpack_from(self.end + "I", self.data, self.pos)
+        self.pos += 4
+        return int(v)
+
+    def i32(self) -> int:
+        self._align(4)
+        (v,) = struct.unpack_from(self.end + "i", self.data, self.pos)
+        self.pos += 4
+        return int(v)
+
+    def u8(self) -> int:
+        v = self.data[self.pos]
+        self.pos += 1
+        return int(v)
+
+    def blob(self) -> bytes:
+        n = self.u32()
+        if self.pos + n > len(self.data):
+            raise ValueError("CDR sequence runs past the end of the message")
+        out = bytes(self.data[self.pos:self.pos + n])
+        self.pos += n
+        return out
+
+    def string(self) -> str:
+        raw = self.blob()
+        return raw[:-1].decode("utf-8") if raw.endswith(b"\0") else raw.decode("utf-8")
+
+    def header(self) -> "Header":
+        return Header(Time(self.i32(), self.u32()), self.string())
+
+
+class _CdrWriter:
+    """Little-endian plain CDR (XCDR1) with its encapsulation header."""
+
+    def __init__(self) -> None:
+        self.parts: list[bytes] = [b"\x00\x01\x00\x00"]
+        self.size = 0
+
+    def _align(self, n: int) -> None:
+        pad = (-self.size) % n
+        if pad:
+            self.parts.append(b"\x00" * pad)
+            self.size += pad
+
+    def u32(self, v: int, fmt: str = "<I") -> None:
+        self._align(4)
+        self.parts.append(struct.pack(fmt, v))
+        self.size += 4
+
+    def u8(self, v: int) -> None:
+        self.parts.append(bytes((v,)))
+        self.size += 1
+
+    def blob(self, b: bytes) -> None:
+        self.u32(len(b))
+        self.parts.append(b)
+        self.size += len(b)
+
+    def string(self, s: str) -> None:
+        self.blob(s.encode("utf-8") + b"\0")
+
+    def header(self, h: "Header") -> None:
+        self.u32(h.stamp.sec, "<i")
+        self.u32(h.stamp.nanosec)
+        self.string(h.frame_id)
+
+    def getvalue(self) -> bytes:
+        return b"".join(self.parts)
+
+
 @final
 @dataclass
 class Image(IdlStruct, typename="sensor_msgs::msg::dds_::Image_"):
-    """sensor_msgs/Image: raw pixels, ``step`` bytes a row."""
+    """sensor_msgs/Image: raw pixels, ``step`` bytes a row (``data``: bytes)."""
 
     header: Header = field(default_factory=Header)
     height: t.uint32 = 0
@@ -106,17 +194,66 @@ class Image(IdlStruct, typename="sensor_msgs::msg::dds_::Image_"):
     encoding: str = ""
     is_bigendian: t.uint8 = 0
     step: t.uint32 = 0
-    data: t.sequence[t.uint8] = field(default_factory=bytes)  # type: ignore[type-arg, assignment]  # cyclonedds' run-time types
+    if TYPE_CHECKING:
+        data: bytes = b""
+    else:  # uint8[] to cyclonedds (its type object); bytes here (serialize, deserialize below)
+        data: t.sequence[t.uint8] = field(default_factory=bytes)
+
+    def serialize(self, buffer: Any = None, endianness: Any = None, use_version_2: bool | None = None) -> bytes:
+        """ROS 2's CDR (XCDR1, little endian; anything else: cyclonedds' own code)."""
+        if buffer is not None or endianness is not None or use_version_2:
+            return super().serialize(buffer=buffer, endianness=endianness, use_version_2=use_version_2)
+        w = _CdrWriter()
+        w.header(self.header)
+        w.u32(self.height)
+        w.u32(self.width)
+        w.string(self.encoding)
+        w.u8(self.is_bigendian)
+        w.u32(self.step)
+        w.blob(bytes(self.data))
+        return w.getvalue()
+
+    @classmethod
+    def deserialize(cls, data: bytes, has_header: bool = True, use_version_2: bool | None = None) -> "Image":
+        """From ROS 2's CDR (XCDR1, either endianness; anything else: cyclonedds' own code)."""
+        if not has_header or use_version_2 is not None or len(data) < 2 or data[1] > 1:
+            return super().deserialize(data, has_header=has_header,  # type: ignore[return-value]
+                                       use_version_2=use_version_2)
+        r = _Cdr(data)
+        return cls(r.header(), r.u32(), r.u32(), r.string(), r.u8(), r.u32(), r.blob())
 
 
 @final
 @dataclass
 class CompressedImage(IdlStruct, typename="sensor_msgs::msg::dds_::CompressedImage_"):
-    """sensor_msgs/CompressedImage: ``format`` (jpeg, png) and the encoded bytes."""
+    """sensor_msgs/CompressedImage: ``format`` (jpeg, png) and the encoded bytes (``data``)."""
 
     header: Header = field(default_factory=Header)
     format: str = ""
-    data: t.sequence[t.uint8] = field(default_factory=bytes)  # type: ignore[type-arg, assignment]  # cyclonedds' run-time types
+    if TYPE_CHECKING:
+        data: bytes = b""
+    else:  # uint8[] to cyclonedds (its type object); bytes here (serialize, deserialize below)
+        data: t.sequence[t.uint8] = field(default_factory=bytes)
+
+    def serialize(self, buffer: Any = None, endianness: Any = None, use_version_2: bool | None = None) -> bytes:
+        """ROS 2's CDR (XCDR1, little endian; anything else: cyclonedds' own code)."""
+        if buffer is not None or endianness is not None or use_version_2:
+            return super().serialize(buffer=buffer, endianness=endianness, use_version_2=use_version_2)
+        w = _CdrWriter()
+        w.header(self.header)
+        w.string(self.format)
+        w.blob(bytes(self.data))
+        return w.getvalue()
+
+    @classmethod
+    def deserialize(cls, data: bytes, has_header: bool = True,
+                    use_version_2: bool | None = None) -> "CompressedImage":
+        """From ROS 2's CDR (XCDR1, either endianness; anything else: cyclonedds' own code)."""
+        if not has_header or use_version_2 is not None or len(data) < 2 or data[1] > 1:
+            return super().deserialize(data, has_header=has_header,  # type: ignore[return-value]
+                                       use_version_2=use_version_2)
+        r = _Cdr(data)
+        return cls(r.header(), r.string(), r.blob())
 
 
 MESSAGE_TYPES = (Time, Header, Point, Quaternion, Pose, PoseStamped, JointState, Image, CompressedImage)

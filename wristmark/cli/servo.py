@@ -90,6 +90,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                            "needs --camera). Default: the simulated bench, its emulator on a new pty")
     link.add_argument("--direct", action="store_true",
                       help="in-process plant without serial bytes (the reference for the serial path)")
+    link.add_argument("--actuator", metavar="ros2:NS",
+                      help="hardware path: an arm driven over ROS 2 (NS/servo_jp, NS/crtk_command out, "
+                           "NS/measured_js in; real time; needs --camera; docs/ros2.md)")
     p.add_argument("--camera", metavar="SPEC",
                    help="with --serial: the stereo camera's frame source (/dev/videoN, http://..., a video, "
                         "ros2:LEFT,RIGHT; docs/frame_sources.md); the calibration is --calib")
@@ -157,7 +160,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def build_setup(args: argparse.Namespace) -> LoopSetup:
     """The setup with the command-line overrides, validated: the simulated bench's SimSetup, or
     for the hardware path (``--serial``) a LoopSetup without the simulated bench."""
-    return setup_from_args(args, simulated=args.serial is None, settle_time=args.settle)  # type: ignore[no-any-return]
+    return setup_from_args(args, simulated=not hardware(args), settle_time=args.settle)  # type: ignore[no-any-return]
 
 
 def target_kind(args: argparse.Namespace) -> tuple[str, int | None]:
@@ -234,23 +237,45 @@ def _sigterm_as_interrupt() -> Iterator[None]:
             signal.signal(sig, old)
 
 
+def hardware(args: argparse.Namespace) -> bool:
+    """The hardware path: ``--serial PORT`` or ``--actuator ros2:NS`` (a real-time link and a camera)."""
+    return args.serial is not None or getattr(args, "actuator", None) is not None
+
+
+def actuator_namespace(spec: str) -> str:
+    """``--actuator ros2:NS`` -> NS (InputError, one line, for anything else)."""
+    from wristmark.rig.ros2.bridge import clean_namespace
+
+    if not spec.startswith("ros2:"):
+        raise InputError(f"--actuator must be ros2:NS (an arm on a ROS 2 graph), got {spec!r}")
+    try:
+        return clean_namespace(spec[len("ros2:"):] or "-")
+    except ValueError as e:
+        raise InputError(f"--actuator: {e}") from None
+
+
 def check_link_options(args: argparse.Namespace) -> None:
     """The link and camera options fit together (InputError before anything is opened)."""
+    if args.actuator is not None:
+        actuator_namespace(args.actuator)
+        if not args.camera:
+            raise InputError("--actuator ros2:NS needs --camera SPEC: the frames of the stereo camera")
+        check_ros2(args.actuator[len("ros2:"):], "--actuator")
     if args.serial is not None and not args.camera:
         raise InputError("--serial needs --camera SPEC: the frames of the stereo camera (e.g. the virtual lab's "
                          "stream URL); the simulated cameras exist only in the in-process bench (no --serial)")
-    if args.camera and args.serial is None:
-        raise InputError("--camera SPEC needs --serial PORT (the hardware path); without --serial the "
-                         "simulated bench renders its own frames")
-    if args.rt_priority is not None and args.serial is None:
+    if args.camera and not hardware(args):
+        raise InputError("--camera SPEC needs --serial PORT or --actuator ros2:NS (the hardware path); without "
+                         "them the simulated bench renders its own frames")
+    if args.rt_priority is not None and not hardware(args):
         raise InputError("--rt-priority is for the hardware path (--serial); the simulated bench runs in "
                          "simulated time")
-    if args.record and args.serial is None:
+    if args.record and not hardware(args):
         raise InputError("--record is for the hardware path (--serial --camera): the simulated bench writes "
                          "log.csv with --out")
     if args.record_jpeg and not args.record:
         raise InputError("--record-jpeg needs --record FILE.mcap")
-    if args.serial is not None and args.realtime:
+    if hardware(args) and args.realtime:
         raise InputError("--realtime is for the in-process emulator; --serial is always real time")
     if args.timeout is not None and not args.timeout > 0:
         raise InputError(f"--timeout must be > 0 s, got {args.timeout}")
@@ -262,7 +287,7 @@ def check_link_options(args: argparse.Namespace) -> None:
 
 def open_session(setup: LoopSetup, psi0: Array, options: LinkOptions, args: argparse.Namespace) -> ServoSession:
     """The hardware session (serial port + camera), or the simulated bench's in process."""
-    if options.kind == "serial":
+    if options.kind in ("serial", "ros2"):
         from wristmark.rig.loop.hardware_session import open_hardware_session
 
         if args.rt_priority is not None:  # before any thread starts: the camera's threads inherit it
@@ -322,7 +347,7 @@ def open_targets(args: argparse.Namespace, setup: LoopSetup, traj: Trajectory, p
     return traj.with_follower(targets, args.max_speed), targets, source
 
 
-def check_ros2(namespace: str) -> None:
+def check_ros2(namespace: str, what: str = "--ros2") -> None:
     """``--ros2 NS``: a valid namespace and cyclonedds installed (InputError, one line)."""
     from wristmark.rig.ros2.bridge import clean_namespace
     from wristmark.rig.ros2.dds_config import require_cyclonedds
@@ -330,8 +355,8 @@ def check_ros2(namespace: str) -> None:
     try:
         clean_namespace(namespace)
     except ValueError as e:
-        raise InputError(f"--ros2: {e}") from None
-    require_cyclonedds("--ros2")
+        raise InputError(f"{what}: {e}") from None
+    require_cyclonedds(what)
 
 
 def cycle_hook(view: Any, bridge: Any, session: ServoSession) -> Any:
@@ -362,9 +387,10 @@ def run(args: argparse.Namespace) -> int:
         traj = traj.with_orientation(args.orientation, setup.params)
     psi0 = start_configuration(setup, traj)
     claim_outputs(dirs=[args.out], files=[args.json], force=args.force)  # after every option was validated
-    kind = "serial" if args.serial else "direct" if args.direct else "emulator"
+    kind = "serial" if args.serial else "ros2" if args.actuator else "direct" if args.direct else "emulator"
     live = isinstance(traj, LiveTrajectory)  # a device steers in real time: the simulated bench is paced
-    options = LinkOptions(kind=kind, port=args.serial, baudrate=args.baud, timeout=args.timeout,
+    options = LinkOptions(kind=kind, port=actuator_namespace(args.actuator) if args.actuator else args.serial,
+                          baudrate=args.baud, timeout=args.timeout,
                           realtime=bool(args.realtime), pace=bool(args.pace or args.view or live))
     traj, targets, source = open_targets(args, setup, traj, port)
     bridge = None
@@ -375,7 +401,7 @@ def run(args: argparse.Namespace) -> int:
                 from wristmark.rig.ros2.bridge import Ros2Bridge
 
                 bridge = Ros2Bridge(args.ros2, setup.params, targets if target == "ros2" else None,
-                                    wall_clock=options.kind == "serial")
+                                    wall_clock=options.kind in ("serial", "ros2"))
             session = open_session(setup, psi0, options, args)
             recorder = open_recorder(args, setup, session)
             out = run_servo(setup, traj, session, psi0, settle=setup.rig.settle_time,
@@ -417,7 +443,8 @@ def run(args: argparse.Namespace) -> int:
     if c["cycles"] and "orientation_mean_deg" in c:
         errors += f"; orientation mean {c['orientation_mean_deg']:.2f} deg, max {c['orientation_max_deg']:.2f} deg"
     lat = res["latency"]["capture_to_command"]
-    latency = f"; capture -> command median {lat['median_ms']:.1f} ms" if options.kind == "serial" and lat["n"] else ""
+    hw_link = options.kind in ("serial", "ros2")
+    latency = f"; capture -> command median {lat['median_ms']:.1f} ms" if hw_link and lat["n"] else ""
     print(f"servo ({res['trajectory']['kind']}, {traj.duration:.1f} s, controller {res['controller']}, "
           f"sensor {res['sensor']}, link {kind} {session.port}): {errors}{latency}")
     if not out.stopped:

@@ -43,6 +43,8 @@ def cases() -> list[tuple[Any, Any]]:
         (M.Time(-5, 999_999_999), ros("builtin_interfaces/msg/Time")(-5, 999_999_999)),
         (HEADER, ROS_HEADER),
         (M.Header(M.Time(0, 0), ""), ros_header(0, 0, "")),
+        (M.String("enable"), ros("std_msgs/msg/String")("enable")),
+        (M.String(""), ros("std_msgs/msg/String")("")),
         (M.Point(1.0, 2.0, 3.0), P(1.0, 2.0, 3.0)),
         (M.Quaternion(), Q(0.0, 0.0, 0.0, 1.0)),
         (pose, ros_pose),

@@ -173,7 +173,8 @@ class Ros2Bridge:
             self.targets.drop(f"undecodable servo_cp ({type(e).__name__})")
             return
         for msg in samples:
-            self.offer(msg)
+            if hasattr(msg, "pose"):  # not an InvalidSample (a writer leaving: no data)
+                self.offer(msg)
 
     def offer(self, msg: Any) -> bool:
         """One servo_cp message into the target store (False: dropped, counted, warned)."""

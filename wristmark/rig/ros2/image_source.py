@@ -185,6 +185,8 @@ class Ros2StereoSource:
             self.pairer.unpaired += 1
             return
         for msg in samples:
+            if not hasattr(msg, "data"):
+                continue  # an InvalidSample: the writer left (no data)
             stamp = int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
             self.pairer.add(side, Received(max(stamp, 0), now, msg))
 

@@ -47,6 +47,14 @@ class Header(IdlStruct, typename="std_msgs::msg::dds_::Header_"):
 
 @final
 @dataclass
+class String(IdlStruct, typename="std_msgs::msg::dds_::String_"):
+    """std_msgs/String (commands: ``NS/crtk_command`` enable | disable)."""
+
+    data: str = ""
+
+
+@final
+@dataclass
 class Point(IdlStruct, typename="geometry_msgs::msg::dds_::Point_"):
     """geometry_msgs/Point [m]."""
 
@@ -256,7 +264,7 @@ class CompressedImage(IdlStruct, typename="sensor_msgs::msg::dds_::CompressedIma
         return cls(r.header(), r.string(), r.blob())
 
 
-MESSAGE_TYPES = (Time, Header, Point, Quaternion, Pose, PoseStamped, JointState, Image, CompressedImage)
+MESSAGE_TYPES = (Time, Header, String, Point, Quaternion, Pose, PoseStamped, JointState, Image, CompressedImage)
 ROS_NAMES = {cls: cls.__idl_typename__.replace("::dds_::", "::").replace("::", "/").rstrip("_")
              for cls in MESSAGE_TYPES}  # e.g. geometry_msgs/msg/PoseStamped
 

@@ -1,8 +1,9 @@
 """The whole loop over ROS 2: `wristmark servo --actuator ros2:NS --camera ros2:LEFT,RIGHT` (the
 hardware path, real time, the tip only from tracking the frames) against the virtual lab over ROS 2
-(wristmark/sim/ros2_lab.py in a process of its own: the simulated arm behind NS/servo_jp,
-NS/crtk_command, NS/measured_js and its endoscope on two CompressedImage topics), on loopback.
-The true arm reaches the point; the lab vanishing mid-run is a safe stop in one line."""
+(``wristmark emulator --ros2 NS``, wristmark/sim/ros2_lab.py, in a process of its own: the
+simulated arm behind NS/servo_jp, NS/crtk_command, NS/measured_js and its endoscope on two
+CompressedImage topics), on loopback. The true arm reaches the point; the lab vanishing mid-run
+is a safe stop in one line."""
 
 from __future__ import annotations
 
@@ -22,6 +23,27 @@ import pytest
 from tests.rig.ros2.test_ros2_servo import ROOT, env, no_probe_controller
 
 SCALE = "0.25"
+
+
+@pytest.fixture
+def cli_lab(tmp_path: Path) -> Iterator[dict[str, Any]]:
+    """``wristmark emulator --ros2 NS``: its first stdout lines are the --actuator and --camera SPECs."""
+    ns = f"lab_{os.getpid()}_{random.randint(0, 9999)}"
+    e = env(random.randint(100, 199))
+    truth = tmp_path / "truth.csv"
+    proc = subprocess.Popen([sys.executable, "-m", "wristmark", "emulator", "--ros2", ns, "--image-scale", SCALE,
+                             "--fps", "15", "--truth-out", str(truth)], cwd=ROOT, env=e, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout is not None
+        actuator, camera = proc.stdout.readline().strip(), proc.stdout.readline().strip()
+        assert actuator == f"ros2:/{ns}", proc.stderr.read() if proc.stderr and not actuator else actuator
+        assert camera == f"ros2:/{ns}/left/image_raw/compressed,/{ns}/right/image_raw/compressed"
+        yield {"ns": ns, "env": e, "truth": truth, "proc": proc}
+    finally:
+        proc.terminate()
+        _, err = proc.communicate(timeout=30)
+        assert "frames" in err and "watchdog trips" in err, err  # its summary line on SIGTERM
 
 
 @pytest.fixture
@@ -49,7 +71,8 @@ def servo(lab: dict[str, Any], tmp: Path, *extra: str) -> subprocess.Popen[str]:
         cwd=ROOT, env=lab["env"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
-def test_the_loop_drives_the_virtual_lab_over_ros2(lab: dict[str, Any], tmp_path: Path) -> None:
+def test_the_loop_drives_the_virtual_lab_over_ros2(cli_lab: dict[str, Any], tmp_path: Path) -> None:
+    lab = cli_lab
     p = servo(lab, tmp_path, "--trajectory", "point", "--point", "0.0797", "0.0", "0.1449", "--duration", "3",
               "--ros2", lab["ns"] + "_host")
     out, err = p.communicate(timeout=180)

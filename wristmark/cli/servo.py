@@ -254,6 +254,15 @@ def actuator_namespace(spec: str) -> str:
         raise InputError(f"--actuator: {e}") from None
 
 
+def _same_namespace(a: str, b: str) -> bool:
+    from wristmark.rig.ros2.bridge import clean_namespace
+
+    try:
+        return clean_namespace(a) == clean_namespace(b)
+    except ValueError:
+        return False
+
+
 def check_link_options(args: argparse.Namespace) -> None:
     """The link and camera options fit together (InputError before anything is opened)."""
     if args.actuator is not None:
@@ -261,6 +270,9 @@ def check_link_options(args: argparse.Namespace) -> None:
         if not args.camera:
             raise InputError("--actuator ros2:NS needs --camera SPEC: the frames of the stereo camera")
         check_ros2(args.actuator[len("ros2:"):], "--actuator")
+        if args.ros2 is not None and _same_namespace(args.ros2, args.actuator[len("ros2:"):]):
+            raise InputError("--ros2 NS must differ from --actuator ros2:NS: the loop would read its own "
+                             "measured_js back as the arm's")
     if args.serial is not None and not args.camera:
         raise InputError("--serial needs --camera SPEC: the frames of the stereo camera (e.g. the virtual lab's "
                          "stream URL); the simulated cameras exist only in the in-process bench (no --serial)")

@@ -50,6 +50,11 @@ def test_without_cyclonedds_ros2_is_one_clear_line_and_wristmark_imports(tmp_pat
     (["--target", "ros2"], ["--target ros2 needs --ros2"]),
     (["--ros2", "1bad/ns"], ["--ros2", "namespace"]),
     (["--ros2", "a b"], ["--ros2", "namespace"]),
+    (["--actuator", "ros2:/arm"], ["--actuator ros2:NS needs --camera"]),
+    (["--actuator", "serial:/dev/x", "--camera", "ros2:/l,/r"], ["--actuator must be ros2:NS"]),
+    (["--actuator", "ros2:9x", "--camera", "ros2:/l,/r"], ["--actuator", "namespace"]),
+    (["--actuator", "ros2:/arm", "--camera", "ros2:/l,/r", "--ros2", "arm"], ["--ros2 NS must differ"]),
+    (["--actuator", "ros2:/arm", "--serial", "/dev/null"], ["not allowed with argument"]),
 ])
 def test_bad_ros2_options_are_one_line_before_any_motion(args: list[str], words: list[str]) -> None:
     r = subprocess.run([sys.executable, "-m", "wristmark", "servo", "--sensor", "truth-noise", "--no-progress", *args],

@@ -429,6 +429,8 @@ def run(args: argparse.Namespace) -> int:
             if bridge is not None:
                 bridge.close()
     res = summarize(setup, traj, session, out)
+    if options.kind == "ros2":  # targets sent, malformed measured_js (rig/ros2/actuator_link.py)
+        res["link"].update(session.link.stats())  # type: ignore[attr-defined]
     if bridge is not None:
         res["ros2"] = bridge.report()
     if targets is not None:

@@ -71,6 +71,10 @@ def servo(lab: dict[str, Any], tmp: Path, *extra: str) -> subprocess.Popen[str]:
         cwd=ROOT, env=lab["env"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
+def c_cycles(res: dict[str, Any]) -> int:
+    return int(res["closed_loop"]["cycles"])
+
+
 def test_the_loop_drives_the_virtual_lab_over_ros2(cli_lab: dict[str, Any], tmp_path: Path) -> None:
     lab = cli_lab
     p = servo(lab, tmp_path, "--trajectory", "point", "--point", "0.0797", "0.0", "0.1449", "--duration", "3",
@@ -79,7 +83,8 @@ def test_the_loop_drives_the_virtual_lab_over_ros2(cli_lab: dict[str, Any], tmp_
     assert p.returncode == 0, err
     res = json.loads((tmp_path / "run" / "result.json").read_text())
     c = res["closed_loop"]
-    assert res["link"]["kind"] == "ros2" and res["link"]["port"] == f"ros2:/{lab['ns']}"
+    assert res["link"]["kind"] == "ros2" and res["link"]["port"] == f"ros2:/{lab['ns']}" and res["link"]["realtime"]
+    assert res["link"]["sent"] > c_cycles(res) and res["link"]["malformed_measured_js"] == 0
     assert res["sensor"] == "vision (camera)" and res["frames"]["wall_clock"]
     assert c["cycles"] >= 40 and c["lost"] <= 10 and c["rejected"] <= 2, c
     assert c["mean_mm"] < 0.6, c

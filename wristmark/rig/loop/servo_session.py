@@ -38,9 +38,10 @@ POINT_HOLD_S = 5.0  # [s] default duration of a held point
 
 @dataclass(frozen=True)
 class LinkOptions:
-    """How the loop reaches the actuators. kind: emulator | serial | direct | ros2; port: device path or
-    pyserial URL (serial), the namespace (ros2); timeout: per attempt [s] (None: by kind); realtime: the emulator on the
-    wall clock (serial: always); pace: simulated time never ahead of the wall clock."""
+    """How the loop reaches the actuators. kind: emulator | serial | direct | ros2; port: device
+    path or pyserial URL (serial), the namespace (ros2); timeout: per attempt [s] (None: by kind);
+    realtime: the emulator on the wall clock (serial, ros2: always); pace: simulated time never
+    ahead of the wall clock."""
 
     kind: str = "emulator"
     port: str | None = None

@@ -68,7 +68,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_config_option(p, "--registration", note="the JSON then also has tip_world, in {w} and metres")
     p.add_argument("images", nargs="*", metavar="LEFT RIGHT", help="stereo pairs: left and right image paths")
     p.add_argument("--source", metavar="SPEC", help="frame source instead of image pairs: DIR, VIDEO, LEFT,RIGHT, "
-                   "/dev/videoN, device:N, http://..., rtsp://..., FILE.mcap, BAGDIR")
+                   "/dev/videoN, device:N, http://..., rtsp://..., FILE.mcap, BAGDIR, ros2:LEFT,RIGHT (two ROS 2 "
+                   "image topics; docs/ros2.md)")
     p.add_argument("--frames", type=int_in(1, 10**9), metavar="N", help="stop after N frames (e.g. of a live source)")
     p.add_argument("--layout", choices=("sbs", "tb"), default="sbs",
                    help="how one frame holds both views: side by side (left view left) or top-bottom")
@@ -251,7 +252,9 @@ def run(args: argparse.Namespace) -> int:
 
         request_realtime_priority(args.rt_priority)
     prepare_tracker(tracker, args.grayscale)  # no first use of a code path nor full collection on a frame
-    source = open_stereo_source(args.source, options)
+    from wristmark.rig.ros2.image_source import open_frame_source
+
+    source = open_frame_source(args.source, options)  # open_stereo_source, and ros2:LEFT,RIGHT
     try:
         fps = float(getattr(source, "fps", 0.0) or 30.0)  # a video's own rate for an annotated video
         outputs = TrackOutputs.open(args.annotate, args.record, args.record_jpeg, camera, marker, fps)

@@ -25,7 +25,7 @@ API = {
         "StereoCamera", "StereoFrame", "StereoSource", "TrackResult", "WristmarkError", "__version__",
         "forward_kinematics", "load_calibration", "load_loop_setup", "load_registration", "make_controller",
         "open_hardware_session", "open_stereo_source", "run_servo", "save_calibration", "solve_tip_ik",
-        "start_live_view", "tip_jacobian", "tip_position",
+        "start_live_view", "tip_jacobian", "tip_position", "warm_up",
     ],
     "wristmark.models": [
         "ArmFrames", "ArmShape", "ConfigError", "HOME_PSI", "IkResult", "InputError", "LimitError",
@@ -43,6 +43,7 @@ API = {
         "apply_registration", "calibrate_stereo", "detect_views", "detect_xcorners", "iter_frames",
         "join_stereo", "load_calibration", "load_registration", "open_image_folder", "open_image_pairs",
         "open_stereo_source", "save_calibration", "save_registration", "scaled_stereo_camera", "split_stereo",
+        "warm_up",
     ],
     "wristmark.solvers": [
         "ControlStep", "Controller", "ControllerConfig", "PaperController",

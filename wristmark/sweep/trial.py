@@ -66,6 +66,9 @@ def warm_up() -> str:
     import wristmark.cli.experiment  # noqa: F401
     import wristmark.cli.main  # noqa: F401
     import wristmark.sim.experiments  # noqa: F401
+    from wristmark.cvs.tracking.warmup import warm_up as warm_up_process
+
+    warm_up_process()  # the tracker's kernels, loaded before the first trial (cvs.tracking.warmup)
 
     return worker_name()
 

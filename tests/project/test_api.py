@@ -64,9 +64,9 @@ API = {
     ],
     "wristmark.sim": [
         "ActuatorEmulator", "OpticalTracker", "PlantParams", "RenderSettings", "RenderedPair",
-        "SimRegistrationRig", "SimSetup", "StereoDataset", "StereoRenderer", "TruePlant", "VirtualLab",
-        "load_dataset", "load_setup", "motion_psi", "noise_preset", "render_motion",
-        "run_accuracy", "run_cube", "run_load", "run_point", "true_tip_errors",
+        "SimRegistrationRig", "SimSetup", "StereoDataset", "StereoRenderer", "TrajectoryRun", "TruePlant",
+        "VirtualLab", "load_dataset", "load_setup", "motion_psi", "noise_preset", "render_motion",
+        "run_accuracy", "run_cube", "run_load", "run_point", "run_trajectory", "true_tip_errors",
         "write_stereo_video",
     ],
     "wristmark.cli": [

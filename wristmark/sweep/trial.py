@@ -18,6 +18,7 @@ import math
 import os
 import shlex
 import shutil
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -48,8 +49,10 @@ def pin_threads() -> None:
     """Hold numba, OpenCV and the BLAS/OpenMP pools of this process to one thread (once)."""
     if _pinned:
         return
+    numba_loaded = "numba" in sys.modules  # it read NUMBA_NUM_THREADS at import: set_num_threads below does it
     for k, v in THREAD_ENV.items():
-        os.environ.setdefault(k, v)
+        if not (numba_loaded and k == "NUMBA_NUM_THREADS"):  # changed under a started pool, numba's next
+            os.environ.setdefault(k, v)  # compilation raises RuntimeError (a trial run in an existing process)
     import cv2
     import numba
     from threadpoolctl import threadpool_limits

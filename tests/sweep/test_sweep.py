@@ -366,3 +366,25 @@ def test_accuracy_and_load_trials_fill_their_metrics(experiment: str, options: d
     else:  # the mean over the forces of the means, the largest max
         assert row["closed_mean_mm"] == sum(r["closed_loop"]["mean_mm"] for r in res["rows"]) / 2
         assert row["open_max_mm"] == max(r["open_loop"]["max_mm"] for r in res["rows"])
+
+
+_PIN_AFTER_NUMBA = """
+import numba
+numba.get_num_threads()  # numba's pool started at its default size, as in a process that already ran kernels
+from wristmark.sweep.trial import pin_threads
+pin_threads()
+@numba.njit
+def one_more(x):
+    return x + 1
+print(one_more(1), numba.get_num_threads())
+"""
+
+
+def test_pinning_a_process_whose_numba_pool_started_keeps_numba_compiling() -> None:
+    """A trial run in an existing process (tests, an in-process sweep) pins its threads without
+    breaking numba: NUMBA_NUM_THREADS changed under a started pool made the next compilation
+    raise RuntimeError ('Cannot set NUMBA_NUM_THREADS ... once the threads have been launched')."""
+    r = subprocess.run([sys.executable, "-c", _PIN_AFTER_NUMBA], capture_output=True, text=True, timeout=300,
+                       cwd=ROOT)
+    assert r.returncode == 0, r.stderr[-500:]
+    assert r.stdout.split() == ["2", "1"]  # compiled and ran; numba held to one thread

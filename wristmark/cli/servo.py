@@ -47,6 +47,7 @@ from wristmark.cli.option_types import (
     positive_float,
 )
 from wristmark.cli.setup_args import add_registration_argument, add_setup_arguments, setup_from_args
+from wristmark.cvs.tracking.warmup import warm_up
 from wristmark.models.errors import InputError
 from wristmark.rig.loop.servo_session import (
     HW_TIMEOUT_S,
@@ -399,6 +400,7 @@ def run(args: argparse.Namespace) -> int:
         traj = traj.with_orientation(args.orientation, setup.params)
     psi0 = start_configuration(setup, traj)
     claim_outputs(dirs=[args.out], files=[args.json], force=args.force)  # after every option was validated
+    warm_up()  # OpenCV's threads and the tracker's kernels, before the link opens (cvs.tracking.warmup)
     kind = "serial" if args.serial else "ros2" if args.actuator else "direct" if args.direct else "emulator"
     live = isinstance(traj, LiveTrajectory)  # a device steers in real time: the simulated bench is paced
     options = LinkOptions(kind=kind, port=actuator_namespace(args.actuator) if args.actuator else args.serial,

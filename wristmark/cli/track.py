@@ -198,6 +198,7 @@ def run(args: argparse.Namespace) -> int:
     from wristmark.cvs.calibration.registration_file import apply_registration
     from wristmark.cvs.sources.open_source import SourceOptions, open_stereo_source
     from wristmark.cvs.tracking.tracker import MarkerTracker
+    from wristmark.cvs.tracking.warmup import warm_up
     from wristmark.models.marker import MarkerModel
 
     def fields(res: Any) -> dict[str, Any]:
@@ -225,6 +226,7 @@ def run(args: argparse.Namespace) -> int:
         source = open_stereo_source(args.images)  # paths checked before anything is loaded
     camera = apply_registration(load_calibration(args.calib), args.registration)
     marker = MarkerModel.load(args.marker) if args.marker else MarkerModel()
+    warm_up()  # OpenCV's threads and the tracker's kernels, before the first pair (cvs.tracking.warmup)
     tracker = MarkerTracker(camera, marker, _settings(args))
     if args.source is None:
         for frame in iter(source.read, None):

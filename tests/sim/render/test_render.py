@@ -337,3 +337,17 @@ def test_precomputed_centre_rays_are_the_ray_maps_pixel_centres() -> None:
     w, h = cam.image_size
     uv = cam.right.project(d[h // 3, w // 2][None, :] * 0.1)[0]
     np.testing.assert_allclose(uv, [w // 2, h // 3], atol=1e-6)
+
+
+def test_building_and_rendering_leave_opencv_threads_alone() -> None:
+    """The renderer changes no process state (it used to set one OpenCV thread when built and
+    in every optics call; ``wristmark.warm_up`` is the explicit call that does)."""
+    cam = scaled_stereo_camera(load_calibration(DEFAULT), 0.25)
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(3)
+    try:
+        r = StereoRenderer(cam, MarkerModel(), noise_preset("default", motion_blur=2.0), seed=2)
+        r.render(arm_shape(RobotParams(), PSI))
+        assert cv2.getNumThreads() == 3
+    finally:
+        cv2.setNumThreads(before)

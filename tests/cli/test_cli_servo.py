@@ -233,6 +233,8 @@ def test_pty_closing_mid_run_stops_with_a_clear_error(setup: SimSetup) -> None:
     assert "unreachable" in out.close_error and not res["safe_stop"]["held_and_disabled"]
 
 
+@pytest.mark.network
+@pytest.mark.wallclock
 def test_serial_port_vanishing_mid_run_exits_non_zero_with_one_line(lab: VirtualLab) -> None:
     emu, path = lab.emulator, lab.pty_path
     proc = popen_wristmark("servo", *hardware_args(lab))
@@ -247,6 +249,8 @@ def test_serial_port_vanishing_mid_run_exits_non_zero_with_one_line(lab: Virtual
     assert line.startswith("wristmark servo: error: stopped safely") and path in line
 
 
+@pytest.mark.network
+@pytest.mark.wallclock
 def test_ctrl_c_holds_and_disables_the_device(lab: VirtualLab) -> None:
     emu = lab.emulator
     proc = popen_wristmark("servo", *hardware_args(lab))
@@ -263,6 +267,7 @@ def test_ctrl_c_holds_and_disables_the_device(lab: VirtualLab) -> None:
 
 
 # -- bad input -------------------------------------------------------------------------------
+@pytest.mark.network
 @pytest.mark.parametrize(
     ("args", "words"),
     [
@@ -311,6 +316,7 @@ def test_missing_port_is_one_line() -> None:
     assert "cannot open actuator port" in one_line(r.stderr)
 
 
+@pytest.mark.network
 def test_wrong_image_size_fails_before_any_motion(lab: VirtualLab) -> None:
     """The stream is 0.25 x the calibration; without --image-scale the sizes differ."""
     args = [a for a in hardware_args(lab) if a not in ("--image-scale", str(LAB_SCALE))]

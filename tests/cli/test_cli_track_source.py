@@ -179,6 +179,8 @@ def test_grayscale_and_paced(material: dict, tmp_path: Path, capsys: pytest.Capt
     assert cv2.imread(str(ann / "frame_000000.png")).shape == (540, 1920, 3)  # drawn in colour on grey
 
 
+@pytest.mark.network
+@pytest.mark.wallclock
 def test_live_stream_that_stalls_keeps_the_recording(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                                       frame_ids: tuple) -> None:
     """A live HTTP stream through the CLI: lines while it flows, then one error line when it

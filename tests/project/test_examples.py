@@ -73,6 +73,8 @@ def test_register_example(tmp_path: Path) -> None:
     assert after["rotation_deg"] < before["rotation_deg"] / 2
 
 
+@pytest.mark.slow
+@pytest.mark.network
 def test_virtual_lab_example(tmp_path: Path) -> None:
     (out,) = run_example("virtual_lab.py", tmp_path)
     assert out["stopped"] == ""

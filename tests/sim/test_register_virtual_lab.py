@@ -64,6 +64,8 @@ server.close()
 """
 
 
+@pytest.mark.slow
+@pytest.mark.network
 def test_register_through_serial_and_stream(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     setup = load_setup(plant=CONFIG_DIR / "plant_ideal.yaml")
     setup = setup.with_changes(plant=PlantParams(camera_offset=OFFSET))
@@ -104,6 +106,7 @@ def test_register_through_serial_and_stream(tmp_path: Path, capsys: pytest.Captu
         assert "watchdog fired" in out.err
 
 
+@pytest.mark.wallclock
 def test_a_move_resumes_after_the_watchdog_fired() -> None:
     """A host that is late once mid-ramp (0.4 s > the 250 ms watchdog): the box holds, the rig
     ENABLEs again and finishes the move from the encoders; it ends DISABLEd."""

@@ -13,6 +13,8 @@ import pytest
 
 from wristmark.cvs.sources.mjpeg_server import BOUNDARY, MjpegServer
 
+pytestmark = [pytest.mark.network]
+
 
 def _read_parts(host: str, port: int, n: int, timeout: float = 5.0) -> tuple[bytes, list[bytes]]:
     """HTTP GET, then the first ``n`` JPEG parts of the multipart body."""

@@ -106,6 +106,7 @@ def _first_frame(mode: str) -> dict[str, float]:
     return out
 
 
+@pytest.mark.wallclock
 def test_after_the_warm_up_the_first_real_frame_costs_what_a_cold_frame_costs() -> None:
     """In a fresh process: without the warm-up the first rendered frame loads numba kernels
     (the code decoder's, the direction check's: about twice a cold frame's CPU here, 24-27 ms

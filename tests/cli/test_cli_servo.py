@@ -96,6 +96,7 @@ def one_line(stderr: str) -> str:
 
 
 # -- end to end --------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_servo_subprocess_tracks_the_cube_through_the_pty(tmp_path: Path) -> None:
     r = wristmark(
         "servo",
@@ -130,6 +131,7 @@ class RoundingDirectLink(DirectLink):
         super().send_target(P.si_from_micro(P.micro_from_si(actuators)))
 
 
+@pytest.mark.slow
 def test_serial_link_is_the_direct_loop_with_micro_unit_targets(setup: SimSetup) -> None:
     """Same trajectory, seed and noise. Through the pty the loop is *exactly* the in-process loop
     with every target rounded to micro-units (chunked simulated time changes nothing), so the
@@ -154,6 +156,7 @@ def test_serial_link_is_the_direct_loop_with_micro_unit_targets(setup: SimSetup)
     assert abs(s["max_mm"] - d["max_mm"]) < 0.05
 
 
+@pytest.mark.slow
 def test_vision_sensor_default_path(tmp_path: Path) -> None:
     r = wristmark(
         "servo",

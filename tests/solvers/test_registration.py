@@ -194,6 +194,7 @@ def test_closed_loop_after_registering(misplaced: dict[str, Path], tmp_path: Pat
         (registered, right)
 
 
+@pytest.mark.slow
 def test_track_with_registration_reports_the_world_tip(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from wristmark.sim.dataset import load_dataset
 

@@ -358,6 +358,7 @@ def test_the_fingerprint_follows_the_configuration_files_a_trial_reads(tmp_path:
     assert load_spec(spec).fingerprint() != first  # a resumed sweep would otherwise mix two plants
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("experiment", "options", "filled"), [
     ("accuracy", {"positions": 3}, ("accuracy_mean_mm", "accuracy_max_mm", "tracked")),
     ("load", {"forces": [0.0, 0.2], "duration": 0.6, "rig.settle_time": 0.3},

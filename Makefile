@@ -57,7 +57,8 @@ pytest-fast: setup
 	$(PY) -m pytest -m "$(FAST_TESTS)"
 
 # The whole suite in two pytest runs: every test but the wallclock ones on $(PYTEST_WORKERS)
-# processes, then the wallclock ones alone, so that their timing asserts see an idle machine.
+# processes, then the wallclock ones alone, so that their timing asserts do not compete with the
+# rest of the suite for the cores.
 # Both always run (unless the first was interrupted); the exit status is non-zero if either
 # failed, and a failed first run's summary line is repeated at the end.
 pytest: setup browser rtsp-server

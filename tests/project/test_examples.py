@@ -64,6 +64,7 @@ def test_track_video_example(tmp_path: Path) -> None:
     assert not list(tmp_path.iterdir())  # the video went to a temporary folder, removed
 
 
+@pytest.mark.slow
 def test_register_example(tmp_path: Path) -> None:
     (out,) = run_example("register.py", tmp_path)
     assert out["visits"] == 12 and out["tracked_visits"] >= 10
@@ -73,6 +74,8 @@ def test_register_example(tmp_path: Path) -> None:
     assert after["rotation_deg"] < before["rotation_deg"] / 2
 
 
+@pytest.mark.slow
+@pytest.mark.network
 def test_virtual_lab_example(tmp_path: Path) -> None:
     (out,) = run_example("virtual_lab.py", tmp_path)
     assert out["stopped"] == ""

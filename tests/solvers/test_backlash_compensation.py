@@ -127,6 +127,7 @@ def _cube(plant: str, compensation: bool, duration: float, controller: str = "co
         return run_cube(setup, Path(tmp), progress=False, duration=duration, seed=1)["closed_loop"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("controller", CONTROLLER_FILES)
 def test_compensation_lowers_the_max_on_an_unseen_arm(controller: str) -> None:
     """Short cube (truth-noise sensor) on configs/plant_unseen.yaml with configs/controller_backlash.yaml
@@ -138,6 +139,7 @@ def test_compensation_lowers_the_max_on_an_unseen_arm(controller: str) -> None:
     assert on["mean_mm"] <= off["mean_mm"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("controller", CONTROLLER_FILES)
 def test_compensation_does_not_hurt_the_default_arm(controller: str) -> None:
     """Same short cube on configs/plant.yaml: mean no worse, max within 5 % (noise)."""

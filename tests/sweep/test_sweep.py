@@ -70,6 +70,8 @@ def two_workers(spec_file: Path, tmp_path_factory: pytest.TempPathFactory) -> Pa
     return out
 
 
+@pytest.mark.slow
+@pytest.mark.network
 def test_results_csv_has_the_documented_header_and_one_ordered_row_per_trial(two_workers: Path) -> None:
     with open(two_workers / "results.csv", newline="") as f:
         header = next(csv.reader(f))
@@ -97,6 +99,8 @@ def test_results_csv_has_the_documented_header_and_one_ordered_row_per_trial(two
         assert f"plots/{name}" in summary
 
 
+@pytest.mark.slow
+@pytest.mark.network
 def test_one_worker_gives_exactly_the_same_rows(spec_file: Path, two_workers: Path, tmp_path: Path) -> None:
     out = tmp_path / "w1"
     r = wristmark("sweep", str(spec_file), "--out", str(out), "--workers", "1", "--no-progress")
@@ -105,6 +109,8 @@ def test_one_worker_gives_exactly_the_same_rows(spec_file: Path, two_workers: Pa
     assert metric_rows(out / "results.csv") == metric_rows(two_workers / "results.csv")
 
 
+@pytest.mark.slow
+@pytest.mark.network
 def test_trials_equal_the_same_runs_of_wristmark_experiment(two_workers: Path, tmp_path: Path) -> None:
     """Each trial run by hand: plant and rig files written here from configs/, not by the sweep."""
     base = yaml.safe_load((CONFIG_DIR / "plant.yaml").read_text())
@@ -133,6 +139,8 @@ def test_trials_equal_the_same_runs_of_wristmark_experiment(two_workers: Path, t
         assert {k: float(row[k]) for k in expected} == expected, row["trial"]  # exactly, not approximately
 
 
+@pytest.mark.slow
+@pytest.mark.network
 def test_a_killed_sweep_resumes_with_only_the_missing_trials(spec_file: Path, two_workers: Path,
                                                             tmp_path: Path) -> None:
     out = tmp_path / "killed"
@@ -169,6 +177,8 @@ def test_a_killed_sweep_resumes_with_only_the_missing_trials(spec_file: Path, tw
     assert metric_rows(out / "results.csv") == metric_rows(two_workers / "results.csv")
 
 
+@pytest.mark.slow
+@pytest.mark.network
 def test_another_spec_in_the_same_folder_is_refused(two_workers: Path, tmp_path: Path,
                                                    capsys: pytest.CaptureFixture[str]) -> None:
     other = tmp_path / "other.yaml"
@@ -229,6 +239,8 @@ def test_a_bad_spec_from_the_console_exits_2_without_a_traceback(tmp_path: Path)
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
+@pytest.mark.network
 def test_a_safe_stop_and_an_error_are_rows_not_a_crashed_sweep(tmp_path: Path) -> None:
     spec = tmp_path / "fail.yaml"
     write_yaml(spec, {
@@ -287,6 +299,8 @@ def test_trials_expand_grid_random_and_seeds_in_order(tmp_path: Path) -> None:
     assert s.fingerprint() == again.fingerprint()
 
 
+@pytest.mark.slow
+@pytest.mark.network
 def test_the_same_sweep_runs_on_an_existing_cluster(two_workers: Path, tmp_path: Path) -> None:
     """`dask scheduler` + `dask worker` started here (127.0.0.1, OS-chosen port), then --scheduler."""
     dask = str(Path(sys.executable).with_name("dask"))
@@ -317,6 +331,8 @@ def test_the_same_sweep_runs_on_an_existing_cluster(two_workers: Path, tmp_path:
     assert len(workers) == 1 and workers != {"local"}
 
 
+@pytest.mark.slow
+@pytest.mark.network
 def test_an_unreachable_scheduler_is_one_line(tmp_path: Path, spec_file: Path) -> None:
     import socket
 
@@ -343,6 +359,7 @@ def test_the_fingerprint_follows_the_configuration_files_a_trial_reads(tmp_path:
     assert load_spec(spec).fingerprint() != first  # a resumed sweep would otherwise mix two plants
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("experiment", "options", "filled"), [
     ("accuracy", {"positions": 3}, ("accuracy_mean_mm", "accuracy_max_mm", "tracked")),
     ("load", {"forces": [0.0, 0.2], "duration": 0.6, "rig.settle_time": 0.3},

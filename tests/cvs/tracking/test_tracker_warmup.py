@@ -110,6 +110,7 @@ def _first_frame(mode: str) -> dict[str, float]:
     return out
 
 
+@pytest.mark.wallclock
 def test_after_the_warm_up_the_first_real_frame_costs_what_a_cold_frame_costs() -> None:
     """In a fresh process: without the warm-up the first rendered frame loads numba kernels
     (the code decoder's, the direction check's: about twice a cold frame's CPU here, 24-27 ms
@@ -222,6 +223,7 @@ def test_track_source_prepares_the_tracker_and_reports_the_rate(tmp_path: Path) 
     assert len(lines) + dropped == 6 and 0 < fps <= 31.0  # paced: never faster than the video's 30 fps
 
 
+@pytest.mark.slow
 def test_rt_priority_runs_the_tracker_under_sched_fifo(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """``--rt-priority N`` puts the track command under SCHED_FIFO (where the host allows it;
     else one line saying it was refused, exit 2); without ``--source`` it is an error."""

@@ -24,6 +24,8 @@ from wristmark.rig.recording.run_log import RunLog
 from wristmark.rig.targets.trajectories import Trajectory
 from wristmark.solvers.controller_registry import make_controller
 
+pytestmark = [pytest.mark.wallclock]
+
 P = RobotParams()
 IMG = np.zeros((4, 4), np.uint8)
 FRAME_AGE = 0.02  # [s] every frame was captured this long before it is handed out

@@ -181,6 +181,7 @@ def _late_run(compensate: bool, tau: float, learn_window: float = 5.0, path: Cal
     return float(np.mean(errs))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("tau", [0.0, 0.04])
 def test_a_loop_with_a_long_known_latency_tracks_better_with_the_compensation(tau: float) -> None:
     without = _late_run(False, tau)
@@ -188,6 +189,7 @@ def test_a_loop_with_a_long_known_latency_tracks_better_with_the_compensation(ta
     assert with_it < 0.75 * without, (with_it, without)
 
 
+@pytest.mark.slow
 def test_the_learnt_motion_map_removes_the_bias_of_the_model_s_gain_errors() -> None:
     """The arm (PLANT: bending gains 0.95 / 0.92, plane offsets) moves less than its model: over
     the 130 ms the model over-predicts its motion and the loop, which acts on the compensated

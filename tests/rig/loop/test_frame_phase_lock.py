@@ -109,6 +109,7 @@ def _capture_offsets(lock: str, phase: float = 0.0) -> np.ndarray:
     return np.array([r.t_capture - r.t for r in recs])
 
 
+@pytest.mark.wallclock
 def test_the_loop_locks_its_cycle_to_the_cameras_capture_phase() -> None:
     free = _capture_offsets("none")
     locked = _capture_offsets("capture")
@@ -116,6 +117,7 @@ def test_the_loop_locks_its_cycle_to_the_cameras_capture_phase() -> None:
     assert np.all(np.abs(locked[-8:]) < 0.003), locked  # locked: captured at each cycle's start
 
 
+@pytest.mark.wallclock
 def test_locked_on_the_arrival_the_frames_arrive_at_the_chosen_phase() -> None:
     locked = _capture_offsets("arrival", 0.02)  # arriving 20 ms after each start: captured TRANSPORT before
     assert np.all(np.abs(locked[-8:] - (0.02 - TRANSPORT)) < 0.003), locked

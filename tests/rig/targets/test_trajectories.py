@@ -37,6 +37,7 @@ def test_constant_speed() -> None:
     assert np.median(steps) == pytest.approx(SPEED * 0.01, rel=1e-9)
 
 
+@pytest.mark.slow
 def test_continuous() -> None:
     traj = cube_trajectory(CENTRE, SIZE, SPEED)
     _, ps, _ = _dense(traj, 0.001)

@@ -43,6 +43,7 @@ def _subpix_errors(img, corners, min_cos: float) -> np.ndarray:
     return np.linalg.norm((q - p).reshape(-1, 2), axis=1)
 
 
+@pytest.mark.slow
 def test_truth_corners_agree_with_pixels() -> None:
     # Full 1080p, realistic shading and default noise: cornerSubPix started at each visible
     # true corner (cos_view > 0.3) stays within 0.3 px. (At half resolution the shading
@@ -165,6 +166,7 @@ def test_incremental_optics_equal_full_frame(half_camera, settings) -> None:
             assert np.abs(full - r._bg_signal[cam]).max() > 50  # the arm is really there
 
 
+@pytest.mark.slow
 def test_adaptive_supersampling_matches_full(half_camera) -> None:
     # Supersampling only where a pixel's neighbourhood changes surface or curves its shading
     # leaves the radiance within 0.1 grey levels of supersampling every pixel, with far fewer rays.
@@ -186,6 +188,7 @@ def test_adaptive_supersampling_matches_full(half_camera) -> None:
     assert n_ada < 0.5 * n_full
 
 
+@pytest.mark.slow
 def test_noise_fresh_every_frame_with_the_sensor_statistics(half_camera) -> None:
     # Two renders of the same arm differ by noise alone: zero mean, and variance
     # 2 (shot_gain s + read^2) + 2/12 (quantisation) per pixel and channel.

@@ -18,10 +18,13 @@ from pathlib import Path
 from typing import IO
 
 import numpy as np
+import pytest
 
 from wristmark.rig.recording.run_log import read_log_csv
 from wristmark.rig.targets.trajectories import workspace_centre
 from wristmark.sim.setup import load_setup
+
+pytestmark = [pytest.mark.network, pytest.mark.slow, pytest.mark.wallclock]
 
 ROOT = Path(__file__).resolve().parents[2]
 CENTRE = workspace_centre(load_setup().params)

@@ -14,6 +14,8 @@ import pytest
 from wristmark.models.errors import InputError
 from wristmark.rig.ros2.dds_config import LOOPBACK_CONFIG, domain_id, ensure_loopback
 
+pytestmark = [pytest.mark.network]
+
 ROOT = Path(__file__).resolve().parents[3]
 
 

@@ -27,6 +27,8 @@ from wristmark.rig.ros2.dds_config import LOOPBACK_CONFIG
 from wristmark.rig.ros2.image_source import Received, StereoPairer, parse_ros2_spec
 from wristmark.sim.render.motion_video import render_motion
 
+pytestmark = [pytest.mark.network]
+
 ROOT = Path(__file__).resolve().parents[3]
 N = 4
 

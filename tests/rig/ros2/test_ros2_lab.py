@@ -22,6 +22,8 @@ import pytest
 
 from tests.rig.ros2.test_ros2_servo import ROOT, env, no_probe_controller
 
+pytestmark = [pytest.mark.network, pytest.mark.slow, pytest.mark.wallclock]
+
 SCALE = "0.25"
 
 

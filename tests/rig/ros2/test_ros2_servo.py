@@ -14,6 +14,8 @@ import pytest
 
 from wristmark.rig.ros2.dds_config import LOOPBACK_CONFIG
 
+pytestmark = [pytest.mark.network]
+
 ROOT = Path(__file__).resolve().parents[3]
 
 

@@ -15,9 +15,12 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from tests.rig.ros2.test_ros2_servo import ROOT, env, no_probe_controller
 from wristmark.rig.recording.run_log import read_log_csv
+
+pytestmark = [pytest.mark.network, pytest.mark.slow, pytest.mark.wallclock]
 
 DX_MM, DZ_MM, HOLD_S = 6.0, 4.0, 4.5
 

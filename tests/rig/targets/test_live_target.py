@@ -155,8 +155,12 @@ def test_tcp_source_on_loopback_takes_lines_from_several_clients() -> None:
         with socket.create_connection(("127.0.0.1", src.port), timeout=2) as a, \
                 socket.create_connection(("127.0.0.1", src.port), timeout=2) as b:
             a.sendall(b'{"t": 0, "p": [0.08, 0.0, 0.15]}\nnonsense\n')
-            b.sendall(b'{"t": 1, "p": [0.081, 0.0, 0.15]}\n' + b"x" * 70000 + b"\n")
+            # b sends only after a's lines are in: the two connections are not ordered otherwise, and
+            # a's t = 0 arriving after b's t = 1 would rightly be dropped as older
             deadline = time.monotonic() + 5
+            while s.counts.received + s.counts.dropped < 2 and time.monotonic() < deadline:
+                time.sleep(0.01)
+            b.sendall(b'{"t": 1, "p": [0.081, 0.0, 0.15]}\n' + b"x" * 70000 + b"\n")
             while s.counts.received + s.counts.dropped < 4 and time.monotonic() < deadline:
                 time.sleep(0.01)
         assert s.counts.received == 2 and s.counts.dropped == 2

@@ -1,18 +1,27 @@
-# wristmark: `make run` (main job) and `make test` (whole suite) set up .venv when needed.
+# wristmark: `make run` (main job), `make check` (fast tests, while working) and `make test`
+# (whole suite, as CI runs it) set up .venv when needed. Tests: docs/testing.md.
 SHELL := /bin/bash
 PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: setup run test lint typecheck pytest bench results browser rtsp-server clean examples
+.PHONY: setup help run check test lint typecheck pytest pytest-fast bench results browser rtsp-server clean examples
 
 setup: $(STAMP)
+
+help:
+	@echo "make run          the cube experiment, open vs closed loop, on the simulated rig (runs/latest)"
+	@echo "make check        ruff, mypy and the fast tests: no slow, wallclock, browser or network ones"
+	@echo "make test         ruff, mypy and every test (CI): the wallclock ones alone, after the rest"
+	@echo "make pytest-fast  the fast tests only;  make pytest  every test (PYTEST_WORKERS=$(PYTEST_WORKERS))"
+	@echo "make examples     examples/*.py in their fast mode;  make bench  bench/*.py into runs/bench"
+	@echo "Tests, markers and timings: docs/testing.md"
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet -e '.[test,ros2]'
 	touch $(STAMP)
 
 # Main job: the paper's cube experiment, open vs closed loop, on the simulated rig. Each run
@@ -33,9 +42,37 @@ lint: setup
 typecheck: setup
 	$(VENV)/bin/mypy wristmark
 
-pytest: setup browser rtsp-server
-	$(PY) -m pytest
+# Test markers (pyproject.toml, docs/testing.md): slow, wallclock (times real events), browser
+# (headless Chromium), network (loopback servers). `make check` runs the tests with none of them
+# (~780 of ~930), in one process: lint, types and tests in ~2 min here, without Chromium or the
+# RTSP server (so it does not depend on `browser` and `rtsp-server`).
+FAST_TESTS := not slow and not wallclock and not browser and not network
+# Processes for the tests that do not time real events (pytest-xdist). A module's tests stay in
+# one process (--dist loadfile), so its module-scoped fixtures are built once.
+PYTEST_WORKERS ?= 2
 
+check: lint typecheck pytest-fast
+
+pytest-fast: setup
+	$(PY) -m pytest -m "$(FAST_TESTS)"
+
+# The whole suite in two pytest runs: every test but the wallclock ones on $(PYTEST_WORKERS)
+# processes, then the wallclock ones alone, so that their timing asserts do not compete with the
+# rest of the suite for the cores.
+# Both always run (unless the first was interrupted); the exit status is non-zero if either
+# failed, and a failed first run's summary line is repeated at the end.
+pytest: setup browser rtsp-server
+	@set -o pipefail; log=$$(mktemp); \
+	echo "== pytest on $(PYTEST_WORKERS) processes: all but the wallclock tests"; \
+	$(PY) -m pytest -n $(PYTEST_WORKERS) --dist loadfile -m "not wallclock" 2>&1 | tee $$log; first=$$?; \
+	if [ $$first -eq 2 ] || [ $$first -eq 3 ] || [ $$first -eq 4 ]; then rm -f $$log; exit $$first; fi; \
+	echo "== pytest alone: the wallclock tests"; \
+	$(PY) -m pytest -p no:xdist -m wallclock; second=$$?; \
+	if [ $$first -ne 0 ]; then echo "== the first run (all but the wallclock tests) FAILED: $$(tail -n 1 $$log)"; fi; \
+	rm -f $$log; \
+	[ $$first -eq 0 ] && [ $$second -eq 0 ]
+
+# The whole suite, as CI runs it (.ci/run): lint, types, then `pytest` above.
 test: lint typecheck pytest
 
 # The examples of the public API (examples/*.py), each in its fast mode as CI runs them.

@@ -26,6 +26,7 @@ import numpy as np
 from cube_matrix import cube_setup, summary  # noqa: E402  (the script folder bench/ is on sys.path)
 
 from wristmark.cli.option_types import nonnegative_float, positive_float, seed_int  # noqa: E402
+from wristmark.cvs.tracking.warmup import warm_up  # noqa: E402
 from wristmark.sim.experiments import run_cube  # noqa: E402
 from wristmark.sim.plant_params import PlantParams  # noqa: E402
 from wristmark.sim.setup import default_config  # noqa: E402
@@ -44,6 +45,7 @@ def main() -> int:
                     help="controller settings (compensation turned off and on)")
     ap.add_argument("--limit", type=positive_float(), default=1.0, help="max error that counts as good [mm]")
     args = ap.parse_args()
+    warm_up()  # OpenCV threads and the tracker's kernels, explicitly (building a tracker changes nothing)
     base = PlantParams.load(args.plant)
     ctrl = ControllerConfig.load(args.controller_config)
     rows = []

@@ -16,6 +16,7 @@ import time
 
 import numpy as np
 
+from wristmark.cvs.tracking.warmup import warm_up  # noqa: E402
 from wristmark.rig.loop.metrics import error_stats, tracking_errors
 from wristmark.rig.recording.run_log import RunLog
 from wristmark.rig.targets.orientation_path import start_configuration
@@ -26,6 +27,7 @@ from wristmark.sim.setup import load_setup, make_direct_loop
 
 def main() -> int:
     ctrl, sensor, *jobs = sys.argv[1:]
+    warm_up()  # OpenCV threads and the tracker's kernels, explicitly (building a tracker changes nothing)
     for job in jobs:
         plant, seed_text = job.rsplit(":", 1)
         seed = int(seed_text)

@@ -6,6 +6,7 @@ Prints JSON. Medians of many calls; ratio of qp to paper measured in the same ru
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import os
 import sys
@@ -14,6 +15,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
+from wristmark.models.config_files import default_config
 from wristmark.models.kinematics import tip_position
 from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.solvers.controller import ControllerConfig
@@ -50,7 +52,9 @@ def main() -> None:
     pd = pc + np.array([0.003, 0.002, -0.001])
     out: dict[str, object] = {}
     for kind in ("paper", "qp"):
-        c = make_controller(p, ControllerConfig(kind=kind, saturate_near_target=True))
+        # the plain controllers (no dead-band inversion, integral or probe): their step alone
+        plain = ControllerConfig.load(default_config("controller_plain.yaml"))
+        c = make_controller(p, dataclasses.replace(plain, kind=kind, saturate_near_target=True))
         out[f"{kind}_step_us_median"] = _median_us(lambda c=c: c.step(q, pc, pd, np.zeros(3), 0.06))
         qq = q.copy()
         steps = 0

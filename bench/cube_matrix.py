@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any
 
 from wristmark.cli.option_types import positive_float  # noqa: E402
+from wristmark.cvs.tracking.warmup import warm_up  # noqa: E402
 from wristmark.rig.targets.orientation_path import ORIENTATION_MODES  # noqa: E402
 from wristmark.sim.experiments import PAPER_CUBE, run_cube  # noqa: E402
 from wristmark.sim.plant_params import PlantParams  # noqa: E402
@@ -99,6 +100,7 @@ def main() -> int:
     ap.add_argument("--controller-config", help="controller settings (default configs/controller.yaml; "
                     "configs/controller_plain.yaml: no dead-band inversion)")
     args = ap.parse_args()
+    warm_up()  # OpenCV threads and the tracker's kernels, explicitly (building a tracker changes nothing)
     out = Path(args.out)
     results = []
     p: dict[str, Any] = PAPER_CUBE

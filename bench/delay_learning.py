@@ -26,6 +26,7 @@ import numpy as np
 
 from wristmark.cli import servo as S
 from wristmark.cli.option_types import float_in, int_in, positive_float
+from wristmark.cvs.tracking.warmup import warm_up  # noqa: E402
 from wristmark.rig.loop.servo_summary import summarize
 from wristmark.sim.servo_bench import open_sim_session
 from wristmark.sim.setup import load_setup
@@ -58,6 +59,7 @@ def main() -> int:
     ap.add_argument("--duration", type=positive_float(600.0), default=20.0, help="cube duration [s]")
     ap.add_argument("--plant", metavar="YAML", help="the true arm (default configs/plant.yaml)")
     a = ap.parse_args()
+    warm_up()  # OpenCV threads and the tracker's kernels, explicitly (building a tracker changes nothing)
     window = load_setup().rig.delay_compensation_learn_window
     if window <= 0:
         print("error: the rig file's delay_compensation_learn_window is 0 (nothing to compare)", file=sys.stderr)

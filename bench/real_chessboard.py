@@ -23,6 +23,7 @@ import cv2
 import numpy as np
 
 from wristmark.cvs.corners.detector import BOARD_SETTINGS, assemble_grid, detect_xcorners  # noqa: E402
+from wristmark.cvs.tracking.warmup import warm_up  # noqa: E402
 
 PATTERN = (9, 6)
 
@@ -101,7 +102,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("folder", nargs="?", default=str(Path(__file__).resolve().parents[1] / "tests/data/opencv_stereo"))
     a = ap.parse_args()
-    cv2.setNumThreads(1)
+    warm_up()  # OpenCV threads and the tracker's kernels, explicitly (building a tracker changes nothing)
     print(json.dumps(run(Path(a.folder)), indent=1))
     return 0
 

@@ -28,10 +28,10 @@ import time
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 
 from wristmark.cvs.tracking.tracker import MarkerTracker  # noqa: E402
+from wristmark.cvs.tracking.warmup import warm_up  # noqa: E402
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.rig.registration.poses import choose_poses  # noqa: E402
 from wristmark.rig.registration.run import collect, registration_poses  # noqa: E402
@@ -115,7 +115,7 @@ def main() -> int:
     ap.add_argument("--no-cube", action="store_true", help="registration errors only")
     ap.add_argument("--ablation", action="store_true", help="one model error at a time, rigid vs estimated arm")
     a = ap.parse_args()
-    cv2.setNumThreads(1)
+    warm_up()  # OpenCV threads and the tracker's kernels, explicitly (building a tracker changes nothing)
     if a.ablation:
         print(json.dumps({"camera_offset": list(CAMERA_OFFSET), "image_scale": a.image_scale, "poses": 12,
                           "rows": ablation(a.image_scale)}, indent=1))

@@ -24,6 +24,7 @@ import wristmark.sim.render.stereo_renderer as render_module
 from wristmark.cli.render import PSI_SPREAD
 from wristmark.cvs.calibration.load import load_calibration
 from wristmark.cvs.camera import scaled_stereo_camera
+from wristmark.cvs.tracking.warmup import warm_up  # noqa: E402
 from wristmark.models.arm_shape import arm_shape
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.marker import MarkerModel
@@ -41,6 +42,7 @@ def main() -> None:
     ap.add_argument("--noise", default="default")
     ap.add_argument("--scale", type=float, default=1.0)
     a = ap.parse_args()
+    warm_up(jit=False)  # OpenCV threads, explicitly (building a renderer changes nothing)
     cam = load_calibration(CONFIG_DIR / "camera.yaml")
     if a.scale != 1.0:
         cam = scaled_stereo_camera(cam, a.scale)

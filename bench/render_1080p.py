@@ -58,6 +58,7 @@ def _worker(a: argparse.Namespace) -> None:
     if a.scale != 1.0:
         cam = scaled_stereo_camera(cam, a.scale)
     params, marker = RobotParams(), MarkerModel()
+    cv2.setNumThreads(1)  # what wristmark.warm_up(jit=False) does (the baseline build has no warm_up)
     r = StereoRenderer(cam, marker, noise_preset(a.noise), seed=0)
     rng = np.random.default_rng(0)
     shapes = [arm_shape(params, random_visible_psi(params, cam, marker, rng, PSI_SPREAD)) for _ in range(a.pairs + 1)]

@@ -28,6 +28,7 @@ from wristmark.cvs.calibration.load import load_calibration
 from wristmark.cvs.camera import scaled_stereo_camera
 from wristmark.cvs.sources.open_source import SourceOptions, open_stereo_source
 from wristmark.cvs.tracking.tracker import MarkerTracker
+from wristmark.cvs.tracking.warmup import warm_up  # noqa: E402
 from wristmark.models.config_files import default_config
 from wristmark.models.marker import MarkerModel
 from wristmark.rig.recording.track_stream import prepare_tracker
@@ -41,6 +42,7 @@ def main() -> int:
     ap.add_argument("--marker", help="marker file (default the reference sleeve)")
     ap.add_argument("--spike-ms", type=positive_float(10_000.0), default=30.0, help="a slow pair [ms]")
     a = ap.parse_args()
+    warm_up()  # OpenCV threads and the tracker's kernels, explicitly (building a tracker changes nothing)
     cam = load_calibration(a.calib)
     if a.image_scale != 1.0:
         cam = scaled_stereo_camera(cam, a.image_scale)

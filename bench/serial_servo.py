@@ -19,6 +19,7 @@ import platform
 import numpy as np
 
 from wristmark.cli import servo as S  # noqa: E402
+from wristmark.cvs.tracking.warmup import warm_up  # noqa: E402
 from wristmark.rig.link import protocol as P  # noqa: E402
 from wristmark.rig.link.actuator_link import DirectLink  # noqa: E402
 from wristmark.rig.loop.servo_summary import summarize  # noqa: E402
@@ -39,6 +40,7 @@ def main() -> None:
     ap.add_argument("--sensor", default="truth-noise", choices=("truth-noise", "vision"))
     ap.add_argument("--image-scale", type=float, default=1.0)
     args = ap.parse_args()
+    warm_up()  # OpenCV threads and the tracker's kernels, explicitly (building a tracker changes nothing)
     setup = load_setup()
     setup = setup.with_changes(rig=dataclasses.replace(setup.rig, sensor=args.sensor, image_scale=args.image_scale))
     traj = S.build_trajectory(setup, "cube", None, args.duration)

@@ -44,6 +44,7 @@ from wristmark.cli.main import main as cli_main  # noqa: E402
 from wristmark.cvs.corners.detector import MarkerCornerDetector  # noqa: E402
 from wristmark.cvs.tracking.homography_init import homography_pose  # noqa: E402
 from wristmark.cvs.tracking.tracker import MarkerTracker, TrackerSettings  # noqa: E402
+from wristmark.cvs.tracking.warmup import warm_up  # noqa: E402
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.sim.dataset import StereoDataset, load_dataset  # noqa: E402
 
@@ -318,7 +319,7 @@ def main() -> int:
     ap.add_argument("--coded", default=str(CONFIG_DIR / "marker_coded.yaml"),
                     help="coded marker file rendered at the same poses ('' to skip)")
     a = ap.parse_args()
-    cv2.setNumThreads(1)
+    warm_up()  # OpenCV threads and the tracker's kernels, explicitly (building a tracker changes nothing)
     dets = tuple(d.strip() for d in a.detectors.split(",") if d.strip())
     if a.dataset:
         print(json.dumps(run(Path(a.dataset), dets), indent=1))

@@ -45,6 +45,7 @@ from wristmark.cvs.calibration.load import load_calibration  # noqa: E402
 from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera  # noqa: E402
 from wristmark.cvs.sources.open_source import SourceOptions, open_stereo_source  # noqa: E402
 from wristmark.cvs.tracking.tracker import MarkerTracker  # noqa: E402
+from wristmark.cvs.tracking.warmup import warm_up  # noqa: E402
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.errors import WristmarkError
 from wristmark.models.marker import MarkerModel  # noqa: E402
@@ -161,6 +162,7 @@ def run(frames: int = 600, fps: float = 60.0, scale: float = 1.0, repeat: int = 
     tracked runs decode grey views (``--grayscale`` of ``wristmark track``); prepare: each
     tracker prepared as ``wristmark track --source`` does (else the old one-frame warm-up);
     rt_priority: SCHED_FIFO priority for the timed runs (None: normal scheduling)."""
+    warm_up()  # OpenCV threads and the tracker's kernels, explicitly (building a tracker changes nothing)
     cam = load_calibration(CONFIG_DIR / "camera.yaml")
     camera = scaled_stereo_camera(cam, scale) if scale != 1.0 else cam
     marker = MarkerModel()

@@ -69,6 +69,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 
 from wristmark.cli.option_types import float_in, int_in, positive_float  # noqa: E402
+from wristmark.cvs.tracking.warmup import warm_up  # noqa: E402
 from wristmark.models.config_files import default_config  # noqa: E402
 from wristmark.rig.loop.realtime_priority import realtime_priority_allowed  # noqa: E402
 from wristmark.rig.loop.rig_config import RigConfig  # noqa: E402
@@ -322,6 +323,7 @@ def main() -> int:
                          "as the in-process bench's always did (the lab's emulator gets --psi0); home: at the "
                          "emulator's home, ramped to the start by the loop, in the lab and in process alike")
     a = ap.parse_args()
+    warm_up()  # OpenCV threads and the tracker's kernels, explicitly (building a tracker changes nothing)
     scenario = Scenario(a.plant, a.marker, a.controller_config, a.orientation)
     rt = realtime_priority_allowed(20)
     out: dict[str, Any] = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version(),

@@ -19,7 +19,7 @@ import json
 
 import numpy as np
 
-from wristmark import MarkerTracker
+from wristmark import MarkerTracker, warm_up
 from wristmark.models import default_config
 from wristmark.rig import choose_poses, collect, registration_inputs
 from wristmark.sim import SimRegistrationRig, load_setup
@@ -32,6 +32,7 @@ def main() -> None:
     args = parser.parse_args()
     n_poses, scale = (6, 0.3) if args.fast else (12, 0.5)
 
+    warm_up()  # one OpenCV thread, the tracker's numba kernels loaded (nothing else changes process state)
     setup = load_setup(plant=default_config("plant_misplaced_camera.yaml"))
     setup = setup.with_changes(rig=dataclasses.replace(setup.rig, image_scale=scale))
     camera = setup.tracking_camera  # what the host believes (the calibration), at the image scale

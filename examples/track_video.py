@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from wristmark import MarkerModel, MarkerTracker, SourceOptions, load_calibration, open_stereo_source
+from wristmark import MarkerModel, MarkerTracker, SourceOptions, load_calibration, open_stereo_source, warm_up
 from wristmark.cvs import iter_frames, scaled_stereo_camera
 from wristmark.models import default_config
 from wristmark.sim import render_motion, write_stereo_video
@@ -42,6 +42,7 @@ def main() -> None:
         folder.mkdir(parents=True, exist_ok=True)
         video = write_stereo_video(folder / "stereo.avi", pairs, FPS)
 
+        warm_up()  # one OpenCV thread, the tracker's numba kernels loaded: the first frame is not slow
         tracker = MarkerTracker(camera, marker)
         source = open_stereo_source(str(video), SourceOptions(layout="sbs", image_size=camera.image_size))
         errors_mm = []

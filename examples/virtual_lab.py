@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from wristmark import HOME_PSI, load_loop_setup, open_hardware_session, run_servo, solve_tip_ik
+from wristmark import HOME_PSI, load_loop_setup, open_hardware_session, run_servo, solve_tip_ik, warm_up
 from wristmark.rig import LinkOptions, cube_trajectory, summarize_servo, workspace_centre
 
 LAB_START_TIMEOUT_S = 120.0  # [s] for the lab's first two lines (it renders its first frame first)
@@ -70,6 +70,7 @@ def main() -> None:
     setup = setup.with_changes(rig=dataclasses.replace(setup.rig, image_scale=scale))  # the camera's resolution
     traj = cube_trajectory(workspace_centre(setup.params)).truncated(duration)
     psi0 = solve_tip_ik(setup.params, traj.sample(0.0)[0], np.asarray(HOME_PSI, float)).psi
+    warm_up()  # one OpenCV thread, the tracker's numba kernels loaded: before the lab and its watchdog start
 
     with tempfile.TemporaryDirectory() as tmp:
         truth_csv, log_csv = Path(tmp) / "truth.csv", Path(tmp) / "log.csv"

@@ -31,6 +31,7 @@ if TYPE_CHECKING:
         load_registration,
         open_stereo_source,
         save_calibration,
+        warm_up,
     )
     from wristmark.models import (
         HOME_PSI,

@@ -30,6 +30,7 @@ def short_cube(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict, su
     return out, json.loads((out / "result.json").read_text()), r
 
 
+@pytest.mark.slow
 def test_short_cube_with_vision_in_the_loop_closes_the_loop(short_cube: tuple) -> None:
     _, res, _ = short_cube
     assert res["sensor"] == "vision"  # the default path renders and tracks pixels
@@ -44,6 +45,7 @@ def test_short_cube_with_vision_in_the_loop_closes_the_loop(short_cube: tuple) -
     assert c["vision_ms_median"] > 0
 
 
+@pytest.mark.slow
 def test_run_folder_holds_config_log_results_and_plots(short_cube: tuple) -> None:
     out, res, r = short_cube
     run = out / "run"
@@ -80,6 +82,7 @@ def test_bad_options_give_one_line_errors(tmp_path: Path, args: list[str], words
     assert not (tmp_path / "x" / "log.csv").exists()  # nothing ran
 
 
+@pytest.mark.network
 def test_view_prints_the_url_and_the_replay_command(tmp_path: Path) -> None:
     r = wristmark("experiment", "cube", "--sensor", "truth-noise", "--duration", "1", "--view", "--no-progress",
                   "--out", str(tmp_path / "run"), timeout=120)
@@ -101,6 +104,7 @@ def held(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict, subproce
     return out, json.loads((out / "result.json").read_text()), r
 
 
+@pytest.mark.slow
 def test_closed_loop_holds_the_orientation_with_vision(held: tuple) -> None:
     _, res, r = held
     assert res["orientation"] == "hold" and res["sensor"] == "vision"
@@ -112,6 +116,7 @@ def test_closed_loop_holds_the_orientation_with_vision(held: tuple) -> None:
     assert "Orientation (hold" in r.stdout
 
 
+@pytest.mark.slow
 def test_log_has_the_orientation_columns(held: tuple) -> None:
     out, res, _ = held
     with open(out / "run" / "log.csv") as f:

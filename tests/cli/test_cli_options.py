@@ -225,6 +225,7 @@ def _in_range(option: str) -> st.SearchStrategy[str]:
     return st.floats(lo, hi).map(repr)
 
 
+@pytest.mark.slow
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(data=st.data(), option=st.sampled_from(RUN_OPTIONS))
 def test_experiment_runs_or_refuses(data: st.DataObject, option: str) -> None:

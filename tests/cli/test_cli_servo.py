@@ -96,6 +96,7 @@ def one_line(stderr: str) -> str:
 
 
 # -- end to end --------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_servo_subprocess_tracks_the_cube_through_the_pty(tmp_path: Path) -> None:
     r = wristmark(
         "servo",
@@ -130,6 +131,7 @@ class RoundingDirectLink(DirectLink):
         super().send_target(P.si_from_micro(P.micro_from_si(actuators)))
 
 
+@pytest.mark.slow
 def test_serial_link_is_the_direct_loop_with_micro_unit_targets(setup: SimSetup) -> None:
     """Same trajectory, seed and noise. Through the pty the loop is *exactly* the in-process loop
     with every target rounded to micro-units (chunked simulated time changes nothing), so the
@@ -154,6 +156,7 @@ def test_serial_link_is_the_direct_loop_with_micro_unit_targets(setup: SimSetup)
     assert abs(s["max_mm"] - d["max_mm"]) < 0.05
 
 
+@pytest.mark.slow
 def test_vision_sensor_default_path(tmp_path: Path) -> None:
     r = wristmark(
         "servo",
@@ -233,6 +236,8 @@ def test_pty_closing_mid_run_stops_with_a_clear_error(setup: SimSetup) -> None:
     assert "unreachable" in out.close_error and not res["safe_stop"]["held_and_disabled"]
 
 
+@pytest.mark.network
+@pytest.mark.wallclock
 def test_serial_port_vanishing_mid_run_exits_non_zero_with_one_line(lab: VirtualLab) -> None:
     emu, path = lab.emulator, lab.pty_path
     proc = popen_wristmark("servo", *hardware_args(lab))
@@ -247,6 +252,8 @@ def test_serial_port_vanishing_mid_run_exits_non_zero_with_one_line(lab: Virtual
     assert line.startswith("wristmark servo: error: stopped safely") and path in line
 
 
+@pytest.mark.network
+@pytest.mark.wallclock
 def test_ctrl_c_holds_and_disables_the_device(lab: VirtualLab) -> None:
     emu = lab.emulator
     proc = popen_wristmark("servo", *hardware_args(lab))
@@ -263,6 +270,7 @@ def test_ctrl_c_holds_and_disables_the_device(lab: VirtualLab) -> None:
 
 
 # -- bad input -------------------------------------------------------------------------------
+@pytest.mark.network
 @pytest.mark.parametrize(
     ("args", "words"),
     [
@@ -311,6 +319,7 @@ def test_missing_port_is_one_line() -> None:
     assert "cannot open actuator port" in one_line(r.stderr)
 
 
+@pytest.mark.network
 def test_wrong_image_size_fails_before_any_motion(lab: VirtualLab) -> None:
     """The stream is 0.25 x the calibration; without --image-scale the sizes differ."""
     args = [a for a in hardware_args(lab) if a not in ("--image-scale", str(LAB_SCALE))]

@@ -80,6 +80,7 @@ def test_frames_limit_and_text_output(material: dict, capsys: pytest.CaptureFixt
     assert len(text) == 2 and "tip in {ll}" in text[0]
 
 
+@pytest.mark.slow
 def test_annotate_folder_and_video(material: dict, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "ann"
     rc, lines, _ = _track(["--source", material["avi"], "--calib", material["calib"], "--frames", "4",
@@ -101,6 +102,7 @@ def test_annotate_folder_and_video(material: dict, tmp_path: Path, capsys: pytes
     cap.release()
 
 
+@pytest.mark.slow
 def test_record_then_replay_identical(material: dict, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     bag = tmp_path / "run.mcap"
     rc, live, _ = _track(["--source", material["avi"], "--calib", material["calib"], "--record", str(bag),
@@ -179,6 +181,8 @@ def test_grayscale_and_paced(material: dict, tmp_path: Path, capsys: pytest.Capt
     assert cv2.imread(str(ann / "frame_000000.png")).shape == (540, 1920, 3)  # drawn in colour on grey
 
 
+@pytest.mark.network
+@pytest.mark.wallclock
 def test_live_stream_that_stalls_keeps_the_recording(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                                       frame_ids: tuple) -> None:
     """A live HTTP stream through the CLI: lines while it flows, then one error line when it

@@ -25,7 +25,7 @@ API = {
         "StereoCamera", "StereoFrame", "StereoSource", "TrackResult", "WristmarkError", "__version__",
         "forward_kinematics", "load_calibration", "load_loop_setup", "load_registration", "make_controller",
         "open_hardware_session", "open_stereo_source", "run_servo", "save_calibration", "solve_tip_ik",
-        "start_live_view", "tip_jacobian", "tip_position",
+        "start_live_view", "tip_jacobian", "tip_position", "warm_up",
     ],
     "wristmark.models": [
         "Actuation", "ArmFrames", "ArmPoses", "ArmShape", "ArmSpec", "ConfigError", "HOME_PSI", "IkResult",
@@ -45,6 +45,7 @@ API = {
         "apply_registration", "calibrate_stereo", "detect_views", "detect_xcorners", "iter_frames",
         "join_stereo", "load_calibration", "load_registration", "open_image_folder", "open_image_pairs",
         "open_stereo_source", "save_calibration", "save_registration", "scaled_stereo_camera", "split_stereo",
+        "warm_up",
     ],
     "wristmark.solvers": [
         "ControlStep", "Controller", "ControllerConfig", "PaperController",
@@ -65,9 +66,9 @@ API = {
     ],
     "wristmark.sim": [
         "ActuatorEmulator", "OpticalTracker", "PlantParams", "RenderSettings", "RenderedPair",
-        "SimRegistrationRig", "SimSetup", "StereoDataset", "StereoRenderer", "TruePlant", "VirtualLab",
-        "load_dataset", "load_setup", "motion_psi", "noise_preset", "render_motion",
-        "run_accuracy", "run_cube", "run_load", "run_point", "true_tip_errors",
+        "SimRegistrationRig", "SimSetup", "StereoDataset", "StereoRenderer", "TrajectoryRun", "TruePlant",
+        "VirtualLab", "load_dataset", "load_setup", "motion_psi", "noise_preset", "render_motion",
+        "run_accuracy", "run_cube", "run_load", "run_point", "run_trajectory", "true_tip_errors",
         "write_stereo_video",
     ],
     "wristmark.cli": [

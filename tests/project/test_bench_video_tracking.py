@@ -7,9 +7,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
+@pytest.mark.slow
 def test_bench_prints_json() -> None:
     r = subprocess.run([sys.executable, str(ROOT / "bench" / "video_tracking.py"), "--frames", "8", "--fps", "20",
                         "--scale", "0.5", "--repeat", "1"], capture_output=True, text=True, timeout=240)

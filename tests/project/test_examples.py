@@ -27,7 +27,7 @@ def run_example(name: str, tmp_path: Path, timeout: float = 240) -> list[dict]:
 
 
 def test_every_example_is_tested() -> None:
-    tested = {"kinematics.py", "track_video.py", "virtual_lab.py", "register.py"}
+    tested = {"kinematics.py", "track_video.py", "virtual_lab.py", "register.py", "own_trajectory.py"}
     assert {p.name for p in EXAMPLES.glob("*.py")} == tested
 
 
@@ -64,6 +64,7 @@ def test_track_video_example(tmp_path: Path) -> None:
     assert not list(tmp_path.iterdir())  # the video went to a temporary folder, removed
 
 
+@pytest.mark.slow
 def test_register_example(tmp_path: Path) -> None:
     (out,) = run_example("register.py", tmp_path)
     assert out["visits"] == 12 and out["tracked_visits"] >= 10
@@ -73,6 +74,8 @@ def test_register_example(tmp_path: Path) -> None:
     assert after["rotation_deg"] < before["rotation_deg"] / 2
 
 
+@pytest.mark.slow
+@pytest.mark.network
 def test_virtual_lab_example(tmp_path: Path) -> None:
     (out,) = run_example("virtual_lab.py", tmp_path)
     assert out["stopped"] == ""
@@ -81,3 +84,14 @@ def test_virtual_lab_example(tmp_path: Path) -> None:
     held = {k: out[k] for k in ("cycles_lost", "cycles_rejected", "cycles_without_frame", "cycles_reused",
                                 "cycles_skipped", "realtime_priority")}  # shown on failure
     assert out["true_error_mean_mm"] < 2.0 and out["vision_error_mean_mm"] < 2.0, held
+
+
+def test_own_trajectory_example(tmp_path: Path) -> None:
+    (out,) = run_example("own_trajectory.py", tmp_path)
+    closed, open_loop = out["closed_loop"], out["open_loop"]
+    assert out["path"]["waypoints"] == 73 and 2.0 < out["path"]["duration_s"] < 5.0  # 8 x 6 mm at 10 mm/s
+    assert closed["stopped"] == "" and closed["cycles"] >= 30 and closed["cycles"] == open_loop["cycles"]
+    assert closed["mean_mm"] < 1.0 and closed["max_mm"] < 2.0  # vision in the loop
+    assert closed["mean_mm"] < 0.5 * open_loop["mean_mm"]  # what the loop buys over the model alone
+    assert closed["vision_vs_true_mean_mm"] < 0.5
+    assert not list(tmp_path.iterdir())  # nothing written

@@ -25,6 +25,8 @@ from wristmark.models.config_files import shipped_configs
 from wristmark.models.kinematics import tip_position
 from wristmark.models.robot_params import HOME_PSI, RobotParams
 
+pytestmark = [pytest.mark.slow]
+
 ROOT = Path(__file__).resolve().parents[2]
 PROJECT_SITE = Path(sysconfig.get_paths()["purelib"])
 

@@ -124,6 +124,7 @@ def test_out_of_limit_target_rejected_whole(rig) -> None:
     assert not drv.set_target(A_HOME).target_rejected  # a good target clears bit3
 
 
+@pytest.mark.wallclock
 def test_watchdog_trips_after_silence(rig) -> None:
     emu, arm, drv = rig
     drv.enable()

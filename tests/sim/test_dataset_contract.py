@@ -22,6 +22,8 @@ import pytest
 from wristmark_testing import independent_dataset_check as chk
 from wristmark_testing import independent_render as ind
 
+pytestmark = [pytest.mark.slow]
+
 ROOT = Path(__file__).resolve().parents[2]
 WRISTMARK = ROOT / ".venv" / "bin" / "wristmark"
 if not WRISTMARK.exists():  # pragma: no cover - other installs

@@ -45,6 +45,7 @@ def test_configurable_rms() -> None:
 R0 = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
 
 
+@pytest.mark.slow
 def test_six_dof_orientation_noise_statistics() -> None:
     """Vega class: the orientation error's RMS angle is 0.2 deg, isotropic and unbiased."""
     from wristmark.models.so3 import angle_between, rotation_error

@@ -64,6 +64,8 @@ server.close()
 """
 
 
+@pytest.mark.slow
+@pytest.mark.network
 def test_register_through_serial_and_stream(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     setup = load_setup(plant=CONFIG_DIR / "plant_ideal.yaml")
     setup = setup.with_changes(plant=PlantParams(camera_offset=OFFSET))
@@ -106,28 +108,31 @@ def test_register_through_serial_and_stream(tmp_path: Path, capsys: pytest.Captu
 
 def test_a_move_resumes_after_the_watchdog_fired() -> None:
     """A host that is late once mid-ramp (0.4 s > the 250 ms watchdog): the box holds, the rig
-    ENABLEs again and finishes the move from the encoders; it ends DISABLEd."""
-    import time
-
+    ENABLEs again and finishes the move from the encoders; it ends DISABLEd. The box and the rig
+    share a simulated clock that only the rig's sleeps move (the late one included), so the
+    watchdog fires exactly once however loaded the machine is."""
     from wristmark.models.robot_params import HOME_PSI, RobotParams
     from wristmark.rig.link.actuator_driver import ActuatorDriver
+    from wristmark.rig.link.serial_link import SimClock
     from wristmark.rig.registration.hardware import HardwareRegistrationRig
     from wristmark.sim.actuator_emulator import ActuatorEmulator
     from wristmark.sim.plant import TruePlant
 
     params = RobotParams()
     home = np.asarray(HOME_PSI, float)
-    emu = ActuatorEmulator(TruePlant(params, PlantParams(), psi0=home), params)
+    clock = SimClock()
+    emu = ActuatorEmulator(TruePlant(params, PlantParams(), psi0=home), params, clock=clock)
     port = emu.serve_pty()
     calls = []
 
     def sleep(s: float) -> None:
         calls.append(s)
-        time.sleep(0.4 if len(calls) == 3 else s)
+        clock.set(clock() + (0.4 if len(calls) == 3 else s))
 
     try:
         with ActuatorDriver(port, timeout=0.2, retries=3, params=params) as driver:
-            rig = HardwareRegistrationRig(driver, None, params, speed=1.0, sleep=sleep)  # type: ignore[arg-type]
+            rig = HardwareRegistrationRig(driver, None, params, speed=1.0, clock=clock,  # type: ignore[arg-type]
+                                          sleep=sleep)
             target = home + np.array([0.3, 0.002, 0.1, 0.0, 0.1, 0.0])  # 6 ramp steps of 50 ms
             rig.move_to(target)
             assert len(rig.notes) == 1 and "watchdog fired" in rig.notes[0]

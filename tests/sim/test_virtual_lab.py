@@ -133,6 +133,9 @@ def in_process(setup: SimSetup, kind: str, duration: float) -> dict:
     return summarize(setup, traj, session, out)
 
 
+@pytest.mark.slow
+@pytest.mark.network
+@pytest.mark.wallclock
 @pytest.mark.parametrize(("kind", "duration"), [("point", POINT_S), ("cube", CUBE_S)])
 def test_virtual_lab_reaches_the_in_process_accuracy(lab_process: tuple[str, str, Path, Path], setup: SimSetup,
                                                      tmp_path: Path, kind: str, duration: float) -> None:
@@ -200,6 +203,7 @@ def check_recording(path: Path, res: dict) -> None:
     assert len(by_topic["/wristmark/tip"]) == 2 * len(by_topic["/wristmark/marker_pose"]) // 2 > 0
 
 
+@pytest.mark.slow
 def test_hardware_path_modules_never_import_the_simulated_bench() -> None:
     code = """
 import sys
@@ -241,6 +245,9 @@ class TargetRecorder(ActuatorEmulator):
         return super().receive(data)
 
 
+@pytest.mark.slow
+@pytest.mark.network
+@pytest.mark.wallclock
 def test_a_stream_stalling_mid_run_holds_the_arm_then_stops_safely(setup: SimSetup) -> None:
     lab = VirtualLab(PARAMS, PLANT, setup.camera, setup.marker, LabCamera(fps=FPS, image_scale=SCALE),
                      rt_priority=10 if RT_LAB else None, emulator_factory=TargetRecorder)
@@ -281,6 +288,7 @@ def test_a_stream_stalling_mid_run_holds_the_arm_then_stops_safely(setup: SimSet
     assert moved < 1e-5  # held
 
 
+@pytest.mark.network
 @pytest.mark.parametrize("render_rt", [True, False])
 def test_the_box_runs_above_the_lab_and_rendering_can_stay_at_normal_priority(setup: SimSetup,
                                                                               render_rt: bool) -> None:

@@ -6,6 +6,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from tests import old_defaults
 from wristmark.models.limits import psi_bounds
 from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.solvers.backlash_compensation import BacklashInverse
@@ -83,7 +84,7 @@ def test_integral_cancels_a_constant_velocity_disturbance() -> None:
 
 @pytest.mark.parametrize("kind", ["qp", "paper"])
 def test_compensated_steps_stay_within_limits(kind: str) -> None:
-    cfg = ControllerConfig(kind=kind, backlash_compensation=True, ki=3.0)
+    cfg = old_defaults.controller(kind=kind, backlash_compensation=True, ki=3.0)
     c = make_controller(P, cfg)
     rng = np.random.default_rng(3)
     psi = np.array(HOME_PSI, float)
@@ -128,6 +129,7 @@ def _cube(plant: str, compensation: bool, duration: float, controller: str = "co
         return run_cube(setup, Path(tmp), progress=False, duration=duration, seed=1)["closed_loop"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("controller", CONTROLLER_FILES)
 def test_compensation_lowers_the_max_on_an_unseen_arm(controller: str) -> None:
     """Short cube (truth-noise sensor) on configs/plant_unseen.yaml with configs/controller_backlash.yaml
@@ -139,6 +141,7 @@ def test_compensation_lowers_the_max_on_an_unseen_arm(controller: str) -> None:
     assert on["mean_mm"] <= off["mean_mm"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("controller", CONTROLLER_FILES)
 def test_compensation_does_not_hurt_the_default_arm(controller: str) -> None:
     """Same short cube on configs/plant.yaml: mean no worse, max within 5 % (noise)."""

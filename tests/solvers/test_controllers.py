@@ -8,6 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import lsq_linear
 
+from tests import old_defaults
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.errors import ConfigError
 from wristmark.models.kinematics import tip_jacobian, tip_position
@@ -45,7 +46,7 @@ def test_config_errors_name_key_and_file(tmp_path: Path, text: str, key: str) ->
 
 
 def test_paper_step_matches_eq_18_to_21_by_hand() -> None:
-    cfg = ControllerConfig(kind="paper", v_xlim=0.01, gamma=1e-6, xi=1e-3)
+    cfg = old_defaults.controller(kind="paper", v_xlim=0.01, gamma=1e-6, xi=1e-3)
     c = make_controller(P, cfg)
     dt = 0.06
     p_c = tip_position(P, HOME)
@@ -70,7 +71,7 @@ def test_sr_pseudo_inverse_damps_only_near_singular() -> None:
 
 @pytest.mark.parametrize("kind", ["paper", "qp"])
 def test_error_decreases_on_a_static_target(kind: str) -> None:
-    c = make_controller(P, ControllerConfig(kind=kind, saturate_near_target=True))
+    c = make_controller(P, old_defaults.controller(kind=kind, saturate_near_target=True))
     q = HOME.copy()
     target = tip_position(P, q) + np.array([0.004, 0.003, -0.005])
     errs = [np.linalg.norm(tip_position(P, q) - target)]
@@ -91,8 +92,8 @@ def test_paper_locks_a_joint_at_its_limit_and_moves_the_others() -> None:
     J = tip_jacobian(P, q)
     dp = -0.003 * J[:3, 1] / np.linalg.norm(J[:3, 1])  # straight back along the stem
     p_c = tip_position(P, q)
-    locked = make_controller(P, ControllerConfig(kind="paper", v_xlim=0.01))
-    clipped = make_controller(P, ControllerConfig(kind="paper", v_xlim=0.01, lock_saturated_joints=False))
+    locked = make_controller(P, old_defaults.controller(kind="paper", v_xlim=0.01))
+    clipped = make_controller(P, old_defaults.controller(kind="paper", v_xlim=0.01, lock_saturated_joints=False))
     dt = 0.06
     a, b = locked.step(q, p_c, p_c + dp, None, dt), clipped.step(q, p_c, p_c + dp, None, dt)
     assert a.psi_next[1] == P.d_range[0] and b.psi_next[1] == P.d_range[0]
@@ -117,7 +118,7 @@ def test_limits_never_exceeded(kind: str, u: list[float], dp: list[float], dt: f
     span_lo = np.where(np.isfinite(lo), lo, -np.pi)
     span_hi = np.where(np.isfinite(hi), hi, np.pi)
     q = span_lo + (np.asarray(u) + 1) / 2 * (span_hi - span_lo)
-    c = make_controller(P, ControllerConfig(kind=kind, v_xlim=0.05, kp=50.0, max_correction_speed=0.2))
+    c = make_controller(P, old_defaults.controller(kind=kind, v_xlim=0.05, kp=50.0, max_correction_speed=0.2))
     step = c.step(q, tip_position(P, q), tip_position(P, q) + np.asarray(dp), np.asarray(dp), dt)
     assert np.all(step.psi_next >= lo - 1e-12) and np.all(step.psi_next <= hi + 1e-12)
     assert np.all(np.abs(step.psi_dot) <= np.asarray(P.max_velocity) + 1e-9)

@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
+from tests import old_defaults
 from wristmark.models.errors import ConfigError
 from wristmark.models.units import on_micro_grid
 from wristmark.rig.loop.play_probe import triangle
-from wristmark.solvers.controller import ControllerConfig
 from wristmark.solvers.play_observer import PlayObserverInverse
 from wristmark.solvers.play_probe_fit import fit_motor_lag
 
@@ -96,7 +96,7 @@ def test_without_a_measured_lag_the_burst_is_the_leads() -> None:
 
 
 def test_motor_burst_key_is_validated_and_reaches_the_inversion() -> None:
-    base = ControllerConfig(kind="qp", backlash_compensation=True, backlash_method="encoders", play_probe=True)
+    base = old_defaults.controller(kind="qp", backlash_compensation=True, backlash_method="encoders", play_probe=True)
     dataclasses.replace(base, backlash_motor_burst=True).validate()
     with pytest.raises(ConfigError, match="backlash_motor_burst"):
         dataclasses.replace(base, backlash_method="schmitt", backlash_motor_burst=True).validate()

@@ -5,6 +5,7 @@ gain-mismatched arm it keeps the track close to the matched arm's at the corners
 import numpy as np
 import pytest
 
+from tests import old_defaults
 from wristmark.models.errors import ConfigError
 from wristmark.models.kinematics import tip_position
 from wristmark.models.robot_params import HOME_PSI, RobotParams
@@ -84,7 +85,7 @@ def test_config_selects_and_validates_the_mode() -> None:
     v = np.array([0.0, 0.01, 0.0])
     steps = {}
     for mode in ("plain", "path"):
-        c = make_controller(P, ControllerConfig(kind="qp", ki=4.0, integral_mode=mode))
+        c = make_controller(P, old_defaults.controller(kind="qp", ki=4.0, integral_mode=mode))
         c.reset()
         for _ in range(10):
             c.reference_velocity(p0 + np.array([0, 1e-4, 0]), p0 + np.array([0, 2e-4, 0]), v, DT)

@@ -6,6 +6,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from tests import old_defaults
 from wristmark.models.errors import ConfigError
 from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.solvers.controller import ControllerConfig
@@ -106,7 +107,7 @@ def test_play_learnt_from_the_encoders_loop(share: float) -> None:
 def test_controller_without_encoders_is_the_plain_controller() -> None:
     """A controller with the encoders' inversion on stepped without readings (the paper's
     interface, unit tests) inverts nothing; with readings it does."""
-    cfg = ControllerConfig(backlash_compensation=True, backlash_method="encoders", backlash_start=1.0)
+    cfg = old_defaults.controller(backlash_compensation=True, backlash_method="encoders", backlash_start=1.0)
     plain = make_controller(P, dataclasses.replace(cfg, backlash_compensation=False))
     comp = make_controller(P, cfg)
     assert comp.uses_encoders and not plain.uses_encoders
@@ -188,7 +189,6 @@ def test_the_loop_tells_the_controller_where_its_start_ramp_left_the_play() -> N
     from wristmark.models.ik import solve_tip_ik
     from wristmark.models.kinematics import tip_position
     from wristmark.rig.link.actuator_link import DirectLink
-    from wristmark.rig.loop.rig_config import RigConfig
     from wristmark.rig.loop.servo_loop import ServoLoop
     from wristmark.sim.plant import TruePlant
     from wristmark.sim.plant_params import PlantParams
@@ -199,7 +199,7 @@ def test_the_loop_tells_the_controller_where_its_start_ramp_left_the_play() -> N
     for name, rest in (("home", home), ("start", start)):
         ctrl = make_controller(P, ControllerConfig.load(default_config("controller.yaml")))
         assert ctrl.uses_encoders and ctrl.compensator is not None
-        loop = ServoLoop(P, RigConfig(sensor="truth-noise"), DirectLink(TruePlant(P, PlantParams(), psi0=rest)),
+        loop = ServoLoop(P, old_defaults.rig(sensor="truth-noise"), DirectLink(TruePlant(P, PlantParams(), psi0=rest)),
                          controller=ctrl)
         loop.start_at(start)
         learnt[name] = ctrl.compensator.inverse._learnt.copy()  # type: ignore[attr-defined]

@@ -9,6 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
+from tests import old_defaults
 from wristmark.models.errors import ConfigError
 from wristmark.models.kinematics import forward_kinematics
 from wristmark.models.limits import psi_bounds
@@ -29,7 +30,7 @@ def _pose(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _run(R_des: np.ndarray, axis_only: bool, steps: int = 40, **cfg: float) -> tuple[list, list, list, np.ndarray]:
     """Closed loop on the nominal model: measured pose = model pose; position target = start."""
-    c = make_controller(P, ControllerConfig(kind="qp", **cfg))
+    c = make_controller(P, old_defaults.controller(kind="qp", **cfg))
     q = HOME.copy()
     p0, _ = _pose(q)
     angles, axes, pos = [], [], []
@@ -82,7 +83,7 @@ def test_axis_only_turns_the_axis_and_leaves_the_roll() -> None:
 
 
 def test_paper_controller_refuses_an_orientation() -> None:
-    c = make_controller(P, ControllerConfig(kind="paper"))
+    c = make_controller(P, old_defaults.controller(kind="paper"))
     p, R = _pose(HOME)
     with pytest.raises(ConfigError, match="position-only"):
         c.step(HOME, p, p, None, DT, OrientationTask(R, np.zeros(3), R))
@@ -91,9 +92,9 @@ def test_paper_controller_refuses_an_orientation() -> None:
 def test_without_a_task_the_qp_is_unchanged_by_the_pose_settings() -> None:
     """Position only, the pose task's own settings do not enter the step."""
     p, _ = _pose(HOME)
-    a = make_controller(P, ControllerConfig(kind="qp")).step(HOME, p, p + [0.002, 0, 0], None, DT)
-    b = make_controller(P, ControllerConfig(kind="qp", kr=40.0, pose_orientation_weight=1.0,
-                                            max_angular_speed=2.0)).step(HOME, p, p + [0.002, 0, 0], None, DT)
+    a = make_controller(P, old_defaults.controller(kind="qp")).step(HOME, p, p + [0.002, 0, 0], None, DT)
+    b = make_controller(P, old_defaults.controller(kind="qp", kr=40.0, pose_orientation_weight=1.0,
+                                                   max_angular_speed=2.0)).step(HOME, p, p + [0.002, 0, 0], None, DT)
     np.testing.assert_array_equal(a.psi_next, b.psi_next)
 
 
@@ -107,7 +108,7 @@ def test_pose_task_keeps_the_limits(u: list[float], rv: list[float], axis_only: 
     q = span_lo + (np.asarray(u) + 1) / 2 * (span_hi - span_lo)
     p, R = _pose(q)
     R_des = Rotation.from_rotvec(rv).as_matrix() @ R
-    c = make_controller(P, ControllerConfig(kind="qp", kr=50.0, max_angular_speed=5.0))
+    c = make_controller(P, old_defaults.controller(kind="qp", kr=50.0, max_angular_speed=5.0))
     step = c.step(q, p, p + 0.01, np.zeros(3), DT, OrientationTask(R_des, np.asarray(rv), R, axis_only))
     assert np.all(step.psi_next >= lo - 1e-12) and np.all(step.psi_next <= hi + 1e-12)
     assert np.all(np.abs(step.psi_dot) <= np.asarray(P.max_velocity) + 1e-9)

@@ -150,6 +150,7 @@ def misplaced(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     return {"dir": d, "plant": d / "off.yaml", "right": d / "right.yaml", "reg": d / "reg.yaml"}
 
 
+@pytest.mark.slow
 def test_simulated_bench_registration_accuracy(misplaced: dict[str, Path], capsys: pytest.CaptureFixture[str]) -> None:
     from scipy.spatial.transform import Rotation
 
@@ -176,6 +177,7 @@ def test_simulated_bench_registration_accuracy(misplaced: dict[str, Path], capsy
     np.testing.assert_allclose(load_registration(out).world_T_left, reg.world_T_left, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_closed_loop_after_registering(misplaced: dict[str, Path], tmp_path: Path) -> None:
     def cube(*extra: str) -> dict:
         n = len(list(tmp_path.glob("r*.json")))
@@ -192,6 +194,7 @@ def test_closed_loop_after_registering(misplaced: dict[str, Path], tmp_path: Pat
         (registered, right)
 
 
+@pytest.mark.slow
 def test_track_with_registration_reports_the_world_tip(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from wristmark.sim.dataset import load_dataset
 

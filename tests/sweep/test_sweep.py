@@ -70,6 +70,8 @@ def two_workers(spec_file: Path, tmp_path_factory: pytest.TempPathFactory) -> Pa
     return out
 
 
+@pytest.mark.slow
+@pytest.mark.network
 def test_results_csv_has_the_documented_header_and_one_ordered_row_per_trial(two_workers: Path) -> None:
     with open(two_workers / "results.csv", newline="") as f:
         header = next(csv.reader(f))
@@ -97,6 +99,8 @@ def test_results_csv_has_the_documented_header_and_one_ordered_row_per_trial(two
         assert f"plots/{name}" in summary
 
 
+@pytest.mark.slow
+@pytest.mark.network
 def test_one_worker_gives_exactly_the_same_rows(spec_file: Path, two_workers: Path, tmp_path: Path) -> None:
     out = tmp_path / "w1"
     r = wristmark("sweep", str(spec_file), "--out", str(out), "--workers", "1", "--no-progress")
@@ -105,10 +109,13 @@ def test_one_worker_gives_exactly_the_same_rows(spec_file: Path, two_workers: Pa
     assert metric_rows(out / "results.csv") == metric_rows(two_workers / "results.csv")
 
 
+@pytest.mark.slow
+@pytest.mark.network
 def test_trials_equal_the_same_runs_of_wristmark_experiment(two_workers: Path, tmp_path: Path) -> None:
     """Each trial run by hand: plant and rig files written here from configs/, not by the sweep."""
     base = yaml.safe_load((CONFIG_DIR / "plant.yaml").read_text())
-    rig = dict(yaml.safe_load((CONFIG_DIR / "rig.yaml").read_text()), settle_time=0.5)
+    rig = yaml.safe_load((CONFIG_DIR / "rig.yaml").read_text())
+    rig["loop"]["settle_time"] = 0.5
     write_yaml(tmp_path / "rig.yaml", rig)
 
     def one(i: int, latency: float, backlash: float) -> dict:
@@ -132,6 +139,8 @@ def test_trials_equal_the_same_runs_of_wristmark_experiment(two_workers: Path, t
         assert {k: float(row[k]) for k in expected} == expected, row["trial"]  # exactly, not approximately
 
 
+@pytest.mark.slow
+@pytest.mark.network
 def test_a_killed_sweep_resumes_with_only_the_missing_trials(spec_file: Path, two_workers: Path,
                                                             tmp_path: Path) -> None:
     out = tmp_path / "killed"
@@ -168,6 +177,8 @@ def test_a_killed_sweep_resumes_with_only_the_missing_trials(spec_file: Path, tw
     assert metric_rows(out / "results.csv") == metric_rows(two_workers / "results.csv")
 
 
+@pytest.mark.slow
+@pytest.mark.network
 def test_another_spec_in_the_same_folder_is_refused(two_workers: Path, tmp_path: Path,
                                                    capsys: pytest.CaptureFixture[str]) -> None:
     other = tmp_path / "other.yaml"
@@ -228,6 +239,8 @@ def test_a_bad_spec_from_the_console_exits_2_without_a_traceback(tmp_path: Path)
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
+@pytest.mark.network
 def test_a_safe_stop_and_an_error_are_rows_not_a_crashed_sweep(tmp_path: Path) -> None:
     spec = tmp_path / "fail.yaml"
     write_yaml(spec, {
@@ -286,6 +299,8 @@ def test_trials_expand_grid_random_and_seeds_in_order(tmp_path: Path) -> None:
     assert s.fingerprint() == again.fingerprint()
 
 
+@pytest.mark.slow
+@pytest.mark.network
 def test_the_same_sweep_runs_on_an_existing_cluster(two_workers: Path, tmp_path: Path) -> None:
     """`dask scheduler` + `dask worker` started here (127.0.0.1, OS-chosen port), then --scheduler."""
     dask = str(Path(sys.executable).with_name("dask"))
@@ -316,6 +331,8 @@ def test_the_same_sweep_runs_on_an_existing_cluster(two_workers: Path, tmp_path:
     assert len(workers) == 1 and workers != {"local"}
 
 
+@pytest.mark.slow
+@pytest.mark.network
 def test_an_unreachable_scheduler_is_one_line(tmp_path: Path, spec_file: Path) -> None:
     import socket
 
@@ -342,6 +359,7 @@ def test_the_fingerprint_follows_the_configuration_files_a_trial_reads(tmp_path:
     assert load_spec(spec).fingerprint() != first  # a resumed sweep would otherwise mix two plants
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("experiment", "options", "filled"), [
     ("accuracy", {"positions": 3}, ("accuracy_mean_mm", "accuracy_max_mm", "tracked")),
     ("load", {"forces": [0.0, 0.2], "duration": 0.6, "rig.settle_time": 0.3},
@@ -365,3 +383,25 @@ def test_accuracy_and_load_trials_fill_their_metrics(experiment: str, options: d
     else:  # the mean over the forces of the means, the largest max
         assert row["closed_mean_mm"] == sum(r["closed_loop"]["mean_mm"] for r in res["rows"]) / 2
         assert row["open_max_mm"] == max(r["open_loop"]["max_mm"] for r in res["rows"])
+
+
+_PIN_AFTER_NUMBA = """
+import numba
+numba.get_num_threads()  # numba's pool started at its default size, as in a process that already ran kernels
+from wristmark.sweep.trial import pin_threads
+pin_threads()
+@numba.njit
+def one_more(x):
+    return x + 1
+print(one_more(1), numba.get_num_threads())
+"""
+
+
+def test_pinning_a_process_whose_numba_pool_started_keeps_numba_compiling() -> None:
+    """A trial run in an existing process (tests, an in-process sweep) pins its threads without
+    breaking numba: NUMBA_NUM_THREADS changed under a started pool made the next compilation
+    raise RuntimeError ('Cannot set NUMBA_NUM_THREADS ... once the threads have been launched')."""
+    r = subprocess.run([sys.executable, "-c", _PIN_AFTER_NUMBA], capture_output=True, text=True, timeout=300,
+                       cwd=ROOT)
+    assert r.returncode == 0, r.stderr[-500:]
+    assert r.stdout.split() == ["2", "1"]  # compiled and ran; numba held to one thread

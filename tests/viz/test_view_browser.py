@@ -34,6 +34,8 @@ from wristmark.viz.scene import ROOT, ArmScene, SceneConfig, SceneState
 from wristmark.viz.snapshot import recording_visualizer
 from wristmark.viz.style import RGB, TIP_KINDS, TIP_STYLES
 
+pytestmark = [pytest.mark.browser]
+
 WIDTH, HEIGHT = 1200, 800  # [px] viewport
 ARTIFACTS = Path(__file__).resolve().parents[2] / "runs" / "test-artifacts"
 CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]

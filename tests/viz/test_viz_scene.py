@@ -281,6 +281,8 @@ def _records(n: int) -> list[CycleRecord]:
     return out
 
 
+@pytest.mark.network
+@pytest.mark.wallclock
 def test_live_view_draws_at_least_20_hz_without_blocking_the_loop() -> None:
     from wristmark.viz.live import start_live_view
 
@@ -306,6 +308,8 @@ def test_live_view_draws_at_least_20_hz_without_blocking_the_loop() -> None:
     assert st.mean_on_cycle_us < 500.0
 
 
+@pytest.mark.network
+@pytest.mark.wallclock
 def test_live_view_drops_records_instead_of_blocking_when_the_drawer_stalls() -> None:
     from wristmark.viz.live import start_live_view
 

@@ -20,6 +20,8 @@ import pytest
 
 from wristmark.viz.web_hosts import exposure_notice, listen_addresses
 
+pytestmark = [pytest.mark.network]
+
 ROOT = Path(__file__).resolve().parents[2]
 LOOPBACK = {"127.0.0.1", "::1"}
 

@@ -74,6 +74,7 @@ def run(args: argparse.Namespace) -> int:
     from wristmark.cvs.calibration.board import BoardDetector, BoardSpec
     from wristmark.cvs.calibration.load import save_calibration
     from wristmark.cvs.calibration.stereo import calibrate_stereo, detect_views
+    from wristmark.cvs.tracking.warmup import warm_up
 
     board = BoardSpec.parse(args.board)
     out = Path(args.out)
@@ -88,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
         for p in paths:
             if not p.is_file():
                 raise InputError(f"{p}: image file not found")
-    cv2.setNumThreads(1)
+    warm_up(jit=False)  # OpenCV's threads for the whole command (cvs.tracking.warmup)
     example: list[tuple[NDArray[np.uint8], NDArray[np.uint8]]] = []
     detector = BoardDetector(board)
 

@@ -30,7 +30,11 @@ DEFAULT_PLANT = default_config("plant.yaml")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--pty", action="store_true", help="serve on a new pseudo-terminal (the only transport)")
+    p.add_argument("--pty", action="store_true", help="serve on a new pseudo-terminal (the serial transport)")
+    p.add_argument("--ros2", nargs="?", const="lab", metavar="NS",
+                   help="instead of --pty: the virtual lab over ROS 2 (NS/servo_jp, NS/crtk_command, NS/measured_js, "
+                        "and the endoscope on NS/{left,right}/image_raw/compressed; loopback unless CYCLONEDDS_URI "
+                        "says otherwise; default NS lab; docs/ros2.md)")
     add_config_option(p, "--plant")
     add_config_option(p, "--robot")
     p.add_argument("--watchdog", type=positive_float(MAX_TIMEOUT_S), default=0.25, metavar="S",
@@ -78,11 +82,15 @@ def run(args: argparse.Namespace) -> int:
     from wristmark.sim.plant import TruePlant
     from wristmark.sim.plant_params import PlantParams
 
-    if not args.pty:
-        raise InputError("only the pseudo-terminal transport exists: pass --pty")
+    if args.ros2 is not None:
+        if args.pty or args.camera_port is not None or args.truth_dense_out or args.rt_priority is not None:
+            raise InputError("--ros2 serves the arm and the endoscope over ROS 2: no --pty, --camera-port, "
+                             "--truth-dense-out or --rt-priority")
+    elif not args.pty:
+        raise InputError("pass --pty (the actuator box on a pseudo-terminal) or --ros2 [NS] (the lab over ROS 2)")
     if not args.watchdog > 0:
         raise InputError(f"--watchdog must be > 0 s, got {args.watchdog}")
-    if args.camera_port is None and _camera_options_without_port(args):
+    if args.camera_port is None and args.ros2 is None and _camera_options_without_port(args):
         raise InputError(f"{', '.join(_camera_options_without_port(args))} need --camera-port PORT")
     if args.render_normal_priority and args.rt_priority is None:
         raise InputError("--render-normal-priority needs --rt-priority N")
@@ -100,6 +108,8 @@ def run(args: argparse.Namespace) -> int:
 
     signal.signal(signal.SIGTERM, _stop)
     signal.signal(signal.SIGINT, _stop)
+    if args.ros2 is not None:
+        return _serve_ros2_lab(args, params, plant, psi0, done)
     if args.camera_port is None:
         if args.rt_priority is not None:
             from wristmark.rig.loop.realtime_priority import request_realtime_priority
@@ -149,4 +159,42 @@ def _serve_lab(args: argparse.Namespace, params: RobotParams, plant: object, psi
     s = lab.stats.summary()
     print(f"virtual lab: {s['frames']} frames at {s['fps'] or 0:.1f} fps (render {s['render_ms_median'] or 0:.1f} ms, "
           f"JPEG {s['encode_ms_median'] or 0:.1f} ms median)", file=sys.stderr, flush=True)
+    return 0
+
+
+def _serve_ros2_lab(args: argparse.Namespace, params: RobotParams, plant: object, psi0: np.ndarray,
+                    done: threading.Event) -> int:
+    """The virtual lab over ROS 2 (sim/ros2_lab.py): stdout's first line the ``--actuator`` SPEC
+    (ros2:/NS), its second the ``--camera`` SPEC (ros2:LEFT,RIGHT)."""
+    from wristmark.cvs.calibration.load import load_calibration
+    from wristmark.rig.ros2.bridge import clean_namespace
+    from wristmark.rig.ros2.dds_config import require_cyclonedds
+    from wristmark.sim.ros2_lab import Ros2Lab
+
+    try:
+        ns = clean_namespace(args.ros2)
+    except ValueError as e:
+        raise InputError(f"--ros2: {e}") from None
+    require_cyclonedds("--ros2")
+    calib = load_calibration(args.calib or default_config("camera.yaml"))
+    marker = MarkerModel.load(args.marker or default_config("marker.yaml"))
+    lab = Ros2Lab(params, plant, calib, marker, namespace=ns, fps=args.fps, image_scale=args.image_scale,  # type: ignore[arg-type]
+                  seed=args.seed, jpeg_quality=args.jpeg_quality, watchdog_s=args.watchdog, truth_out=args.truth_out,
+                  psi0=psi0)
+    try:
+        lab.start()
+        print(f"ros2:{ns}", flush=True)
+        print(f"ros2:{ns}/left/image_raw/compressed,{ns}/right/image_raw/compressed", flush=True)
+        w, h = lab.camera.image_size
+        print(f"virtual lab over ROS 2: the arm on {ns}/servo_jp, crtk_command, measured_js; stereo endoscope "
+              f"{w}x{h} at up to {args.fps:g} fps on {ns}/{{left,right}}/image_raw/compressed; Ctrl-C to stop",
+              file=sys.stderr, flush=True)
+        while not done.wait(0.2):
+            if lab.error:
+                print(f"wristmark emulator: error: {lab.error}", file=sys.stderr, flush=True)
+                return 1
+    finally:
+        lab.stop()
+    print(f"virtual lab over ROS 2: {lab.frames} frames, {lab.targets} targets, {lab.watchdog_trips} watchdog trips, "
+          f"{lab.malformed} malformed messages", file=sys.stderr, flush=True)
     return 0

@@ -20,6 +20,7 @@ from wristmark.cli.option_types import (
     positive_float,
 )
 from wristmark.cli.setup_args import add_registration_argument, add_setup_arguments, setup_from_args
+from wristmark.cvs.tracking.warmup import warm_up
 from wristmark.models.errors import ConfigError
 from wristmark.rig.recording.output_dir import claim_outputs, link_latest, new_run_dir
 from wristmark.rig.recording.run_log import write_json
@@ -79,6 +80,7 @@ def run(args: argparse.Namespace) -> int:
     setup = check_args(args)
     out = Path(args.out) if args.out else new_run_dir("runs", args.name)
     claim_outputs(dirs=[out], files=[args.json], force=args.force)
+    warm_up()  # OpenCV's threads and the tracker's kernels, before the first frame (cvs.tracking.warmup)
     progress = not args.no_progress
     t0 = time.perf_counter()
     view = None

@@ -124,9 +124,8 @@ def _observe_hardware(args: argparse.Namespace, progress: bool) -> tuple[Any, li
 
 
 def run(args: argparse.Namespace) -> int:
-    import cv2
-
     from wristmark.cvs.calibration.registration_file import Registration, save_registration
+    from wristmark.cvs.tracking.warmup import warm_up
     from wristmark.models.marker import MarkerModel
     from wristmark.models.robot_params import load_robot
     from wristmark.rig.registration.log import read_log, write_log
@@ -140,7 +139,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("give either --from-log DIR or --serial PORT, not both")
     if args.camera and not args.serial:
         raise InputError("--camera SPEC is for hardware: give --serial PORT too (the simulated bench renders its own)")
-    cv2.setNumThreads(1)
+    warm_up(jit=not args.from_log)  # OpenCV's threads, the tracker's kernels (cvs.tracking.warmup)
     progress = not args.no_progress
     extra: dict[str, Any] = {}
     if args.from_log:

@@ -100,6 +100,7 @@ def read_psi_file(path: str | Path) -> list[Array]:
 def run(args: argparse.Namespace) -> int:
     from wristmark.cvs.calibration.load import load_calibration
     from wristmark.cvs.camera import scaled_stereo_camera
+    from wristmark.cvs.tracking.warmup import warm_up
     from wristmark.models.arm_shape import arm_shape
     from wristmark.models.arm_spec import ArmSpec, load_loop_arm
     from wristmark.models.limits import check_limits
@@ -159,6 +160,7 @@ def run(args: argparse.Namespace) -> int:
         ]
 
     claim_outputs(dirs=[args.out], force=args.force)
+    warm_up(jit=False)  # OpenCV's threads (cvs.tracking.warmup); the renderer's kernels load on its first frame
     renderer = StereoRenderer(camera, marker, settings, seed=args.seed)
     writer = DatasetWriter(args.out, camera, marker)
     for q in configs:

@@ -47,6 +47,7 @@ from wristmark.cli.option_types import (
     positive_float,
 )
 from wristmark.cli.setup_args import add_registration_argument, add_setup_arguments, setup_from_args
+from wristmark.cvs.tracking.warmup import warm_up
 from wristmark.models.errors import InputError
 from wristmark.rig.loop.servo_session import (
     HW_TIMEOUT_S,
@@ -61,6 +62,18 @@ from wristmark.rig.loop.servo_session import (
 from wristmark.rig.loop.servo_summary import percentiles_ms, summarize
 from wristmark.rig.recording.output_dir import claim_outputs
 from wristmark.rig.recording.run_log import write_json
+from wristmark.rig.targets.live_target import (
+    LIVE_KINDS,
+    MAX_SPEED,
+    TARGET_TIMEOUT_S,
+    LineSource,
+    LiveTargets,
+    LiveTrajectory,
+    Workspace,
+    live_trajectory,
+    open_line_source,
+    parse_target_spec,
+)
 from wristmark.rig.targets.orientation_path import ORIENTATION_MODES, check_orientation_mode
 from wristmark.rig.targets.trajectories import Trajectory
 
@@ -68,6 +81,7 @@ if TYPE_CHECKING:
     from wristmark.rig.loop.loop_setup import LoopSetup
 
 Array = NDArray[np.float64]
+LIVE_DURATION_S = 60.0  # [s] default run time with live targets
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -77,9 +91,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                            "needs --camera). Default: the simulated bench, its emulator on a new pty")
     link.add_argument("--direct", action="store_true",
                       help="in-process plant without serial bytes (the reference for the serial path)")
+    link.add_argument("--actuator", metavar="ros2:NS",
+                      help="hardware path: an arm driven over ROS 2 (NS/servo_jp, NS/crtk_command out, "
+                           "NS/measured_js in; real time; needs --camera; docs/ros2.md)")
     p.add_argument("--camera", metavar="SPEC",
-                   help="with --serial: the stereo camera's frame source (/dev/videoN, http://..., a video; "
-                        "docs/frame_sources.md); the calibration is --calib")
+                   help="with --serial: the stereo camera's frame source (/dev/videoN, http://..., a video, "
+                        "ros2:LEFT,RIGHT; docs/frame_sources.md); the calibration is --calib")
     p.add_argument("--camera-timeout", type=positive_float(60.0), default=2.0, metavar="S",
                    help="with --camera: no frame for S seconds ends the camera's stream (default 2)")
     p.add_argument("--record", metavar="FILE.mcap",
@@ -98,8 +115,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--timeout", type=positive_float(MAX_TIMEOUT_S), metavar="S",
                    help=f"reply timeout per attempt [s] (default {HW_TIMEOUT_S} real time, "
                         f"{SIM_TIMEOUT_S} simulated)")
-    p.add_argument("--trajectory", choices=("cube", "point"), default="cube",
-                   help="cube: the paper's cube walk (default); point: hold --point")
+    p.add_argument("--trajectory", choices=("cube", "point"),
+                   help="cube: the paper's cube walk (default); point: hold --point (same as --target)")
+    p.add_argument("--target", metavar="SPEC",
+                   help="what the tip follows: cube | point (built-in, as --trajectory) | stdin | "
+                        "tcp:127.0.0.1:PORT (JSON lines {\"t\": s, \"p\": [x, y, z], \"q\": [qx, qy, qz, qw]}, p in "
+                        "{w} in metres, q optional; PORT 0: any free port, printed on stderr) | ros2 (NS/servo_cp, "
+                        "needs --ros2); live targets: clamped to the workspace, speed bounded, held when silent")
+    p.add_argument("--ros2", nargs="?", const="wristmark", metavar="NS",
+                   help="join the ROS 2 graph (Cyclone DDS, no ROS needed; loopback only unless CYCLONEDDS_URI "
+                        "says otherwise): publish NS/measured_cp, NS/measured_js, NS/setpoint_js; with --target "
+                        "ros2 follow NS/servo_cp (default NS: wristmark; docs/ros2.md)")
+    p.add_argument("--target-timeout", type=positive_float(MAX_TIMEOUT_S), default=TARGET_TIMEOUT_S, metavar="S",
+                   help=f"live targets: a stream silent for S seconds holds the arm (default {TARGET_TIMEOUT_S:g})")
+    p.add_argument("--max-speed", type=positive_float(0.1), default=MAX_SPEED, metavar="M/S",
+                   help=f"live targets: the target's speed bound [m/s] (default {MAX_SPEED:g})")
     p.add_argument("--orientation", choices=ORIENTATION_MODES, default="none",
                    help="the tip frame's orientation: none (position only, as the paper; default), hold (the "
                         "start's, kept along the path) or follow (as the nominal model turns it); needs the qp "
@@ -107,7 +137,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--point", type=float_in(-MAX_POINT_M, MAX_POINT_M), nargs=3, metavar=("X", "Y", "Z"),
                    help="point to hold in {w} [m] (default: the workspace centre)")
     p.add_argument("--duration", type=positive_float(MAX_DURATION_S), metavar="S",
-                   help=f"run only the first S seconds of the trajectory (point: default {POINT_HOLD_S:g})")
+                   help=f"run only the first S seconds of the trajectory (point: default {POINT_HOLD_S:g}; "
+                        f"live targets: default {LIVE_DURATION_S:g})")
     p.add_argument("--settle", type=nonnegative_float(MAX_SETTLE_S), metavar="S",
                    help="closed-loop approach to the start [s] (rig file)")
     p.add_argument("--json", metavar="FILE.json", help=JSON_FILE_HELP.format(what="the result"))
@@ -130,11 +161,22 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def build_setup(args: argparse.Namespace) -> LoopSetup:
     """The setup with the command-line overrides, validated: the simulated bench's SimSetup, or
     for the hardware path (``--serial``) a LoopSetup without the simulated bench."""
-    return setup_from_args(args, simulated=args.serial is None, settle_time=args.settle)  # type: ignore[no-any-return]
+    return setup_from_args(args, simulated=not hardware(args), settle_time=args.settle)  # type: ignore[no-any-return]
+
+
+def target_kind(args: argparse.Namespace) -> tuple[str, int | None]:
+    """What the tip follows (cube | point | stdin | tcp | ros2) and the TCP port, from
+    ``--target`` or ``--trajectory`` (not both)."""
+    if args.target is not None and args.trajectory is not None:
+        raise InputError("give --target SPEC or --trajectory, not both")
+    kind, _, port = parse_target_spec(args.target or args.trajectory or "cube")
+    return kind, port
 
 
 def build_trajectory(setup: LoopSetup, kind: str, point: list[float] | None, duration: float | None) -> Trajectory:
-    """The cube walk around the workspace centre, or a held point; cut to ``duration`` [s]."""
+    """The cube walk around the workspace centre, or a held point; cut to ``duration`` [s]; a
+    live kind (stdin | tcp | ros2): waiting at the workspace centre for ``duration`` (default
+    LIVE_DURATION_S), its targets attached later (LiveTrajectory.with_follower)."""
     from wristmark.rig.targets.trajectories import CUBE_SIZE, CUBE_SPEED, cube_trajectory, workspace_centre
 
     if duration is not None and not (np.isfinite(duration) and duration > 0):
@@ -142,6 +184,8 @@ def build_trajectory(setup: LoopSetup, kind: str, point: list[float] | None, dur
     if point is not None and kind != "point":
         raise InputError("--point needs --trajectory point")
     centre = workspace_centre(setup.params)
+    if kind in LIVE_KINDS:
+        return live_trajectory(centre, duration if duration is not None else LIVE_DURATION_S, kind)
     if kind == "point":
         p = np.asarray(point if point is not None else centre, float)
         if not np.all(np.isfinite(p)):
@@ -194,23 +238,57 @@ def _sigterm_as_interrupt() -> Iterator[None]:
             signal.signal(sig, old)
 
 
+def hardware(args: argparse.Namespace) -> bool:
+    """The hardware path: ``--serial PORT`` or ``--actuator ros2:NS`` (a real-time link and a camera)."""
+    return args.serial is not None or getattr(args, "actuator", None) is not None
+
+
+def actuator_namespace(spec: str) -> str:
+    """``--actuator ros2:NS`` -> NS (InputError, one line, for anything else)."""
+    from wristmark.rig.ros2.bridge import clean_namespace
+
+    if not spec.startswith("ros2:"):
+        raise InputError(f"--actuator must be ros2:NS (an arm on a ROS 2 graph), got {spec!r}")
+    try:
+        return clean_namespace(spec[len("ros2:"):] or "-")
+    except ValueError as e:
+        raise InputError(f"--actuator: {e}") from None
+
+
+def _same_namespace(a: str, b: str) -> bool:
+    from wristmark.rig.ros2.bridge import clean_namespace
+
+    try:
+        return clean_namespace(a) == clean_namespace(b)
+    except ValueError:
+        return False
+
+
 def check_link_options(args: argparse.Namespace) -> None:
     """The link and camera options fit together (InputError before anything is opened)."""
+    if args.actuator is not None:
+        actuator_namespace(args.actuator)
+        if not args.camera:
+            raise InputError("--actuator ros2:NS needs --camera SPEC: the frames of the stereo camera")
+        check_ros2(args.actuator[len("ros2:"):], "--actuator")
+        if args.ros2 is not None and _same_namespace(args.ros2, args.actuator[len("ros2:"):]):
+            raise InputError("--ros2 NS must differ from --actuator ros2:NS: the loop would read its own "
+                             "measured_js back as the arm's")
     if args.serial is not None and not args.camera:
         raise InputError("--serial needs --camera SPEC: the frames of the stereo camera (e.g. the virtual lab's "
                          "stream URL); the simulated cameras exist only in the in-process bench (no --serial)")
-    if args.camera and args.serial is None:
-        raise InputError("--camera SPEC needs --serial PORT (the hardware path); without --serial the "
-                         "simulated bench renders its own frames")
-    if args.rt_priority is not None and args.serial is None:
+    if args.camera and not hardware(args):
+        raise InputError("--camera SPEC needs --serial PORT or --actuator ros2:NS (the hardware path); without "
+                         "them the simulated bench renders its own frames")
+    if args.rt_priority is not None and not hardware(args):
         raise InputError("--rt-priority is for the hardware path (--serial); the simulated bench runs in "
                          "simulated time")
-    if args.record and args.serial is None:
+    if args.record and not hardware(args):
         raise InputError("--record is for the hardware path (--serial --camera): the simulated bench writes "
                          "log.csv with --out")
     if args.record_jpeg and not args.record:
         raise InputError("--record-jpeg needs --record FILE.mcap")
-    if args.serial is not None and args.realtime:
+    if hardware(args) and args.realtime:
         raise InputError("--realtime is for the in-process emulator; --serial is always real time")
     if args.timeout is not None and not args.timeout > 0:
         raise InputError(f"--timeout must be > 0 s, got {args.timeout}")
@@ -222,7 +300,7 @@ def check_link_options(args: argparse.Namespace) -> None:
 
 def open_session(setup: LoopSetup, psi0: Array, options: LinkOptions, args: argparse.Namespace) -> ServoSession:
     """The hardware session (serial port + camera), or the simulated bench's in process."""
-    if options.kind == "serial":
+    if options.kind in ("serial", "ros2"):
         from wristmark.rig.loop.hardware_session import open_hardware_session
 
         if args.rt_priority is not None:  # before any thread starts: the camera's threads inherit it
@@ -268,31 +346,99 @@ def write_outputs(args: argparse.Namespace, setup: LoopSetup, out: ServoOutcome,
         write_json(args.json, res)
 
 
+def open_targets(args: argparse.Namespace, setup: LoopSetup, traj: Trajectory, port: int | None
+                 ) -> tuple[Trajectory, LiveTargets | None, LineSource | None]:
+    """A live trajectory's target store and its source (stdin, TCP; ros2: the bridge feeds it),
+    attached to the trajectory; built-in trajectories are returned as they are."""
+    if not isinstance(traj, LiveTrajectory):
+        return traj, None, None
+    targets = LiveTargets(Workspace.around(traj.waypoints[0]), timeout=args.target_timeout,
+                          name=f"--target {args.target}")
+    source = open_line_source(traj.kind, targets, port) if traj.kind in ("stdin", "tcp") else None
+    if source is not None and traj.kind == "tcp":
+        print(f"wristmark servo: taking targets on {source.describe}", file=sys.stderr, flush=True)
+    return traj.with_follower(targets, args.max_speed), targets, source
+
+
+def check_ros2(namespace: str, what: str = "--ros2") -> None:
+    """``--ros2 NS``: a valid namespace and cyclonedds installed (InputError, one line)."""
+    from wristmark.rig.ros2.bridge import clean_namespace
+    from wristmark.rig.ros2.dds_config import require_cyclonedds
+
+    try:
+        clean_namespace(namespace)
+    except ValueError as e:
+        raise InputError(f"{what}: {e}") from None
+    require_cyclonedds(what)
+
+
+def cycle_hook(view: Any, bridge: Any, session: ServoSession) -> Any:
+    """The loop's per-cycle hook: the live view's and the ROS 2 bridge's (None: neither)."""
+    if bridge is None:
+        return None if view is None else view.on_cycle
+
+    def hook(rec: Any) -> None:
+        bridge.on_cycle(rec, session.link)
+        if view is not None:
+            view.on_cycle(rec)
+
+    return hook
+
+
 def run(args: argparse.Namespace) -> int:
     check_link_options(args)
     setup = build_setup(args)
-    traj = build_trajectory(setup, args.trajectory, args.point, args.duration)
+    target, port = target_kind(args)
+    traj = build_trajectory(setup, target, args.point, args.duration)
+    if target == "ros2" and args.ros2 is None:
+        raise InputError("--target ros2 needs --ros2 [NS]: the targets come from NS/servo_cp")
+    if args.ros2 is not None:
+        check_ros2(args.ros2)
     if check_orientation_mode(args.orientation, setup.controller.kind) != "none":
+        if isinstance(traj, LiveTrajectory) and args.orientation != "hold":
+            raise InputError("live targets take --orientation none or hold (q of each target turns the tip)")
         traj = traj.with_orientation(args.orientation, setup.params)
     psi0 = start_configuration(setup, traj)
     claim_outputs(dirs=[args.out], files=[args.json], force=args.force)  # after every option was validated
-    kind = "serial" if args.serial else "direct" if args.direct else "emulator"
-    options = LinkOptions(kind=kind, port=args.serial, baudrate=args.baud, timeout=args.timeout,
-                          realtime=bool(args.realtime), pace=bool(args.pace or args.view))
+    warm_up()  # OpenCV's threads and the tracker's kernels, before the link opens (cvs.tracking.warmup)
+    kind = "serial" if args.serial else "ros2" if args.actuator else "direct" if args.direct else "emulator"
+    live = isinstance(traj, LiveTrajectory)  # a device steers in real time: the simulated bench is paced
+    options = LinkOptions(kind=kind, port=actuator_namespace(args.actuator) if args.actuator else args.serial,
+                          baudrate=args.baud, timeout=args.timeout,
+                          realtime=bool(args.realtime), pace=bool(args.pace or args.view or live))
+    traj, targets, source = open_targets(args, setup, traj, port)
+    bridge = None
     with _sigterm_as_interrupt():
         view = live_view(setup, args.host) if args.view else None
         try:
+            if args.ros2 is not None:
+                from wristmark.rig.ros2.bridge import Ros2Bridge
+
+                bridge = Ros2Bridge(args.ros2, setup.params, targets if target == "ros2" else None,
+                                    wall_clock=options.kind in ("serial", "ros2"))
             session = open_session(setup, psi0, options, args)
             recorder = open_recorder(args, setup, session)
             out = run_servo(setup, traj, session, psi0, settle=setup.rig.settle_time,
-                            progress=not args.no_progress, on_cycle=None if view is None else view.on_cycle,
+                            progress=not args.no_progress, on_cycle=cycle_hook(view, bridge, session),
                             recorder=recorder, on_frame=None if view is None else view.on_frame)
             if view is not None and args.view_hold > 0:
                 view.hold(args.view_hold)
         finally:
             if view is not None:
                 view.close()
+            if source is not None:
+                source.close()
+            if bridge is not None:
+                bridge.close()
     res = summarize(setup, traj, session, out)
+    if options.kind == "ros2":  # targets sent, malformed measured_js (rig/ros2/actuator_link.py)
+        res["link"].update(session.link.stats())  # type: ignore[attr-defined]
+    if bridge is not None:
+        res["ros2"] = bridge.report()
+    if targets is not None:
+        res["trajectory"]["kind"] = target
+        res["targets"] = {"source": source.describe if source is not None else target,
+                          "max_speed_mps": args.max_speed, **targets.report()}
     if session.wall_clock:  # the host's own work after a frame's arrival, before the command instant
         res["latency"]["arrival_to_ready"] = percentiles_ms(np.asarray(out.ready_after_arrival_ms, float))
         res["latency"]["command_phase_ms"] = 1000.0 * setup.rig.command_phase
@@ -313,7 +459,8 @@ def run(args: argparse.Namespace) -> int:
     if c["cycles"] and "orientation_mean_deg" in c:
         errors += f"; orientation mean {c['orientation_mean_deg']:.2f} deg, max {c['orientation_max_deg']:.2f} deg"
     lat = res["latency"]["capture_to_command"]
-    latency = f"; capture -> command median {lat['median_ms']:.1f} ms" if options.kind == "serial" and lat["n"] else ""
+    hw_link = options.kind in ("serial", "ros2")
+    latency = f"; capture -> command median {lat['median_ms']:.1f} ms" if hw_link and lat["n"] else ""
     print(f"servo ({res['trajectory']['kind']}, {traj.duration:.1f} s, controller {res['controller']}, "
           f"sensor {res['sensor']}, link {kind} {session.port}): {errors}{latency}")
     if not out.stopped:

@@ -68,7 +68,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_config_option(p, "--registration", note="the JSON then also has tip_world, in {w} and metres")
     p.add_argument("images", nargs="*", metavar="LEFT RIGHT", help="stereo pairs: left and right image paths")
     p.add_argument("--source", metavar="SPEC", help="frame source instead of image pairs: DIR, VIDEO, LEFT,RIGHT, "
-                   "/dev/videoN, device:N, http://..., rtsp://..., FILE.mcap, BAGDIR")
+                   "/dev/videoN, device:N, http://..., rtsp://..., FILE.mcap, BAGDIR, ros2:LEFT,RIGHT (two ROS 2 "
+                   "image topics; docs/ros2.md)")
     p.add_argument("--frames", type=int_in(1, 10**9), metavar="N", help="stop after N frames (e.g. of a live source)")
     p.add_argument("--layout", choices=("sbs", "tb"), default="sbs",
                    help="how one frame holds both views: side by side (left view left) or top-bottom")
@@ -197,6 +198,7 @@ def run(args: argparse.Namespace) -> int:
     from wristmark.cvs.calibration.registration_file import apply_registration
     from wristmark.cvs.sources.open_source import SourceOptions, open_stereo_source
     from wristmark.cvs.tracking.tracker import MarkerTracker
+    from wristmark.cvs.tracking.warmup import warm_up
     from wristmark.models.marker import MarkerModel
 
     def fields(res: Any) -> dict[str, Any]:
@@ -224,6 +226,7 @@ def run(args: argparse.Namespace) -> int:
         source = open_stereo_source(args.images)  # paths checked before anything is loaded
     camera = apply_registration(load_calibration(args.calib), args.registration)
     marker = MarkerModel.load(args.marker) if args.marker else MarkerModel()
+    warm_up()  # OpenCV's threads and the tracker's kernels, before the first pair (cvs.tracking.warmup)
     tracker = MarkerTracker(camera, marker, _settings(args))
     if args.source is None:
         for frame in iter(source.read, None):
@@ -251,7 +254,9 @@ def run(args: argparse.Namespace) -> int:
 
         request_realtime_priority(args.rt_priority)
     prepare_tracker(tracker, args.grayscale)  # no first use of a code path nor full collection on a frame
-    source = open_stereo_source(args.source, options)
+    from wristmark.rig.ros2.image_source import open_frame_source
+
+    source = open_frame_source(args.source, options)  # open_stereo_source, and ros2:LEFT,RIGHT
     try:
         fps = float(getattr(source, "fps", 0.0) or 30.0)  # a video's own rate for an annotated video
         outputs = TrackOutputs.open(args.annotate, args.record, args.record_jpeg, camera, marker, fps)

@@ -31,6 +31,7 @@ if TYPE_CHECKING:
     from wristmark.cvs.tracking.annotate import AnnotationWriter, annotate_pair
     from wristmark.cvs.tracking.stereo_pose import MarkerPose, PoseSettings, StereoPoseSolver
     from wristmark.cvs.tracking.tracker import MarkerTracker, TrackerSettings, TrackResult
+    from wristmark.cvs.tracking.warmup import warm_up
 else:
     from wristmark._lazy import attach
 

@@ -12,12 +12,13 @@ import dataclasses
 import math
 import types
 import typing
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
 
 import yaml
 
-from wristmark.models.config_files import find_config
+from wristmark.models.config_files import CONFIG_DIR, find_config
 from wristmark.models.errors import ConfigError
 
 T = TypeVar("T")
@@ -95,14 +96,149 @@ def load_yaml(path: str | Path) -> dict[str, Any]:
 
 def load_section(path: str | Path, name: str) -> dict[str, Any]:
     """The YAML mapping of ``path``, or the mapping under its only key ``name`` (``robot:``,
-    ``controller:``, ...): both layouts of a configuration file."""
-    data = load_yaml(path)
-    if set(data) == {name}:
-        inner = data[name] or {}
+    ``controller:``, ...): both layouts of a configuration file (``extends`` resolved)."""
+    return load_layered(path, name)
+
+
+EXTENDS = "extends"  # the key of a configuration file that names the file it overlays
+MAX_EXTENDS_DEPTH = 16  # files in one chain of ``extends`` at most
+ANY_SECTION = "*"  # _layer: the section is the file's only key, whatever its name
+
+
+def _base_path(p: Path, name: str) -> Path:
+    """The file ``p`` extends with ``extends: name``: ``name`` relative to ``p``'s folder (or
+    absolute), else the shipped configuration file of that name (``controller.yaml``,
+    ``configs/controller.yaml``); a file named like a shipped one may extend it by that name."""
+    given = Path(name)
+    near = given if given.is_absolute() else p.parent / given
+    if near.is_file() and near.resolve() != p.resolve():
+        return near
+    parts = given.parts[1:] if given.parts[:1] == ("configs",) else given.parts
+    shipped = CONFIG_DIR.joinpath(*parts) if parts and not given.is_absolute() else None
+    if shipped is not None and shipped.is_file() and shipped.resolve() != p.resolve():
+        return shipped
+    if near.is_file():
+        return near  # the file itself: refused as a cycle
+    raise ConfigError(f"{p}: 'extends: {name}' names no file (not in {p.parent}, nor a shipped configuration)")
+
+
+def _layer(p: Path, section: str | None) -> tuple[dict[str, Any], str | None]:
+    """One file's own mapping (under ``section:`` if the file holds only that key) and the name
+    it extends (None: it extends nothing)."""
+    data = load_yaml(p)
+    base = data.pop(EXTENDS, None)
+    if section == ANY_SECTION:
+        section = next(iter(data)) if len(data) == 1 and isinstance(next(iter(data.values())), dict) else None
+    if section is not None and set(data) == {section}:
+        inner = data[section] if data[section] is not None else {}
         if not isinstance(inner, dict):
-            raise ConfigError(f"{path}: '{name}' must be a mapping of keys to values")
-        return inner
-    return data
+            raise ConfigError(f"{p}: '{section}' must be a mapping of keys to values")
+        data = dict(inner)
+        if EXTENDS in data:
+            if base is not None:
+                raise ConfigError(f"{p}: 'extends' is given twice (at the top and under '{section}')")
+            base = data.pop(EXTENDS)
+    if base is not None and (not isinstance(base, str) or not base.strip()):
+        raise ConfigError(f"{p}: 'extends' must name a configuration file, got {base!r}")
+    return data, base
+
+
+def merge_mappings(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+    """``base`` with ``over`` laid on it: mappings merge key by key (recursively), anything else
+    (numbers, strings, lists) in ``over`` replaces ``base``'s value."""
+    out = dict(base)
+    for k, v in over.items():
+        if isinstance(v, dict) and isinstance(out.get(k), dict):
+            out[k] = merge_mappings(out[k], v)
+        else:
+            out[k] = v
+    return out
+
+
+def _chain(path: str | Path, section: str | None) -> list[tuple[Path, dict[str, Any]]]:
+    """Each file of ``path``'s chain of ``extends`` with its own mapping, ``path`` first."""
+    p = check_file_size(path)
+    chain: list[tuple[Path, dict[str, Any]]] = []
+    while True:
+        data, base = _layer(p, section)
+        chain.append((p, data))
+        if base is None:
+            return chain
+        nxt = _base_path(p, base)
+        if nxt.resolve() in {q.resolve() for q, _ in chain}:
+            names = " -> ".join(str(q) for q in [*(q for q, _ in chain), nxt])
+            raise ConfigError(f"{p}: 'extends' goes round in a circle ({names})")
+        if len(chain) >= MAX_EXTENDS_DEPTH:
+            raise ConfigError(f"{path}: more than {MAX_EXTENDS_DEPTH} files in its chain of 'extends'")
+        p = check_file_size(nxt)
+
+
+def load_layered(path: str | Path, section: str | None = None,
+                 normalize: Callable[[dict[str, Any], str], dict[str, Any]] | None = None) -> dict[str, Any]:
+    """The configuration mapping of ``path`` with its ``extends`` chain resolved.
+
+    A file may say ``extends: NAME`` (at the top, or under its ``section:`` key when that is its
+    only key): NAME is a file relative to the file's folder, or a shipped configuration's name;
+    the file's own keys are laid on that file's (resolved) mapping by :func:`merge_mappings`.
+    ``normalize(mapping, file)`` brings each file's own mapping to one layout before the merge
+    (e.g. a sectioned and a flat file). A missing base, a cycle or a chain of more than
+    MAX_EXTENDS_DEPTH files raise a one-line ConfigError naming the file."""
+    merged: dict[str, Any] = {}
+    for p, data in reversed(_chain(path, section)):
+        merged = merge_mappings(merged, normalize(data, str(p)) if normalize is not None else data)
+    return merged
+
+
+def extends_chain(path: str | Path) -> list[Path]:
+    """The files ``path``'s configuration is read from: ``path``, the file it extends, and so on
+    (``extends`` at the top, or under the file's only key)."""
+    return [p for p, _ in _chain(path, ANY_SECTION)]
+
+
+def flatten_sections(data: dict[str, Any], source: str, layout: dict[str, str],
+                     sections: dict[str, str]) -> dict[str, Any]:
+    """One file's mapping with its sections' keys brought to the top (a file laid out in
+    sections, e.g. rig.yaml's ``loop:`` and ``bench:``, and a flat one then mean the same).
+
+    ``layout``: each sectioned key -> the name of its section; ``sections``: each section's name
+    -> what it holds. A mapping without any section is returned as it is. In one with sections,
+    a sectioned key must be in its own section; other keys (e.g. ``kind``) stay at the top.
+    ConfigError (one line, naming the file) for a key in another section, outside its section,
+    unknown in a section, or a section that is not a mapping."""
+    if not any(k in sections for k in data):
+        return data
+    out: dict[str, Any] = {}
+    for key, value in data.items():
+        if key in sections:
+            continue
+        if key in layout:
+            raise ConfigError(f"{source}: '{key}' is outside the sections ({', '.join(sections)}): "
+                              f"put it under '{layout[key]}:'")
+        out[key] = value
+    for name in sections:
+        part = data.get(name)
+        if part is None:
+            continue
+        if not isinstance(part, dict):
+            raise ConfigError(f"{source}: '{name}' must be a mapping of keys to values")
+        for key, value in part.items():
+            where = layout.get(str(key))
+            if where is None:
+                valid = [k for k, s in layout.items() if s == name]
+                raise ConfigError(f"{source}: unknown key '{name}.{key}' (valid keys: {', '.join(valid)})")
+            if where != name:
+                raise ConfigError(f"{source}: '{key}' belongs under '{where}:' ({sections[where]}), not '{name}:'")
+            out[str(key)] = value
+    return out
+
+
+def sectioned(flat: dict[str, Any], layout: dict[str, str], sections: dict[str, str]) -> dict[str, Any]:
+    """The flat mapping laid out in sections (the inverse of :func:`flatten_sections`): keys
+    without a section first, then one mapping per section, in the order of ``sections``."""
+    out = {k: v for k, v in flat.items() if k not in layout}
+    for name in sections:
+        out[name] = {k: v for k, v in flat.items() if layout.get(k) == name}
+    return out
 
 
 def save_yaml(path: str | Path, data: dict[str, Any]) -> None:
@@ -191,5 +327,5 @@ def to_mapping(obj: Any) -> dict[str, Any]:
 
 
 def load_config(cls: type[T], path: str | Path) -> T:
-    """Load dataclass ``cls`` from the YAML file at ``path`` (validated)."""
-    return from_mapping(cls, load_yaml(path), str(path))
+    """Load dataclass ``cls`` from the YAML file at ``path`` (``extends`` resolved; validated)."""
+    return from_mapping(cls, load_layered(path), str(path))

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from wristmark.models.config_io import from_mapping, load_yaml
+from wristmark.models.config_io import from_mapping, load_layered
 from wristmark.models.errors import ConfigError
 
 Array = NDArray[np.float64]
@@ -103,7 +103,7 @@ class MarkerModel:
     @classmethod
     def load(cls, path: str | Path) -> MarkerModel:
         """Load and validate a marker.yaml."""
-        return from_mapping(cls, load_yaml(path), str(path))
+        return from_mapping(cls, load_layered(path), str(path))
 
     @property
     def beta(self) -> float:

@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from wristmark.models.config_io import from_mapping, load_section
+from wristmark.models.config_io import from_mapping, load_layered
 from wristmark.models.errors import ConfigError
 from wristmark.models.marker import MarkerModel
 
@@ -55,7 +55,7 @@ class RobotParams:
     def load(cls, path: str | Path) -> RobotParams:
         """Load from YAML; the file may be the robot mapping itself or hold it under 'robot'.
         A format-2 file (any arm, docs/your-arm.md) is refused here, saying where it is read."""
-        data = load_section(path, "robot")
+        data = load_layered(path, "robot")
         if "format" in data:
             raise ConfigError(f"{path}: format: {data['format']!r}: a format-2 robot file (any arm, "
                               "docs/your-arm.md) is read by 'wristmark fk' and 'wristmark urdf' so far; "
@@ -74,7 +74,7 @@ def load_robot(path: str | Path | None, marker: MarkerModel) -> RobotParams:
     if path is None:
         return RobotParams().with_marker(marker)
     params = RobotParams.load(path)
-    if "tip_offset" in load_section(path, "robot") and params.tip_offset != marker.tip_offset:
+    if "tip_offset" in load_layered(path, "robot") and params.tip_offset != marker.tip_offset:
         raise ConfigError(f"{path}: 'tip_offset' ({params.tip_offset} m) disagrees with the marker's "
                           f"({marker.tip_offset} m): the tip offset belongs to the marker file; remove it from {path}")
     return params.with_marker(marker)

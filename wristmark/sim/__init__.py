@@ -2,9 +2,10 @@
 
 The true arm (``TruePlant`` with a ``PlantParams`` file), its stereo endoscope images
 (``StereoRenderer``), the optical tracker that measures ground truth, the actuator-box emulator,
-the virtual lab (emulator + MJPEG camera), the experiments, and the setup that wires
-them together (``load_setup``). Frames: {w} the robot base, {ll} the left camera; units SI.
-The hardware path (``wristmark servo --serial --camera``) never imports this package.
+the virtual lab (emulator + MJPEG camera), the experiments, your own trajectory walked in
+process (``run_trajectory``), and the setup that wires them together (``load_setup``). Frames:
+{w} the robot base, {ll} the left camera; units SI. The hardware path (``wristmark servo
+--serial --camera``) never imports this package.
 
 The names below are imported on first use (``wristmark/_lazy.py``).
 """
@@ -23,6 +24,7 @@ if TYPE_CHECKING:
     from wristmark.sim.render.settings import RenderSettings, noise_preset
     from wristmark.sim.render.stereo_renderer import RenderedPair, StereoRenderer
     from wristmark.sim.setup import SimSetup, load_setup
+    from wristmark.sim.trajectory_run import TrajectoryRun, run_trajectory
     from wristmark.sim.virtual_lab import VirtualLab, true_tip_errors
 else:
     from wristmark._lazy import attach

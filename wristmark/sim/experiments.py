@@ -12,20 +12,12 @@ from typing import Any
 import numpy as np
 
 from wristmark.models.arm_spec import as_spec, home_psi, log_psi_names
-from wristmark.models.errors import ConfigError
 from wristmark.models.ik import solve_tip_ik
 from wristmark.models.kinematics import forward_kinematics
-from wristmark.rig.loop.metrics import (
-    corner_overshoot,
-    error_stats,
-    estimate_errors,
-    orientation_summary,
-    tracking_errors,
-)
-from wristmark.rig.loop.play_probe import probe_report
-from wristmark.rig.loop.servo_loop import MarkerLostError, PhaseStats, ServoLoop
+from wristmark.rig.loop.metrics import error_stats
+from wristmark.rig.loop.servo_loop import ServoLoop
 from wristmark.rig.recording.run_log import CycleRecord, RunLog, write_json
-from wristmark.rig.targets.orientation_path import check_orientation_mode, start_configuration
+from wristmark.rig.targets.orientation_path import check_orientation_mode
 from wristmark.rig.targets.trajectories import (
     CUBE_SIZE,
     CUBE_SPEED,
@@ -34,38 +26,12 @@ from wristmark.rig.targets.trajectories import (
     cube_trajectory,
     workspace_centre,
 )
-from wristmark.sim.setup import SimSetup, make_direct_loop, make_measurement, make_plant
+from wristmark.sim.setup import SimSetup, make_measurement, make_plant
+from wristmark.sim.trajectory_run import check_reach, walk_trajectory
 
 PAPER_CUBE = {"open_loop": {"mean_mm": 3.25, "max_mm": 8.40},
               "closed_loop": {"mean_mm": 0.82, "max_mm": 2.59}, "ratio": 0.2523}
 PAPER_ACCURACY = {"mean_mm": 0.67, "max_mm": 1.21}
-
-
-def _phase_summary(log: RunLog, phase: str, traj: Trajectory) -> dict[str, Any]:
-    recs = log.phase(phase)
-    trk = error_stats(tracking_errors(recs, "p_trk"))
-    true = error_stats(tracking_errors(recs, "p_true"))
-    over = corner_overshoot(recs, traj.waypoints, traj.times)
-    out: dict[str, Any] = {
-        "mean_mm": trk.mean_mm, "max_mm": trk.max_mm, "rms_mm": trk.rms_mm, "p95_mm": trk.p95_mm,
-        "cycles": trk.n,
-        "noise_free": {"mean_mm": true.mean_mm, "max_mm": true.max_mm},
-        "corner_overshoot_mm": {
-            "max": float(1000 * over.max()) if over.size else 0.0,
-            "mean": float(1000 * over.mean()) if over.size else 0.0,
-            "corners": int(over.size),
-        },
-    }
-    if traj.orientation is not None:
-        out.update(orientation_summary(recs))
-    est = error_stats(estimate_errors(recs))
-    if est.n:
-        out["vision_vs_true"] = {"mean_mm": est.mean_mm, "max_mm": est.max_mm}
-        ok = [r for r in recs if r.meas_ok]
-        out["measurements"] = {"accepted": len(ok), "lost_or_rejected": len(recs) - len(ok)}
-        out["vision_ms_median"] = float(np.median([r.vision_ms for r in recs if r.vision_ms > 0] or [0]))
-        out["ctrl_us_median"] = float(np.median([r.ctrl_us for r in ok] or [0]))
-    return out
 
 
 def run_cube(setup: SimSetup, out_dir: Path, progress: bool = True, seed: int | None = None,
@@ -99,10 +65,7 @@ def run_point(setup: SimSetup, out_dir: Path, point: np.ndarray | None = None, p
     from wristmark.rig.loop.servo_session import POINT_HOLD_S, PointHold
 
     p = workspace_centre(setup.params) if point is None else np.asarray(point, float)
-    miss = solve_tip_ik(setup.params, p, home_psi(setup.params)).error
-    if not miss <= 1e-4:
-        raise ConfigError(f"the point {np.round(1000 * p, 2).tolist()} mm is out of reach of the arm "
-                          f"(IK misses it by {1000 * miss:.2f} mm)")
+    check_reach(setup, np.array([p]))
     traj = PointHold(np.array([p]), 1.0, hold=POINT_HOLD_S if duration is None else duration)
     traj = traj.with_orientation(check_orientation(setup, orientation), setup.params)
     return run_open_closed(setup, traj, "point", out_dir, progress, seed, on_cycle, on_frame)
@@ -112,28 +75,17 @@ def run_open_closed(setup: SimSetup, traj: Trajectory, experiment: str, out_dir:
                     seed: int | None = None,
                     on_cycle: Callable[[CycleRecord], None] | None = None,
                     on_frame: Callable[..., None] | None = None) -> dict[str, Any]:
-    """Follow ``traj`` open loop then closed loop on fresh plants; writes the run folder."""
+    """Follow ``traj`` open loop then closed loop on fresh plants (sim.trajectory_run, one log);
+    writes the run folder."""
     from wristmark.viz.plots import plot_cube
 
-    seed = setup.rig.seed if seed is None else seed
     out_dir.mkdir(parents=True, exist_ok=True)
     write_json(out_dir / "config.json", {"experiment": experiment, **setup.describe()})
     centre = workspace_centre(setup.params)
-    psi0 = start_configuration(setup.params, traj.sample(0.0)[0])
     log = RunLog(psi_names=log_psi_names(setup.params))
-    stats = {}
-    open_loop = make_direct_loop(setup, psi0, closed_loop=False, seed=seed)
-    open_loop.on_cycle = on_cycle
-    stats["open_loop"] = open_loop.run(traj, "open_loop", False, log, settle=setup.rig.settle_time,
-                                       progress=progress)
-    closed = make_direct_loop(setup, psi0, closed_loop=True, seed=seed)
-    closed.on_cycle = on_cycle
-    closed.on_frame = on_frame
-    try:
-        stats["closed_loop"] = closed.run(traj, "closed_loop", True, log, settle=setup.rig.settle_time,
-                                          progress=progress)
-    except MarkerLostError as e:  # a safe stop is a result too: report what ran up to it
-        stats["closed_loop"] = e.stats if e.stats is not None else PhaseStats(stopped=str(e))
+    walks = {phase: walk_trajectory(setup, traj, phase == "closed_loop", log, phase, seed=seed, progress=progress,
+                                    on_cycle=on_cycle, on_frame=on_frame) for phase in ("open_loop", "closed_loop")}
+    stats = {phase: w.stats for phase, w in walks.items()}
     log.write_csv(out_dir / "log.csv")
     res: dict[str, Any] = {
         "experiment": experiment,
@@ -141,8 +93,8 @@ def run_open_closed(setup: SimSetup, traj: Trajectory, experiment: str, out_dir:
         "control_dt_s": setup.rig.control_dt,
         "sensor": setup.rig.sensor,
         "orientation": traj.orientation_mode,
-        "open_loop": _phase_summary(log, "open_loop", traj),
-        "closed_loop": _phase_summary(log, "closed_loop", traj),
+        "open_loop": walks["open_loop"].summary,
+        "closed_loop": walks["closed_loop"].summary,
         "paper": PAPER_CUBE,
         "trajectory": {"size_m": list(CUBE_SIZE), "speed_m_s": CUBE_SPEED, "duration_s": traj.duration,
                        "centre_world_m": centre.tolist()} if experiment == "cube" else
@@ -153,11 +105,6 @@ def run_open_closed(setup: SimSetup, traj: Trajectory, experiment: str, out_dir:
     if log.psi_names is not None:  # any arm but the reference arm's flat file: which arm, by its names
         spec = as_spec(setup.params)
         res["arm"] = {"name": spec.name, "configuration": list(spec.names), "actuators": list(spec.actuator_names)}
-    if closed.controller is not None and closed.controller.compensation_note:
-        res["closed_loop"]["backlash_inversion"] = closed.controller.compensation_note
-    probe = probe_report(closed.play_fits, closed.play_probe_note)  # the play probe (rig/loop/play_probe.py)
-    if probe is not None:
-        res["closed_loop"]["play_probe"] = probe
     for k, s in stats.items():
         res[k]["lost"] = s.lost
         res[k]["rejected"] = s.rejected

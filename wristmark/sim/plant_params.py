@@ -1,6 +1,9 @@
 """How the simulated true arm differs from the model (docs/design.md "Plant file"); SI units.
 
-Every key is optional; zero (or one, for gains) means ideal.
+Every key is optional; zero (or one, for gains) means ideal. ``PlantParams()`` is therefore the
+ideal arm (configs/plant_ideal.yaml), the error model's zero; the command line's default
+configs/plant.yaml is the reference simulated arm, a deliberate set of errors
+(docs/configuration.md, "One default").
 """
 
 from __future__ import annotations
@@ -14,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from wristmark.models.config_io import from_mapping, load_yaml
+from wristmark.models.config_io import from_mapping, load_layered
 from wristmark.models.errors import ConfigError
 
 
@@ -99,7 +102,8 @@ class PlantParams:
     @classmethod
     def load(cls, path: str | Path) -> PlantParams:
         """Load and validate a plant file."""
-        return from_mapping(cls, load_yaml(path), str(path))
+        return from_mapping(cls, load_layered(path), str(path))
+
 
 
 def _default_sized(key: str, n: int) -> tuple[float, ...]:

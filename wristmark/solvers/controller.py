@@ -13,12 +13,13 @@ import abc
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.models.arm_spec import Arm, ArmSpec, actuator_names, arm_size
-from wristmark.models.config_io import from_mapping, load_yaml
+from wristmark.models.config_io import flatten_sections, from_mapping, load_layered, sectioned, to_mapping
 from wristmark.models.errors import ConfigError
 from wristmark.models.kinematics import check_psi, tip_jacobian
 from wristmark.models.limits import clamp_psi, clamp_velocity, psi_bounds
@@ -34,7 +35,10 @@ INTEGRAL_MODES = ("plain", "path")
 
 @dataclass(frozen=True)
 class ControllerConfig:
-    """Controller settings (configs/controller.yaml, under 'controller:'); SI units.
+    """Controller settings (configs/controller.yaml, under 'controller:', in the sections of
+    :data:`CONTROLLER_SECTIONS` or flat); SI units. The defaults are configs/controller.yaml's
+    (tests/models/test_config_defaults.py): ``ControllerConfig()`` is the controller the command
+    line runs.
 
     kind: "paper" (eq. 17-21) or "qp" (velocity-bounded QP). dt: servo cycle [s].
     paper: v_xlim constant tip speed [m/s]; gamma [m^2/s^2-free, eq. 20 damping]; xi threshold on
@@ -85,35 +89,35 @@ class ControllerConfig:
     max_correction_speed: float = 0.02
     feed_forward: bool = True
     damping: float = 1e-3
-    lever: float = 0.05
+    lever: float = 0.2
     orientation_weight: float = 1e-3
     position_weight: float = 1.0
     pose_orientation_weight: float = 1e-3
     kr: float = 8.0  # [1/s], = kp: the same bandwidth as the position task
     max_angular_speed: float = 0.5  # [rad/s]
     qp_solver: str = "daqp"
-    ki: float = 0.0
+    ki: float = 4.0
     integral_speed_limit: float = 0.003
-    integral_mode: str = "plain"
-    backlash_compensation: bool = False
+    integral_mode: str = "path"
+    backlash_compensation: bool = True
     backlash_play_max: tuple[float, ...] = (0.012, 0.0002, 0.00016, 0.00016, 0.00016, 0.00016)
-    backlash_start: float = 0.25
-    backlash_fraction: float = 0.5
+    backlash_start: float = 0.15
+    backlash_fraction: float = 0.75
     backlash_hysteresis: float = 0.1
     backlash_learning: bool = True
     backlash_window: float = 0.4
     backlash_learning_rate: float = 0.3
-    backlash_lead: float = 0.0
-    backlash_method: str = "schmitt"
-    backlash_margin: float = 0.02
-    backlash_freeze: float = 0.0
-    backlash_motor_burst: bool = False
-    backlash_kinds: tuple[str, ...] = ("paper", "qp")
-    play_probe: bool = False
+    backlash_lead: float = 0.03
+    backlash_method: str = "encoders"
+    backlash_margin: float = 0.01
+    backlash_freeze: float = 0.5
+    backlash_motor_burst: bool = True
+    backlash_kinds: tuple[str, ...] = ("qp",)
+    play_probe: bool = True
     play_probe_amplitude: float = 2.0
     play_probe_time: float = 0.6
     play_probe_settle: float = 0.6
-    play_probe_learning: bool = True
+    play_probe_learning: bool = False
 
     def validate(self) -> None:
         """Raise ConfigError naming the offending key."""
@@ -172,11 +176,41 @@ class ControllerConfig:
 
     @classmethod
     def load(cls, path: str | Path) -> ControllerConfig:
-        """Load from YAML (a 'controller:' mapping, or the mapping itself)."""
-        data = load_yaml(path)
-        if set(data) == {"controller"}:
-            data = data["controller"] or {}
-        return from_mapping(cls, data, str(path))
+        """Load from YAML (a 'controller:' mapping, or the mapping itself; ``extends`` resolved:
+        docs/configuration.md); a key no file of the chain states takes the dataclass default
+        (configs/controller.yaml's)."""
+        return from_mapping(cls, load_layered(path, "controller", flat_controller_mapping), str(path))
+
+    def sections(self) -> dict[str, Any]:
+        """The settings as controller.yaml lays them out: kind and dt, then one mapping per
+        section of :data:`CONTROLLER_SECTIONS`."""
+        return sectioned(to_mapping(self), CONTROLLER_LAYOUT, {k: v[0] for k, v in CONTROLLER_SECTIONS.items()})
+
+
+# controller.yaml's sections by concern: name -> (what it holds, its keys); kind and dt stay at the
+# top. A flat file (every key under 'controller:', the format before the sections) means the same.
+CONTROLLER_SECTIONS: dict[str, tuple[str, tuple[str, ...]]] = {
+    "paper": ("the paper's controller, eq. 17-21",
+              ("v_xlim", "gamma", "xi", "saturate_near_target", "lock_saturated_joints")),
+    "qp": ("the velocity-bounded QP, its pose task and its tip-error integral",
+           ("kp", "max_correction_speed", "feed_forward", "damping", "lever", "orientation_weight", "position_weight",
+            "pose_orientation_weight", "kr", "max_angular_speed", "qp_solver", "ki", "integral_speed_limit",
+            "integral_mode")),
+    "backlash": ("the dead-band inversion, either kind",
+                 ("backlash_compensation", "backlash_play_max", "backlash_start", "backlash_fraction",
+                  "backlash_hysteresis", "backlash_learning", "backlash_window", "backlash_learning_rate",
+                  "backlash_lead", "backlash_method", "backlash_margin", "backlash_freeze", "backlash_motor_burst",
+                  "backlash_kinds")),
+    "probe": ("the play probe before the first closed-loop walk",
+              ("play_probe", "play_probe_amplitude", "play_probe_time", "play_probe_settle", "play_probe_learning")),
+}
+CONTROLLER_LAYOUT: dict[str, str] = {k: name for name, (_, keys) in CONTROLLER_SECTIONS.items() for k in keys}
+
+
+def flat_controller_mapping(data: dict[str, Any], source: str) -> dict[str, Any]:
+    """One controller file's mapping, flat: the keys of its sections (each in its own) next to
+    kind and dt, or the flat mapping as it is (config_io.flatten_sections)."""
+    return flatten_sections(data, source, CONTROLLER_LAYOUT, {k: v[0] for k, v in CONTROLLER_SECTIONS.items()})
 
 
 @dataclass(frozen=True)

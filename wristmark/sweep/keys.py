@@ -8,7 +8,8 @@ A dotted key ``NS.field[.index ...]`` changes one value of a configuration file:
 of plant, rig, controller, robot, marker, camera; list indices are integers
 (``plant.backlash.0``). The trial writes the changed file and passes it to the experiment
 (``--plant``, ``--rig``, ``--controller-config``, ...), so a trial is a plain
-``wristmark experiment`` run whose command line says everything.
+``wristmark experiment`` run whose command line says everything. A rig or controller key may name
+its section of the file (``rig.loop.gate`` = ``rig.gate``, ``controller.qp.ki`` = ``controller.ki``).
 """
 
 from __future__ import annotations
@@ -185,7 +186,28 @@ def split_dotted(key: str) -> tuple[str, list[str]] | None:
         raise SpecError(f"unknown key '{key}': a dotted key starts with one of {', '.join(NAMESPACES)}")
     if not all(parts):
         raise SpecError(f"'{key}': empty part in a dotted key")
+    layout = _layout(ns)
+    if len(parts) > 1 and parts[0] in set(layout.values()):  # a section of the file: rig.loop.gate = rig.gate
+        where = layout.get(parts[1])
+        if where is not None and where != parts[0]:
+            raise SpecError(f"unknown key '{key}': '{parts[1]}' is in {ns}.yaml's '{where}:' section "
+                            f"({ns}.{where}.{parts[1]}, or {ns}.{parts[1]})")
+        parts = parts[1:]
     return ns, parts
+
+
+def _layout(ns: str) -> dict[str, str]:
+    """Each key of namespace ``ns`` -> its section in the shipped file (rig.yaml's loop/bench,
+    controller.yaml's paper/qp/backlash/probe); empty for a file without sections."""
+    if ns == "rig":
+        from wristmark.rig.loop.rig_config import RIG_LAYOUT
+
+        return RIG_LAYOUT
+    if ns == "controller":
+        from wristmark.solvers.controller import CONTROLLER_LAYOUT
+
+        return CONTROLLER_LAYOUT
+    return {}
 
 
 def set_dotted(mapping: dict[str, Any], key: str, parts: list[str], value: Any) -> dict[str, Any]:

@@ -29,7 +29,7 @@ import numpy as np
 
 from wristmark.cli.option_types import SEED_MAX
 from wristmark.models.config_files import find_config
-from wristmark.models.config_io import load_yaml
+from wristmark.models.config_io import extends_chain, load_yaml
 from wristmark.models.errors import ConfigError
 from wristmark.sweep.keys import (
     FILE_OPTIONS,
@@ -202,6 +202,16 @@ def _samples(ranges: dict[str, tuple[float, float]], n: int, seed: int) -> list[
     return [{k: float(v) for k, v in zip(ranges, row)} for row in draws]
 
 
+def _file_digest(path: Path) -> str:
+    """SHA-256 of a configuration file; of it and the files it extends, when it extends any."""
+    try:
+        chain = extends_chain(path)
+    except ConfigError:
+        chain = [path]  # the trial reports what is wrong with it
+    digests = [hashlib.sha256(p.read_bytes()).hexdigest() for p in chain]
+    return digests[0] if len(digests) == 1 else hashlib.sha256(" ".join(digests).encode()).hexdigest()
+
+
 class _BaseConfigs:
     """Base configuration mappings and file digests, read once per file."""
 
@@ -212,7 +222,7 @@ class _BaseConfigs:
     def digest(self, path: Path) -> str:
         if path not in self.digests:
             found = find_config(path)  # the file a trial will load (a missing configs/NAME.yaml is the shipped one)
-            self.digests[path] = hashlib.sha256(found.read_bytes()).hexdigest() if found.is_file() else "missing"
+            self.digests[path] = _file_digest(found) if found.is_file() else "missing"
         return self.digests[path]
 
     def get(self, ns: str, path: Path, key: str) -> dict[str, Any]:

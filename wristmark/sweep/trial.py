@@ -18,6 +18,7 @@ import math
 import os
 import shlex
 import shutil
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -48,8 +49,10 @@ def pin_threads() -> None:
     """Hold numba, OpenCV and the BLAS/OpenMP pools of this process to one thread (once)."""
     if _pinned:
         return
+    numba_loaded = "numba" in sys.modules  # it read NUMBA_NUM_THREADS at import: set_num_threads below does it
     for k, v in THREAD_ENV.items():
-        os.environ.setdefault(k, v)
+        if not (numba_loaded and k == "NUMBA_NUM_THREADS"):  # changed under a started pool, numba's next
+            os.environ.setdefault(k, v)  # compilation raises RuntimeError (a trial run in an existing process)
     import cv2
     import numba
     from threadpoolctl import threadpool_limits
@@ -66,6 +69,9 @@ def warm_up() -> str:
     import wristmark.cli.experiment  # noqa: F401
     import wristmark.cli.main  # noqa: F401
     import wristmark.sim.experiments  # noqa: F401
+    from wristmark.cvs.tracking.warmup import warm_up as warm_up_process
+
+    warm_up_process()  # the tracker's kernels, loaded before the first trial (cvs.tracking.warmup)
 
     return worker_name()
 

@@ -5,21 +5,18 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure  # no pyplot: the process's matplotlib backend is left alone
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from wristmark.rig.loop.metrics import tracking_errors  # noqa: E402
-from wristmark.rig.recording.run_log import RunLog  # noqa: E402
+from wristmark.rig.loop.metrics import tracking_errors
+from wristmark.rig.recording.run_log import RunLog
 
 
 def plot_cube(log: RunLog, out_dir: Path) -> list[Path]:
     """3D paths (desired, open-loop true, closed-loop true) and error over time [mm]."""
     out_dir = Path(out_dir)
     paths = []
-    fig = plt.figure(figsize=(11, 5))
+    fig = Figure(figsize=(11, 5))
     ax = fig.add_subplot(1, 2, 1, projection="3d")
     styles = {"open_loop": ("tab:red", "open loop"), "closed_loop": ("tab:blue", "closed loop")}
     des_drawn = False
@@ -54,7 +51,6 @@ def plot_cube(log: RunLog, out_dir: Path) -> list[Path]:
     fig.tight_layout()
     p = out_dir / "cube.png"
     fig.savefig(p, dpi=110)
-    plt.close(fig)
     paths.append(p)
     return paths
 
@@ -63,7 +59,8 @@ def plot_accuracy(rows: list[dict[str, Any]], out_dir: Path) -> Path:
     """Estimated vs tracker tip per position, and the distance error [mm] (like Fig. 7(c))."""
     out_dir = Path(out_dir)
     ok = [r for r in rows if r["ok"]]
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
+    fig = Figure(figsize=(11, 4.5))
+    axes = fig.subplots(1, 2)
     if ok:
         T = 1000 * np.array([r["tracker"] for r in ok])
         E = 1000 * np.array([r["estimate"] for r in ok])
@@ -81,5 +78,4 @@ def plot_accuracy(rows: list[dict[str, Any]], out_dir: Path) -> Path:
     fig.tight_layout()
     p = out_dir / "accuracy.png"
     fig.savefig(p, dpi=110)
-    plt.close(fig)
     return p

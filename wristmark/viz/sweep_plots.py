@@ -7,11 +7,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import numpy as np
+from matplotlib.figure import Figure  # no pyplot: the process's matplotlib backend is left alone
 
 Row = dict[str, str]
 
@@ -42,7 +39,8 @@ def plot_metrics_vs_key(rows: Sequence[Row], key: str, metrics: Sequence[tuple[s
     good = ok_rows(rows)
     values, numeric = axis_values(rows, key)
     pos = {v: (float(v) if numeric else i) for i, v in enumerate(values)}
-    fig, axes = plt.subplots(1, len(metrics), figsize=(3.6 * len(metrics), 3.2), squeeze=False)
+    fig = Figure(figsize=(3.6 * len(metrics), 3.2))
+    axes = fig.subplots(1, len(metrics), squeeze=False)
     for ax, (col, label) in zip(axes[0], metrics):
         x = np.array([pos[r[key]] for r in good], float)
         y = np.array([float(r[col]) for r in good], float)
@@ -59,7 +57,6 @@ def plot_metrics_vs_key(rows: Sequence[Row], key: str, metrics: Sequence[tuple[s
     fig.suptitle(f"metrics against {key} ({len(good)} ok trials)", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
-    plt.close(fig)
     return path
 
 
@@ -68,7 +65,8 @@ def plot_heatmap(rows: Sequence[Row], kx: str, ky: str, metrics: Sequence[tuple[
     good = ok_rows(rows)
     xs, _ = axis_values(rows, kx)
     ys, _ = axis_values(rows, ky)
-    fig, axes = plt.subplots(1, len(metrics), figsize=(4.6 * len(metrics), 3.8), squeeze=False)
+    fig = Figure(figsize=(4.6 * len(metrics), 3.8))
+    axes = fig.subplots(1, len(metrics), squeeze=False)
     for ax, (col, label) in zip(axes[0], metrics):
         grid = np.full((len(ys), len(xs)), np.nan)
         for i, vy in enumerate(ys):
@@ -92,5 +90,4 @@ def plot_heatmap(rows: Sequence[Row], kx: str, ky: str, metrics: Sequence[tuple[
         fig.colorbar(im, ax=ax, shrink=0.85)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
-    plt.close(fig)
     return path

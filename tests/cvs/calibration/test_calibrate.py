@@ -158,6 +158,7 @@ def _charuco_pairs(folder: Path) -> list[str]:
     return paths
 
 
+@pytest.mark.slow
 def test_charuco_rendered_known_camera(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     paths = _charuco_pairs(tmp_path)
     out = tmp_path / "c.yaml"

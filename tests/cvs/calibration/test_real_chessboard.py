@@ -12,6 +12,8 @@ import pytest
 
 from wristmark.cvs.corners.detector import assemble_grid, detect_xcorners
 
+pytestmark = [pytest.mark.slow]
+
 DATA = Path(__file__).resolve().parents[2] / "data" / "opencv_stereo"
 IDS = ("01", "02", "03", "04", "05", "06", "07", "08", "09", "11", "12", "13", "14")
 PATTERN = (9, 6)

@@ -118,6 +118,7 @@ def _tracker(cam: StereoCamera) -> MarkerTracker:
     return tr
 
 
+@pytest.mark.slow
 def test_every_roll_both_directions(roll_frames: list[tuple[RenderedPair, StereoCamera]]) -> None:
     known = 0
     for f, cam in roll_frames:
@@ -131,6 +132,7 @@ def _first(roll_frames: list[tuple[RenderedPair, StereoCamera]], n: int) -> list
     return roll_frames[:: len(roll_frames) // n][:n]
 
 
+@pytest.mark.slow
 def test_blur_and_jpeg_never_give_a_wrong_id(roll_frames: list[tuple[RenderedPair, StereoCamera]]) -> None:
     for f, cam in _first(roll_frames, 4):
         blur = [cv2.GaussianBlur(im, (0, 0), 1.2) for im in (f.left, f.right)]
@@ -161,6 +163,7 @@ def _facing_cells(f: RenderedPair) -> list[tuple[int, int]]:
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["glint", "occlusion"])
 def test_one_spoiled_code_cell_never_gives_a_wrong_id(roll_frames: list[tuple[RenderedPair, StereoCamera]],
                                                       kind: str) -> None:
@@ -181,6 +184,7 @@ def test_one_spoiled_code_cell_never_gives_a_wrong_id(roll_frames: list[tuple[Re
     assert tried >= 6 and known >= tried // 2
 
 
+@pytest.mark.slow
 def test_independent_renderer_draws_the_code_and_track_reads_it(tmp_path: Path) -> None:
     """The independent renderer (written from docs/design.md, patches included) with the coded marker file,
     the tip pointing either way: `wristmark track` gives roll_known with the true corner ids and the

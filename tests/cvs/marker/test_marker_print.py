@@ -66,6 +66,7 @@ def test_printed_svg_wrapped_back_matches_the_renderers_sleeve(marker_file: Path
     assert compared > 3000
 
 
+@pytest.mark.slow
 def test_pdf_has_the_physical_size_and_overwrite_needs_force(tmp_path: Path) -> None:
     out = tmp_path / "sleeve.pdf"
     exe = [str(ROOT / ".venv" / "bin" / "wristmark")]

@@ -28,6 +28,8 @@ from wristmark.cvs.sources.open_source import SourceOptions, open_stereo_source
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.sim.render.motion_video import render_motion
 
+pytestmark = [pytest.mark.network, pytest.mark.wallclock]
+
 ROOT = Path(__file__).resolve().parents[3]
 SERVER = ROOT / "wristmark_testing" / "rtsp_server.py"
 SYSTEM_PYTHON = "/usr/bin/python3"  # Debian's, with GStreamer's RTSP server (python3-gi)

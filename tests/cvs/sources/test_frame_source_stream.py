@@ -16,6 +16,8 @@ from wristmark.cvs.sources.layout import join_stereo
 from wristmark.cvs.sources.mjpeg_server import MjpegServer
 from wristmark.cvs.sources.open_source import SourceOptions, open_stereo_source
 
+pytestmark = [pytest.mark.network, pytest.mark.wallclock]
+
 FPS = 40.0
 
 

@@ -130,6 +130,7 @@ def test_split_needs_equal_halves() -> None:
         split_stereo(img, "lr", "cam")
 
 
+@pytest.mark.wallclock
 def test_paced_plays_in_real_time_and_drops_for_a_slow_consumer(tmp_path: Path, frame_ids: tuple) -> None:
     read_id = frame_ids[1]
     fps = 50.0

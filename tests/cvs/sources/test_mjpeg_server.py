@@ -13,6 +13,8 @@ import pytest
 
 from wristmark.cvs.sources.mjpeg_server import BOUNDARY, MjpegServer
 
+pytestmark = [pytest.mark.network]
+
 
 def _read_parts(host: str, port: int, n: int, timeout: float = 5.0) -> tuple[bytes, list[bytes]]:
     """HTTP GET, then the first ``n`` JPEG parts of the multipart body."""
@@ -48,8 +50,10 @@ def test_parts_are_the_published_jpegs() -> None:
 
         th = threading.Thread(target=client)
         th.start()
-        time.sleep(0.3)  # connected and waiting: nothing is published yet
-        assert srv.clients == 1
+        deadline = time.monotonic() + 10.0
+        while srv.clients == 0 and time.monotonic() < deadline:  # until connected and waiting
+            time.sleep(0.01)
+        assert srv.clients == 1  # nothing is published yet
         for j in jpegs:
             srv.publish(j)
             time.sleep(0.1)

@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from wristmark_testing import independent_dataset_check as chk
 from wristmark_testing import independent_render as ind
@@ -54,6 +55,7 @@ def _check_tracking(folder: Path, tip_tol_m: float, min_success: float) -> dict:
     return score
 
 
+@pytest.mark.slow
 def test_track_independent_1080p(tmp_path: Path) -> None:
     """3 full-size pairs, reference marker: every pair ok, tip error < 0.2 mm each, < 0.1 mm on average."""
     out = tmp_path / "ind"
@@ -63,6 +65,7 @@ def test_track_independent_1080p(tmp_path: Path) -> None:
     assert s["corner_err_rms_px"] < 0.3 and s["corners_unmatched"] == 0
 
 
+@pytest.mark.slow
 def test_track_independent_other_marker(tmp_path: Path) -> None:
     """2 pairs (1440x810) with a 14-column sleeve of radius 4 mm (marker.yaml of docs/design.md), JPEG 90."""
     out = tmp_path / "ind14"
@@ -71,6 +74,7 @@ def test_track_independent_other_marker(tmp_path: Path) -> None:
     _check_tracking(out, 0.2e-3, 1.0)
 
 
+@pytest.mark.slow
 def test_track_independent_tip_pointing_left(tmp_path: Path) -> None:
     """The sleeve is symmetric under a half turn about x_wm: with the tip pointing LEFT (our own
     scenes always point right) the direction of z_wm must come from the image (cvs.tracking.axis),

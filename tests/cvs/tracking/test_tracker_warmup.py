@@ -1,7 +1,8 @@
 """Paying the tracker's one-time costs before the first timed frame: synthetic marker frames
 (cvs.marker.synthetic) that the tracker really tracks, the warm-up over every code path
-(cvs.tracking.warmup), and ``wristmark track --source`` preparing its tracker (warm-up, frozen
-heap) before the first frame (rig.recording.track_stream.prepare_tracker)."""
+(cvs.tracking.warmup), the process's explicit warm-up (``wristmark.warm_up``: building a tracker
+or a detector changes no process state), and ``wristmark track --source`` preparing its tracker
+(warm-up, frozen heap) before the first frame (rig.recording.track_stream.prepare_tracker)."""
 
 from __future__ import annotations
 
@@ -76,6 +77,9 @@ _FIRST_FRAME = textwrap.dedent("""
     tracker = MarkerTracker(cam, marker)
     if sys.argv[1] == "warm":
         warm_up_tracker(tracker, (1,))
+    elif sys.argv[1] == "process":
+        import wristmark
+        wristmark.warm_up()
 
     def kernels():
         return sum(len(o.signatures) for o in gc.get_objects() if isinstance(o, CPUDispatcher))
@@ -106,6 +110,7 @@ def _first_frame(mode: str) -> dict[str, float]:
     return out
 
 
+@pytest.mark.wallclock
 def test_after_the_warm_up_the_first_real_frame_costs_what_a_cold_frame_costs() -> None:
     """In a fresh process: without the warm-up the first rendered frame loads numba kernels
     (the code decoder's, the direction check's: about twice a cold frame's CPU here, 24-27 ms
@@ -116,6 +121,61 @@ def test_after_the_warm_up_the_first_real_frame_costs_what_a_cold_frame_costs() 
     warm = _first_frame("warm")
     assert warm["kernels_loaded"] == 0
     assert warm["first_ms"] <= 1.5 * warm["cold_again_ms"] + 3.0, warm
+
+
+def test_after_the_process_warm_up_a_tracked_pair_loads_no_kernel() -> None:
+    """``wristmark.warm_up()`` (no tracker given) loads every kernel a fresh tracker's real
+    frames run: none is loaded on the first frame nor after."""
+    assert _first_frame("process")["kernels_loaded"] == 0
+
+
+_CONSTRUCT = textwrap.dedent("""
+    import json
+    import cv2
+    import wristmark
+    from wristmark.cvs.corners.detector import MarkerCornerDetector
+    from wristmark.cvs.corners.saddle import SaddleCornerDetector
+    from wristmark.cvs.marker.synthetic import synthetic_pair
+    from wristmark.cvs.tracking.warmup import _JIT_READY
+    from wristmark.cvs.tracking.tracker import MarkerTracker
+    from wristmark.models.config_files import CONFIG_DIR
+    from wristmark.models.marker import MarkerModel
+
+    cv2.setNumThreads(3)  # not OpenCV's default nor the warm-up's: any change shows
+    cam = wristmark.cvs.scaled_stereo_camera(wristmark.load_calibration(CONFIG_DIR / "camera.yaml"), 0.25)
+    tracker = MarkerTracker(cam, MarkerModel.load(CONFIG_DIR / "marker_coded.yaml"))
+    MarkerCornerDetector(), SaddleCornerDetector()
+    res = tracker.track(*synthetic_pair(cam, tracker.marker))
+    out = {"after_build_and_track": cv2.getNumThreads(), "tracked": res.ok, "jit_ready": bool(_JIT_READY)}
+    wristmark.warm_up(opencv_threads=None, jit=False)
+    out["none"] = cv2.getNumThreads()
+    seconds = wristmark.warm_up()
+    out["default"], out["jit_ready_after"], out["seconds"] = cv2.getNumThreads(), bool(_JIT_READY), seconds
+    wristmark.warm_up(opencv_threads=2)
+    out["two"] = cv2.getNumThreads()
+    print(json.dumps(out))
+""")
+
+
+def test_building_and_tracking_change_no_process_state_and_warm_up_does() -> None:
+    """In a fresh process: building a tracker and detectors and tracking a pair leave OpenCV's
+    thread count as the process set it (they used to set one thread); ``warm_up`` sets it
+    (default 1; None leaves it) and loads the kernels."""
+    r = subprocess.run([sys.executable, "-c", _CONSTRUCT], capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout.strip().splitlines()[-1])
+    assert out["after_build_and_track"] == 3 and out["tracked"] and not out["jit_ready"]
+    assert out["none"] == 3
+    assert out["default"] == 1 and out["jit_ready_after"] and out["seconds"] > 0
+    assert out["two"] == 2
+
+
+@pytest.mark.parametrize("threads", [0, -1, 1.5, True, "1"])
+def test_warm_up_refuses_a_bad_thread_count(threads: object) -> None:
+    from wristmark import WristmarkError, warm_up
+
+    with pytest.raises(WristmarkError, match="opencv_threads must be a whole number >= 1 or None"):
+        warm_up(opencv_threads=threads, jit=False)  # type: ignore[arg-type]
 
 
 _TRACK = textwrap.dedent("""
@@ -163,6 +223,7 @@ def test_track_source_prepares_the_tracker_and_reports_the_rate(tmp_path: Path) 
     assert len(lines) + dropped == 6 and 0 < fps <= 31.0  # paced: never faster than the video's 30 fps
 
 
+@pytest.mark.slow
 def test_rt_priority_runs_the_tracker_under_sched_fifo(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """``--rt-priority N`` puts the track command under SCHED_FIFO (where the host allows it;
     else one line saying it was refused, exit 2); without ``--source`` it is an error."""

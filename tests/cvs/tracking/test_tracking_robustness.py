@@ -20,6 +20,8 @@ from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.sim.render.settings import RenderSettings, noise_preset
 from wristmark.sim.render.stereo_renderer import RenderedPair, StereoRenderer
 
+pytestmark = [pytest.mark.slow]
+
 CAM = load_calibration(CONFIG_DIR / "camera.yaml")
 MARKER = MarkerModel()
 PARAMS = RobotParams()

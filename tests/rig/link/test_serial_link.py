@@ -130,6 +130,7 @@ def test_watchdog_still_runs_in_simulated_time(bench: Bench) -> None:
     assert bench.emulator.watchdog_tripped and not bench.emulator.enabled
 
 
+@pytest.mark.wallclock
 def test_real_time_paces_with_keepalives_and_trips_when_the_host_goes_silent() -> None:
     b = open_bench(simulated=False)
     try:

@@ -10,6 +10,7 @@ import time
 import numpy as np
 import pytest
 
+from tests import old_defaults
 from wristmark.cvs.sources.frames import StereoFrame
 from wristmark.models.actuation import actuators_from_psi
 from wristmark.models.errors import ConfigError
@@ -21,8 +22,9 @@ from wristmark.rig.loop.servo_loop import PhaseStats, ServoLoop
 from wristmark.rig.loop.tip_sensors import TipMeasurement
 from wristmark.rig.recording.run_log import RunLog
 from wristmark.rig.targets.trajectories import Trajectory
-from wristmark.solvers.controller import ControllerConfig
 from wristmark.solvers.controller_registry import make_controller
+
+pytestmark = [pytest.mark.wallclock]
 
 P = RobotParams()
 IMG = np.zeros((4, 4), np.uint8)
@@ -114,7 +116,7 @@ def _run(rig: RigConfig, missing: frozenset[int] = frozenset()) -> tuple[ServoLo
     link = _WallLink()
     sensor = _ModelSensor()
     loop = ServoLoop(P, rig, link, frames=_Feed(set(missing)), sensor=sensor,  # type: ignore[arg-type]
-                     controller=make_controller(P, ControllerConfig(kind="qp")), wall_clock=True)
+                     controller=make_controller(P, old_defaults.controller(kind="qp")), wall_clock=True)
     sensor.loop = loop
     loop.psi_cmd = PSI0.copy()  # already there: no ramp, no 2 s settle
     link.sent.clear()
@@ -123,12 +125,12 @@ def _run(rig: RigConfig, missing: frozenset[int] = frozenset()) -> tuple[ServoLo
     return loop, link, log, stats
 
 
-RIG = RigConfig(settle_time=0.0, command_phase=0.03, reuse_measurement_age=0.0)
+RIG = old_defaults.rig(settle_time=0.0, command_phase=0.03, reuse_measurement_age=0.0)
 
 
 @pytest.mark.parametrize("phase", [0.0, 0.03])
 def test_each_command_goes_out_at_the_cycles_command_instant(phase: float) -> None:
-    rig = RigConfig(settle_time=0.0, command_phase=phase)
+    rig = old_defaults.rig(settle_time=0.0, command_phase=phase)
     _, link, log, stats = _run(rig)
     assert stats.skipped == 0
     starts = [r.t for r in log.records]  # nominal cycle starts on time.monotonic()
@@ -151,7 +153,7 @@ def test_the_ready_time_after_arrival_is_reported_apart_from_the_wait() -> None:
 
 @pytest.mark.parametrize("reuse_age", [0.0, 0.15])
 def test_a_cycle_without_a_frame_steps_on_a_young_measurement_else_holds(reuse_age: float) -> None:
-    rig = RigConfig(settle_time=0.0, command_phase=0.02, reuse_measurement_age=reuse_age)
+    rig = old_defaults.rig(settle_time=0.0, command_phase=0.02, reuse_measurement_age=reuse_age)
     missing = 4
     _, link, log, stats = _run(rig, frozenset({missing}))
     cmds = [a for _, a in link.sent]
@@ -165,7 +167,7 @@ def test_a_cycle_without_a_frame_steps_on_a_young_measurement_else_holds(reuse_a
 
 
 def test_a_measurement_older_than_the_reuse_age_holds_the_arm() -> None:
-    rig = RigConfig(settle_time=0.0, command_phase=0.02, reuse_measurement_age=0.1)
+    rig = old_defaults.rig(settle_time=0.0, command_phase=0.02, reuse_measurement_age=0.1)
     _, link, _, stats = _run(rig, frozenset({4, 5}))  # the last frame is 0.08 s old, then 0.14 s
     cmds = [a for _, a in link.sent]
     assert stats.reused == 1
@@ -203,7 +205,7 @@ def test_a_second_phase_goes_on_with_the_cycle_grid_and_a_late_cycle_takes_its_f
     link, sensor = _LateLink(), _ModelSensor()
     feed = _Feed(set())
     loop = ServoLoop(P, RIG, link, frames=feed, sensor=sensor,  # type: ignore[arg-type]
-                     controller=make_controller(P, ControllerConfig(kind="qp")), wall_clock=True)
+                     controller=make_controller(P, old_defaults.controller(kind="qp")), wall_clock=True)
     sensor.loop = loop
     loop.psi_cmd = PSI0.copy()
     log = RunLog()

@@ -36,6 +36,7 @@ class _Slow:
         return TipMeasurement(True, np.full(3, float(frame.index)), t_capture=frame.t_capture, frame_index=frame.index)
 
 
+@pytest.mark.wallclock
 def test_a_slow_measurement_is_given_up_at_the_budget_and_finishes_in_the_background() -> None:
     inner = _Slow({1: 0.6})
     sensor = DeadlineTipSensor(inner, budget=0.1)

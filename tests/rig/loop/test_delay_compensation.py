@@ -13,6 +13,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
+from tests import old_defaults
 from wristmark.cvs.sources.frames import StereoFrame
 from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
 from wristmark.models.ik import solve_tip_ik
@@ -21,7 +22,6 @@ from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.rig.link.actuator_link import DirectLink
 from wristmark.rig.loop.delay_compensation import DelayCompensator
 from wristmark.rig.loop.frame_feed import SynchronousFeed
-from wristmark.rig.loop.rig_config import RigConfig
 from wristmark.rig.loop.servo_loop import ServoLoop
 from wristmark.rig.loop.tip_sensors import TipMeasurement
 from wristmark.rig.recording.run_log import RunLog
@@ -31,7 +31,6 @@ from wristmark.sim.plant import TruePlant
 from wristmark.sim.plant_params import PlantParams
 from wristmark.sim.truth import SimulatedTruth
 from wristmark.sim.truth_sensor import NoisyTruthSensor, TruthClockSource
-from wristmark.solvers.controller import ControllerConfig
 from wristmark.solvers.controller_registry import make_controller
 
 P = RobotParams()
@@ -168,11 +167,11 @@ def _late_run(compensate: bool, tau: float, learn_window: float = 5.0, path: Cal
     psi0 = solve_tip_ik(P, path().sample(0)[0], np.array(HOME_PSI)).psi
     plant = TruePlant(P, PLANT, psi0=psi0)
     link = _RecordingLink(plant)
-    rig = RigConfig(sensor="truth-noise", settle_time=1.0, delay_compensation=compensate,
-                    delay_compensation_tau=tau, delay_compensation_learn_window=learn_window)
+    rig = old_defaults.rig(sensor="truth-noise", settle_time=1.0, delay_compensation=compensate,
+                           delay_compensation_tau=tau, delay_compensation_learn_window=learn_window)
     loop = ServoLoop(P, rig, link, frames=SynchronousFeed(_LateFrames(lambda: link.time)), sensor=_LateSensor(link),
                      truth=SimulatedTruth(plant, OpticalTracker(1.2e-4, seed=1)),
-                     controller=make_controller(P, ControllerConfig(kind="qp")))
+                     controller=make_controller(P, old_defaults.controller(kind="qp")))
     loop.start_at(psi0)
     log = RunLog()
     loop.run(path(), "servo", True, log, settle=1.0)
@@ -182,6 +181,7 @@ def _late_run(compensate: bool, tau: float, learn_window: float = 5.0, path: Cal
     return float(np.mean(errs))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("tau", [0.0, 0.04])
 def test_a_loop_with_a_long_known_latency_tracks_better_with_the_compensation(tau: float) -> None:
     without = _late_run(False, tau)
@@ -189,6 +189,7 @@ def test_a_loop_with_a_long_known_latency_tracks_better_with_the_compensation(ta
     assert with_it < 0.75 * without, (with_it, without)
 
 
+@pytest.mark.slow
 def test_the_learnt_motion_map_removes_the_bias_of_the_model_s_gain_errors() -> None:
     """The arm (PLANT: bending gains 0.95 / 0.92, plane offsets) moves less than its model: over
     the 130 ms the model over-predicts its motion and the loop, which acts on the compensated
@@ -210,11 +211,11 @@ def test_the_in_process_bench_latency_leaves_the_loop_unchanged(tau: float) -> N
         psi0 = solve_tip_ik(P, _line().sample(0)[0], np.array(HOME_PSI)).psi
         plant = TruePlant(P, PLANT, psi0=psi0)
         link = DirectLink(plant)
-        rig = RigConfig(sensor="truth-noise", settle_time=1.0, delay_compensation=compensate,
-                        delay_compensation_tau=tau)
+        rig = old_defaults.rig(sensor="truth-noise", settle_time=1.0, delay_compensation=compensate,
+                               delay_compensation_tau=tau)
         loop = ServoLoop(P, rig, link, frames=SynchronousFeed(TruthClockSource(_clock_of(link))),
                          sensor=NoisyTruthSensor(plant, 1e-4, seed=3),
-                         controller=make_controller(P, ControllerConfig(kind="qp")))
+                         controller=make_controller(P, old_defaults.controller(kind="qp")))
         loop.start_at(psi0)
         log = RunLog()
         loop.run(_line(), "servo", True, log, settle=0.5)
@@ -227,7 +228,7 @@ def test_the_in_process_bench_latency_leaves_the_loop_unchanged(tau: float) -> N
 def _inverting_controller() -> tuple[object, np.ndarray]:
     """A qp controller with the encoders' dead-band inversion, stepped until it inverts; returns
     it and the (compensated) configuration it returned last."""
-    cfg = ControllerConfig(kind="qp", backlash_compensation=True, backlash_method="encoders", backlash_start=1.0)
+    cfg = old_defaults.controller(kind="qp", backlash_compensation=True, backlash_method="encoders", backlash_start=1.0)
     ctrl = make_controller(P, cfg)
     psi = PSI_A.copy()
     for _ in range(3):
@@ -248,7 +249,7 @@ def test_output_model_is_the_nominal_behind_the_inversion_and_changes_nothing() 
     a = ctrl.step(psi, p, p + [0.001, 0, 0], None, 0.06, encoders=actuators_from_psi(P, psi))  # type: ignore
     b = twin.step(psi, p, p + [0.001, 0, 0], None, 0.06, encoders=actuators_from_psi(P, psi))  # type: ignore
     np.testing.assert_array_equal(a.psi_next, b.psi_next)
-    plain = make_controller(P, ControllerConfig(kind="qp"))
+    plain = make_controller(P, old_defaults.controller(kind="qp"))
     np.testing.assert_array_equal(plain.output_model(psi), psi)
     # a configuration that is not the last one returned is its own model (no state to go by)
     np.testing.assert_array_equal(ctrl.output_model(PSI_B), PSI_B)  # type: ignore[attr-defined]
@@ -271,7 +272,7 @@ class _NullLink:
 def test_the_loop_compensates_with_the_arm_expected_not_the_motor_commands() -> None:
     """Commands that move only the motors (the inversion's jumps across the band) predict no tip
     motion: the loop records the controller's output model, not the command it sends."""
-    rig = RigConfig(sensor="truth-noise", delay_compensation=True, delay_compensation_tau=0.0)
+    rig = old_defaults.rig(sensor="truth-noise", delay_compensation=True, delay_compensation_tau=0.0)
     loop = ServoLoop(P, rig, _NullLink(), controller=_FixedOutput())  # type: ignore[arg-type]
     loop.t = 0.0
     loop.send(PSI_B)

@@ -10,6 +10,7 @@ import time
 import numpy as np
 import pytest
 
+from tests import old_defaults
 from tests.rig.loop.test_camera_cycle import IMG, PSI0, P, _line, _ModelSensor, _WallLink
 from wristmark.cvs.sources.frames import StereoFrame
 from wristmark.models.errors import ConfigError
@@ -17,7 +18,6 @@ from wristmark.rig.loop.frame_phase_lock import MAX_STEP, FramePhaseLock
 from wristmark.rig.loop.rig_config import RigConfig
 from wristmark.rig.loop.servo_loop import ServoLoop
 from wristmark.rig.recording.run_log import RunLog
-from wristmark.solvers.controller import ControllerConfig
 from wristmark.solvers.controller_registry import make_controller
 
 DT = 0.06  # [s] the loop's cycle and the camera's period
@@ -92,13 +92,13 @@ class _FreeRunningCamera:
 def _capture_offsets(lock: str, phase: float = 0.0) -> np.ndarray:
     """Capture instant - nominal cycle start [s] of every cycle's frame in a ~1.7 s run whose
     camera's clock starts 27 ms into the loop's cycle (rig frame_phase_lock ``lock`` at ``phase``)."""
-    rig = RigConfig(settle_time=0.0, control_dt=DT, frame_phase_lock=lock, frame_lock_phase=phase,
-                    reuse_measurement_age=0.0)
+    rig = old_defaults.rig(settle_time=0.0, control_dt=DT, frame_phase_lock=lock, frame_lock_phase=phase,
+                           reuse_measurement_age=0.0)
     link = _WallLink()
     camera = _FreeRunningCamera(link.t + 0.027 - 10 * DT)
     sensor = _ModelSensor()
     loop = ServoLoop(P, rig, link, frames=camera, sensor=sensor,  # type: ignore[arg-type]
-                     controller=make_controller(P, ControllerConfig(kind="qp")), wall_clock=True,
+                     controller=make_controller(P, old_defaults.controller(kind="qp")), wall_clock=True,
                      frame_wait=rig.frame_wait)
     sensor.loop = loop
     loop.psi_cmd = PSI0.copy()
@@ -109,6 +109,7 @@ def _capture_offsets(lock: str, phase: float = 0.0) -> np.ndarray:
     return np.array([r.t_capture - r.t for r in recs])
 
 
+@pytest.mark.wallclock
 def test_the_loop_locks_its_cycle_to_the_cameras_capture_phase() -> None:
     free = _capture_offsets("none")
     locked = _capture_offsets("capture")
@@ -116,6 +117,7 @@ def test_the_loop_locks_its_cycle_to_the_cameras_capture_phase() -> None:
     assert np.all(np.abs(locked[-8:]) < 0.003), locked  # locked: captured at each cycle's start
 
 
+@pytest.mark.wallclock
 def test_locked_on_the_arrival_the_frames_arrive_at_the_chosen_phase() -> None:
     locked = _capture_offsets("arrival", 0.02)  # arriving 20 ms after each start: captured TRANSPORT before
     assert np.all(np.abs(locked[-8:] - (0.02 - TRANSPORT)) < 0.003), locked

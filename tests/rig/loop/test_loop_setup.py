@@ -26,7 +26,7 @@ def test_the_shipped_files_define_the_cycle_once() -> None:
     from wristmark.models.config_files import default_config
     from wristmark.models.config_io import load_yaml
 
-    assert "control_dt" in load_yaml(default_config("rig.yaml"))
+    assert "control_dt" in load_yaml(default_config("rig.yaml"))["loop"]
     for name in ("controller.yaml", "controller_backlash.yaml"):
         assert "dt" not in load_yaml(default_config(name))["controller"], name
     setup = load_loop_setup()

@@ -105,6 +105,7 @@ def _cube(setup: SimSetup, duration: float, seed: int = 0, orientation: str = "h
     return res["closed_loop"], phases
 
 
+@pytest.mark.slow
 def test_probe_is_its_own_phase_and_cuts_the_unseen_arms_start() -> None:
     """The default controller on configs/plant_unseen.yaml (truth-noise, orientation held, the
     first 8 s of the cube, the start and the first corner, where the max was): the probe's

@@ -8,6 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from tests import old_defaults
 from wristmark.models.ik import solve_tip_ik
 from wristmark.models.kinematics import tip_position
 from wristmark.models.limits import within_limits
@@ -25,13 +26,12 @@ from wristmark.sim.plant_params import PlantParams
 from wristmark.sim.setup import load_setup, make_direct_loop
 from wristmark.sim.truth import SimulatedTruth
 from wristmark.sim.truth_sensor import NoisyTruthSensor, TruthClockSource
-from wristmark.solvers.controller import ControllerConfig
 from wristmark.solvers.controller_registry import make_controller
 
 P = RobotParams()
 PLANT = PlantParams(bend_gain=(0.95, 0.92), plane_offset=(0.02, -0.03), actuator_tau=0.03,
                     backlash=(0.004, 5e-5, 3e-5, 3e-5, 3e-5, 3e-5))
-RIG = RigConfig(sensor="truth-noise", truth_noise_rms=1e-4, settle_time=1.0, max_lost_cycles=5)
+RIG = old_defaults.rig(sensor="truth-noise", truth_noise_rms=1e-4, settle_time=1.0, max_lost_cycles=5)
 
 
 def _line() -> Trajectory:
@@ -53,7 +53,7 @@ def _loop(sensor: object, closed: bool, rig: RigConfig = RIG, kind: str = "qp",
     loop = ServoLoop(P, rig, link, frames=SynchronousFeed(TruthClockSource(lambda: link.time)) if closed else None,
                      sensor=sensor if closed else None,  # type: ignore[arg-type]
                      truth=SimulatedTruth(plant, OpticalTracker(1.2e-4, seed=1)),
-                     controller=make_controller(P, ControllerConfig(kind=kind)) if closed else None)
+                     controller=make_controller(P, old_defaults.controller(kind=kind)) if closed else None)
     loop.start_at(PSI0)
     return loop, plant
 

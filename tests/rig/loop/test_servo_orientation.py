@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.robot_params import RobotParams
@@ -26,6 +27,7 @@ def wristmark(*args: str) -> subprocess.CompletedProcess[str]:
                           timeout=120)
 
 
+@pytest.mark.slow
 def test_servo_holds_the_orientation_through_the_pty(tmp_path: Path) -> None:
     res_file = tmp_path / "res.json"
     r = wristmark("servo", "--orientation", "hold", "--marker", "configs/marker_coded.yaml", "--image-scale", "0.35",

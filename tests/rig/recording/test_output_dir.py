@@ -113,6 +113,7 @@ def test_urdf_snapshot_and_servo_outputs_are_refused(tmp_path: Path) -> None:
     assert "<joint" in urdf.read_text()
 
 
+@pytest.mark.slow
 def test_runs_without_out_get_a_new_folder_and_a_latest_link(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)
     assert run(QUICK_CUBE)[0] == 0

@@ -7,7 +7,13 @@ import itertools
 import numpy as np
 import pytest
 
-from wristmark.rig.targets.trajectories import accuracy_targets, cube_trajectory, feedforward_velocity
+from wristmark.models.errors import InputError
+from wristmark.rig.targets.trajectories import (
+    Trajectory,
+    accuracy_targets,
+    cube_trajectory,
+    feedforward_velocity,
+)
 
 CENTRE = np.array([0.01, -0.005, 0.16])
 SIZE = (0.040, 0.020, 0.040)
@@ -31,6 +37,7 @@ def test_constant_speed() -> None:
     assert np.median(steps) == pytest.approx(SPEED * 0.01, rel=1e-9)
 
 
+@pytest.mark.slow
 def test_continuous() -> None:
     traj = cube_trajectory(CENTRE, SIZE, SPEED)
     _, ps, _ = _dense(traj, 0.001)
@@ -168,3 +175,30 @@ def test_unknown_orientation_mode_lists_the_valid_ones() -> None:
 
     with pytest.raises(ConfigError, match="none, hold, follow"):
         cube_trajectory(CENTRE, SIZE, SPEED).with_orientation("keep", RobotParams())
+
+
+def test_from_waypoints_walks_the_points_in_order_at_the_speed() -> None:
+    theta = np.deg2rad(np.arange(0, 361, 10))
+    pts = np.column_stack([0.004 * np.cos(theta), np.zeros_like(theta), 0.1 + 0.004 * np.sin(theta)])
+    traj = Trajectory.from_waypoints(pts.tolist(), 0.01)  # any (N, 3) array-like [m]
+    assert traj.waypoints.shape == (37, 3) and traj.speed == 0.01
+    seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    assert traj.duration == pytest.approx(seg.sum() / 0.01)
+    for k in (0, 5, 36):
+        np.testing.assert_allclose(traj.sample(traj.times[k])[0], pts[k], atol=1e-12)
+    assert np.linalg.norm(traj.sample(0.5 * traj.times[1])[1]) == pytest.approx(0.01)
+
+
+@pytest.mark.parametrize(("points", "speed", "message"), [
+    ([[0, 0, 0.1]], 0.01, r"shape \(N, 3\) with N >= 2"),
+    ([[0, 0], [0, 1]], 0.01, r"shape \(N, 3\) with N >= 2"),
+    ([[0, 0, 0.1], ["a", 0, 0.1]], 0.01, "must be numbers"),
+    ([[0, 0, 0.1], [0, np.inf, 0.1]], 0.01, "waypoint 1 is not finite"),
+    ([[0, 0, 0.1], [0.001, 0, 0.1], [0.001, 0, 0.1]], 0.01, "waypoints 1 and 2 coincide"),
+    ([[0, 0, 0.1], [0.001, 0, 0.1]], 0.0, "speed must be a finite number > 0"),
+    ([[0, 0, 0.1], [0.001, 0, 0.1]], float("nan"), "speed must be a finite number > 0"),
+])
+def test_from_waypoints_refuses_bad_input_in_one_line(points: object, speed: float, message: str) -> None:
+    with pytest.raises(InputError, match=message) as e:
+        Trajectory.from_waypoints(points, speed)  # type: ignore[arg-type]
+    assert "\n" not in str(e.value)

@@ -43,6 +43,7 @@ def _subpix_errors(img, corners, min_cos: float) -> np.ndarray:
     return np.linalg.norm((q - p).reshape(-1, 2), axis=1)
 
 
+@pytest.mark.slow
 def test_truth_corners_agree_with_pixels() -> None:
     # Full 1080p, realistic shading and default noise: cornerSubPix started at each visible
     # true corner (cos_view > 0.3) stays within 0.3 px. (At half resolution the shading
@@ -165,6 +166,7 @@ def test_incremental_optics_equal_full_frame(half_camera, settings) -> None:
             assert np.abs(full - r._bg_signal[cam]).max() > 50  # the arm is really there
 
 
+@pytest.mark.slow
 def test_adaptive_supersampling_matches_full(half_camera) -> None:
     # Supersampling only where a pixel's neighbourhood changes surface or curves its shading
     # leaves the radiance within 0.1 grey levels of supersampling every pixel, with far fewer rays.
@@ -186,6 +188,7 @@ def test_adaptive_supersampling_matches_full(half_camera) -> None:
     assert n_ada < 0.5 * n_full
 
 
+@pytest.mark.slow
 def test_noise_fresh_every_frame_with_the_sensor_statistics(half_camera) -> None:
     # Two renders of the same arm differ by noise alone: zero mean, and variance
     # 2 (shot_gain s + read^2) + 2/12 (quantisation) per pixel and channel.
@@ -337,3 +340,17 @@ def test_precomputed_centre_rays_are_the_ray_maps_pixel_centres() -> None:
     w, h = cam.image_size
     uv = cam.right.project(d[h // 3, w // 2][None, :] * 0.1)[0]
     np.testing.assert_allclose(uv, [w // 2, h // 3], atol=1e-6)
+
+
+def test_building_and_rendering_leave_opencv_threads_alone() -> None:
+    """The renderer changes no process state (it used to set one OpenCV thread when built and
+    in every optics call; ``wristmark.warm_up`` is the explicit call that does)."""
+    cam = scaled_stereo_camera(load_calibration(DEFAULT), 0.25)
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(3)
+    try:
+        r = StereoRenderer(cam, MarkerModel(), noise_preset("default", motion_blur=2.0), seed=2)
+        r.render(arm_shape(RobotParams(), PSI))
+        assert cv2.getNumThreads() == 3
+    finally:
+        cv2.setNumThreads(before)

@@ -21,7 +21,7 @@ from wristmark.cvs.calibration.opencv_files import is_opencv_storage, load_openc
 from wristmark.cvs.calibration.ros_files import is_camera_info, load_ros_pair
 from wristmark.cvs.calibration.yaml_files import calibration_mapping, from_yaml_mapping, save_calibration
 from wristmark.cvs.camera import StereoCamera
-from wristmark.models.config_io import check_file_size, load_yaml
+from wristmark.models.config_io import EXTENDS, check_file_size, load_layered, load_yaml
 from wristmark.models.errors import ConfigError
 
 __all__ = ["load_calibration", "calibration_mapping", "calibration_from_mapping", "save_calibration", "validated"]
@@ -50,6 +50,8 @@ def load_calibration(spec: str | Path) -> StereoCamera:
     if is_opencv_storage(text):
         return load_opencv(p)
     data = load_yaml(p)
+    if EXTENDS in data:  # a variant of another calibration (docs/configuration.md)
+        data = load_layered(p)
     if is_camchain(data):
         return from_camchain(data, str(p))
     if is_camera_info(data):

@@ -42,7 +42,7 @@ Pipeline per image (or region of interest), one module per step:
 ``detect_xcorners`` returns every X-corner of an image (steps 1-4 and 6) and ``assemble_grid``
 (cvs.corners.planar_board) orders those of a planar chessboard like ``cv2.findChessboardCornersSB``.
 ROIs are (x, y, w, h) as in cvs.corners.saddle. The per-candidate loops are numba-compiled
-(cached on disk; loaded once per process when the first detector is built).
+(cached on disk; loaded once per process on first use, or ahead of it by ``wristmark.warm_up``).
 """
 
 from __future__ import annotations
@@ -110,24 +110,17 @@ def _roi_box(pts: Array, margin: float, shape: tuple[int, int]) -> Roi:
     return int(lo[0]), int(lo[1]), int(hi[0] - lo[0] + 1), int(hi[1] - lo[1] + 1)
 
 
-_warmed = False
-
-
-def _warm_up(det: MarkerCornerDetector) -> None:
-    """Run every compiled kernel once on a small synthetic corner, so that numba's set-up and
-    its disk cache are paid when the first detector is built rather than on the first frame
-    (measured: ~0.3-0.4 s once per process, mostly numba's own start; the first run after an
-    install or a change of the kernels compiles them, ~12 s, into cvs/__pycache__)."""
-    global _warmed
-    if _warmed:
-        return
+def run_kernels_once() -> None:
+    """Run every compiled kernel of the detector once on a small synthetic corner, so that
+    numba's set-up and its disk cache are paid now rather than on a first frame (measured:
+    ~0.3-0.4 s once per process, mostly numba's own start; the first run after an install or a
+    change of the kernels compiles them, ~12 s, into cvs/__pycache__). Called by
+    :func:`cvs.tracking.warmup.warm_up`; building a detector does not call it."""
     yy, xx = np.mgrid[0:48, 0:48]
     corner = np.where((xx < 24.3) == (yy < 23.6), 200, 40).astype(np.uint8)
     img = np.asarray(cv2.GaussianBlur(corner, (5, 5), 1.0), np.uint8)
     detect_xcorners(img)  # CL, NMS, X-corner test, quadric and HTM fit
-    det.detect(img)  # the chain search
-    det.reset()
-    _warmed = True
+    MarkerCornerDetector().detect(img)  # the chain search
 
 
 class MarkerCornerDetector:
@@ -139,8 +132,6 @@ class MarkerCornerDetector:
         self.settings = settings or DetectorSettings()
         self._last: Array | None = None
         self._ws = Workspace()
-        cv2.setNumThreads(1)
-        _warm_up(self)
 
     def _chain_in(
         self, img: NDArray[np.uint8], roi: Roi | None, s: DetectorSettings, times: dict[str, float]

@@ -98,7 +98,6 @@ class SaddleCornerDetector:
     def __init__(self, settings: SaddleSettings | None = None) -> None:
         self.settings = settings or SaddleSettings()
         self._last: Array | None = None
-        cv2.setNumThreads(1)
 
     def detect(self, gray: NDArray[np.uint8], roi: tuple[int, int, int, int] | None = None) -> SaddleDetection:
         """Whole image (or roi = (x, y, w, h)) -> the longest alternating vertical chain."""

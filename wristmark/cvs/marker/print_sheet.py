@@ -83,16 +83,13 @@ def write_svg(marker: MarkerModel, path: Path, name: str) -> None:
 
 def write_pdf(marker: MarkerModel, path: Path, name: str) -> None:
     """The page as PDF at its exact physical size (matplotlib; module doc)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # no pyplot: the process's matplotlib backend is left alone
     from matplotlib.patches import Rectangle
 
     W, H = page_size(marker)
     z_lo, z_hi = marker.z_extent
     inch = 0.0254
-    fig = plt.figure(figsize=(W / inch, H / inch))
+    fig = Figure(figsize=(W / inch, H / inch))
     ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))
     ax.set_xlim(-MARGIN, W - MARGIN)
     ax.set_ylim(z_hi + MARGIN - H, z_hi + MARGIN)  # 1:1: one metre of page per metre of sleeve
@@ -107,4 +104,3 @@ def write_pdf(marker: MarkerModel, path: Path, name: str) -> None:
     for k, line in enumerate(_label(marker, name)):
         ax.text(0.0, yb - 0.0055 - 0.0022 * k, line, fontsize=4.5, family="sans-serif")
     fig.savefig(str(path), format="pdf")
-    plt.close(fig)

@@ -79,7 +79,6 @@ class MarkerTracker:
         self._second: tuple[CornerDetector, CornerDetector] | None = None
         self._use_second = self.settings.detector == "auto" and type(self.detector_left).__name__ != (
             "SaddleCornerDetector")
-        cv2.setNumThreads(1)
 
     def _fail(self, reason: str, cl: Array, cr: Array, t0: float, timings: dict[str, float], **kw: Any) -> TrackResult:
         return TrackResult(

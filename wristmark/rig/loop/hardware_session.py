@@ -10,6 +10,7 @@ time is the host's ``time.monotonic()``, on which the frames are stamped.
 from __future__ import annotations
 
 import time
+from typing import Any
 
 from wristmark.rig.link.actuator_driver import ActuatorDriver, ActuatorError
 from wristmark.rig.link.serial_link import SerialLink
@@ -29,24 +30,32 @@ def open_hardware_session(setup: LoopSetup, options: LinkOptions, camera: str, c
     camera_timeout: no new frame for this long ends the camera's stream [s] (the loop holds the
     arm well before, after ``max_lost_cycles`` cycles without a frame)."""
     from wristmark.cvs.sources.frames import FrameSourceError, check_frame_size
-    from wristmark.cvs.sources.open_source import SourceOptions, open_stereo_source
+    from wristmark.cvs.sources.open_source import SourceOptions
+    from wristmark.rig.ros2.image_source import open_frame_source
 
     if not options.port:
         raise ActuatorError("--serial needs a device path or pyserial URL")
-    timeout = options.timeout if options.timeout is not None else HW_TIMEOUT_S
-    driver = ActuatorDriver(options.port, options.baudrate, timeout, options.retries, params=setup.params)
-    link = SerialLink(driver)
+    link: SerialLink | Any
+    if options.kind == "ros2":  # an arm on a ROS 2 graph (rig/ros2/actuator_link.py)
+        from wristmark.rig.ros2.actuator_link import Ros2ActuatorLink
+
+        link = Ros2ActuatorLink(options.port)
+    else:
+        timeout = options.timeout if options.timeout is not None else HW_TIMEOUT_S
+        driver = ActuatorDriver(options.port, options.baudrate, timeout, options.retries, params=setup.params)
+        link = SerialLink(driver)
     try:
         link.probe()
         cam = setup.scaled_camera
-        source = open_stereo_source(camera, SourceOptions(layout=layout, timeout=camera_timeout))
+        source = open_frame_source(camera, SourceOptions(layout=layout, timeout=camera_timeout))  # also ros2:L,R
     except BaseException:
         link.close()
         raise
     feed = LatestFrameFeed(source)
     vision = VisionTipSensor(cam, setup.marker)
     sensor = DeadlineTipSensor(vision, setup.rig.tracking_budget)  # no cycle outlasts the box's watchdog
-    session = ServoSession(link, options, feed, sensor, port=options.port, camera=camera, wall_clock=True)
+    session = ServoSession(link, options, feed, sensor, port=getattr(link, "port", options.port), camera=camera,
+                           wall_clock=True)
     session.on_close.append(sensor.close)
     try:
         first = feed.take(wait_until=time.monotonic() + FIRST_FRAME_TIMEOUT_S)

@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera
 from wristmark.models.arm_spec import Arm, load_loop_arm
 from wristmark.models.config_files import default_config
-from wristmark.models.config_io import load_section, to_mapping
+from wristmark.models.config_io import load_layered, to_mapping
 from wristmark.models.errors import ConfigError
 from wristmark.models.marker import MarkerModel
 from wristmark.rig.loop.rig_config import RigConfig
@@ -112,7 +112,7 @@ def load_loop_setup(robot: str | Path | None = None, marker: str | Path | None =
 def controller_with_cycle(controller: ControllerConfig, rig: RigConfig, paths: dict[str, Path]) -> ControllerConfig:
     """The controller running at the loop's cycle: the servo cycle [s] is defined once, by the rig
     file's ``control_dt``. A controller file that states a different ``dt`` is refused, naming it."""
-    if "dt" in load_section(paths["controller"], "controller") and controller.dt != rig.control_dt:
+    if "dt" in load_layered(paths["controller"], "controller") and controller.dt != rig.control_dt:
         raise ConfigError(f"{paths['controller']}: 'dt' ({controller.dt} s) disagrees with 'control_dt' "
                           f"({rig.control_dt} s) of {paths['rig']}: the cycle time belongs to the loop; set "
                           f"'dt' to {rig.control_dt} or remove it from {paths['controller']}")

@@ -1,21 +1,37 @@
-"""Configuration of the simulated rig and its servo loop (configs/rig.yaml); SI units."""
+"""Configuration of the servo loop and of the simulated bench it runs on (configs/rig.yaml); SI units.
+
+A rig file has two sections: ``loop:``, what the servo loop needs on hardware as on the bench
+(the cycle, gates, feed-forward, delay compensation, frame handling on the wall clock), and
+``bench:``, what only the simulated bench uses (its latency, plant step, sensor, rendering
+noise, optical tracker, seed, pacing, frame age: :data:`BENCH_KEYS`). A flat file (every key at
+the top, the format before the sections) loads the same. One dataclass holds both, flat, so
+``rig.control_dt`` and a sweep's ``rig.sensor`` name a key as they always did.
+"""
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
-from wristmark.models.config_io import from_mapping, load_yaml
+from wristmark.models.config_io import flatten_sections, from_mapping, load_layered, sectioned, to_mapping
 from wristmark.models.errors import ConfigError
 
 SENSOR_KINDS = ("vision", "truth-noise")
 NOISE_LEVELS = ("none", "default", "strong")
 PHASE_LOCKS = ("none", "capture", "arrival")  # rig frame_phase_lock
+# the keys only the simulated bench uses (rig.yaml's 'bench:'); every other key is the loop's
+BENCH_KEYS = ("vision_latency", "plant_dt", "sensor", "truth_noise_rms", "render_noise", "tracker_rms", "seed",
+              "realtime", "frame_age")
+SECTIONS = {"loop": "the servo loop, on hardware as on the bench", "bench": "the simulated bench only"}
 
 
 @dataclass(frozen=True)
 class RigConfig:
-    """How the simulated bench runs.
+    """How the servo loop and the simulated bench run (configs/rig.yaml's ``loop:`` and ``bench:``,
+    or a flat file: module doc). The defaults are configs/rig.yaml's
+    (tests/models/test_config_defaults.py); a key no file states takes that default.
 
     control_dt: servo cycle [s] (paper: 60 ms). vision_latency: capture -> command applied [s]
     (paper: ~45 ms of image processing). plant_dt: plant integration step [s].
@@ -57,8 +73,8 @@ class RigConfig:
     bench's frames show the arm this long [s] before the cycle's start and are stamped so (a
     camera whose frames reach the host that late, e.g. the virtual lab's at 1080p); capture to
     command is then ``frame_age + vision_latency`` (vision sensor only; at most 1 s).
-    vision_latency, frame_age, plant_dt, sensor, truth_noise_rms, render_noise, tracker_rms and
-    realtime concern the simulated bench only.
+    vision_latency, frame_age, plant_dt, sensor, truth_noise_rms, render_noise, tracker_rms, seed
+    and realtime concern the simulated bench only (:data:`BENCH_KEYS`, rig.yaml's ``bench:``).
     """
 
     control_dt: float = 0.060
@@ -79,11 +95,11 @@ class RigConfig:
     realtime: bool = False
     frame_wait: float = 0.04  # [s] wall clock: longest wait of a cycle for a fresh frame
     delay_compensation: bool = True
-    delay_compensation_tau: float = 0.0  # [s] actuator lag assumed by the compensation's model
+    delay_compensation_tau: float = 0.04  # [s] actuator lag assumed by the compensation's model
     delay_compensation_learn_window: float = 5.0  # [s] memory of the compensation's learnt motion map (0: off)
     tracking_budget: float = 0.15  # [s] wall clock: longest wait of a cycle for its frame's tracking
     command_phase: float = 0.0  # [s] wall clock: a cycle's command goes out this long after its start
-    reuse_measurement_age: float = 0.0  # [s] wall clock: a cycle without a frame reuses a measurement this old
+    reuse_measurement_age: float = 0.3  # [s] wall clock: a cycle without a frame reuses a measurement this old
     frame_phase_lock: str = "none"  # wall clock: lock the cycle grid to the frames' capture or arrival
     frame_lock_phase: float = 0.0  # [s] with the lock: frames captured / arriving this long after a cycle's start
     frame_age: float = 0.0  # [s] simulated bench: its frames show the arm this long before the cycle's start
@@ -138,8 +154,25 @@ class RigConfig:
 
     @classmethod
     def load(cls, path: str | Path) -> RigConfig:
-        """Load configs/rig.yaml-style files (flat mapping, or under a 'rig' key)."""
-        data = load_yaml(path)
-        if set(data) == {"rig"}:
-            data = data["rig"]
-        return from_mapping(cls, data, str(path))
+        """Load configs/rig.yaml-style files: ``loop:`` and ``bench:`` sections or a flat mapping,
+        either under a 'rig' key or not (``extends`` resolved: docs/configuration.md)."""
+        return from_mapping(cls, load_layered(path, "rig", flat_rig_mapping), str(path))
+
+    def sections(self) -> dict[str, Any]:
+        """The settings as rig.yaml lays them out: {'loop': {...}, 'bench': {...}}."""
+        return sectioned(to_mapping(self), RIG_LAYOUT, SECTIONS)
+
+
+# each key -> its section of rig.yaml
+RIG_LAYOUT: dict[str, str] = {f.name: "bench" if f.name in BENCH_KEYS else "loop"
+                              for f in dataclasses.fields(RigConfig)}
+
+
+def flat_rig_mapping(data: dict[str, Any], source: str) -> dict[str, Any]:
+    """One rig file's mapping, flat: the keys of its ``loop:`` and ``bench:`` sections (each in
+    its own), or the flat mapping as it is (config_io.flatten_sections)."""
+    if any(k in SECTIONS for k in data):
+        loose = next((k for k in data if k not in SECTIONS and k not in RIG_LAYOUT), None)
+        if loose is not None:
+            raise ConfigError(f"{source}: '{loose}' is outside the 'loop:' and 'bench:' sections (not a rig key)")
+    return flatten_sections(data, source, RIG_LAYOUT, SECTIONS)

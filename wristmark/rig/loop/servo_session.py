@@ -31,7 +31,7 @@ from wristmark.rig.recording.run_log import CycleRecord, RunLog
 from wristmark.rig.targets.trajectories import Trajectory
 
 Array = NDArray[np.float64]
-LINK_KINDS = ("emulator", "serial", "direct")
+LINK_KINDS = ("emulator", "serial", "direct", "ros2")
 SIM_TIMEOUT_S = 0.5  # [s] per attempt with the in-process emulator (it integrates the arm before replying)
 HW_TIMEOUT_S = 0.05  # [s] per attempt on hardware / an external emulator
 POINT_HOLD_S = 5.0  # [s] default duration of a held point
@@ -39,9 +39,10 @@ POINT_HOLD_S = 5.0  # [s] default duration of a held point
 
 @dataclass(frozen=True)
 class LinkOptions:
-    """How the loop reaches the actuators. kind: emulator | serial | direct; port: device path or
-    pyserial URL (serial); timeout: per attempt [s] (None: by kind); realtime: the emulator on the
-    wall clock (serial: always); pace: simulated time never ahead of the wall clock."""
+    """How the loop reaches the actuators. kind: emulator | serial | direct | ros2; port: device
+    path or pyserial URL (serial), the namespace (ros2); timeout: per attempt [s] (None: by kind);
+    realtime: the emulator on the wall clock (serial, ros2: always); pace: simulated time never
+    ahead of the wall clock."""
 
     kind: str = "emulator"
     port: str | None = None

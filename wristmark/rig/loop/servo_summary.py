@@ -104,7 +104,7 @@ def summarize(setup: LoopSetup, traj: Trajectory, session: ServoSession, out: Se
     if out.motion_map is not None:  # measured tip motion ~ matrix @ the model's (rig/loop/motion_correction.py)
         closed["motion_map"] = out.motion_map
     link: dict[str, Any] = {"kind": session.options.kind, "port": session.port,
-                            "realtime": session.options.realtime or session.options.kind == "serial"}
+                            "realtime": session.options.realtime or session.options.kind in ("serial", "ros2")}
     driver = getattr(session.link, "driver", None)
     if driver is not None:
         link.update(driver.stats)

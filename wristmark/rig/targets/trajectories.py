@@ -8,15 +8,17 @@ from dataclasses import dataclass
 from typing import Self
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from wristmark.models.arm_spec import Arm, home_psi
+from wristmark.models.errors import InputError
 from wristmark.models.kinematics import tip_position
 from wristmark.rig.targets.orientation_path import OrientationPath, orientation_path
 
 Array = NDArray[np.float64]
 CUBE_SIZE = (0.040, 0.020, 0.040)  # [m] edges along x_w, y_w (depth from the camera), z_w (paper: 40 x 20 x 40 mm)
 CUBE_SPEED = 0.010  # [m/s] (paper: 10 mm/s)
+MIN_SEGMENT = 1e-6  # [m] consecutive waypoints closer than this are a mistake (a zero-length segment)
 
 # Corner order of a walk that covers all 12 edges of a box (4 edges twice): bottom square,
 # up, top square, the remaining verticals and back to the start (a closed walk).
@@ -29,11 +31,37 @@ _CUBE_WALK = [(-1, -1, -1), (1, -1, -1), (1, 1, -1), (-1, 1, -1), (-1, -1, -1), 
 @dataclass(frozen=True)
 class Trajectory:
     """Piecewise-linear path through ``waypoints`` (N,3) [m] at ``speed`` [m/s]; ``orientation``:
-    the tip frame's desired orientation along it (None: position only)."""
+    the tip frame's desired orientation along it (None: position only). From your own points in
+    {w}: :meth:`from_waypoints` (validated)."""
 
     waypoints: Array
     speed: float
     orientation: OrientationPath | None = None
+
+    @classmethod
+    def from_waypoints(cls, points_world: ArrayLike, speed: float) -> Trajectory:
+        """The path through ``points_world`` (N >= 2, 3) in {w} [m], in order, at ``speed`` [m/s]:
+        dense samples of a curve (a circle every few degrees) give a smooth path; repeat the first
+        point at the end to close it. InputError (one line) for a bad shape, a non-finite value,
+        two consecutive points closer than 1 um or a speed that is not > 0."""
+        try:
+            pts = np.array(points_world, dtype=float)
+        except (TypeError, ValueError) as e:
+            raise InputError(f"waypoints must be numbers, shape (N, 3) [m]: {e}") from None
+        if pts.ndim != 2 or pts.shape[1] != 3 or pts.shape[0] < 2:
+            raise InputError(f"waypoints must have shape (N, 3) with N >= 2 [m], got {pts.shape}")
+        bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
+        if bad.size:
+            raise InputError(f"waypoint {bad[0]} is not finite: {pts[bad[0]].tolist()}")
+        seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        short = np.flatnonzero(seg < MIN_SEGMENT)
+        if short.size:
+            raise InputError(f"waypoints {short[0]} and {short[0] + 1} coincide (closer than 1 um): "
+                             "drop the repeat")
+        if isinstance(speed, bool) or not isinstance(speed, (int, float, np.floating)) or not (
+                np.isfinite(speed) and speed > 0):
+            raise InputError(f"speed must be a finite number > 0 [m/s], got {speed!r}")
+        return cls(pts, float(speed))
 
     @property
     def orientation_mode(self) -> str:

@@ -23,7 +23,6 @@ def _smooth_noise(rng: np.random.Generator, h: int, w: int, sigma: float) -> F32
 
 def tissue_texture(rng: np.random.Generator, width: int, height: int) -> F32:
     """A BGR albedo image (height, width, 3), values ~0-1, of endoscopic tissue."""
-    cv2.setNumThreads(1)
     h, w = height, width
     s = max(w, h) / 1920.0  # scale features with the image
     base = np.array([0.36, 0.42, 0.82], np.float32)  # pink-red mucosa (B, G, R)

@@ -77,7 +77,6 @@ def optics_signal(img: F32, vignette: F32, settings: RenderSettings, motion_angl
     """Whole-frame optics of radiance ``img`` (h, w, 3) [grey levels]: vignetting (``vignette``
     (h, w, 3)), motion blur along ``motion_angle`` [rad], optics blur, grey conversion.
     Returns the sensor signal (h, w, 3), or (h, w) for grayscale, in grey levels."""
-    cv2.setNumThreads(1)
     return _linear_optics(img, vignette, settings, motion_angle)
 
 
@@ -95,7 +94,6 @@ def optics_signal_box(
     outer = grow_box(box, 2 * r, (w, h))
     if (outer[0], outer[1]) != tuple(origin) or patch.shape[:2] != (outer[3] - outer[1], outer[2] - outer[0]):
         raise InputError(f"patch must cover {outer} (box grown by {2 * r} px), got origin {origin}, {patch.shape}")
-    cv2.setNumThreads(1)
     sig = _linear_optics(patch, vignette[outer[1] : outer[3], outer[0] : outer[2]], settings, 0.0)
     inner = grow_box(box, r, (w, h))
     crop = sig[inner[1] - outer[1] : inner[3] - outer[1], inner[0] - outer[0] : inner[2] - outer[0]]

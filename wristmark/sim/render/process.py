@@ -72,9 +72,11 @@ def _serve(conn: Connection, camera: StereoCamera, marker: MarkerModel, noise: s
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the lab's to handle, not ours
     try:
         os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+        from wristmark.cvs.tracking.warmup import warm_up
         from wristmark.sim.render.settings import noise_preset
         from wristmark.sim.render.stereo_renderer import StereoRenderer
 
+        warm_up(jit=False)  # this process's OpenCV threads: one (the renderer's kernels load on its first frame)
         renderer = StereoRenderer(camera, marker, noise_preset(noise), seed=seed)
         if rt_priority is not None:  # after the renderer's own (right-view) thread started: it
             from wristmark.rig.loop.realtime_priority import request_realtime_priority

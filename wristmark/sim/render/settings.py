@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from wristmark.models.config_io import from_mapping, load_yaml
+from wristmark.models.config_io import from_mapping, load_layered
 from wristmark.models.errors import ConfigError
 
 SHADINGS = ("phong", "flat")
@@ -57,7 +57,7 @@ class RenderSettings:
     @classmethod
     def load(cls, path: str | Path) -> RenderSettings:
         """Load and validate a render-settings YAML."""
-        return from_mapping(cls, load_yaml(path), str(path))
+        return from_mapping(cls, load_layered(path), str(path))
 
 
 NOISE_PRESETS: dict[str, RenderSettings] = {

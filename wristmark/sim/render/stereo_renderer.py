@@ -113,7 +113,6 @@ class StereoRenderer:
         settings.validate()
         if camera.T_world_left is None:
             raise InputError("the calibration has no 'world_T_left': add it to render the arm in {w}")
-        cv2.setNumThreads(1)
         self.camera, self.marker, self.settings, self.seed = camera, marker, settings, int(seed)
         self._count = 0
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="render-right")

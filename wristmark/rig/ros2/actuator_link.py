@@ -1,0 +1,211 @@
+"""The actuators of an arm on a ROS 2 graph (``wristmark servo --actuator ros2:NS``): an
+:class:`rig.link.actuator_link.ActuatorLink` over Cyclone DDS, without ROS, in real time on the
+host's ``time.monotonic()``.
+
+Topics (CRTK names): out ``NS/servo_jp`` (sensor_msgs/JointState: the actuator targets, names
+phi, d, s1a, s1b, s2a, s2b, positions [rad, m, m, m, m, m]) and ``NS/crtk_command``
+(std_msgs/String: ``enable`` before the first target, ``disable`` at the end); in
+``NS/measured_js`` (sensor_msgs/JointState from the arm's driver: the encoders, by name, any
+order, extra joints ignored). QoS: reliable, keep last 1 out (only the newest target matters);
+best effort, keep last 1 in.
+
+Safety: nothing moves before a ``measured_js`` arrived (:meth:`probe`, before any motion); the
+arm silent (no ``measured_js``) for longer than ``timeout`` [s] while the loop runs is an
+:class:`ActuatorError` (the loop's safe stop); :meth:`hold` commands the measured positions;
+:meth:`close` holds and disables and never raises (a failure is kept in ``close_error``). A
+malformed ``measured_js`` (a name missing, a non-finite position) is counted and ignored.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from wristmark.models.actuation import ACTUATOR_NAMES
+from wristmark.rig.link.actuator_driver import ActuatorError
+from wristmark.rig.ros2.bridge import clean_namespace
+from wristmark.rig.ros2.dds_config import open_participant, require_cyclonedds
+
+Array = NDArray[np.float64]
+ARM_TIMEOUT_S = 0.25  # [s] the arm's driver silent for longer: a safe stop
+KEEPALIVE_S = 0.05  # [s] while the loop waits, the last target is sent again this often (the arm's watchdog)
+MATCH_TIMEOUT_S = 5.0  # [s] longest wait for the arm's driver to subscribe to servo_jp and crtk_command
+FIRST_STATE_TIMEOUT_S = 10.0  # [s] longest wait for the first measured_js (discovery included)
+
+
+@dataclass(frozen=True)
+class ArmState:
+    """The newest ``measured_js``: positions [rad, m, ...] in ACTUATOR_NAMES' order, arrival [s]."""
+
+    positions: Array
+    arrival: float
+
+
+class Ros2ActuatorLink:
+    """The servo loop's link to an arm driven over ROS 2 (module docstring)."""
+
+    simulated = False
+
+    def __init__(self, namespace: str, timeout: float = ARM_TIMEOUT_S) -> None:
+        require_cyclonedds("--actuator ros2:NS")
+        from cyclonedds.core import Listener, Policy, Qos
+        from cyclonedds.pub import DataWriter
+        from cyclonedds.sub import DataReader
+        from cyclonedds.topic import Topic
+
+        from wristmark.rig.ros2 import messages as M
+
+        self.M = M
+        self.namespace = clean_namespace(namespace)
+        self.timeout = float(timeout)
+        self.state: ArmState | None = None
+        self.malformed = 0
+        self.sent = 0
+        self._last_target: Array | None = None
+        self._last_sent = -float("inf")
+        self.close_error = ""
+        self._closed = False
+        self._lock = threading.Lock()
+        self._got_state = threading.Event()
+        self.participant = open_participant()
+        out_qos = Qos(Policy.Reliability.Reliable(100_000_000), Policy.History.KeepLast(1),
+                      Policy.Durability.Volatile)
+        in_qos = Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(1), Policy.Durability.Volatile)
+
+        def topic(name: str, cls: type) -> Any:
+            return Topic(self.participant, M.topic_name(f"{self.namespace}/{name}"), cls)
+
+        self._servo_jp = DataWriter(self.participant, topic("servo_jp", M.JointState), out_qos)
+        self._command = DataWriter(self.participant, topic("crtk_command", M.String), out_qos)
+        self._reader = DataReader(self.participant, topic("measured_js", M.JointState), in_qos,
+                                  listener=Listener(on_data_available=self._on_measured))
+
+    @property
+    def port(self) -> str:
+        """What the link talks to (for the result JSON)."""
+        return f"ros2:{self.namespace}"
+
+    # -- in ------------------------------------------------------------------------------------
+    def _on_measured(self, reader: Any) -> None:
+        now = time.monotonic()
+        try:
+            samples = reader.take(N=8)
+        except Exception:  # noqa: BLE001 - undecodable: counted, ignored
+            self.malformed += 1
+            return
+        for msg in samples:
+            if not hasattr(msg, "position"):
+                continue  # an InvalidSample: the writer left (no data)
+            q = self._positions(msg)
+            if q is None:
+                self.malformed += 1
+                continue
+            with self._lock:
+                self.state = ArmState(q, now)
+            self._got_state.set()
+
+    @staticmethod
+    def _positions(msg: Any) -> Array | None:
+        names, pos = list(getattr(msg, "name", [])), list(getattr(msg, "position", []))
+        if len(names) != len(pos) or not set(ACTUATOR_NAMES) <= set(names):
+            return None
+        q = np.array([pos[names.index(n)] for n in ACTUATOR_NAMES], float)
+        return q if np.all(np.isfinite(q)) else None
+
+    def _fresh_state(self) -> ArmState:
+        with self._lock:
+            st = self.state
+        if st is None:
+            raise ActuatorError(f"{self.port}: no measured_js from the arm")
+        silent = time.monotonic() - st.arrival
+        if silent > self.timeout:
+            raise ActuatorError(f"{self.port}: the arm's driver is silent (no measured_js for {silent:.2f} s)")
+        return st
+
+    # -- the ActuatorLink ------------------------------------------------------------------------
+    @property
+    def time(self) -> float:
+        """The host's monotonic clock [s]."""
+        return time.monotonic()
+
+    def probe(self, wait_s: float = FIRST_STATE_TIMEOUT_S) -> Array:
+        """Wait for the arm's first measured_js (before any motion); ActuatorError when none comes."""
+        if not self._got_state.wait(wait_s):
+            raise ActuatorError(f"{self.port}: no measured_js within {wait_s:g} s (is the arm's driver running, "
+                                "on this DDS domain and network?)")
+        return self._fresh_state().positions.copy()
+
+    def connect(self, t_now: float | None = None) -> None:
+        """Enable the arm (``crtk_command`` enable) right before the first target, once the arm's
+        driver subscribes to servo_jp and crtk_command (a volatile command sent before would be lost)."""
+        deadline = time.monotonic() + MATCH_TIMEOUT_S
+        while not all(w.get_publication_matched_status().current_count > 0 for w in (self._servo_jp, self._command)):
+            if time.monotonic() > deadline:
+                raise ActuatorError(f"{self.port}: the arm's driver does not subscribe to servo_jp and crtk_command")
+            time.sleep(0.01)
+        self._fresh_state()
+        self._command.write(self.M.String("enable"))
+
+    def advance_to(self, t: float) -> None:
+        """Wait until ``t`` on the monotonic clock [s], watching the arm's driver (ActuatorError
+        when it fell silent)."""
+        while True:
+            self._fresh_state()
+            now = time.monotonic()
+            if self._last_target is not None and now - self._last_sent >= KEEPALIVE_S:
+                self.send_target(self._last_target)  # the arm's watchdog sees a live host
+            remaining = t - now
+            if remaining <= 0:
+                return
+            time.sleep(min(remaining, 0.01))
+
+    def send_target(self, actuators: Array) -> None:
+        """Publish the actuator targets [rad, m, ...] on servo_jp."""
+        self._fresh_state()
+        a = np.asarray(actuators, float)
+        if a.shape != (len(ACTUATOR_NAMES),) or not np.all(np.isfinite(a)):
+            raise ActuatorError(f"{self.port}: refusing a target that is not {len(ACTUATOR_NAMES)} finite numbers")
+        M = self.M
+        ns = time.time_ns()
+        self._servo_jp.write(M.JointState(M.Header(M.Time(ns // 1_000_000_000, ns % 1_000_000_000), ""),
+                                          list(ACTUATOR_NAMES), [float(x) for x in a], [], []))
+        self.sent += 1
+        self._last_target, self._last_sent = a.copy(), time.monotonic()
+
+    def hold(self) -> None:
+        """Command the measured positions (the arm stays where it is)."""
+        with self._lock:
+            st = self.state
+        if st is not None and time.monotonic() - st.arrival <= self.timeout:
+            self.send_target(st.positions)
+
+    def measured_actuators(self) -> Array:
+        """The newest measured_js [rad, m, ...] (ActuatorError when the arm fell silent)."""
+        return self._fresh_state().positions.copy()
+
+    def close(self) -> None:
+        """Hold, disable, leave the graph. Never raises (the failure is kept in ``close_error``)."""
+        if self._closed:
+            return
+        self._closed = True
+        problems = []
+        for name, step in (("hold", self.hold), ("disable", lambda: self._command.write(self.M.String("disable")))):
+            try:
+                step()
+            except Exception as e:  # noqa: BLE001 - closing goes on; the cause is kept
+                problems.append(f"{name}: {e}")
+        time.sleep(0.05)  # let the reliable writers deliver before the participant goes
+        self._reader.set_listener(None)
+        self.participant = None
+        self.close_error = "; ".join(problems)
+
+    def stats(self) -> dict[str, Any]:
+        """Counters for the result JSON."""
+        return {"sent": self.sent, "malformed_measured_js": self.malformed,
+                "silent_timeout_s": self.timeout if math.isfinite(self.timeout) else None}

@@ -1,0 +1,231 @@
+"""The virtual lab over ROS 2: one simulated arm whose actuators and stereo endoscope are reached
+only through ROS 2 topics (Cyclone DDS, no ROS; loopback unless ``CYCLONEDDS_URI`` says
+otherwise), the way a lab's arm driver and camera driver would expose them.
+
+Topics under ``NS`` (CRTK names, as rig/ros2/actuator_link.py speaks them): in ``NS/servo_jp``
+(sensor_msgs/JointState: actuator targets by name phi, d, s1a, s1b, s2a, s2b [rad, m]; obeyed only
+while enabled) and ``NS/crtk_command`` (std_msgs/String enable | disable); out ``NS/measured_js``
+(the encoders, every ``js_period`` s) and the endoscope, ``NS/left/image_raw/compressed`` and
+``NS/right/image_raw/compressed`` (sensor_msgs/CompressedImage, JPEG, both images of a frame
+stamped alike with the instant the arm was sampled, on the system clock), up to ``fps`` frames a
+second. Like the actuator box: enabled and no ``servo_jp`` for ``watchdog_s`` -> hold and disable
+(counted in ``watchdog_trips``); a malformed target is counted and ignored.
+
+``truth_out`` logs each frame's capture instant (``time.monotonic()``) with the true tip in {w}
+[m] (the virtual lab's CSV: ``t,tip_x,tip_y,tip_z``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import threading
+import time
+from pathlib import Path
+from typing import IO, Any
+
+import cv2
+import numpy as np
+
+from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera
+from wristmark.models.actuation import ACTUATOR_NAMES
+from wristmark.models.errors import InputError, WristmarkError
+from wristmark.models.marker import MarkerModel
+from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark.rig.ros2.bridge import clean_namespace
+from wristmark.rig.ros2.dds_config import open_participant, require_cyclonedds
+from wristmark.sim.dense_truth import TRUTH_HEADER
+from wristmark.sim.locked_arm import LockedArm
+from wristmark.sim.plant import TruePlant
+from wristmark.sim.plant_params import PlantParams
+
+
+class Ros2Lab:
+    """The simulated arm behind ROS 2 topics (module docstring)."""
+
+    def __init__(self, params: RobotParams, plant: PlantParams, calibration: StereoCamera, marker: MarkerModel,
+                 namespace: str = "lab", fps: float = 15.0, image_scale: float = 0.35, noise: str = "default",
+                 seed: int = 0, jpeg_quality: int = 90, watchdog_s: float = 0.25, js_period: float = 0.01,
+                 truth_out: str | Path | None = None, psi0: Any = None) -> None:
+        require_cyclonedds("the virtual lab over ROS 2")
+        if calibration.T_world_left is None:
+            raise InputError("the virtual lab's calibration needs 'world_T_left' (camera pose in {w})")
+        if not (np.isfinite(fps) and fps > 0) or not 0 < image_scale <= 1:
+            raise InputError(f"fps must be > 0 and image_scale in (0, 1], got {fps}, {image_scale}")
+        if any(plant.camera_offset):  # the endoscope truly sits at world_T_left @ T(camera_offset)
+            W = np.asarray(calibration.T_world_left, float) @ plant.camera_offset_transform()
+            calibration = dataclasses.replace(calibration, T_world_left=W)
+        self.camera = calibration if image_scale == 1.0 else scaled_stereo_camera(calibration, image_scale)
+        self.namespace = clean_namespace(namespace)
+        self.params = params
+        self.marker = marker
+        self.fps = float(fps)
+        self.noise, self.seed, self.jpeg_quality = noise, int(seed), int(jpeg_quality)
+        self.watchdog_s = float(watchdog_s)
+        self.js_period = float(js_period)
+        self.arm = LockedArm(TruePlant(params, plant, psi0=np.asarray(psi0 if psi0 is not None else HOME_PSI, float)))
+        self.enabled = False
+        self.watchdog_trips = 0
+        self.malformed = 0
+        self.targets = 0
+        self.frames = 0
+        self.error = ""
+        self.truth_path = Path(truth_out) if truth_out else None
+        self._truth: IO[str] | None = None
+        self._t_arm = time.monotonic()
+        self._last_target = -np.inf
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self._epoch_minus_mono = time.time() - time.monotonic()
+        self.participant: Any = None
+
+    # -- the arm -------------------------------------------------------------------------------
+    def _advance(self) -> tuple[float, Any]:
+        """Advance the arm to now (the watchdog runs); returns (now [s], the true shape)."""
+        with self.arm.lock:
+            now = time.monotonic()
+            if self.enabled and now - self._last_target > self.watchdog_s:
+                self.arm.hold()
+                self.enabled = False
+                self.watchdog_trips += 1
+            dt = now - self._t_arm
+            if dt > 0:
+                try:
+                    self.arm.advance(dt)
+                except WristmarkError as e:  # the plant refused (a limit): the lab holds and says so
+                    self.arm.hold()
+                    self.enabled = False
+                    self.error = f"arm fault: {e}"
+                self._t_arm = now
+            return now, self.arm.true_shape()
+
+    def _on_servo_jp(self, reader: Any) -> None:
+        for msg in reader.take(N=8):
+            if not hasattr(msg, "position"):
+                continue  # an InvalidSample: the writer left (no data)
+            names, pos = list(msg.name), list(msg.position)
+            if len(names) != len(pos) or not set(ACTUATOR_NAMES) <= set(names):
+                self.malformed += 1
+                continue
+            a = np.array([pos[names.index(n)] for n in ACTUATOR_NAMES], float)
+            if not np.all(np.isfinite(a)):
+                self.malformed += 1
+                continue
+            with self.arm.lock:
+                self._advance()
+                if self.enabled:
+                    self.arm.command(a)
+                    self._last_target = time.monotonic()
+                    self.targets += 1
+
+    def _on_command(self, reader: Any) -> None:
+        for msg in reader.take(N=8):
+            if not hasattr(msg, "data"):
+                continue  # an InvalidSample
+            with self.arm.lock:
+                self._advance()
+                if msg.data == "enable":
+                    self.enabled = True
+                    self._last_target = time.monotonic()  # the watchdog counts from ENABLE
+                elif msg.data == "disable":
+                    self.arm.hold()
+                    self.enabled = False
+                else:
+                    self.malformed += 1
+
+    # -- threads -------------------------------------------------------------------------------
+    def _run_js(self) -> None:
+        M = self._M
+        while not self._stop.wait(self.js_period):
+            self._advance()
+            q = self.arm.measured_actuators()
+            ns = time.time_ns()
+            self._js.write(M.JointState(M.Header(M.Time(ns // 1_000_000_000, ns % 1_000_000_000), ""),
+                                        list(ACTUATOR_NAMES), [float(x) for x in q], [], []))
+
+    def _run_camera(self) -> None:
+        from wristmark.sim.render.settings import noise_preset
+        from wristmark.sim.render.stereo_renderer import StereoRenderer
+
+        M = self._M
+        renderer = StereoRenderer(self.camera, self.marker, noise_preset(self.noise), seed=self.seed)
+        period = 1.0 / self.fps
+        t_next = time.monotonic()
+        while not self._stop.is_set():
+            wait = t_next - time.monotonic()
+            if wait > 0 and self._stop.wait(wait):
+                return
+            try:
+                t, shape = self._advance()
+                pair = renderer.render(shape)
+                ns = int(round((t + self._epoch_minus_mono) * 1e9))
+                header = M.Header(M.Time(ns // 1_000_000_000, ns % 1_000_000_000), "")
+                for side, img, writer in (("left", pair.left, self._left), ("right", pair.right, self._right)):
+                    ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality])
+                    if not ok:
+                        raise WristmarkError(f"cannot JPEG-encode the {side} image")
+                    writer.write(M.CompressedImage(M.Header(header.stamp, f"{side}_camera"), "jpeg", buf.tobytes()))
+                if self._truth is not None:
+                    x, y, z = (float(v) for v in shape.tip)
+                    self._truth.write(f"{t:.6f},{x:.9g},{y:.9g},{z:.9g}\n")
+                self.frames += 1
+            except Exception as e:  # noqa: BLE001 - the camera dies with one line; the topics then stall
+                self.error = f"virtual endoscope stopped: {type(e).__name__}: {e}"
+                return
+            t_next = max(t_next + period, time.monotonic())
+
+    def start(self) -> None:
+        """Join the graph and start the arm's and the camera's threads."""
+        from cyclonedds.core import Listener, Policy, Qos
+        from cyclonedds.pub import DataWriter
+        from cyclonedds.sub import DataReader
+        from cyclonedds.topic import Topic
+
+        from wristmark.rig.ros2 import messages as M
+
+        self._M = M
+        if self.truth_path is not None:
+            self.truth_path.parent.mkdir(parents=True, exist_ok=True)
+            self._truth = open(self.truth_path, "w", buffering=1)
+            self._truth.write(TRUTH_HEADER + "\n")
+        self.participant = dp = open_participant()
+
+        def topic(name: str, cls: type) -> Any:
+            return Topic(dp, M.topic_name(f"{self.namespace}/{name}"), cls)
+
+        reliable = Qos(Policy.Reliability.Reliable(100_000_000), Policy.History.KeepLast(1))
+        sensor = Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(2))
+        self._js = DataWriter(dp, topic("measured_js", M.JointState), sensor)
+        self._left = DataWriter(dp, topic("left/image_raw/compressed", M.CompressedImage), sensor)
+        self._right = DataWriter(dp, topic("right/image_raw/compressed", M.CompressedImage), sensor)
+        self._readers = [
+            DataReader(dp, topic("servo_jp", M.JointState), reliable,
+                       listener=Listener(on_data_available=self._on_servo_jp)),
+            DataReader(dp, topic("crtk_command", M.String), reliable,
+                       listener=Listener(on_data_available=self._on_command)),
+        ]
+        for fn, name in ((self._run_js, "ros2-lab-arm"), (self._run_camera, "ros2-lab-camera")):
+            th = threading.Thread(target=fn, name=name, daemon=True)
+            self._threads.append(th)
+            th.start()
+
+    def stop(self) -> None:
+        """Stop the threads, hold the arm, leave the graph, close the truth file (idempotent)."""
+        self._stop.set()
+        for th in self._threads:
+            th.join(5.0)
+        self._threads = []
+        for r in getattr(self, "_readers", []):
+            r.set_listener(None)
+        self._readers = []
+        self.arm.hold()
+        self.participant = None
+        if self._truth is not None:
+            self._truth.close()
+            self._truth = None
+
+    def __enter__(self) -> Ros2Lab:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()

@@ -19,6 +19,7 @@ from wristmark.sim.setup import load_setup
 ARMS = shipped_robot_files()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("robot", ARMS, ids=[p.stem for p in ARMS])
 def test_a_short_cube_closes_the_loop(robot: Path, tmp_path: Path) -> None:
     setup = load_setup(robot=robot)

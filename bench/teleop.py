@@ -32,7 +32,7 @@ also writes it) with the settings.
 
     .venv/bin/python bench/teleop.py [--mode lab|inprocess] [--duration 20] [--image-scale 0.35] \
         [--fps 15] [--sensor vision|truth-noise] [--rate 100] [--amplitude 6] [--tremor 0.05] \
-        [--dropout 0.6] [--max-speed 0.03]
+        [--dropout 0.6] [--max-speed 0.03] [--lab-watchdog 0.25] [--json FILE]
 """
 
 from __future__ import annotations
@@ -245,32 +245,14 @@ def main() -> None:
     writer = DataWriter(dp, Topic(dp, topic_name(f"{host}/servo_cp"), PoseStamped), qos)
 
     lab: subprocess.Popen[str] | None = None
+    servo: subprocess.Popen[str] | None = None
     truth = tmp / "truth.csv"
     common = ["--target", "ros2", "--ros2", host, "--image-scale", str(args.image_scale), "--duration",
               str(args.duration), "--settle", str(settle), "--max-speed", str(args.max_speed),
               "--controller-config", str(controller), "--no-progress", "--out", str(tmp / "run"),
               "--json", str(tmp / "res.json")]
-    if args.mode == "lab":
-        lab = subprocess.Popen(
-            [sys.executable, "-m", "wristmark", "emulator", "--ros2", lab_ns, "--image-scale", str(args.image_scale),
-             "--fps", str(args.fps), "--watchdog", str(args.lab_watchdog), "--truth-out", str(truth)],
-            cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        actuator, camera = read_line(lab.stdout, 60), read_line(lab.stdout, 10)
-        if not (actuator.startswith("ros2:") and camera.startswith("ros2:")):
-            lab.kill()
-            sys.exit(f"wristmark emulator --ros2 did not start: {actuator!r} {lab.communicate()[1].strip()[-2000:]}")
-        if not first_image(dp, lab_ns, 60.0):  # the endoscope is up before the loop waits for its frames
-            lab.kill()
-            sys.exit(f"the lab published no image in 60 s: {lab.communicate()[1].strip()[-2000:]}")
-        cmd = ["--actuator", actuator, "--camera", camera, *common]
-    else:
-        cmd = ["--sensor", args.sensor, *common]
-    servo = subprocess.Popen([sys.executable, "-m", "wristmark", "servo", *cmd], cwd=ROOT, env=env,
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-
     sent: list[tuple[float, list[float]]] = []
     stop = threading.Event()
-    t_device: list[float] = []
 
     def device() -> None:
         start = None
@@ -280,7 +262,6 @@ def main() -> None:
         if start is None:
             return
         t0 = time.monotonic()
-        t_device.append(t0)
         period = 1.0 / args.rate
         mid = 0.5 * args.duration
         k = 0
@@ -294,14 +275,31 @@ def main() -> None:
             time.sleep(max(0.0, t0 + k * period - time.monotonic()))
 
     th = threading.Thread(target=device, daemon=True)
-    th.start()
-    lab_err = ""
+    lab_err = servo_err = ""
     try:
+        if args.mode == "lab":
+            lab = subprocess.Popen(
+                [sys.executable, "-m", "wristmark", "emulator", "--ros2", lab_ns, "--image-scale",
+                 str(args.image_scale), "--fps", str(args.fps), "--watchdog", str(args.lab_watchdog), "--truth-out",
+                 str(truth)], cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            actuator, camera = read_line(lab.stdout, 60), read_line(lab.stdout, 10)
+            if not (actuator.startswith("ros2:") and camera.startswith("ros2:")):
+                raise SystemExit(f"wristmark emulator --ros2 did not start: {actuator!r}")
+            if not first_image(dp, lab_ns, 60.0):  # the endoscope is up before the loop waits for its frames
+                raise SystemExit("the lab published no image in 60 s")
+            cmd = ["--actuator", actuator, "--camera", camera, *common]
+        else:
+            cmd = ["--sensor", args.sensor, *common]
+        servo = subprocess.Popen([sys.executable, "-m", "wristmark", "servo", *cmd], cwd=ROOT, env=env,
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        th.start()
         _, servo_err = servo.communicate(timeout=120 + 3 * args.duration)
     finally:
         stop.set()
-        th.join(timeout=5)
-        servo.kill()
+        if th.is_alive():
+            th.join(timeout=5)
+        if servo is not None:
+            servo.kill()
         if lab is not None:
             lab.terminate()  # SIGTERM: the lab stops and prints its summary
             try:
@@ -309,9 +307,12 @@ def main() -> None:
             except subprocess.TimeoutExpired:
                 lab.kill()
                 lab_err = lab.communicate()[1]
+            if servo is None:
+                print(lab_err.strip()[-2000:], file=sys.stderr)
         cp.close()
     wall_s = time.monotonic() - wall0
     load_after = os.getloadavg()
+    assert servo is not None
     if servo.returncode != 0:
         sys.exit(f"wristmark servo failed ({servo.returncode}): {servo_err.strip()[-2000:]}")
     if len(sent) < 10:

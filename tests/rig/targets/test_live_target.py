@@ -6,7 +6,10 @@ from __future__ import annotations
 
 import io
 import json
+import os
 import socket
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -16,6 +19,7 @@ from wristmark.models.errors import InputError
 from wristmark.rig.targets.live_target import (
     MAX_WARNINGS,
     LiveTargets,
+    StdinTargets,
     TargetFollower,
     TcpTargets,
     Workspace,
@@ -170,3 +174,41 @@ def test_tcp_source_on_loopback_takes_lines_from_several_clients() -> None:
         src.close()
     with pytest.raises(OSError):
         socket.create_connection(("127.0.0.1", listening), timeout=1)
+
+
+def test_stdin_reads_its_file_descriptor_and_stops_when_closed() -> None:
+    """Standard input is read from fd 0 (select + os.read), lines split across reads, an
+    over-long line dropped, and the reader thread ends on close() though stdin stays open."""
+    s = store()
+    r, w = os.pipe()
+    saved = os.dup(0)
+    os.dup2(r, 0)
+    try:
+        src = StdinTargets(s)
+        os.write(w, b'{"t": 0, "p": [0.08, 0.0, ')
+        time.sleep(0.05)
+        os.write(w, b'0.15]}\n' + b"x" * 70000 + b'\n{"t": 1, "p": [0.081, 0.0, 0.15]}\n')
+        deadline = time.monotonic() + 5
+        while s.counts.received + s.counts.dropped < 3 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert s.counts.received == 2 and s.counts.dropped == 1
+        np.testing.assert_allclose(s.newest()[0].p, [0.081, 0.0, 0.15])  # type: ignore[union-attr]
+        src.close()
+        src._threads[0].join(timeout=1.0)
+        assert not src._threads[0].is_alive()
+    finally:
+        os.dup2(saved, 0)
+        for fd in (saved, r, w):
+            os.close(fd)
+
+
+def test_a_process_reading_targets_on_stdin_exits_cleanly_while_stdin_is_open() -> None:
+    """The interpreter's shutdown with the reader waiting on an open stdin: no abort ("could not
+    acquire lock for <stdin> at interpreter shutdown", exit -6), exit status 0."""
+    code = ("import time\nfrom wristmark.rig.targets.live_target import LiveTargets, StdinTargets, Workspace\n"
+            "import numpy as np\n"
+            "src = StdinTargets(LiveTargets(Workspace(np.zeros(3) - 1, np.zeros(3) + 1)))\n"
+            "time.sleep(0.3)\n")
+    for _ in range(3):
+        p = subprocess.run([sys.executable, "-c", code], stdin=subprocess.PIPE, capture_output=True, timeout=60)
+        assert p.returncode == 0, p.stderr.decode()[-500:]

@@ -24,6 +24,8 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
+import select
 import socket
 import sys
 import threading
@@ -383,12 +385,54 @@ class LineSource:
 
 
 class StdinTargets(LineSource):
-    """JSON lines on standard input (``--target stdin``)."""
+    """JSON lines on standard input (``--target stdin``).
+
+    Standard input is read from its file descriptor with ``select`` and ``os.read``, never
+    through ``sys.stdin``: a thread blocked in ``sys.stdin.buffer.readline`` holds the buffer's
+    lock, and the interpreter aborts at shutdown ("could not acquire lock for <stdin>") when it
+    finalizes ``sys.stdin``. This thread sees :meth:`close` within 0.1 s and ends."""
 
     def __init__(self, targets: LiveTargets, stream: IO[bytes] | None = None) -> None:
         super().__init__(targets)
         self.describe = "stdin"
-        self._spawn(self._read_lines, stream if stream is not None else sys.stdin.buffer)
+        if stream is not None:
+            self._spawn(self._read_lines, stream)
+        else:
+            self._spawn(self._read_fd, 0)  # fd 0 itself: sys.stdin may be replaced (a test harness)
+
+    def _read_fd(self, fd: int) -> None:
+        """Offer every line read from file descriptor ``fd`` until its end or :meth:`close`."""
+        pending = b""
+        skipping = False  # inside an over-long line, until its newline
+        while not self._stop.is_set():
+            try:
+                ready, _, _ = select.select([fd], [], [], 0.1)
+                if not ready:
+                    continue
+                chunk = os.read(fd, 65536)
+            except (OSError, ValueError):
+                return
+            if not chunk:
+                if pending and not skipping:
+                    self.targets.offer_line(pending)
+                return
+            pending += chunk
+            while True:
+                end = pending.find(b"\n")
+                if end < 0:
+                    if len(pending) > MAX_LINE and not skipping:
+                        self.targets.drop(f"line longer than {MAX_LINE} bytes")
+                        skipping = True
+                    if skipping:
+                        pending = b""
+                    break
+                line, pending = pending[: end + 1], pending[end + 1:]
+                if skipping:
+                    skipping = False
+                elif len(line) > MAX_LINE:
+                    self.targets.drop(f"line longer than {MAX_LINE} bytes")
+                else:
+                    self.targets.offer_line(line)
 
 
 class TcpTargets(LineSource):

@@ -116,3 +116,18 @@ def test_track_follows_a_stereo_camera_on_ros2(camera_on_ros2: dict[str, Any], s
     assert max(errors) < 0.4e-3, errors  # each frame is one of the published pairs, tracked as from files
     t = [o["t_capture"] for o in lines]
     assert all(b > a for a, b in zip(t, t[1:])) and t0 < t[0] and t[-1] < t1  # stamps on this host's clock
+
+
+@pytest.mark.parametrize("fields, words", [
+    ({"encoding": "bayer_rggb8", "height": 2, "width": 2, "step": 2, "data": bytes(4)}, "not supported"),
+    ({"encoding": "bgr8", "height": 4, "width": 4, "step": 12, "data": bytes(10)}, "does not fit"),
+])
+def test_an_image_topic_s_unsupported_encoding_or_wrong_size_is_one_line(fields: dict[str, Any], words: str) -> None:
+    """What a camera topic publishes that we cannot use is a one-line FrameSourceError (the loop
+    holds the arm on it like on any frame source error), never a traceback or a wrong image."""
+    from wristmark.rig.ros2.image_source import decode
+    from wristmark.rig.ros2.messages import Image
+
+    with pytest.raises(FrameSourceError) as e:
+        decode(Image(**fields), False, "/cam/left/image_raw")
+    assert words in str(e.value) and "\n" not in str(e.value) and "/cam/left/image_raw" in str(e.value)

@@ -53,7 +53,7 @@ finally:
 
 
 def render_path(out: Path, pairs: int) -> None:
-    """A dataset of ``pairs`` pairs along a smooth closed path around HOME_PSI (JPEG 90)."""
+    """A dataset of ``pairs`` pairs along a smooth closed path around HOME_PSI (PNG, JPEG round trip 90)."""
     from wristmark.cli.main import main as wristmark
     from wristmark.models.robot_params import HOME_PSI
 

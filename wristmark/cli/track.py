@@ -22,6 +22,8 @@ live source drops nothing meanwhile; ``--rt-priority N`` runs the tracker and th
 threads under SCHED_FIFO (rig.loop.realtime_priority). ``--annotate`` writes the frames with the
 corners, their indices and the marker axes drawn (cvs.tracking.annotate); ``--record FILE.mcap`` writes
 the frames and poses as a ROS 2 bag (rig.recording.bag_recorder) that ``--source FILE.mcap`` replays.
+``--ros2 [NS]`` publishes each pair's tip and marker pose over ROS 2 (rig.ros2.track_publisher:
+off the tracking thread; a pair without a pose publishes nothing) and ends with one line on stderr.
 
 Errors are for the whole command (one line on stderr, exit 2): an odd number of paths, a
 missing file (all paths are checked before any pair is tracked), a source that cannot be
@@ -120,6 +122,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "arm entering from the left); default: 'direction ambiguous' unless the code, --axis-hint, a consistent "
         "previous pair or the image beyond the tip decides",
     )
+    p.add_argument("--ros2", nargs="?", const="wristmark", metavar="NS",
+                   help="publish each tracked pair's tip on NS/measured_cp and the marker's pose on "
+                        "NS/marker/measured_cp (PoseStamped; frame_id world with world_T_left, else left_camera; "
+                        "default NS: wristmark; loopback only unless CYCLONEDDS_URI is set; docs/ros2.md)")
     add_json_flag(p, "one object per frame and line")
     set_example(p, "wristmark track --calib runs/tour/demo/calib.yaml runs/tour/demo/pair_00_left.png "
                    "runs/tour/demo/pair_00_right.png --json --axis-hint 1 0 0",
@@ -193,12 +199,22 @@ def _topics(text: str | None) -> tuple[str, str]:
     return parts[0], parts[1]
 
 
+def check_ros2(namespace: str) -> None:
+    """``--ros2 NS``: a valid namespace and cyclonedds installed (InputError, one line)."""
+    from wristmark.rig.ros2.bridge import clean_namespace
+    from wristmark.rig.ros2.dds_config import require_cyclonedds
+
+    try:
+        clean_namespace(namespace)
+    except ValueError as e:
+        raise InputError(f"--ros2: {e}") from None
+    require_cyclonedds("--ros2")
+
+
 def run(args: argparse.Namespace) -> int:
     from wristmark.cvs.calibration.load import load_calibration
     from wristmark.cvs.calibration.registration_file import apply_registration
-    from wristmark.cvs.sources.open_source import SourceOptions, open_stereo_source
-    from wristmark.cvs.tracking.tracker import MarkerTracker
-    from wristmark.cvs.tracking.warmup import warm_up
+    from wristmark.cvs.sources.open_source import open_stereo_source
     from wristmark.models.marker import MarkerModel
 
     def fields(res: Any) -> dict[str, Any]:
@@ -217,6 +233,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--rt-priority needs --source SPEC (a live or paced source)")
     if args.record_jpeg and not args.record:
         raise InputError("--record-jpeg needs --record FILE.mcap")
+    if args.ros2 is not None:
+        check_ros2(args.ros2)  # a valid namespace and cyclonedds installed, before anything is opened
     hint = None
     if args.axis_hint is not None:
         hint = np.asarray(args.axis_hint, float)
@@ -226,6 +244,26 @@ def run(args: argparse.Namespace) -> int:
         source = open_stereo_source(args.images)  # paths checked before anything is loaded
     camera = apply_registration(load_calibration(args.calib), args.registration)
     marker = MarkerModel.load(args.marker) if args.marker else MarkerModel()
+    publisher = None
+    if args.ros2 is not None:  # before the warm-up: subscribers are discovered meanwhile
+        from wristmark.rig.ros2.track_publisher import TrackPublisher
+
+        publisher = TrackPublisher(args.ros2, camera.T_world_left)
+    try:
+        return _track(args, camera, marker, hint, fields, publisher, None if args.source is not None else source)
+    finally:
+        if publisher is not None:
+            publisher.close()
+            print(publisher.line(), file=sys.stderr, flush=True)
+
+
+def _track(args: argparse.Namespace, camera: Any, marker: Any, hint: Any, fields: Any, publisher: Any,
+           source: Any) -> int:
+    """Track the image pairs (``source``) or ``--source``; each pair to ``publisher`` too (None: no --ros2)."""
+    from wristmark.cvs.sources.open_source import SourceOptions
+    from wristmark.cvs.tracking.tracker import MarkerTracker
+    from wristmark.cvs.tracking.warmup import warm_up
+
     warm_up()  # OpenCV's threads and the tracker's kernels, before the first pair (cvs.tracking.warmup)
     tracker = MarkerTracker(camera, marker, _settings(args))
     if args.source is None:
@@ -234,6 +272,8 @@ def run(args: argparse.Namespace) -> int:
                 res = tracker.track(frame.left, frame.right, axis_hint_left=hint)
             except InputError as e:
                 raise InputError(f"{frame.name_left} / {frame.name_right}: {e}") from e
+            if publisher is not None:
+                publisher.on_pair(frame.t_capture, res)
             out = {"left": frame.name_left, "right": frame.name_right} | fields(res)
             print(json.dumps(out) if args.json else _text_line(frame, res), flush=True)
         return 0
@@ -243,6 +283,8 @@ def run(args: argparse.Namespace) -> int:
     from wristmark.rig.recording.track_stream import TrackOutputs, prepare_tracker, track_source
 
     def emit(frame: StereoFrame, res: Any) -> None:
+        if publisher is not None:
+            publisher.on_pair(frame.t_capture, res)
         if args.json:
             line = {"left": frame.name_left, "right": frame.name_right} | fields(res)
             print(json.dumps(line | {"frame": frame.index, "t_capture": round(frame.t_capture, 6)}), flush=True)

@@ -48,9 +48,14 @@ class NoisyTruthSensor:
 
     def measure(self, frame: StereoFrame, axis_hint_world: Array | None = None) -> TipMeasurement:
         """True tip + noise at the frame's instant, with the full orientation (roll known); never
-        fails (the hint is not needed)."""
+        fails (the hint is not needed). The marker's pose: the true one moved rigidly with the
+        tip frame's noise (the noisy tip frame times the true tip-to-marker transform)."""
         shape = self.arm.true_shape()
         p = shape.tip + self._rng.normal(0.0, self._sigma, 3)
-        R = perturb(shape.frames.T_world_tip[:3, :3], self._rot_rng, self.rotation_rms)
+        T_tip = shape.frames.T_world_tip
+        R = perturb(T_tip[:3, :3], self._rot_rng, self.rotation_rms)
+        noisy = np.eye(4)
+        noisy[:3, :3], noisy[:3, 3] = R, p
+        T_marker = noisy @ np.linalg.inv(T_tip) @ shape.frames.T_world_marker
         return TipMeasurement(True, p, t_capture=frame.t_capture, frame_index=frame.index, R_world=R,
-                              roll_known=True)
+                              roll_known=True, T_world_marker=T_marker)

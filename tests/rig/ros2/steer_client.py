@@ -1,5 +1,6 @@
 """A ROS 2 node that knows only the message definitions (wristmark.rig.ros2.messages, Cyclone
-DDS): it listens to NS/measured_cp, NS/measured_js and NS/setpoint_js and steers the tip through
+DDS): it listens to NS/measured_cp, NS/marker/measured_cp, NS/measured_js and NS/setpoint_js
+(the tip in the marker's frame of the marker message with the tip's stamp) and steers the tip through
 NS/servo_cp; run by tests/rig/ros2/test_ros2_servo.py as its own process (CYCLONEDDS_URI and
 ROS_DOMAIN_ID from the test). Usage: steer_client.py NS DX_MM DZ_MM HOLD_S. Prints one JSON
 object: what it sent and what it received (its own monotonic clock [s], positions [m])."""
@@ -27,11 +28,14 @@ def main() -> None:
     dp = DomainParticipant(int(os.environ["ROS_DOMAIN_ID"]))
     qos = Qos(Policy.Reliability.Reliable(100_000_000), Policy.History.KeepLast(10))
     cp = DataReader(dp, Topic(dp, topic_name(f"{ns}/measured_cp"), PoseStamped), qos)
+    marker_cp = DataReader(dp, Topic(dp, topic_name(f"{ns}/marker/measured_cp"), PoseStamped), qos)
     js = DataReader(dp, Topic(dp, topic_name(f"{ns}/measured_js"), JointState), qos)
     sp = DataReader(dp, Topic(dp, topic_name(f"{ns}/setpoint_js"), JointState), qos)
     servo_cp = DataWriter(dp, Topic(dp, topic_name(f"{ns}/servo_cp"), PoseStamped), qos)
     t0 = time.monotonic()
     measured: list[tuple[float, list[float]]] = []
+    tips: dict[tuple[int, int], list[float]] = {}  # the tip by its stamp
+    markers: dict[tuple[int, int], tuple[list[float], list[float]]] = {}  # the marker (position, q) by stamp
     sent: list[tuple[float, list[float]]] = []
     names: dict[str, list[str]] = {}
     joints = {"measured_js": 0, "setpoint_js": 0}
@@ -44,7 +48,12 @@ def main() -> None:
             p = msg.pose.position
             measured.append((now - t0, [p.x, p.y, p.z]))
             assert msg.header.frame_id == "world"
+            tips[(msg.header.stamp.sec, msg.header.stamp.nanosec)] = [p.x, p.y, p.z]
             last_rx = now
+        for msg in marker_cp.take(N=64):
+            p, q = msg.pose.position, msg.pose.orientation
+            assert msg.header.frame_id == "world"
+            markers[(msg.header.stamp.sec, msg.header.stamp.nanosec)] = ([p.x, p.y, p.z], [q.x, q.y, q.z, q.w])
         for key, reader in (("measured_js", js), ("setpoint_js", sp)):
             for msg in reader.take(N=64):
                 joints[key] += 1
@@ -63,7 +72,16 @@ def main() -> None:
             if now - last_rx > 2.0:  # the loop ended
                 break
         time.sleep(0.04)
+    tip_in_marker = []  # R_marker^T (tip - marker origin) [m], for each marker message with a tip of its stamp
+    for stamp, (m, (x, y, z, w)) in markers.items():
+        if stamp in tips:
+            R = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                 [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                 [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
+            d = [tips[stamp][i] - m[i] for i in range(3)]
+            tip_in_marker.append([sum(R[i][j] * d[i] for i in range(3)) for j in range(3)])
     print(json.dumps({"measured": measured, "sent": sent, "joints": joints, "names": names,
+                      "markers": len(markers), "tip_in_marker": tip_in_marker,
                       "loop_modules": sorted(m for m in sys.modules
                                              if m.startswith(("wristmark.rig.loop", "wristmark.rig.targets",
                                                               "wristmark.sim", "wristmark.cli")))}))

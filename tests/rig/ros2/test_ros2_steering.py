@@ -19,6 +19,7 @@ import pytest
 
 from tests.rig.ros2.test_ros2_servo import ROOT, env, no_probe_controller
 from wristmark.rig.recording.run_log import read_log_csv
+from wristmark.sim.setup import load_setup
 
 pytestmark = [pytest.mark.network, pytest.mark.slow, pytest.mark.wallclock]
 
@@ -57,6 +58,11 @@ def test_a_ros2_node_steers_the_simulated_arm_through_servo_cp(tmp_path: Path) -
     # the node heard the loop: the tip, the measured and commanded actuators by name
     assert len(seen["measured"]) > 50 and min(seen["joints"].values()) > 50
     assert seen["names"]["measured_js"] == ["phi", "d", "s1a", "s1b", "s2a", "s2b"] == seen["names"]["setpoint_js"]
+    # ... and the marker's pose beside the tip (frame world, checked by the node): the tip sits on
+    # the marker's z axis at the marker's tip offset, within 1e-9 m
+    tim = np.array(seen["tip_in_marker"]) - [0.0, 0.0, load_setup().params.tip_offset]
+    assert seen["markers"] > 50 and len(tim) > 50, seen["markers"]
+    assert np.abs(tim).max() < 1e-9, np.abs(tim).max()
     # ... and saw the tip follow its targets: near A at the end of A's hold, near B at the end
     t = np.array([m[0] for m in seen["measured"]])
     p = np.array([m[1] for m in seen["measured"]])

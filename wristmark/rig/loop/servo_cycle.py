@@ -143,4 +143,5 @@ def cycle_record(params: Arm, psi_cmd: Array, target: CycleTarget, t_wall: float
         transport_ms=1000.0 * (arrival - meas.t_capture) if meas is not None and arrival is not None else float("nan"),
         R_des=target.R_des, R_est=meas.R_world if ok and meas is not None else None,
         R_true=np.asarray(truth.R_true, float), R_trk=np.asarray(truth.R_trk, float),
+        T_marker_est=meas.T_world_marker if ok and meas is not None else None,
     )

@@ -33,7 +33,8 @@ class TipMeasurement:
     T_left_marker, tip_left: the marker pose (4x4 of {wm}) and the tip in {ll} [m], for a recorder;
     R_world: the tip frame's orientation in {w} (3x3; = {wm}'s) when measured, roll_known: its roll
     about z is known (a coded sleeve whose code was read), else only its z axis is meaningful (the
-    reference sleeve: roll modulo one column)."""
+    reference sleeve: roll modulo one column); T_world_marker: the marker's pose {wm} in {w} (4x4
+    [m]) when measured (published as ``NS/marker/measured_cp`` by ``servo --ros2``)."""
 
     ok: bool
     p_world: Array | None
@@ -47,6 +48,7 @@ class TipMeasurement:
     tip_left: Array | None = None
     R_world: Array | None = None
     roll_known: bool = False
+    T_world_marker: Array | None = None
 
 
 class TipSensor(Protocol):
@@ -91,7 +93,7 @@ class VisionTipSensor:
         T = None if res.T_left_marker is None else np.asarray(res.T_left_marker, float)
         return TipMeasurement(True, p, "", ms, float(res.rms_px), frame.t_capture, frame.index, corners, T,
                               np.asarray(res.tip_left, float), None if T is None else W[:3, :3] @ T[:3, :3],
-                              bool(res.roll_known))
+                              bool(res.roll_known), None if T is None else W @ T)
 
 
 class DeadlineTipSensor:

@@ -80,6 +80,7 @@ class CycleRecord:
     R_est: Array | None = None
     R_true: Array | None = None
     R_trk: Array | None = None
+    T_marker_est: Array | None = None  # the measured marker pose {wm} in {w} (4x4), when p_est is; not in log.csv
 
     def orientation_error(self, which: str = "R_trk") -> float:
         """Angle [rad] between the orientation ``which`` (R_trk, R_true or R_est) and the

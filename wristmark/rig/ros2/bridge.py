@@ -1,6 +1,8 @@
 """The servo loop on a ROS 2 graph (``wristmark servo --ros2 [NS]``), over Cyclone DDS without
 ROS: out, ``NS/measured_cp`` (geometry_msgs/PoseStamped: the tracked tip in {w}, frame_id
-``world``, position [m] and the tip frame's orientation when it is measured), ``NS/measured_js``
+``world``, position [m] and the tip frame's orientation when it is measured),
+``NS/marker/measured_cp`` (PoseStamped: the measured marker's pose {wm} in {w}, frame_id ``world``,
+the origin of {wm} [m] and its orientation; published with the tip, when measured), ``NS/measured_js``
 and ``NS/setpoint_js`` (sensor_msgs/JointState: the actuators measured by the encoders and
 commanded, names phi, d, s1a, s1b, s2a, s2b [rad, m]); in (``--target ros2``), ``NS/servo_cp``
 (geometry_msgs/PoseStamped in frame ``world``: the tip's target), fed into the live target store
@@ -52,13 +54,15 @@ def clean_namespace(ns: str | None) -> str:
 @dataclass
 class CycleSnapshot:
     """What one cycle publishes: stamp [s, system clock], tip [m] and rotation (or None), the
-    commanded configuration psi [rad, m] and the measured actuators [rad, m] (None: not known)."""
+    commanded configuration psi [rad, m], the measured actuators [rad, m] (None: not known) and
+    the marker's pose in {w} (4x4 [m]; None: not measured)."""
 
     stamp: float
     p: Array | None
     R: Array | None
     psi_cmd: Array
     measured: Array | None
+    T_marker: Array | None = None
 
 
 class Ros2Bridge:
@@ -93,6 +97,7 @@ class Ros2Bridge:
             return DataWriter(self.participant, Topic(self.participant, M.topic_name(self.topic(name)), cls), out_qos)
 
         self._cp = writer("measured_cp", M.PoseStamped)
+        self._marker = writer("marker/measured_cp", M.PoseStamped)
         self._js = writer("measured_js", M.JointState)
         self._sp = writer("setpoint_js", M.JointState)
         self._reader = None
@@ -128,7 +133,8 @@ class Ros2Bridge:
         t = rec.t_capture if self.wall_clock and math.isfinite(rec.t_capture) else rec.t_wall
         snap = CycleSnapshot(self._epoch_minus_mono + t, None if rec.p_est is None else np.array(rec.p_est, float),
                              None if rec.R_est is None else np.array(rec.R_est, float),
-                             np.array(rec.psi_cmd, float), measured)
+                             np.array(rec.psi_cmd, float), measured,
+                             None if rec.T_marker_est is None else np.array(rec.T_marker_est, float))
         with self._lock:
             self.skipped += int(self._slot is not None)
             self._slot = snap
@@ -157,6 +163,10 @@ class Ros2Bridge:
         if s.p is not None:
             q = Rotation.from_matrix(s.R).as_quat() if s.R is not None else np.array([0.0, 0.0, 0.0, 1.0])
             self._cp.write(M.PoseStamped(header, M.Pose(M.Point(*map(float, s.p)), M.Quaternion(*map(float, q)))))
+            if s.T_marker is not None:
+                qm = Rotation.from_matrix(s.T_marker[:3, :3]).as_quat()
+                self._marker.write(M.PoseStamped(header, M.Pose(M.Point(*map(float, s.T_marker[:3, 3])),
+                                                                M.Quaternion(*map(float, qm)))))
         names = list(actuator_names(self.params))
         setpoint = actuators_from_psi(self.params, s.psi_cmd)
         self._sp.write(M.JointState(header, names, [float(x) for x in setpoint], [], []))
@@ -200,7 +210,7 @@ class Ros2Bridge:
     def report(self) -> dict[str, Any]:
         """Topics and counters for the result JSON; the loop's time in the hook [ms]."""
         hook = np.asarray(self.hook_s, float) * 1000.0
-        topics = [self.topic(n) for n in ("measured_cp", "measured_js", "setpoint_js")]
+        topics = [self.topic(n) for n in ("measured_cp", "marker/measured_cp", "measured_js", "setpoint_js")]
         return {"namespace": self.namespace, "frame_id": self.frame_id, "published": topics,
                 "subscribed": [self.topic("servo_cp")] if self._reader is not None else [],
                 "cycles_published": self.published, "cycles_replaced": self.skipped,

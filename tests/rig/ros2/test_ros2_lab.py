@@ -173,3 +173,30 @@ def test_an_arm_without_operating_state_is_not_moved_unless_told_unsafe(tmp_path
         assert p.returncode == 0, err
         res = json.loads((tmp_path / "run" / "result.json").read_text())
         assert not res["link"]["operating_state_required"] and c_cycles(res) >= 20, res["link"]
+
+
+def test_an_operator_disabling_the_arm_mid_walk_is_a_safe_stop_in_one_line(lab: dict[str, Any], tmp_path: Path,
+                                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """Another node sends ``disable`` on crtk_command mid-walk: the lab holds and reports DISABLED,
+    and the host stops there in one line (exit 3) instead of servoing on."""
+    from cyclonedds.core import Policy, Qos
+    from cyclonedds.pub import DataWriter
+    from cyclonedds.topic import Topic
+
+    from wristmark.rig.ros2 import messages as M
+    from wristmark.rig.ros2.dds_config import open_participant
+
+    for k in ("CYCLONEDDS_URI", "ROS_DOMAIN_ID"):
+        monkeypatch.setenv(k, lab["env"][k])
+    p = servo(lab, tmp_path, "--trajectory", "cube", "--duration", "20")
+    assert lab["proc"].stdout.readline().strip() == "enabled"
+    dp = open_participant()
+    operator = DataWriter(dp, Topic(dp, M.topic_name(f"{lab['ns']}/crtk_command"), M.String),
+                          Qos(Policy.Reliability.Reliable(100_000_000), Policy.History.KeepLast(1)))
+    time.sleep(4.0)  # the start move and settle, the walk under way
+    assert p.poll() is None and operator.get_publication_matched_status().current_count >= 1
+    operator.write(M.String("disable"))
+    line = one_line(p, timeout=60)
+    assert "the arm reports DISABLED (its watchdog or an operator" in line and "at t = " in line, line
+    res = json.loads((tmp_path / "run" / "result.json").read_text())
+    assert res["link"]["operating_state"] == "DISABLED" and res["safe_stop"]["held_and_disabled"], res

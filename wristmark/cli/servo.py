@@ -93,7 +93,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                       help="in-process plant without serial bytes (the reference for the serial path)")
     link.add_argument("--actuator", metavar="ros2:NS",
                       help="hardware path: an arm driven over ROS 2 (NS/servo_jp, NS/crtk_command out, "
-                           "NS/measured_js in; real time; needs --camera; docs/ros2.md)")
+                           "NS/measured_js, NS/operating_state in; real time; needs --camera; docs/ros2.md)")
+    p.add_argument("--no-operating-state", action="store_true",
+                   help="UNSAFE, with --actuator ros2:NS: drive an arm that publishes no NS/operating_state (its "
+                        "watchdog or an operator disabling it then goes unnoticed; docs/ros2.md)")
     p.add_argument("--camera", metavar="SPEC",
                    help="with --serial: the stereo camera's frame source (/dev/videoN, http://..., a video, "
                         "ros2:LEFT,RIGHT; docs/frame_sources.md); the calibration is --calib")
@@ -274,6 +277,8 @@ def check_link_options(args: argparse.Namespace) -> None:
         if args.ros2 is not None and _same_namespace(args.ros2, args.actuator[len("ros2:"):]):
             raise InputError("--ros2 NS must differ from --actuator ros2:NS: the loop would read its own "
                              "measured_js back as the arm's")
+    if args.no_operating_state and args.actuator is None:
+        raise InputError("--no-operating-state is for --actuator ros2:NS")
     if args.serial is not None and not args.camera:
         raise InputError("--serial needs --camera SPEC: the frames of the stereo camera (e.g. the virtual lab's "
                          "stream URL); the simulated cameras exist only in the in-process bench (no --serial)")
@@ -405,7 +410,8 @@ def run(args: argparse.Namespace) -> int:
     live = isinstance(traj, LiveTrajectory)  # a device steers in real time: the simulated bench is paced
     options = LinkOptions(kind=kind, port=actuator_namespace(args.actuator) if args.actuator else args.serial,
                           baudrate=args.baud, timeout=args.timeout,
-                          realtime=bool(args.realtime), pace=bool(args.pace or args.view or live))
+                          realtime=bool(args.realtime), pace=bool(args.pace or args.view or live),
+                          operating_state=not args.no_operating_state)
     traj, targets, source = open_targets(args, setup, traj, port)
     bridge = None
     with _sigterm_as_interrupt():
@@ -467,6 +473,6 @@ def run(args: argparse.Namespace) -> int:
         return 0
     safe = ("arm held and disabled" if not out.close_error
             else f"could not confirm hold/disable ({out.close_error})")
-    print(f"wristmark servo: error: stopped safely at t = {out.t_stop:.2f} s: {out.stopped}; {safe}",
-          file=sys.stderr)
+    when = f"at t = {out.t_stop:.2f} s" if np.isfinite(out.t_stop) else "before the first target"
+    print(f"wristmark servo: error: stopped safely {when}: {out.stopped}; {safe}", file=sys.stderr)
     return 130 if out.cause == "interrupted" else 3

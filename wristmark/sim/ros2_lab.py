@@ -8,8 +8,16 @@ while enabled) and ``NS/crtk_command`` (std_msgs/String enable | disable); out `
 (the encoders, every ``js_period`` s) and the endoscope, ``NS/left/image_raw/compressed`` and
 ``NS/right/image_raw/compressed`` (sensor_msgs/CompressedImage, JPEG, both images of a frame
 stamped alike with the instant the arm was sampled, on the system clock), up to ``fps`` frames a
-second. Like the actuator box: enabled and no ``servo_jp`` for ``watchdog_s`` -> hold and disable
-(counted in ``watchdog_trips``); a malformed target is counted and ignored.
+second, and ``NS/operating_state`` (crtk_msgs/OperatingState: ENABLED, DISABLED or FAULT) at each
+change and every ``state_period`` s. Like the actuator box: enabled and no ``servo_jp`` for
+``watchdog_s`` -> hold and disable (counted in ``watchdog_trips``), which ``operating_state`` says
+(the host's link stops on it); a malformed target is counted and ignored.
+
+``operating_state`` QoS: reliable, transient local, keep last 1: the writer keeps the current state
+and hands it to a subscriber that joins late at once (a transient-local reader, as ROS 2 latched
+topics), a volatile subscriber has it within ``state_period``; reliable so that no change is lost,
+keep last 1 because only the current state matters. ``publish_state=False`` plays an arm driver
+that publishes no ``operating_state`` (tests).
 
 ``truth_out`` logs each frame's capture instant (``time.monotonic()``) with the true tip in {w}
 [m] (the virtual lab's CSV: ``t,tip_x,tip_y,tip_z``).
@@ -45,7 +53,8 @@ class Ros2Lab:
     def __init__(self, params: RobotParams, plant: PlantParams, calibration: StereoCamera, marker: MarkerModel,
                  namespace: str = "lab", fps: float = 15.0, image_scale: float = 0.35, noise: str = "default",
                  seed: int = 0, jpeg_quality: int = 90, watchdog_s: float = 0.25, js_period: float = 0.01,
-                 truth_out: str | Path | None = None, psi0: Any = None) -> None:
+                 truth_out: str | Path | None = None, psi0: Any = None, state_period: float = 0.1,
+                 publish_state: bool = True) -> None:
         require_cyclonedds("the virtual lab over ROS 2")
         if calibration.T_world_left is None:
             raise InputError("the virtual lab's calibration needs 'world_T_left' (camera pose in {w})")
@@ -62,6 +71,8 @@ class Ros2Lab:
         self.noise, self.seed, self.jpeg_quality = noise, int(seed), int(jpeg_quality)
         self.watchdog_s = float(watchdog_s)
         self.js_period = float(js_period)
+        self.state_period = float(state_period)
+        self.publish_state = bool(publish_state)
         self.arm = LockedArm(TruePlant(params, plant, psi0=np.asarray(psi0 if psi0 is not None else HOME_PSI, float)))
         self.enabled = False
         self.watchdog_trips = 0
@@ -69,6 +80,8 @@ class Ros2Lab:
         self.targets = 0
         self.frames = 0
         self.error = ""
+        self.fault = False
+        self._published_state = ""
         self.truth_path = Path(truth_out) if truth_out else None
         self._truth: IO[str] | None = None
         self._t_arm = time.monotonic()
@@ -77,6 +90,7 @@ class Ros2Lab:
         self._threads: list[threading.Thread] = []
         self._epoch_minus_mono = time.time() - time.monotonic()
         self.participant: Any = None
+        self._state_writer: Any = None
 
     # -- the arm -------------------------------------------------------------------------------
     def _advance(self) -> tuple[float, Any]:
@@ -94,9 +108,29 @@ class Ros2Lab:
                 except WristmarkError as e:  # the plant refused (a limit): the lab holds and says so
                     self.arm.hold()
                     self.enabled = False
+                    self.fault = True
                     self.error = f"arm fault: {e}"
                 self._t_arm = now
+            if self.operating_state != self._published_state:
+                self._write_state()
             return now, self.arm.true_shape()
+
+    @property
+    def operating_state(self) -> str:
+        """CRTK's operating state: FAULT after a plant fault, else ENABLED or DISABLED."""
+        return "FAULT" if self.fault else "ENABLED" if self.enabled else "DISABLED"
+
+    def _write_state(self) -> None:
+        """Publish the operating state now (the caller holds the arm's lock)."""
+        writer = self._state_writer
+        if writer is None:
+            return
+        M = self._M
+        state = self.operating_state
+        ns = time.time_ns()
+        writer.write(M.OperatingState(M.Header(M.Time(ns // 1_000_000_000, ns % 1_000_000_000), ""), state,
+                                      True, False))
+        self._published_state = state
 
     def _on_servo_jp(self, reader: Any) -> None:
         for msg in reader.take(N=8):
@@ -124,13 +158,15 @@ class Ros2Lab:
             with self.arm.lock:
                 self._advance()
                 if msg.data == "enable":
-                    self.enabled = True
+                    self.enabled = not self.fault  # a faulted arm stays down (FAULT)
                     self._last_target = time.monotonic()  # the watchdog counts from ENABLE
                 elif msg.data == "disable":
                     self.arm.hold()
                     self.enabled = False
                 else:
                     self.malformed += 1
+                if self.operating_state != self._published_state:
+                    self._write_state()
 
     # -- threads -------------------------------------------------------------------------------
     def _run_js(self) -> None:
@@ -141,6 +177,12 @@ class Ros2Lab:
             ns = time.time_ns()
             self._js.write(M.JointState(M.Header(M.Time(ns // 1_000_000_000, ns % 1_000_000_000), ""),
                                         list(ACTUATOR_NAMES), [float(x) for x in q], [], []))
+
+    def _run_state(self) -> None:
+        while not self._stop.wait(self.state_period):
+            with self.arm.lock:
+                self._advance()
+                self._write_state()
 
     def _run_camera(self) -> None:
         from wristmark.sim.render.settings import noise_preset
@@ -197,13 +239,22 @@ class Ros2Lab:
         self._js = DataWriter(dp, topic("measured_js", M.JointState), sensor)
         self._left = DataWriter(dp, topic("left/image_raw/compressed", M.CompressedImage), sensor)
         self._right = DataWriter(dp, topic("right/image_raw/compressed", M.CompressedImage), sensor)
+        if self.publish_state:  # reliable, transient local, keep last 1 (module docstring)
+            latched = Qos(Policy.Reliability.Reliable(100_000_000), Policy.History.KeepLast(1),
+                          Policy.Durability.TransientLocal)
+            with self.arm.lock:
+                self._state_writer = DataWriter(dp, topic("operating_state", M.OperatingState), latched)
+                self._write_state()
         self._readers = [
             DataReader(dp, topic("servo_jp", M.JointState), reliable,
                        listener=Listener(on_data_available=self._on_servo_jp)),
             DataReader(dp, topic("crtk_command", M.String), reliable,
                        listener=Listener(on_data_available=self._on_command)),
         ]
-        for fn, name in ((self._run_js, "ros2-lab-arm"), (self._run_camera, "ros2-lab-camera")):
+        threads = [(self._run_js, "ros2-lab-arm"), (self._run_camera, "ros2-lab-camera")]
+        if self.publish_state:
+            threads.append((self._run_state, "ros2-lab-state"))
+        for fn, name in threads:
             th = threading.Thread(target=fn, name=name, daemon=True)
             self._threads.append(th)
             th.start()
@@ -217,7 +268,14 @@ class Ros2Lab:
         for r in getattr(self, "_readers", []):
             r.set_listener(None)
         self._readers = []
-        self.arm.hold()
+        with self.arm.lock:
+            self.arm.hold()
+            self.enabled = False
+            try:
+                self._write_state()  # DISABLED: a host still subscribed knows at once
+            except Exception:  # noqa: BLE001 - leaving the graph goes on
+                pass
+            self._state_writer = None
         self.participant = None
         if self._truth is not None:
             self._truth.close()

@@ -1,6 +1,6 @@
 """The ROS 2 messages as Cyclone DDS IDL types (rig/ros2/messages.py): the same bytes as ROS 2's
-CDR (rosbags' ROS2_HUMBLE typestore) for every type, ROS 2's DDS type and topic names, and
-a round trip through the bytes."""
+CDR (rosbags' ROS2_HUMBLE typestore; CRTK's OperatingState registered from its .msg text) for every
+type, ROS 2's DDS type and topic names, and a round trip through the bytes."""
 
 from __future__ import annotations
 
@@ -8,11 +8,19 @@ from typing import Any
 
 import numpy as np
 import pytest
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from wristmark.rig.ros2 import messages as M
 
 TS = get_typestore(Stores.ROS2_HUMBLE)
+CRTK_OPERATING_STATE_MSG = """\
+# crtk_msgs/msg/OperatingState.msg (CRTK)
+std_msgs/Header header
+string state  # ENABLED, DISABLED, PAUSED, FAULT
+bool is_homed
+bool is_busy
+"""
+TS.register(get_types_from_msg(CRTK_OPERATING_STATE_MSG, "crtk_msgs/msg/OperatingState"))  # not built into rosbags
 
 
 def ros(name: str) -> Any:
@@ -58,6 +66,10 @@ def cases() -> list[tuple[Any, Any]]:
         (M.Image(M.Header(M.Time(1, 1), "left"), 1, 3, "mono8", 1, 3, b"\x01\x02\x03"),
          ros("sensor_msgs/msg/Image")(ros_header(1, 1, "left"), 1, 3, "mono8", 1, 3,
                                       np.array([1, 2, 3], np.uint8))),
+        (M.OperatingState(HEADER, "ENABLED", True, False),
+         ros("crtk_msgs/msg/OperatingState")(ROS_HEADER, "ENABLED", True, False)),
+        (M.OperatingState(M.Header(M.Time(1, 2), ""), "FAULT", False, True),
+         ros("crtk_msgs/msg/OperatingState")(ros_header(1, 2, ""), "FAULT", False, True)),
         (M.CompressedImage(HEADER, "jpeg", b"\xff\xd8\xff\xe0JFIF\xff\xd9"),
          ros("sensor_msgs/msg/CompressedImage")(ROS_HEADER, "jpeg",
                                                 np.frombuffer(b"\xff\xd8\xff\xe0JFIF\xff\xd9", np.uint8))),

@@ -39,7 +39,7 @@ def open_hardware_session(setup: LoopSetup, options: LinkOptions, camera: str, c
     if options.kind == "ros2":  # an arm on a ROS 2 graph (rig/ros2/actuator_link.py)
         from wristmark.rig.ros2.actuator_link import Ros2ActuatorLink
 
-        link = Ros2ActuatorLink(options.port)
+        link = Ros2ActuatorLink(options.port, require_operating_state=options.operating_state)
     else:
         timeout = options.timeout if options.timeout is not None else HW_TIMEOUT_S
         driver = ActuatorDriver(options.port, options.baudrate, timeout, options.retries, params=setup.params)

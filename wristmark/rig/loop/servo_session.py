@@ -42,7 +42,8 @@ class LinkOptions:
     """How the loop reaches the actuators. kind: emulator | serial | direct | ros2; port: device
     path or pyserial URL (serial), the namespace (ros2); timeout: per attempt [s] (None: by kind);
     realtime: the emulator on the wall clock (serial, ros2: always); pace: simulated time never
-    ahead of the wall clock."""
+    ahead of the wall clock; operating_state (ros2): refuse an arm that publishes no
+    operating_state (False: ``--no-operating-state``, unsafe)."""
 
     kind: str = "emulator"
     port: str | None = None
@@ -51,6 +52,7 @@ class LinkOptions:
     retries: int = 2
     realtime: bool = False
     pace: bool = False
+    operating_state: bool = True
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,5 @@
 """The ROS 2 messages wristmark speaks, as Cyclone DDS IDL types: written here from the message
-definitions (builtin_interfaces, std_msgs, geometry_msgs, sensor_msgs), so that no ROS
+definitions (builtin_interfaces, std_msgs, geometry_msgs, sensor_msgs, CRTK's crtk_msgs), so that no ROS
 installation is needed. Their DDS type names are ROS 2's (``pkg::msg::dds_::Type_``) and their
 serialized bytes are ROS 2's CDR (tests/rig/ros2/test_messages.py compares them with rosbags').
 
@@ -102,6 +102,18 @@ class JointState(IdlStruct, typename="sensor_msgs::msg::dds_::JointState_"):
     position: t.sequence[t.float64] = field(default_factory=list)  # type: ignore[type-arg, assignment]  # cyclonedds' run-time types
     velocity: t.sequence[t.float64] = field(default_factory=list)  # type: ignore[type-arg, assignment]  # cyclonedds' run-time types
     effort: t.sequence[t.float64] = field(default_factory=list)  # type: ignore[type-arg, assignment]  # cyclonedds' run-time types
+
+
+@final
+@dataclass
+class OperatingState(IdlStruct, typename="crtk_msgs::msg::dds_::OperatingState_"):
+    """crtk_msgs/OperatingState (CRTK): the arm's ``state`` (ENABLED, DISABLED, PAUSED, FAULT),
+    whether it is homed and busy (``NS/operating_state``)."""
+
+    header: Header = field(default_factory=Header)
+    state: str = ""
+    is_homed: bool = False
+    is_busy: bool = False
 
 
 class _Cdr:
@@ -264,7 +276,8 @@ class CompressedImage(IdlStruct, typename="sensor_msgs::msg::dds_::CompressedIma
         return cls(r.header(), r.string(), r.blob())
 
 
-MESSAGE_TYPES = (Time, Header, String, Point, Quaternion, Pose, PoseStamped, JointState, Image, CompressedImage)
+MESSAGE_TYPES = (Time, Header, String, Point, Quaternion, Pose, PoseStamped, JointState, Image, CompressedImage,
+                 OperatingState)
 ROS_NAMES = {cls: cls.__idl_typename__.replace("::dds_::", "::").replace("::", "/").rstrip("_")
              for cls in MESSAGE_TYPES}  # e.g. geometry_msgs/msg/PoseStamped
 

@@ -83,13 +83,13 @@ def test_stale_replies_are_skipped_and_wrong_type_is_a_protocol_error() -> None:
     def script(req: P.Packet, n: int) -> bytes:
         stale = _state((req.seq - 1) % 256, flags=P.FLAG_ESTOPPED)
         if isinstance(req, P.Ping):
-            return stale + P.encode(P.Pong(2, 6, seq=req.seq))
+            return stale + P.encode(P.Pong(3, 6, seq=req.seq))  # v2 with 6 now fits a 6-actuator arm: v3 does not
         return stale + P.encode(P.Pong(1, 6, seq=req.seq))
 
     dev = ScriptedDevice(script)
     try:
         drv = ActuatorDriver(dev.path, timeout=1.0, retries=0)
-        with pytest.raises(ActuatorProtocolError, match="v2"):
+        with pytest.raises(ActuatorProtocolError, match="v3"):
             drv.ping()
         with pytest.raises(ActuatorProtocolError, match="expected STATE"):
             drv.get_state()

@@ -1,11 +1,19 @@
-"""Host driver for an actuator box speaking protocol v1 over a serial line (or pty, socket).
+"""Host driver for an actuator box speaking protocol v1 or v2 over a serial line (or pty, socket).
 
 Usage::
 
     with ActuatorDriver("/dev/ttyACM0", params=RobotParams()) as box:
+        box.ping()                             # negotiates the protocol version (below)
         box.enable()
-        state = box.set_target(actuators)      # [rad, m, m, m, m, m]
+        state = box.set_target(actuators)      # the arm's m actuators [rad or m each]
         psi = box.measured_psi()
+
+Version negotiation (docs/protocol.md): the host speaks first with PING, whose PONG (u8
+version, u8 n) is the same two bytes in both versions. A device answering version 1 carries 6
+actuators: the host speaks v1 and refuses an arm with another count in one line naming both. A
+device answering version 2 carries n actuators: the host speaks v2 if n is its arm's actuator
+count, else refuses in one line naming both. Nothing is enabled or moved before that check.
+Until a PONG arrives the driver frames SET_TARGET and STATE with its arm's count.
 
 Every request carries a fresh sequence number (1..255) and waits for the reply that echoes it;
 a request unanswered within ``timeout`` seconds is re-sent up to ``retries`` times before
@@ -25,8 +33,8 @@ import numpy as np
 import serial
 from numpy.typing import NDArray
 
-from wristmark.models.actuation import ACTUATOR_NAMES, actuators_from_psi, psi_from_actuators
-from wristmark.models.arm_spec import Arm, arm_size
+from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
+from wristmark.models.arm_spec import Arm, ArmSpec, actuator_names, arm_size, as_spec
 from wristmark.models.errors import ConfigError, LimitError, WristmarkError
 from wristmark.models.limits import actuator_bounds
 from wristmark.models.robot_params import RobotParams
@@ -67,12 +75,14 @@ class ActuatorDisconnected(ActuatorError):
 
 
 class ActuatorProtocolError(ActuatorError):
-    """The device answered with something protocol v1 does not allow."""
+    """The device answered with something the protocol does not allow, or speaks a protocol
+    version / actuator count that does not fit this host's arm."""
 
 
 @dataclass(frozen=True)
 class DeviceState:
-    """A STATE reply decoded: positions [rad, m, m, m, m, m], flags, device clock [ms]."""
+    """A STATE reply decoded: positions of the arm's actuators [rad or m each; the reference
+    arm's rad, m, m, m, m, m], flags, device clock [ms]."""
 
     positions: Array
     flags: int
@@ -111,25 +121,66 @@ class DeviceState:
     @classmethod
     def from_packet(cls, s: P.State) -> DeviceState:
         """Convert a STATE packet to SI."""
-        return cls(P.si_from_micro(s.positions_micro), s.flags, s.clock_ms)
+        return cls(P.si_from_micro(s.positions_micro, len(s.positions_micro)), s.flags, s.clock_ms)
+
+
+def actuator_units(params: Arm) -> tuple[str, ...]:
+    """SI unit of each of the arm's actuators, in its actuator order: 'rad' for a revolute stem
+    joint and a ``direct`` segment's theta / delta, 'm' for a prismatic stem joint and every pull
+    (push-pull backbone, tendon). On the wire each travels in micro-units (µrad, µm)."""
+    spec = as_spec(params)
+    out = ["rad" if j.joint.startswith("revolute") else "m" for j in spec.stem]
+    for s in spec.segments:
+        if s.actuation.type == "direct":
+            out += ["rad"] * (1 if s.planar is not None else 2)
+        else:
+            out += ["m"] * len(s.actuation.angles)
+    return tuple(out)
+
+
+def _arm_label(params: Arm) -> str:
+    return f"this arm ({params.name})" if isinstance(params, ArmSpec) and params.name else "this arm"
 
 
 def check_protocol_arm(params: Arm) -> None:
-    """Raise ConfigError unless protocol v1 can carry the arm's actuators (6: the reference arm's
-    layout; protocol v2 with n actuators is planned, docs/design.md)."""
+    """Raise ConfigError unless protocol v1 (a device answering version 1) can carry the arm's
+    actuators: 6, the reference arm's layout. Protocol v2 carries any count from 1 to 16."""
     m = arm_size(params)[1]
-    if m != 6:
+    if m != P.ACTUATOR_COUNT:
         raise ConfigError(f"the actuator box speaks protocol v1, which carries 6 actuators; this arm has {m} "
-                          "(protocol v2, any count, is planned): on the simulated bench use the in-process link "
-                          "(wristmark servo --direct)")
+                          "(a protocol-v2 box carries 1 to 16: firmware, or wristmark emulator --pty --robot FILE); "
+                          "or, on the simulated bench, the in-process link (wristmark servo --direct)")
+
+
+def check_device_arm(version: int, count: int, params: Arm) -> None:
+    """Raise ActuatorProtocolError (one line naming both counts) unless a device that answered
+    PONG ``version``, ``count`` can drive the arm ``params``: v1 with 6 actuators and a
+    6-actuator arm, or v2 with exactly the arm's actuator count."""
+    m = arm_size(params)[1]
+    if version == P.PROTOCOL_VERSION:
+        if count != P.ACTUATOR_COUNT:
+            raise ActuatorProtocolError(f"device claims protocol v1 with {count} actuators; v1 carries exactly 6: "
+                                        "nothing was moved")
+        if m != P.ACTUATOR_COUNT:
+            raise ActuatorProtocolError(f"device speaks protocol v1 with 6 actuators; {_arm_label(params)} has {m} "
+                                        "(a protocol-v2 box carries any count): nothing was moved")
+        return
+    if version == P.PROTOCOL_V2:
+        if count != m:
+            raise ActuatorProtocolError(f"device speaks protocol v2 with {count} actuators; {_arm_label(params)} "
+                                        f"has {m}: check --robot against the box; nothing was moved")
+        return
+    raise ActuatorProtocolError(f"device speaks protocol v{version} with {count} actuators; this host speaks "
+                                "v1 (6 actuators) and v2 (1 to 16): nothing was moved")
 
 
 class ActuatorDriver:
-    """Request/response client of one actuator box (protocol v1).
+    """Request/response client of one actuator box (protocol v1 or v2, see :meth:`ping`).
 
     url_or_path: '/dev/ttyUSB0', a pty path, 'loop://' or 'socket://host:port'.
     timeout: wait per attempt [s]; retries: extra attempts after a timeout or a corrupted frame.
-    params: robot used by set_psi / measured_psi and for error messages on rejected targets.
+    params: robot used by set_psi / measured_psi, for the actuator count (1..16) and for error
+    messages on rejected targets.
     """
 
     def __init__(self, url_or_path: str, baudrate: int = 115200, timeout: float = 0.05, retries: int = 2,
@@ -141,8 +192,13 @@ class ActuatorDriver:
         self.timeout = float(timeout)
         self.retries = int(retries)
         self.params: Arm = params if params is not None else RobotParams()
-        check_protocol_arm(self.params)
-        self._parser = P.StreamParser()
+        m = arm_size(self.params)[1]
+        if not 1 <= m <= P.MAX_ACTUATORS:
+            raise ConfigError(f"the actuator box protocol carries 1 to {P.MAX_ACTUATORS} actuators; "
+                              f"{_arm_label(self.params)} has {m}")
+        self.count = m  # actuators on the wire: the arm's (confirmed by ping())
+        self.version: int | None = None  # the device's protocol version, once ping() answered
+        self._parser = P.StreamParser(count=m)
         self._seq = 0
         self._psi_hint: Array | None = None
         self.stats = {"sent": 0, "retries": 0, "dropped": 0}
@@ -278,12 +334,13 @@ class ActuatorDriver:
                                     "check firmware protocol version")
 
     def _limit_detail(self, payload: bytes) -> str:
-        if len(payload) != 24:
+        if len(payload) != 4 * self.count:
             return ""
-        a = P.si_from_micro(np.frombuffer(payload, "<i4").tolist())
+        a = P.si_from_micro(np.frombuffer(payload, "<i4").tolist(), self.count)
         lo, hi = actuator_bounds(self.params)
-        bad = [f"{ACTUATOR_NAMES[i]}={a[i]:.6g} not in [{lo[i]:.6g}, {hi[i]:.6g}]"
-               for i in range(6) if not lo[i] <= a[i] <= hi[i]]
+        names, units = actuator_names(self.params), actuator_units(self.params)
+        bad = [f"{names[i]}={a[i]:.6g} {units[i]} not in [{lo[i]:.6g}, {hi[i]:.6g}]"
+               for i in range(self.count) if not lo[i] <= a[i] <= hi[i]]
         return f" ({', '.join(bad)})" if bad else ""
 
     def _state_request(self, packet_type: P.MsgType, payload: bytes = b"") -> DeviceState:
@@ -294,15 +351,16 @@ class ActuatorDriver:
 
     # -- commands -----------------------------------------------------------------------------
     def ping(self) -> P.Pong:
-        """PING; returns the PONG. Raises ActuatorProtocolError unless version 1 and 6 actuators."""
+        """PING; returns the PONG and speaks its version from now on. Raises ActuatorProtocolError
+        (one line naming both counts) unless version 1 with 6 actuators and a 6-actuator arm, or
+        version 2 with the arm's actuator count."""
         reply = self.request(P.MsgType.PING)
         if not isinstance(reply, P.Pong):
             raise ActuatorProtocolError(f"expected PONG, got {type(reply).__name__}")
-        if reply.version != P.PROTOCOL_VERSION or reply.count != P.ACTUATOR_COUNT:
-            raise ActuatorProtocolError(
-                f"device speaks protocol v{reply.version} with {reply.count} actuators; "
-                f"this driver needs v{P.PROTOCOL_VERSION} with {P.ACTUATOR_COUNT}"
-            )
+        check_device_arm(reply.version, reply.count, self.params)
+        self.version = reply.version
+        self.count = reply.count
+        self._parser.set_count(reply.count)
         return reply
 
     def enable(self) -> DeviceState:
@@ -314,7 +372,7 @@ class ActuatorDriver:
         return self._state_request(P.MsgType.DISABLE)
 
     def get_state(self) -> DeviceState:
-        """GET_STATE: measured positions [rad, m, m, m, m, m], flags, clock (feeds the watchdog)."""
+        """GET_STATE: measured positions [rad or m each], flags, clock (feeds the watchdog)."""
         return self._state_request(P.MsgType.GET_STATE)
 
     def estop(self) -> DeviceState:
@@ -326,18 +384,18 @@ class ActuatorDriver:
         return self._state_request(P.MsgType.RESET)
 
     def set_target(self, actuators: object) -> DeviceState:
-        """SET_TARGET actuators [rad, m, m, m, m, m]; returns the STATE reply.
+        """SET_TARGET the arm's actuators [rad or m each, :func:`actuator_units`]; returns the STATE reply.
 
         Raises ActuatorRejected (outside limits), ActuatorNotEnabled, ActuatorEStopped.
         """
         try:
-            micro = P.micro_from_si(actuators)
+            micro = P.micro_from_si(actuators, self.count)
         except LimitError as e:
             raise ActuatorRejected(f"target not sendable: {e}") from e
         return self._state_request(P.MsgType.SET_TARGET, P.payload_of(P.SetTarget(micro)))
 
     def set_psi(self, psi: object) -> DeviceState:
-        """Command configuration psi [rad, m, rad, rad, rad, rad] through the actuation map."""
+        """Command configuration psi [rad or m each] through the arm's actuation map."""
         q = np.asarray(psi, dtype=float)
         state = self.set_target(actuators_from_psi(self.params, q))
         self._psi_hint = q

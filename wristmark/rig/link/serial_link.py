@@ -1,4 +1,4 @@
-"""The servo loop's actuator link over protocol v1: :class:`SerialLink` and its helpers.
+"""The servo loop's actuator link over protocol v1 / v2: :class:`SerialLink` and its helpers.
 
 Two ways time moves:
 
@@ -72,7 +72,7 @@ class LinkStats:
 
 
 class SerialLink:
-    """:class:`rig.link.actuator_link.ActuatorLink` over an :class:`ActuatorDriver` (protocol v1).
+    """:class:`rig.link.actuator_link.ActuatorLink` over an :class:`ActuatorDriver` (protocol v1 or v2).
 
     driver: an open driver (the link closes it in :meth:`close`). clock: a :class:`SimClock`
     shared with an in-process emulator, or None for real time. keepalive_s: longest silence
@@ -112,12 +112,12 @@ class SerialLink:
 
     # -- setup ------------------------------------------------------------------------------
     def probe(self) -> DeviceState:
-        """PING (protocol v1, six actuators) and GET_STATE; refuse a stopped or faulty device.
-        Enables nothing, moves nothing."""
+        """PING (protocol v1 with six actuators, or v2 with the arm's count: the driver checks) and
+        GET_STATE; refuse a stopped or faulty device. Enables nothing, moves nothing."""
         try:
             self.driver.ping()
         except ActuatorProtocolError as e:
-            raise ActuatorProtocolError(f"no protocol-v1 actuator box on {self.driver.url!r}: {e}") from e
+            raise ActuatorProtocolError(f"no usable actuator box on {self.driver.url!r}: {e}") from e
         st = self.driver.get_state()
         self.state = st
         if st.estopped:
@@ -169,7 +169,7 @@ class SerialLink:
         self.t = max(self.t, t)
 
     def send_target(self, actuators: Array) -> None:
-        """SET_TARGET [rad, m, m, m, m, m]; the driver's typed errors propagate."""
+        """SET_TARGET the arm's actuators [rad or m each]; the driver's typed errors propagate."""
         self._require_connected()
         silent = time.monotonic() - self._last_io
         try:
@@ -189,7 +189,7 @@ class SerialLink:
             self.state = self.driver.set_target(target)
 
     def measured_actuators(self) -> Array:
-        """Encoder readings from a fresh GET_STATE [rad, m, m, m, m, m]."""
+        """Encoder readings from a fresh GET_STATE [rad or m each]."""
         self.state = self.driver.get_state()
         return self.state.positions.copy()
 

@@ -1,7 +1,10 @@
 """``wristmark emulator --pty [--camera-port PORT]``: the simulated bench as a lab.
 
-``--pty`` serves the actuator-box emulator (protocol v1, driving the simulated true arm on the
-wall clock) on a new pseudo-terminal and prints its path as the first line of stdout.
+``--pty`` serves the actuator-box emulator (driving the simulated true arm on the wall clock) on a
+new pseudo-terminal and prints its path as the first line of stdout. It plays the arm of
+``--robot``: protocol v1 (6 actuators) for the reference arm's flat robot file (the default),
+protocol v2 with the arm's n actuators for a format-2 file; the simulated true arm is
+sim/plant.py's, with the arm's own plant file (``<name>_plant.yaml`` beside it) unless ``--plant``.
 ``--camera-port PORT`` makes it the virtual lab (:mod:`sim.virtual_lab`): the same process also
 plays the stereo endoscope, rendering its true arm at up to ``--fps`` frames per second and
 serving them side by side as an MJPEG stream on 127.0.0.1:PORT (0: any free port), whose URL is
@@ -21,10 +24,12 @@ import numpy as np
 
 from wristmark.cli.common_options import add_config_option, add_force_argument, set_example
 from wristmark.cli.option_types import MAX_TIMEOUT_S, PSI_ABS_MAX, float_in, int_in, positive_float, seed_int
+from wristmark.models.arm_spec import Arm, arm_size, home_psi, load_loop_arm
 from wristmark.models.config_files import default_config
-from wristmark.models.errors import InputError
+from wristmark.models.errors import InputError, WristmarkError
+from wristmark.models.kinematics import check_psi
 from wristmark.models.marker import MarkerModel
-from wristmark.models.robot_params import HOME_PSI, RobotParams, load_robot
+from wristmark.models.robot_params import HOME_PSI, RobotParams
 
 DEFAULT_PLANT = default_config("plant.yaml")
 
@@ -39,8 +44,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_config_option(p, "--robot")
     p.add_argument("--watchdog", type=positive_float(MAX_TIMEOUT_S), default=0.25, metavar="S",
                    help="watchdog timeout [s] (default 0.25, as protocol v1 specifies)")
-    p.add_argument("--psi0", nargs=6, type=float_in(-PSI_ABS_MAX, PSI_ABS_MAX), metavar="X",
-                   help="initial configuration (default: home)")
+    p.add_argument("--psi0", nargs="+", type=float_in(-PSI_ABS_MAX, PSI_ABS_MAX), metavar="X",
+                   help="initial configuration, one value per configuration variable of the arm (default: home)")
     p.add_argument("--rt-priority", type=int_in(1, 99), metavar="N",
                    help="run every thread (serving, and with --camera-port rendering and streaming) under "
                         "SCHED_FIFO at priority N, as firmware and a camera are not starved by other work "
@@ -65,7 +70,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     cam.add_argument("--jpeg-quality", type=int_in(1, 100), default=90, metavar="Q", help="JPEG quality (default 90)")
     cam.add_argument("--seed", type=seed_int(), default=0, help="render noise seed (default 0)")
     add_force_argument(p)
-    set_example(p, "wristmark emulator --pty", "wristmark emulator --pty --camera-port 0 --fps 30 --image-scale 0.35 "
+    set_example(p, "wristmark emulator --pty", "wristmark emulator --pty --robot configs/robots/tendon3.yaml",
+                "wristmark emulator --pty --camera-port 0 --fps 30 --image-scale 0.35 "
                 "--truth-out truth.csv")
 
 
@@ -81,6 +87,7 @@ def run(args: argparse.Namespace) -> int:
     from wristmark.sim.actuator_emulator import ActuatorEmulator
     from wristmark.sim.plant import TruePlant
     from wristmark.sim.plant_params import PlantParams
+    from wristmark.sim.setup import arm_plant_file
 
     if args.ros2 is not None:
         if args.pty or args.camera_port is not None or args.truth_dense_out or args.rt_priority is not None:
@@ -97,10 +104,19 @@ def run(args: argparse.Namespace) -> int:
     from wristmark.rig.recording.output_dir import claim_outputs
 
     claim_outputs(files=[args.truth_out, args.truth_dense_out], force=args.force)  # before anything is served
-    params = load_robot(args.robot, MarkerModel.load(args.marker or default_config("marker.yaml")))
-    plant_path = Path(args.plant) if args.plant else DEFAULT_PLANT
+    params = load_loop_arm(args.robot, MarkerModel.load(args.marker or default_config("marker.yaml")))
+    n = arm_size(params)[0]
+    plant_path = Path(args.plant) if args.plant else arm_plant_file(args.robot) or DEFAULT_PLANT
     plant = PlantParams.load(plant_path) if plant_path.exists() or args.plant else PlantParams()
-    psi0 = np.array(args.psi0 if args.psi0 else HOME_PSI, dtype=float)
+    if args.psi0 is not None and len(args.psi0) != n:
+        raise InputError(f"--psi0 needs {n} values (one per configuration variable of the arm), got {len(args.psi0)}")
+    psi0 = np.array(args.psi0 if args.psi0 else (HOME_PSI if isinstance(params, RobotParams) else home_psi(params)),
+                    dtype=float)
+    try:
+        check_psi(psi0, params)
+        TruePlant(params, plant, psi0=psi0)  # the plant file fits the arm: one line before anything is served
+    except WristmarkError as e:
+        raise InputError(str(e)) from None
     done = threading.Event()
 
     def _stop(signum: int, frame: FrameType | None) -> None:
@@ -109,6 +125,9 @@ def run(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGTERM, _stop)
     signal.signal(signal.SIGINT, _stop)
     if args.ros2 is not None:
+        if not isinstance(params, RobotParams):
+            raise InputError("--ros2 serves the reference arm (the flat robot file) only; for a format-2 arm "
+                             "use --pty")
         return _serve_ros2_lab(args, params, plant, psi0, done)
     if args.camera_port is None:
         if args.rt_priority is not None:
@@ -118,7 +137,8 @@ def run(args: argparse.Namespace) -> int:
         emulator = ActuatorEmulator(TruePlant(params, plant, psi0=psi0), params, watchdog_s=args.watchdog)
         path = emulator.serve_pty()
         print(path, flush=True)
-        print(f"actuator emulator (protocol v1, watchdog {args.watchdog * 1000:.0f} ms) on {path}; "
+        print(f"actuator emulator (protocol v{emulator.protocol_version}, {emulator.count} actuators, "
+              f"watchdog {args.watchdog * 1000:.0f} ms) on {path}; "
               "Ctrl-C to stop", file=sys.stderr, flush=True)
         while not done.wait(0.2):
             pass
@@ -127,7 +147,7 @@ def run(args: argparse.Namespace) -> int:
     return _serve_lab(args, params, plant, psi0, done)
 
 
-def _serve_lab(args: argparse.Namespace, params: RobotParams, plant: object, psi0: np.ndarray,
+def _serve_lab(args: argparse.Namespace, params: Arm, plant: object, psi0: np.ndarray,
                done: threading.Event) -> int:
     from wristmark.cvs.calibration.load import load_calibration
     from wristmark.models.marker import MarkerModel
@@ -148,7 +168,8 @@ def _serve_lab(args: argparse.Namespace, params: RobotParams, plant: object, psi
         print(path, flush=True)
         print(url, flush=True)
         w, h = lab.camera.image_size
-        print(f"virtual lab: actuator box (protocol v1) on {path}; stereo endoscope {2 * w}x{h} side by side at "
+        print(f"virtual lab: actuator box (protocol v{lab.emulator.protocol_version}, {lab.emulator.count} "
+              f"actuators) on {path}; stereo endoscope {2 * w}x{h} side by side at "
               f"up to {args.fps:g} fps on {url}; Ctrl-C to stop", file=sys.stderr, flush=True)
         while not done.wait(0.2):
             if lab.error:

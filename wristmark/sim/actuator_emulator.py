@@ -1,4 +1,8 @@
-"""The actuator box, emulated: protocol v1 device side driving any :class:`ActuatedArm`.
+"""The actuator box, emulated: protocol v1 / v2 device side driving any :class:`ActuatedArm`.
+
+Protocol version: v1 (6 actuators) for the reference arm's flat robot file (:class:`RobotParams`),
+so today's behaviour is unchanged byte for byte; v2 with n = the arm's actuator count (1..16) for
+a format-2 robot file (:class:`ArmSpec`), even when n = 6. ``protocol_version`` overrides.
 
 Bytes in, bytes out (:meth:`ActuatorEmulator.receive`), or served on a fresh pseudo-terminal
 (:meth:`ActuatorEmulator.serve_pty`) in a background thread. The arm is advanced in the
@@ -24,10 +28,11 @@ from collections.abc import Callable
 import numpy as np
 
 from wristmark.models.arm_shape import ArmShape
-from wristmark.models.arm_spec import Arm
-from wristmark.models.errors import WristmarkError
+from wristmark.models.arm_spec import Arm, arm_size
+from wristmark.models.errors import ConfigError, WristmarkError
 from wristmark.models.limits import actuator_bounds
 from wristmark.models.plant_interface import ActuatedArm
+from wristmark.models.robot_params import RobotParams
 from wristmark.rig.link import protocol as P
 from wristmark.rig.link.actuator_driver import check_protocol_arm
 
@@ -35,15 +40,27 @@ _POLL_S = 0.01  # serve loop wake-up period [s]: watchdog and arm advance resolu
 
 
 class ActuatorEmulator:
-    """Device side of protocol v1 around an arm. Thread-safe: one lock guards the state."""
+    """Device side of protocol v1 / v2 around an arm. Thread-safe: one lock guards the state.
+
+    protocol_version: 1 or 2; None: 1 for the flat reference arm (RobotParams), else 2. The
+    actuator count on the wire is the arm's (v1: must be 6)."""
 
     def __init__(self, arm: ActuatedArm, params: Arm, watchdog_s: float = 0.25,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 clock: Callable[[], float] = time.monotonic, protocol_version: int | None = None) -> None:
         if watchdog_s <= 0:
             raise WristmarkError(f"watchdog_s must be > 0 s, got {watchdog_s}")
         self.arm = arm
         self.params = params
-        check_protocol_arm(params)
+        if protocol_version is None:
+            protocol_version = P.PROTOCOL_VERSION if isinstance(params, RobotParams) else P.PROTOCOL_V2
+        if protocol_version == P.PROTOCOL_VERSION:
+            check_protocol_arm(params)
+        elif protocol_version != P.PROTOCOL_V2:
+            raise ConfigError(f"the emulator speaks protocol v1 or v2, not v{protocol_version}")
+        self.protocol_version = int(protocol_version)
+        self.count = arm_size(params)[1]
+        if not 1 <= self.count <= P.MAX_ACTUATORS:
+            raise ConfigError(f"protocol v2 carries 1 to {P.MAX_ACTUATORS} actuators; this arm has {self.count}")
         self.watchdog_s = float(watchdog_s)
         self.clock = clock
         self.lo, self.hi = actuator_bounds(params)
@@ -53,7 +70,7 @@ class ActuatorEmulator:
         self.target_rejected = False
         self.fault = False
         self.counters = {"packets": 0, "errors": 0}
-        self._parser = P.StreamParser()
+        self._parser = P.StreamParser(count=self.count)
         self._lock = threading.RLock()
         self._t0 = clock()
         self._t_last = self._t0
@@ -125,10 +142,10 @@ class ActuatorEmulator:
     def _state(self, seq: int) -> P.State:
         a = self.arm.measured_actuators()
         try:
-            micro = P.micro_from_si(a)
+            micro = P.micro_from_si(a, self.count)
         except WristmarkError:
             self.fault = True
-            micro = (0, 0, 0, 0, 0, 0)
+            micro = (0,) * self.count
         return P.State(micro, self.flags, self.clock_ms(), seq=seq)
 
     def _handle(self, item: P.Packet | P.ParseError) -> P.Packet:
@@ -138,7 +155,7 @@ class ActuatorEmulator:
         self.counters["packets"] += 1
         seq = item.seq
         if isinstance(item, P.Ping):
-            return P.Pong(P.PROTOCOL_VERSION, P.ACTUATOR_COUNT, seq=seq)
+            return P.Pong(self.protocol_version, self.count, seq=seq)
         if isinstance(item, P.GetState):
             self._t_fed = self.clock()
             return self._state(seq)
@@ -173,7 +190,7 @@ class ActuatorEmulator:
         if not self.enabled:
             return P.Error(P.ERR_NOT_ENABLED, seq=item.seq)
         self._t_fed = self.clock()
-        a = P.si_from_micro(item.targets_micro)
+        a = P.si_from_micro(item.targets_micro, self.count)
         if np.any(a < self.lo) or np.any(a > self.hi):
             self.target_rejected = True
             self._safe_hold()

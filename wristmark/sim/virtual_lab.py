@@ -2,7 +2,7 @@
 sees only what it would see in a lab, serial bytes and a video stream (docs/design.md "The virtual lab").
 
 :class:`VirtualLab` drives the simulated true arm from an actuator-box emulator on a new pty
-(protocol v1, wall clock) and, in a camera thread, samples that arm in wall-clock time at up to
+(protocol v1 or v2, wall clock) and, in a camera thread, samples that arm in wall-clock time at up to
 ``fps`` frames per second on a fixed frame clock (frame k starts k periods after the first, so a
 host can lock its cycle to the frames' phase; where rendering cannot keep up, the next frame
 starts at once and the clock restarts from it), has it rendered by a process of its own

@@ -1,0 +1,94 @@
+"""The emulator plays any arm: protocol v2 with the arm's n actuators for a format-2 robot file
+(in process and `wristmark emulator --pty --robot FILE`), v1 for the reference arm's flat file."""
+
+from __future__ import annotations
+
+import signal
+import struct
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import serial
+
+from tests.sim.test_actuator_emulator import _transact
+from wristmark.models.actuation import actuators_from_psi
+from wristmark.models.arm_spec import home_psi, load_loop_arm
+from wristmark.models.config_files import CONFIG_DIR, default_config
+from wristmark.models.errors import ConfigError
+from wristmark.models.marker import MarkerModel
+from wristmark.models.robot_params import RobotParams
+from wristmark.rig.link import protocol as P
+from wristmark.rig.link.actuator_driver import ActuatorDriver, ActuatorRejected
+from wristmark.sim.actuator_emulator import ActuatorEmulator
+from wristmark.sim.plant import TruePlant
+from wristmark.sim.plant_params import PlantParams
+
+TENDON3_FILE = CONFIG_DIR / "robots" / "tendon3.yaml"
+TENDON3 = load_loop_arm(TENDON3_FILE, MarkerModel.load(default_config("marker.yaml")))
+EXE = Path(sys.executable).parent / "wristmark"
+
+
+def _tendon3_plant() -> TruePlant:
+    return TruePlant(TENDON3, PlantParams.load(CONFIG_DIR / "robots" / "tendon3_plant.yaml"), psi0=home_psi(TENDON3))
+
+
+def test_in_process_v2_emulator_drives_the_tendon_arm_through_the_driver() -> None:
+    emu = ActuatorEmulator(_tendon3_plant(), TENDON3)
+    assert (emu.protocol_version, emu.count) == (2, 10)
+    path = emu.serve_pty()
+    try:
+        with ActuatorDriver(path, timeout=0.5, retries=1, params=TENDON3) as drv:
+            assert drv.ping() == P.Pong(2, 10, seq=1)
+            drv.enable()
+            a = actuators_from_psi(TENDON3, home_psi(TENDON3)) + 1e-4
+            st = drv.set_target(a)
+            assert st.enabled and st.positions.shape == (10,)
+            with pytest.raises(ActuatorRejected, match=r"s1a=.* m not in"):
+                drv.set_target(a + np.r_[0.0, 1.0, np.zeros(8)])  # a tendon pulled 1 m: refused whole
+            assert np.allclose(drv.get_state().positions, st.positions, atol=1e-4)
+    finally:
+        emu.stop()
+
+
+def test_flat_reference_arm_stays_v1_and_v1_refuses_another_count() -> None:
+    assert ActuatorEmulator(_tendon3_plant(), TENDON3, protocol_version=2).protocol_version == 2
+    from tests.sim.test_actuator_emulator import A_HOME, IdealArm
+
+    assert ActuatorEmulator(IdealArm(A_HOME), RobotParams()).protocol_version == 1
+    with pytest.raises(ConfigError, match="protocol v1, which carries 6 actuators; this arm has 10"):
+        ActuatorEmulator(_tendon3_plant(), TENDON3, protocol_version=1)
+
+
+def test_cli_emulator_robot_speaks_v2_with_n_10_to_an_independent_client() -> None:
+    proc = subprocess.Popen([str(EXE), "emulator", "--pty", "--robot", str(TENDON3_FILE)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout is not None
+        path = proc.stdout.readline().strip()
+        assert path.startswith("/dev/")
+        port = serial.Serial(path, 115200, timeout=0.1)
+        try:
+            assert _transact(port, 0x01, 11) == (0x81, 11, b"\x02\x0a")
+            t, seq, payload = _transact(port, 0x02, 12)  # ENABLE
+            assert (t, seq, len(payload)) == (0x84, 12, 4 * 10 + 6)
+            pos = struct.unpack("<10iHI", payload)
+            assert pos[10] & 1
+            assert _transact(port, 0x04, 13, struct.pack("<10i", *pos[:10]))[:2] == (0x84, 13)
+            assert _transact(port, 0x04, 14, struct.pack("<6i", *pos[:6])) == (0xEE, 14, b"\x02")  # v1-sized
+        finally:
+            port.close()
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        rc = proc.wait(timeout=10)
+        err = proc.stderr.read() if proc.stderr else ""
+    assert rc == 0 and "protocol v2, 10 actuators" in err
+
+
+def test_cli_emulator_psi0_of_the_wrong_size_is_one_line() -> None:
+    r = subprocess.run([str(EXE), "emulator", "--pty", "--robot", str(TENDON3_FILE), "--psi0", "0", "0", "0"],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode != 0 and r.stdout == ""
+    assert r.stderr.strip().count("\n") == 0 and "--psi0 needs 7 values" in r.stderr

@@ -108,6 +108,8 @@ def summarize(setup: LoopSetup, traj: Trajectory, session: ServoSession, out: Se
     driver = getattr(session.link, "driver", None)
     if driver is not None:
         link.update(driver.stats)
+        if getattr(driver, "version", None) is not None:  # the protocol the device answered PING with
+            link["protocol"] = {"version": driver.version, "actuators": driver.count}
         st = getattr(session.link, "state", None)
         if st is not None:
             link["device"] = {"flags": st.flags, "enabled": st.enabled, "estopped": st.estopped,

@@ -1,4 +1,4 @@
-"""``wristmark servo``: the closed loop driving the actuators through protocol v1.
+"""``wristmark servo``: the closed loop driving the actuators through protocol v1 (v2 for a format-2 arm).
 
 The hardware path, ``--serial PORT --camera SPEC``: an actuator box on a serial port (hardware,
 the virtual lab's ``wristmark emulator --pty --camera-port``, any pyserial URL) and a stereo

@@ -1,4 +1,4 @@
-"""The hardware path: the servo loop, the actuator links (serial protocol v1, direct), the
+"""The hardware path: the servo loop, the actuator links (serial protocol v1 / v2, direct), the
 driver, trajectories, run logs and metrics, the registration moves, the MJPEG server.
 
 Frames: targets and the tip in {w} (the robot base) [m]; time on the host's clock [s].

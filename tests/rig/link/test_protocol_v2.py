@@ -87,3 +87,27 @@ def test_units_for_any_count() -> None:
     assert len(m) == 10 and np.allclose(P.si_from_micro(m, 10), a, atol=0.5e-6)
     with pytest.raises(LimitError, match="expected 10 actuator values"):
         P.micro_from_si(a[:6], 10)
+
+
+def test_doc_v2_examples_decode_as_documented() -> None:
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[3] / "docs" / "protocol.md").read_text()
+    block = re.search(r"```wire-examples-v2\n(.*?)```", text, re.S)
+    assert block is not None
+    lines = [ln for ln in block.group(1).splitlines() if ln.strip()]
+    assert {ln.split()[0] for ln in lines} == {"PONG", "SET_TARGET", "STATE"}
+    for line in lines:
+        left, hexbytes = line.split("->")
+        name, n_field, *fields = left.split()
+        n = int(n_field.removeprefix("n="))
+        out = P.StreamParser(count=n).feed(bytes.fromhex(hexbytes))
+        assert len(out) == 1 and not isinstance(out[0], P.ParseError), line
+        pkt = out[0]
+        assert pkt.TYPE.name == name
+        for f in fields:
+            key, value = f.split("=")
+            want = tuple(int(v) for v in value.split(",")) if "," in value else int(value)
+            assert getattr(pkt, key) == want, (line, key)
+        assert P.encode(pkt) == bytes.fromhex(hexbytes)

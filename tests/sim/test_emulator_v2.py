@@ -92,3 +92,10 @@ def test_cli_emulator_psi0_of_the_wrong_size_is_one_line() -> None:
                        capture_output=True, text=True, timeout=60)
     assert r.returncode != 0 and r.stdout == ""
     assert r.stderr.strip().count("\n") == 0 and "--psi0 needs 7 values" in r.stderr
+
+
+def test_cli_virtual_lab_with_another_arm_is_refused_in_one_line() -> None:
+    r = subprocess.run([str(EXE), "emulator", "--pty", "--camera-port", "0", "--robot", str(TENDON3_FILE)],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode != 0 and r.stdout == ""
+    assert r.stderr.strip().count("\n") == 0 and "--camera-port (the virtual lab) plays the reference arm" in r.stderr

@@ -106,6 +106,9 @@ def run(args: argparse.Namespace) -> int:
     claim_outputs(files=[args.truth_out, args.truth_dense_out], force=args.force)  # before anything is served
     params = load_loop_arm(args.robot, MarkerModel.load(args.marker or default_config("marker.yaml")))
     n = arm_size(params)[0]
+    if args.camera_port is not None and not isinstance(params, RobotParams):
+        raise InputError("--camera-port (the virtual lab) plays the reference arm (the flat robot file) only so far: "
+                         "its endoscope pose is not yet fitted to another arm; for a format-2 arm use --pty alone")
     plant_path = Path(args.plant) if args.plant else arm_plant_file(args.robot) or DEFAULT_PLANT
     plant = PlantParams.load(plant_path) if plant_path.exists() or args.plant else PlantParams()
     if args.psi0 is not None and len(args.psi0) != n:

@@ -403,3 +403,23 @@ def test_record_wire_carries_any_arms_psi() -> None:
     rec.psi_cmd = np.zeros(record_wire.MAX_PSI + 1)
     with pytest.raises(ValueError, match="malformed psi"):
         record_wire.encode(rec)
+
+
+@pytest.mark.network
+def test_live_view_draws_a_format2_arm_run() -> None:
+    from wristmark.viz.live import start_live_view
+
+    setup = load_setup(robot=TENDON3)
+    psi = setup.params.home_psi()
+    tip = forward_kinematics(setup.params, psi).tip
+    view = start_live_view(setup, stream=None)
+    try:
+        for k in range(40):
+            q = psi + 0.01 * k / 40
+            view.on_cycle(CycleRecord(t=0.02 * k, phase="closed_loop", p_des=tip, p_cmd=tip, p_est=tip, p_true=tip,
+                                      p_trk=tip, psi_cmd=q, psi_true=q, meas_ok=True, rejected=False,
+                                      vision_ms=5.0, ctrl_us=20.0))
+            time.sleep(0.01)
+    finally:
+        view.close()
+    assert view.stats.error == "" and view.stats.frames >= 1 and view.stats.sent == 40

@@ -246,3 +246,55 @@ def test_camera_offset_moves_only_the_true_camera(tmp_path: Path) -> None:
         (tmp_path / "bad.yaml").write_text(yaml.safe_dump({"camera_offset": bad}))
         with pytest.raises(ConfigError, match=needle):
             PlantParams.load(tmp_path / "bad.yaml")
+
+
+# -- any arm (format-2 robot file) ---------------------------------------------------------------
+TENDON3 = CONFIGS / "robots" / "tendon3.yaml"
+
+
+def test_approach_offset_of_any_arm_follows_its_psi() -> None:
+    from wristmark.models.arm_spec import ArmSpec, load_arm
+    from wristmark.rig.registration.poses import approach_offset
+
+    arm = load_arm(TENDON3)  # d, theta1, delta1, theta2, delta2, theta3, delta3
+    np.testing.assert_array_equal(approach_offset(arm), [APPROACH[1], *[APPROACH[2], APPROACH[3]] * 3])
+    np.testing.assert_array_equal(approach_offset(ArmSpec.from_params(PARAMS)), APPROACH)  # same numbers
+    np.testing.assert_array_equal(approach_offset(PARAMS), APPROACH)
+
+
+def test_any_arm_is_fit_rigidly_and_its_log_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from wristmark.models.arm_spec import load_arm
+
+    with pytest.raises(InputError, match="models the reference arm only"):
+        solve_registration(load_arm(TENDON3), [], estimate_arm=True)
+    capsys.readouterr()
+    assert main(["register", "--robot", str(TENDON3), "--out", str(tmp_path / "r.yaml"),
+                 "--log", str(tmp_path / "log")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "six psi columns" in err[0], err
+    assert not (tmp_path / "r.yaml").exists()
+
+
+@pytest.mark.slow
+def test_simulated_bench_registers_a_three_segment_arm(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """tendon3 on an error-free plant whose camera is 5.8 mm / 3.2 deg from the calibration's:
+    the rigid fit over its own poses finds the true camera."""
+    from wristmark.sim.setup import load_setup
+
+    plant = yaml.safe_load((CONFIGS / "robots" / "tendon3_plant.yaml").read_text())
+    plant.update(bend_gain=[1.0] * 3, plane_offset=[0.0] * 3, stem_coupling=0.0, backlash=[0.0] * 10,
+                 tip_force=[0.0, 0.0, 0.0], camera_offset=OFFSET)
+    (tmp_path / "off.yaml").write_text(yaml.safe_dump(plant))
+    out = tmp_path / "reg.yaml"
+    capsys.readouterr()
+    assert main(["register", "--robot", str(TENDON3), "--plant", str(tmp_path / "off.yaml"), "--image-scale", "0.5",
+                 "--out", str(out), "--json", "--no-progress"]) == 0
+    captured = capsys.readouterr()
+    assert "fit rigidly" in captured.err
+    res = json.loads(captured.out)
+    setup = load_setup(robot=TENDON3, plant=tmp_path / "off.yaml")
+    truth, believed = setup.true_camera.T_world_left, setup.camera.T_world_left
+    assert transform_error(truth, believed)[0] > 0.005  # the calibration is 5.8 mm off
+    t, r = transform_error(truth, load_registration(out).world_T_left)
+    assert t < 5e-4 and np.degrees(r) < 0.3, (1000 * t, np.degrees(r))
+    assert res["poses"] == 12 and res["error"]["translation_mm"] == pytest.approx(1000 * t)

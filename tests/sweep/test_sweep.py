@@ -26,6 +26,7 @@ METRICS = ("open_mean_mm", "open_max_mm", "closed_mean_mm", "closed_max_mm", "ra
 LATENCY = (0.03, 0.045, 0.05)
 BACKLASH = (0.0, 0.012)
 SEED = 5
+TENDON3 = ROOT / "configs" / "robots" / "tendon3.yaml"
 SPEC = {
     "experiment": "cube",
     "set": {"sensor": "truth-noise", "duration": 1.5, "rig.settle_time": 0.5},
@@ -212,6 +213,12 @@ BAD_SPECS = [
     ({"experiment": "cube", "seeds": [1.5]}, ["seeds", "integer"]),
     ({"experiment": "cubes"}, ["'experiment'", "cube, point, accuracy, load"]),
     ({"experiment": "cube", "grids": {"latency": [0.03]}}, ["unknown top-level key 'grids'"]),
+    ({"experiment": "cube", "set": {"robot": str(TENDON3)}, "grid": {"robot.segments.3.length": [0.01]}},
+     ["robot.segments.3.length", "list of 3"]),
+    ({"experiment": "cube", "set": {"robot": str(TENDON3)}, "grid": {"robot.segments.0.lenght": [0.01]}},
+     ["robot.segments.0.lenght", "length"]),
+    ({"experiment": "cube", "set": {"robot": str(TENDON3)}, "grid": {"robot.segments.0.length": [-0.01]}},
+     ["trial 0", "segments[0].length", "expected > 0"]),
 ]
 
 
@@ -357,6 +364,27 @@ def test_the_fingerprint_follows_the_configuration_files_a_trial_reads(tmp_path:
     assert load_spec(spec).fingerprint() == first
     plant.write_text(plant.read_text().replace("actuator_tau: 0.04", "actuator_tau: 0.05"))
     assert load_spec(spec).fingerprint() != first  # a resumed sweep would otherwise mix two plants
+
+
+@pytest.mark.slow
+def test_robot_keys_of_a_format2_robot_file_sweep_its_segments(tmp_path: Path) -> None:
+    spec = tmp_path / "arm.yaml"
+    write_yaml(spec, {"experiment": "cube",
+                      "set": {"sensor": "truth-noise", "duration": 0.3, "rig.settle_time": 0.2, "robot": str(TENDON3)},
+                      "grid": {"robot.segments.0.length": [0.038, 0.042]}})
+    out = tmp_path / "out"
+    assert main(["sweep", str(spec), "--out", str(out), "--workers", "1", "--no-progress"]) == 0
+    got = rows(out / "results.csv")
+    assert [r["robot.segments.0.length"] for r in got] == ["0.038", "0.042"]
+    assert all(r["status"] == "ok" and float(r["closed_mean_mm"]) > 0 for r in got), got
+    for r, length in zip(got, (0.038, 0.042)):
+        trial = out / "trials" / f"{int(r['trial']):04d}"
+        robot = yaml.safe_load((trial / "config" / "robot.yaml").read_text())
+        assert robot["format"] == 2 and robot["segments"][0]["length"] == length and len(robot["segments"]) == 3
+        assert "tip_offset" not in robot  # the marker file's
+        # the changed file is written elsewhere: the trial keeps the plant shipped beside tendon3.yaml
+        assert "robots/tendon3_plant.yaml" in (trial / "command.txt").read_text()
+        assert json.loads((trial / "run" / "result.json").read_text())["arm"]["name"] == "tendon3"
 
 
 @pytest.mark.slow

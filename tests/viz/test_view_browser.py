@@ -41,6 +41,8 @@ ARTIFACTS = Path(__file__).resolve().parents[2] / "runs" / "test-artifacts"
 CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
 SEGMENT1: RGB = (0.20, 0.45, 0.85)  # models.urdf.MATERIALS
 SEGMENT2: RGB = (0.15, 0.70, 0.45)
+SEGMENT3: RGB = (0.85, 0.35, 0.55)  # models.arm_urdf.EXTRA_MATERIALS
+PAPER_SEGMENTS = (("segment 1", "seg1_link_2_0", SEGMENT1), ("segment 2", "seg2_link_3_0", SEGMENT2))
 
 
 def _chromium() -> str:
@@ -141,14 +143,16 @@ def pixel_radius(view: CameraView, p: np.ndarray, radius: float) -> float:
 
 
 def check_scene(img: np.ndarray, view: CameraView, state: SceneState, config: SceneConfig,
-                tips: tuple[str, ...] = TIP_KINDS) -> dict[str, int]:
-    """Assert that segment 1, segment 2, the marker's black and white patches and the given
-    tip spheres show in their colours where ``view`` projects them; return the pixel counts."""
+                tips: tuple[str, ...] = TIP_KINDS,
+                segments: tuple[tuple[str, str, RGB], ...] = PAPER_SEGMENTS) -> dict[str, int]:
+    """Assert that the ``segments`` (name, visual node, colour; default: the paper arm's segment
+    1 and 2), the marker's black and white patches and the given tip spheres show in their
+    colours where ``view`` projects them; return the pixel counts."""
     vis, _ = recording_visualizer()
     poses = dict(ArmScene(vis, config, view).node_poses(state))
     found: dict[str, int] = {}
     arm_r = config.params.outer_diameter / 2.0
-    for name, node, rgb in (("segment 1", "seg1_link_2_0", SEGMENT1), ("segment 2", "seg2_link_3_0", SEGMENT2)):
+    for name, node, rgb in segments:
         p = poses[f"{ROOT}/arm/visuals/{node}"][:3, 3]
         uv = view.project(p[None], WIDTH, HEIGHT)[0]
         found[name] = count_hue(img, uv, max(2.0, 0.8 * pixel_radius(view, p, arm_r)), rgb)
@@ -190,6 +194,25 @@ def test_static_home_snapshot_shows_arm_and_marker(page: Any, tmp_path: Path) ->
     view = page_view(page)
     assert 0.08 < view.distance < 0.4  # framed on the centimetre-sized arm
     print(check_scene(img, view, state, SceneConfig.from_setup(setup), tips=("true",)))
+
+
+def test_static_home_snapshot_of_a_three_segment_arm_shows_its_links(page: Any, tmp_path: Path) -> None:
+    robot = Path(__file__).resolve().parents[2] / "configs" / "robots" / "tendon3.yaml"
+    out = tmp_path / "tendon3.html"
+    assert main(["view", "--snapshot", str(out), "--robot", str(robot)]) == 0
+    open_scene(page, out.resolve().as_uri(), animated=False)
+    links = page.evaluate("""() => {
+        const names = [];
+        viewer.scene_tree.find(['meshcat', 'wristmark', 'arm', 'visuals']).object.traverse(o => names.push(o.name));
+        return names; }""")
+    for t in (1, 2, 3):  # every segment's links are objects of the scene
+        assert sum(n.startswith(f"seg{t}_link_") for n in links) == 6, sorted(links)
+    img = screenshot(page, "view-snapshot-tendon3", tmp_path)
+    setup = load_setup(robot=robot)
+    state = SceneState.at_rest(setup.params)
+    segments = (("segment 1", "seg1_link_3_0", SEGMENT1), ("segment 2", "seg2_link_3_0", SEGMENT2),
+                ("segment 3", "seg3_link_3_0", SEGMENT3))
+    print(check_scene(img, page_view(page), state, SceneConfig.from_setup(setup), tips=("true",), segments=segments))
 
 
 def test_served_replay_page_shows_arm_marker_and_tips(page: Any, tmp_path: Path) -> None:

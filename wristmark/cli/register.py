@@ -20,8 +20,9 @@ import numpy as np
 
 from wristmark.cli.common_options import add_config_option, add_force_argument, add_json_flag, set_example
 from wristmark.cli.option_types import float_in, int_in, positive_float, seed_int
+from wristmark.models.arm_spec import robot_file_format
 from wristmark.models.config_files import default_config
-from wristmark.models.errors import ConfigError, InputError
+from wristmark.models.errors import InputError
 from wristmark.models.robot_params import RobotParams
 from wristmark.rig.recording.output_dir import claim_outputs
 
@@ -69,9 +70,6 @@ def _observe_sim(args: argparse.Namespace, progress: bool) -> tuple[Any, list, d
 
     setup = load_setup(robot=args.robot, marker=args.marker, camera=args.calib, plant=args.plant)
     params = setup.params
-    if not isinstance(params, RobotParams):
-        raise ConfigError("wristmark register: the hand-eye registration models the reference arm only so far "
-                          "(its arm correction: gains, stem coupling); a format-2 robot file is not supported yet")
     if args.registration:
         setup = setup.with_changes(registration=load_registration(args.registration).world_T_left)
     if args.image_scale is not None:
@@ -139,6 +137,9 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("give either --from-log DIR or --serial PORT, not both")
     if args.camera and not args.serial:
         raise InputError("--camera SPEC is for hardware: give --serial PORT too (the simulated bench renders its own)")
+    if args.robot and robot_file_format(args.robot) == 2 and (args.log or args.from_log):
+        raise InputError("--log/--from-log: the registration log holds the reference arm's six psi columns; "
+                         "register a format-2 arm without them")
     warm_up(jit=not args.from_log)  # OpenCV's threads, the tracker's kernels (cvs.tracking.warmup)
     progress = not args.no_progress
     extra: dict[str, Any] = {}
@@ -156,7 +157,11 @@ def run(args: argparse.Namespace) -> int:
             print(f"wristmark register: pose {o.pose} ({'-' if o.approach < 0 else '+'}): marker not tracked "
                   f"({o.reason})", file=sys.stderr)
     poses = registration_poses(params, obs)
-    res = solve_registration(params, poses, estimate_arm=not args.rigid_arm)
+    rigid = args.rigid_arm or not isinstance(params, RobotParams)
+    if rigid and not args.rigid_arm:
+        print("wristmark register: note: a format-2 arm is fit rigidly (world_T_left alone; the arm correction "
+              "models the reference arm)", file=sys.stderr)
+    res = solve_registration(params, poses, estimate_arm=not rigid)
     n_poses = len({o.pose for o in obs if o.ok})
     save_registration(out, Registration(res.world_T_left, res.rms_m, n_poses))
     per_pose = [{"pose": n, "centre_mm": 1000 * float(c), "axis_deg": float(np.degrees(a))}

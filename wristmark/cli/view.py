@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
 
         config = SceneConfig.from_setup(load_setup(robot=args.robot, marker=args.marker, camera=args.calib))
     title = f"wristmark replay: {replay.run_dir.name}" if replay else "wristmark: arm at home"
-    status = replay.summary if replay else {"configuration": "home (HOME_PSI)"}
+    status = replay.summary if replay else {"configuration": f"home ({_arm_label(config)})"}
 
     if args.snapshot:
         from wristmark.viz.snapshot import recording_visualizer, write_html
@@ -115,3 +115,11 @@ def run(args: argparse.Namespace) -> int:
         server.close()
     return 0
 
+
+
+def _arm_label(config: object) -> str:
+    """The home view's arm: the format-2 robot file's name, or HOME_PSI for the reference arm."""
+    from wristmark.models.arm_spec import ArmSpec
+
+    params = getattr(config, "params", None)
+    return f"arm {params.name}" if isinstance(params, ArmSpec) else "HOME_PSI"

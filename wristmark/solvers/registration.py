@@ -20,6 +20,10 @@ marker's roll is not used (it is only known modulo the pattern's period).
 
 Residuals are scaled by the tracker's accuracy (centre 0.05 mm, axis 0.2 deg), so the loss's
 knee is at about 3 sigma. Units: metres, radians.
+
+Any arm (a format-2 robot file, models.arm_spec.ArmSpec): the arm correction above is the
+reference arm's, so the fit is rigid (``estimate_arm=False``): world_T_left alone from the
+model's marker poses (models.kinematics.forward_kinematics of the ArmSpec).
 """
 
 from __future__ import annotations
@@ -32,10 +36,10 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
+from wristmark.models.arm_spec import Arm, ArmSpec
 from wristmark.models.constant_curvature import rot_z, segment_transform
 from wristmark.models.errors import InputError
 from wristmark.models.kinematics import forward_kinematics
-from wristmark.models.robot_params import RobotParams
 
 Array = NDArray[np.float64]
 SIGMA_CENTRE = 5e-5  # [m] centre accuracy of the stereo marker pose (NOTES: ~29 um median)
@@ -69,9 +73,15 @@ class ArmCorrection:
     stem_coupling: float = 0.0
     half_play: tuple[float, ...] = (0.0,) * 6
 
-    def marker_frame(self, params: RobotParams, psi: Array, motion_sign: Array) -> Array:
-        """The model's 4x4 pose of {wm} in {w} with the corrections applied."""
+    def marker_frame(self, params: Arm, psi: Array, motion_sign: Array) -> Array:
+        """The model's 4x4 pose of {wm} in {w} with the corrections applied (none: any arm's
+        forward kinematics; the corrections model the reference arm's RobotParams only)."""
         q = np.array(psi, float)
+        if self == ArmCorrection() or isinstance(params, ArmSpec):
+            if isinstance(params, ArmSpec) and self != ArmCorrection():
+                raise InputError("the arm correction (bend gains, stem coupling, play) models the reference arm "
+                                 "only: fit a format-2 arm rigidly (--rigid-arm)")
+            return forward_kinematics(params, q).T_world_marker
         if any(self.half_play):
             a = actuators_from_psi(params, q) - np.asarray(self.half_play) * motion_sign
             q = psi_from_actuators(params, a, q)
@@ -105,7 +115,7 @@ class RegistrationResult:
     outliers: list[str] = field(default_factory=list)
 
 
-def _model(params: RobotParams, poses: list[RegistrationPose], arm: ArmCorrection) -> tuple[Array, Array]:
+def _model(params: Arm, poses: list[RegistrationPose], arm: ArmCorrection) -> tuple[Array, Array]:
     frames = [arm.marker_frame(params, p.psi, p.motion_sign) for p in poses]
     return np.array([T[:3, 3] for T in frames]), np.array([T[:3, 2] for T in frames])
 
@@ -138,10 +148,13 @@ def closed_form(centres_left: Array, centres_world: Array) -> Array:
     return _transform(R, mw - R @ ml)
 
 
-def solve_registration(params: RobotParams, poses: list[RegistrationPose], estimate_arm: bool = True,
+def solve_registration(params: Arm, poses: list[RegistrationPose], estimate_arm: bool = True,
                        loss: str = "soft_l1") -> RegistrationResult:
     """world_T_left from the observations (see the module docstring). InputError on too few or
-    degenerate poses."""
+    degenerate poses, or on ``estimate_arm`` for any arm but the reference arm."""
+    if estimate_arm and isinstance(params, ArmSpec):
+        raise InputError("the arm correction (bend gains, stem coupling, play) models the reference arm only: "
+                         "fit a format-2 arm rigidly (--rigid-arm)")
     if estimate_arm and len(poses) < MIN_POSES_ARM:
         raise InputError(f"estimating the arm's gains with the registration needs at least {MIN_POSES_ARM} "
                          f"tracked poses, got {len(poses)}: use more --poses (or --rigid-arm)")

@@ -6,9 +6,10 @@ An option key is the name of a ``wristmark experiment`` option (``latency``, ``d
 value becomes command-line text, so it is checked by the very parser of that command.
 A dotted key ``NS.field[.index ...]`` changes one value of a configuration file: ``NS`` is one
 of plant, rig, controller, robot, marker, camera; list indices are integers
-(``plant.backlash.0``). The trial writes the changed file and passes it to the experiment
-(``--plant``, ``--rig``, ``--controller-config``, ...), so a trial is a plain
-``wristmark experiment`` run whose command line says everything. A rig or controller key may name
+(``plant.backlash.0``; a format-2 robot file's ``robot.segments.0.length``). The trial writes the
+changed file and passes it to the experiment (``--plant``, ``--rig``, ``--controller-config``,
+...), so a trial is a plain ``wristmark experiment`` run whose command line says everything (a
+changed format-2 robot file keeps the plant shipped beside the original, ``--plant``). A rig or controller key may name
 its section of the file (``rig.loop.gate`` = ``rig.gate``, ``controller.qp.ki`` = ``controller.ki``).
 """
 
@@ -54,8 +55,14 @@ def _load_controller(path: Path) -> dict[str, Any]:
 
 
 def _load_robot(path: Path) -> dict[str, Any]:
+    """The robot file as its complete mapping: the flat reference-arm file's RobotParams, or a
+    format-2 file's ArmSpec (keys such as ``robot.segments.0.length`` [m] or
+    ``robot.stem.0.range.1``; without ``tip_offset``, which belongs to the marker file)."""
+    from wristmark.models.arm_spec import load_arm, robot_file_format
     from wristmark.models.robot_params import RobotParams
 
+    if robot_file_format(path) == 2:
+        return {k: v for k, v in to_mapping(load_arm(path)).items() if k != "tip_offset"}
     return to_mapping(RobotParams.load(path))
 
 

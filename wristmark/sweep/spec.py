@@ -30,7 +30,7 @@ import numpy as np
 from wristmark.cli.option_types import SEED_MAX
 from wristmark.models.config_files import find_config
 from wristmark.models.config_io import extends_chain, load_yaml
-from wristmark.models.errors import ConfigError
+from wristmark.models.errors import ConfigError, WristmarkError
 from wristmark.sweep.keys import (
     FILE_OPTIONS,
     NAMESPACES,
@@ -235,10 +235,27 @@ class _BaseConfigs:
         return self.cache[ck]
 
 
+def _base_file(ns: str, plain: dict[str, tuple[str, Any]]) -> Path:
+    """The file namespace ``ns`` starts from: its option's, else (the plant of a format-2 robot
+    file) the plant file shipped beside that robot file, else configs/'s."""
+    from wristmark.sim.setup import arm_plant_file, default_config
+
+    file = plain.get(NAMESPACES[ns].option)
+    if file:
+        return Path(file[1])
+    robot = plain.get(NAMESPACES["robot"].option)
+    if ns == "plant" and robot:
+        try:
+            found = arm_plant_file(robot[1])
+        except WristmarkError:
+            found = None  # the trial reports what is wrong with the robot file
+        if found is not None:
+            return found.resolve()
+    return default_config(NAMESPACES[ns].default)
+
+
 def _expand(options: ExperimentOptions, fixed: dict[str, Any], points: list[dict[str, Any]],
             samples: list[dict[str, Any]], seeds: tuple[int, ...]) -> list[Trial]:
-    from wristmark.sim.setup import default_config
-
     bases = _BaseConfigs()
     trials: list[Trial] = []
     for point, sample in itertools.product(points, samples):
@@ -260,16 +277,18 @@ def _expand(options: ExperimentOptions, fixed: dict[str, Any], points: list[dict
         configs: dict[str, dict[str, Any]] = {}
         for k, ns, parts, v in dotted:
             if ns not in configs:
-                file = plain.get(NAMESPACES[ns].option)
-                base = Path(file[1]) if file else default_config(NAMESPACES[ns].default)
-                configs[ns] = bases.get(ns, base, k)
+                configs[ns] = bases.get(ns, _base_file(ns, plain), k)
             configs[ns] = set_dotted(configs[ns], k, parts, v)
+        if "robot" in configs and "plant" not in configs and "plant" not in plain:
+            # the changed robot file is written elsewhere: keep the plant shipped beside the original
+            plant = _base_file("plant", plain)
+            if plant != _base_file("plant", {}):
+                plain["plant"] = ("plant", str(plant))
         replaced = {NAMESPACES[ns].option for ns in configs}
         inputs = {}
-        for ns, where in NAMESPACES.items():
+        for ns in NAMESPACES:
             if ns not in configs:
-                file = plain.get(where.option)
-                inputs[ns] = bases.digest(Path(file[1]) if file else default_config(where.default))
+                inputs[ns] = bases.digest(_base_file(ns, plain))
         args = [w for dest, (k, v) in plain.items() if dest not in replaced for w in options.tokens(k, v)]
         for seed in seeds:
             trials.append(Trial(len(trials), seed, values, tuple(args), configs, inputs))

@@ -31,8 +31,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
+from wristmark.models.arm_spec import arm_size
 from wristmark.models.errors import WristmarkError
-from wristmark.viz.record_wire import encode
+from wristmark.viz.record_wire import MAX_PSI, encode
 from wristmark.viz.scene import SceneConfig
 from wristmark.viz.viewer_client import MeshcatServer, ViewerError
 
@@ -237,6 +238,9 @@ def start_live_view(setup: LoopSetup | None = None, *, config: SceneConfig | Non
 
             setup = load_loop_setup()
         config = SceneConfig.from_setup(setup)
+    n = arm_size(config.params)[0]
+    if n > MAX_PSI:
+        raise WristmarkError(f"the live view carries arms of up to {MAX_PSI} configuration variables, this one has {n}")
     server = MeshcatServer.start(title=title, host=host, stream=stream)
     image_path = Path(tempfile.mkdtemp(prefix="wristmark-live-")) / "left.png" if config.camera is not None else None
     try:

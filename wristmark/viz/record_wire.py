@@ -1,8 +1,9 @@
 """Fixed-size binary form of a servo cycle for the live view's pipe (one record = one write of
 RECORD_SIZE bytes, below PIPE_BUF, so writes are atomic and never interleave).
 
-Layout (little-endian): t [s], phase (24 bytes UTF-8, NUL-padded), p_des, p_cmd, p_est (NaN:
-no estimate), p_true [m, {w}], psi_cmd, psi_true [rad, m].
+Layout (little-endian): t [s], phase (24 bytes UTF-8, NUL-padded), n (the arm's configuration
+variables, uint64), p_des, p_cmd, p_est (NaN: no estimate), p_true [m, {w}], psi_cmd, psi_true
+[rad, m] (each MAX_PSI entries, the first n used: any arm of models.arm_spec up to MAX_PSI).
 """
 
 from __future__ import annotations
@@ -20,8 +21,9 @@ if TYPE_CHECKING:
 
 Array = NDArray[np.float64]
 
-_FORMAT = struct.Struct("<d24s24d")
-_HEAD = struct.Struct("<d24s")
+MAX_PSI = 16  # configuration variables a record carries at most
+_FORMAT = struct.Struct(f"<d24sQ{12 + 2 * MAX_PSI}d")
+_HEAD = struct.Struct("<d24sQ")
 RECORD_SIZE = _FORMAT.size
 _NAN3 = (math.nan, math.nan, math.nan)
 
@@ -43,19 +45,26 @@ class WireRecord:
 def encode(rec: CycleRecord) -> bytes:
     """RECORD_SIZE bytes of one cycle (~3 us)."""
     est = _NAN3 if rec.p_est is None else rec.p_est
-    values = np.concatenate((rec.p_des, rec.p_cmd, est, rec.p_true, rec.psi_cmd, rec.psi_true), dtype="<f8")
-    if values.shape != (24,):
-        raise ValueError(f"cycle record has malformed vectors ({values.shape[0]} numbers, expected 24)")
-    return _HEAD.pack(float(rec.t), rec.phase.encode("utf-8")[:24]) + values.tobytes()
+    n = np.size(rec.psi_cmd)
+    if not 1 <= n <= MAX_PSI or np.size(rec.psi_true) != n:
+        raise ValueError(f"cycle record has malformed psi ({n} and {np.size(rec.psi_true)} entries, "
+                         f"expected equal and 1 to {MAX_PSI})")
+    pad = np.full(MAX_PSI - n, math.nan)
+    values = np.concatenate((rec.p_des, rec.p_cmd, est, rec.p_true, rec.psi_cmd, pad, rec.psi_true, pad),
+                            dtype="<f8")
+    if values.shape != (12 + 2 * MAX_PSI,):
+        raise ValueError(f"cycle record has malformed vectors ({values.shape[0]} numbers, expected {12 + 2 * MAX_PSI})")
+    return _HEAD.pack(float(rec.t), rec.phase.encode("utf-8")[:24], n) + values.tobytes()
 
 
 def decode(data: bytes) -> WireRecord:
     """The record of RECORD_SIZE bytes written by :func:`encode`."""
-    t, phase, *v = _FORMAT.unpack(data)
+    t, phase, n, *v = _FORMAT.unpack(data)
     a = np.array(v, float)
+    c, r = 12, 12 + MAX_PSI
     est = a[6:9]
     return WireRecord(
         t=t, phase=phase.rstrip(b"\0").decode("utf-8", errors="replace"),
         p_des=a[0:3], p_cmd=a[3:6], p_est=est if np.all(np.isfinite(est)) else None,
-        p_true=a[9:12], psi_cmd=a[12:18], psi_true=a[18:24],
+        p_true=a[9:12], psi_cmd=a[c:c + n], psi_true=a[r:r + n],
     )

@@ -14,7 +14,7 @@ from __future__ import annotations
 import csv
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -24,11 +24,12 @@ from meshcat.animation import Animation, AnimationClip, AnimationTrack
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from wristmark.models.arm_spec import Arm, ArmSpec, arm_size, home_psi, log_psi_names
 from wristmark.models.config_io import from_mapping
 from wristmark.models.errors import ConfigError, InputError
 from wristmark.models.marker import MarkerModel
-from wristmark.models.robot_params import HOME_PSI, RobotParams
-from wristmark.rig.recording.run_log import COLUMNS, read_log_csv
+from wristmark.models.robot_params import RobotParams
+from wristmark.rig.recording.run_log import log_columns, read_log_csv
 from wristmark.viz import shapes
 from wristmark.viz.scene import HIDDEN_SCALE, ROOT, ArmScene, SceneConfig, SceneState
 from wristmark.viz.style import TIP_KINDS, TIP_STYLES
@@ -37,7 +38,31 @@ Array = NDArray[np.float64]
 
 DEFAULT_MAX_FRAMES = 1000  # key frames of an animation (~4 kB each); longer runs are decimated
 ACCURACY_STEP = 1.0  # [s] per position when replaying an accuracy run
-_NEEDED = ("t", "phase", *(c for c in COLUMNS if c.startswith(("p_des", "p_cmd", "p_est", "p_true", "psi_"))))
+
+
+def _needed(arm: Arm) -> tuple[str, ...]:
+    """The log.csv columns a replay of ``arm``'s run reads (psi_cmd_<name> for a format-2 arm)."""
+    cols = log_columns(log_psi_names(arm))
+    return ("t", "phase", *(c for c in cols if c.startswith(("p_des", "p_cmd", "p_est", "p_true", "psi_"))))
+
+
+def _robot_from_run(data: dict[str, Any], src: str, marker: MarkerModel) -> Arm:
+    """The arm of config.json's ``robot`` mapping: an ArmSpec when it is a format-2 arm (it has
+    ``segments``; its recorded tip offset [m], else ``marker``'s), else the reference arm's
+    RobotParams."""
+    robot = data["robot"]
+    if "segments" in robot:
+        tip = robot.get("tip_offset")
+        spec = ArmSpec.from_mapping({k: v for k, v in robot.items() if k != "tip_offset"}, f"{src} 'robot'")
+        try:
+            spec = spec.with_marker(marker) if tip is None else replace(spec, tip_offset=float(tip))
+            spec.validate()
+        except ConfigError as e:
+            raise ConfigError(f"{src} 'robot': {e}") from None
+        except (TypeError, ValueError):
+            raise ConfigError(f"{src} 'robot': tip_offset: expected a number [m], got {tip!r}") from None
+        return spec
+    return from_mapping(RobotParams, robot, src, "robot.")
 
 
 @dataclass
@@ -69,10 +94,10 @@ def scene_config_from_run(run_dir: Path) -> SceneConfig:
         if not isinstance(data, dict):
             raise InputError(f"{path}: expected a JSON object")
     src = str(path)
-    params = (from_mapping(RobotParams, data["robot"], src, "robot.") if isinstance(data.get("robot"), dict)
-              else RobotParams.load(default_config("robot.yaml")))
     marker = (from_mapping(MarkerModel, data["marker"], src, "marker.") if isinstance(data.get("marker"), dict)
               else MarkerModel.load(default_config("marker.yaml")))
+    params = (_robot_from_run(data, src, marker) if isinstance(data.get("robot"), dict)
+              else RobotParams.load(default_config("robot.yaml")))
     camera = (calibration_from_mapping(data["camera"], f"{src} 'camera'") if isinstance(data.get("camera"), dict)
               else load_calibration(default_config("camera.yaml")))
     plant: dict[str, Any] = data["plant"] if isinstance(data.get("plant"), dict) else {}
@@ -93,7 +118,7 @@ def _replay_times(t: Array) -> Array:
     return np.concatenate([[0.0], np.cumsum(np.where(d > 0, d, step))])
 
 
-def _states_from_log(log_path: Path) -> tuple[list[SceneState], Array, dict[str, str]]:
+def _states_from_log(log_path: Path, arm: Arm) -> tuple[list[SceneState], Array, dict[str, str]]:
     try:
         cols = read_log_csv(log_path)
     except UnicodeDecodeError:
@@ -104,20 +129,22 @@ def _states_from_log(log_path: Path) -> tuple[list[SceneState], Array, dict[str,
         raise InputError(f"{log_path}: corrupt log (not rig.recording.run_log's format: {e})") from None
     if not cols:
         raise InputError(f"{log_path}: no logged cycles")
-    missing = [c for c in _NEEDED if c not in cols]
+    missing = [c for c in _needed(arm) if c not in cols]
     if missing:
         raise InputError(f"{log_path}: corrupt log, missing column '{missing[0]}'")
 
     def xyz(prefix: str) -> Array:
         return np.column_stack([np.asarray(cols[f"{prefix}_{a}"], float) for a in "xyz"])
 
-    def six(prefix: str) -> Array:
-        return np.column_stack([np.asarray(cols[f"{prefix}_{i}"], float) for i in range(6)])
+    tags = log_psi_names(arm) or tuple(str(i) for i in range(6))
+
+    def psi(prefix: str) -> Array:
+        return np.column_stack([np.asarray(cols[f"{prefix}_{i}"], float) for i in tags])
 
     t = np.asarray(cols["t"], float)
     phase = [str(p) for p in cols["phase"]]
     P = {"desired": xyz("p_des"), "commanded": xyz("p_cmd"), "estimated": xyz("p_est"), "true": xyz("p_true")}
-    psi_cmd, psi_true = six("psi_cmd"), six("psi_true")
+    psi_cmd, psi_true = psi("psi_cmd"), psi("psi_true")
     bad = ~np.all(np.isfinite(psi_cmd), axis=1) | ~np.isfinite(t)
     if np.any(bad):
         raise InputError(f"{log_path}: corrupt log, row {int(np.argmax(bad)) + 2} has no finite psi_cmd or t")
@@ -136,7 +163,8 @@ def _states_from_accuracy(run_dir: Path, result: dict[str, Any], config: SceneCo
     rows = result.get("positions_detail")
     if not isinstance(rows, list) or not rows:
         raise InputError(f"{run_dir}: result.json has no positions to replay")
-    psi = np.asarray(HOME_PSI, float)
+    psi = home_psi(config.params)
+    n = arm_size(config.params)[0]
     states: list[SceneState] = []
     try:
         for r in rows:
@@ -147,7 +175,7 @@ def _states_from_accuracy(run_dir: Path, result: dict[str, Any], config: SceneCo
                 "desired": target, "commanded": target, "true": np.asarray(r["true"], float),
                 "estimated": None if est is None else np.asarray(est, float),
             }
-            states.append(SceneState(np.full(6, np.nan), psi.copy(), tips, ACCURACY_STEP * len(states), "accuracy"))
+            states.append(SceneState(np.full(n, np.nan), psi.copy(), tips, ACCURACY_STEP * len(states), "accuracy"))
     except (KeyError, TypeError, ValueError) as e:
         raise InputError(f"{run_dir}/result.json: malformed positions_detail ({e})") from None
     times = ACCURACY_STEP * np.arange(len(states), dtype=float)
@@ -183,7 +211,7 @@ def load_run(run_dir: str | Path) -> RunReplay:
     config = scene_config_from_run(d)
     log = d / "log.csv"
     if log.is_file():
-        states, times, info = _states_from_log(log)
+        states, times, info = _states_from_log(log, config.params)
     elif isinstance(result.get("positions_detail"), list):
         states, times, info = _states_from_accuracy(d, result, config)
     else:

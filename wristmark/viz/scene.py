@@ -1,5 +1,6 @@
 """The 3D scene of the bench in Meshcat: the arm from the generated URDF (through Pinocchio's
-MeshcatVisualizer), its commanded configuration as a translucent ghost, the wrist marker's
+MeshcatVisualizer; models.urdf for the reference arm, models.arm_urdf for any arm of a format-2
+robot file: its stem joints and 1 to 4 segments), its commanded configuration as a translucent ghost, the wrist marker's
 checker sleeve, the stereo endoscope with both view frustums, the four tip spheres and their
 trails. Frames: {w} world (the incision, z along the stem), {wm} marker; metres.
 
@@ -25,12 +26,13 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera
+from wristmark.models.arm_pinocchio import PinocchioAnyArm
 from wristmark.models.arm_shape import arm_shape
-from wristmark.models.errors import ConfigError
+from wristmark.models.arm_spec import Arm, ArmSpec, home_psi
 from wristmark.models.kinematics import check_psi, forward_kinematics
 from wristmark.models.marker import MarkerModel
 from wristmark.models.pinocchio_model import PinocchioArm
-from wristmark.models.robot_params import HOME_PSI, RobotParams
+from wristmark.models.robot_params import RobotParams
 from wristmark.models.urdf import MATERIALS
 from wristmark.viz import shapes
 from wristmark.viz.framing import CameraView, frame_points
@@ -63,10 +65,11 @@ CAMERA_NODE = "/Cameras/default/rotated/<object>"
 
 @dataclass(frozen=True)
 class SceneConfig:
-    """What the scene draws: robot and marker geometry, the stereo endoscope (None: not drawn)
-    and the true arm's stem coupling [-] (plant file), so psi_true draws the true arm exactly."""
+    """What the scene draws: the arm (the reference arm's RobotParams or any arm's ArmSpec) and
+    marker geometry, the stereo endoscope (None: not drawn) and the true arm's stem coupling [-]
+    (plant file), so psi_true draws the true arm exactly."""
 
-    params: RobotParams = field(default_factory=RobotParams)
+    params: Arm = field(default_factory=RobotParams)
     marker: MarkerModel = field(default_factory=MarkerModel)
     camera: StereoCamera | None = None
     stem_coupling: float = 0.0
@@ -77,9 +80,6 @@ class SceneConfig:
         """The scene of a loop's setup; a simulated bench's (sim.setup.SimSetup) also gives the
         true arm's stem coupling (hardware: none known, 0)."""
         plant = getattr(setup, "plant", None)
-        if not isinstance(setup.params, RobotParams):
-            raise ConfigError("the 3D view (Meshcat) draws the reference arm only so far (its pseudo-rigid model, "
-                              "models.pinocchio_model); run without --view for another arm")
         return cls(setup.params, setup.marker, setup.camera, float(getattr(plant, "stem_coupling", 0.0)))
 
 
@@ -106,9 +106,10 @@ class SceneState:
         )
 
     @classmethod
-    def at_rest(cls, params: RobotParams, psi: object = HOME_PSI) -> SceneState:
-        """The arm resting at ``psi`` (default: home) with the model's tip as desired/commanded/true."""
-        q = check_psi(psi)
+    def at_rest(cls, params: Arm, psi: object = None) -> SceneState:
+        """The arm resting at ``psi`` [rad, m] (None: its home) with the model's tip as
+        desired/commanded/true."""
+        q = check_psi(home_psi(params) if psi is None else psi, params)
         tip = forward_kinematics(params, q).tip
         return cls(q.copy(), q.copy(), {"desired": tip, "commanded": tip, "estimated": None, "true": tip})
 
@@ -123,7 +124,7 @@ def _finite(p: object) -> Array | None:
 class _ArmNodes:
     """One arm (true or ghost) drawn from the URDF's visuals through Pinocchio's visualizer."""
 
-    def __init__(self, vis: meshcat.Visualizer, arm: PinocchioArm, name: str, drop_sleeve: bool,
+    def __init__(self, vis: meshcat.Visualizer, arm: PinocchioArm | PinocchioAnyArm, name: str, drop_sleeve: bool,
                  color: list[float] | None, radius_scale: float) -> None:
         from pinocchio.visualize import MeshcatVisualizer
 
@@ -154,6 +155,13 @@ class _ArmNodes:
         return out
 
 
+def _pinocchio_arm(cfg: SceneConfig) -> PinocchioArm | PinocchioAnyArm:
+    """The pseudo-rigid Pinocchio model that draws ``cfg``'s arm (its URDF's visuals)."""
+    if isinstance(cfg.params, ArmSpec):
+        return PinocchioAnyArm(cfg.params, cfg.links_per_segment, cfg.marker)
+    return PinocchioArm(cfg.params, cfg.links_per_segment, cfg.marker)
+
+
 class ArmScene:
     """Builds the scene in a Meshcat visualizer and computes the node poses of each frame (in {w},
     [m])."""
@@ -163,8 +171,8 @@ class ArmScene:
         self.vis = vis
         self.config = config if config is not None else SceneConfig()
         cfg = self.config
-        self._true_arm = PinocchioArm(cfg.params, cfg.links_per_segment, cfg.marker)
-        self._ghost_arm = PinocchioArm(cfg.params, cfg.links_per_segment, cfg.marker)
+        self._true_arm = _pinocchio_arm(cfg)
+        self._ghost_arm = _pinocchio_arm(cfg)
         self.view = view if view is not None else self.frame_on([SceneState.at_rest(cfg.params)])
         self._build()
 
@@ -236,8 +244,11 @@ class ArmScene:
 
     # -- frames ------------------------------------------------------------------------------
     def _stem_bend(self, psi: Array) -> float:
-        """Bend [rad] of the exposed stem: stem_coupling x theta1, as the simulated true arm."""
-        return float(self.config.stem_coupling * psi[2])
+        """Bend [rad] of the exposed stem: stem_coupling x theta1 (the first segment's bend), as
+        the simulated true arm."""
+        arm = self.config.params
+        i = arm.theta_index[0] if isinstance(arm, ArmSpec) else 2
+        return float(self.config.stem_coupling * psi[i])
 
     def stem_correction(self, psi: Array) -> Array:
         """Pose change of {1b} (and all that follows) when the exposed stem (length d) bends by
@@ -252,9 +263,9 @@ class ArmScene:
     def node_poses(self, state: SceneState) -> list[tuple[str, Array]]:
         """(node path relative to /meshcat, 4x4 pose in {w}) of every moving node at ``state``;
         hidden tips get a vanishing scale."""
-        psi_cmd = check_psi(state.psi_cmd)
+        psi_cmd = check_psi(state.psi_cmd, self.config.params)
         psi_true = np.asarray(state.psi_true, float)
-        if psi_true.shape == (6,) and np.all(np.isfinite(psi_true)):
+        if psi_true.shape == psi_cmd.shape and np.all(np.isfinite(psi_true)):
             C, stem_bend = self.stem_correction(psi_true), self._stem_bend(psi_true)
         else:  # true configuration unknown (hardware, accuracy runs): the arm as commanded
             psi_true, C, stem_bend = psi_cmd, np.eye(4), 0.0

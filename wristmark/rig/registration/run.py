@@ -3,7 +3,7 @@
 A :class:`RegistrationRig` moves the arm and hands out stereo images: the simulated bench
 (sim/registration_bench.py) or the actuator box over serial plus a frame source
 (rig/registration/hardware.py). :func:`collect` visits every chosen pose twice, approached from
-either side (rig.registration.poses.APPROACH), tracks the marker in {ll} each time and records an
+either side (rig.registration.poses.approach_offset), tracks the marker in {ll} each time and records an
 :class:`Observation` per visit (the rows of the registration log, rig/registration/log.py).
 """
 
@@ -18,9 +18,9 @@ from tqdm import tqdm
 
 from wristmark.cvs.tracking.tracker import MarkerTracker
 from wristmark.models.actuation import actuators_from_psi
+from wristmark.models.arm_spec import Arm
 from wristmark.models.kinematics import forward_kinematics
-from wristmark.models.robot_params import RobotParams
-from wristmark.rig.registration.poses import APPROACH
+from wristmark.rig.registration.poses import approach_offset
 from wristmark.solvers.registration import RegistrationPose
 
 Array = NDArray[np.float64]
@@ -33,7 +33,7 @@ class RegistrationRig(Protocol):
         """Move to configuration psi within the velocity limits and wait until settled."""
 
     def measured_psi(self) -> Array:
-        """Configuration from the encoders now [rad, m, rad, rad, rad, rad]."""
+        """Configuration from the encoders now (psi of the arm) [rad, m]."""
 
     def grab(self) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
         """A stereo pair captured after the last move settled (left, right)."""
@@ -58,15 +58,16 @@ class Observation:
         return self.T_left_marker is not None
 
 
-def collect(rig: RegistrationRig, tracker: MarkerTracker, params: RobotParams, poses: list[Array],
+def collect(rig: RegistrationRig, tracker: MarkerTracker, params: Arm, poses: list[Array],
             host_world_T_left: Array | None, progress: bool = True) -> list[Observation]:
     """Visit each pose from both sides and track the marker (hint: the model's axis, when the host
     has a world_T_left; else the tracker decides from the images)."""
     out = []
+    step = approach_offset(params)
     visits = [(i, s) for i in range(len(poses)) for s in (-1, 1)]
     for i, side in tqdm(visits, desc="register", unit="visit", disable=not progress, leave=False):
         q = np.asarray(poses[i], float)
-        rig.move_to(q + side * APPROACH)
+        rig.move_to(q + side * step)
         rig.move_to(q)
         meas = rig.measured_psi()
         left, right = rig.grab()
@@ -81,15 +82,15 @@ def collect(rig: RegistrationRig, tracker: MarkerTracker, params: RobotParams, p
     return out
 
 
-def registration_poses(params: RobotParams, observations: list[Observation]) -> list[RegistrationPose]:
+def registration_poses(params: Arm, observations: list[Observation]) -> list[RegistrationPose]:
     """The tracked observations as solver inputs (encoder psi, centre and z axis in {ll})."""
     return [RegistrationPose(o.psi_meas, o.T_left_marker[:3, 3], o.T_left_marker[:3, 2],
                              f"pose {o.pose}{'-' if o.approach < 0 else '+'}", motion_sign(params, o))
             for o in observations if o.T_left_marker is not None]
 
 
-def motion_sign(params: RobotParams, o: Observation) -> Array:
+def motion_sign(params: Arm, o: Observation) -> Array:
     """Sign of each actuator's last motion before observation ``o``: from psi_cmd + approach *
-    APPROACH to psi_cmd."""
+    approach_offset(params) to psi_cmd."""
     a = actuators_from_psi(params, o.psi_cmd)
-    return np.sign(a - actuators_from_psi(params, o.psi_cmd + o.approach * APPROACH))
+    return np.sign(a - actuators_from_psi(params, o.psi_cmd + o.approach * approach_offset(params)))

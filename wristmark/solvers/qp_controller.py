@@ -13,7 +13,8 @@ W = pose_orientation_weight (I - z z') + orientation_weight z z' and w_ref = (I 
 sat(kr e_axis)), e_axis the shortest turn of the measured axis onto the desired one: the axis
 direction (2 DoF) is controlled and the roll about it only damped, never steered by a guess.
 psi_dot_0 = 0, except for an arm of 4 or 5 joints under a position task (nothing holds its null
-space): POSTURE_RATE (psi_home - psi), a slow pull home along the null space that stops its drift.
+space): POSTURE_RATE (psi_home - psi) projected onto the null space of Jv (S-weighted), a slow
+pull home of the spare joint that stops its drift and leaves the tip alone.
 
 v_ref = v_des (feed-forward) + sat(kp (p_des - p_meas), max_correction_speed) + v_i [m/s], v_i the
 clamped integral ki sum(e dt) of solvers/tip_integral.py (ki = 0: none; ``integral_mode: path``:
@@ -117,6 +118,15 @@ class QpController(Controller):
         W = self._keep_orientation * np.eye(3) if W is None else W
         return 2.0 * (cfg.position_weight * Jv.T @ Jv + Jw.T @ W @ Jw + cfg.damping * self._S2)
 
+    def _posture_rate(self, J: Array, psi: Array) -> Array:
+        """POSTURE_RATE (home - psi) [rad/s, m/s] projected onto the null space of the tip's
+        linear rows (S-weighted): it moves the spare joint only, never the tip."""
+        s_inv = 1.0 / np.sqrt(np.diag(self._S2))
+        Js = J[:3] * s_inv  # Jv S^-1
+        x0 = POSTURE_RATE * (np.asarray(self._home) - psi)
+        y0 = x0 / s_inv  # S x0
+        return np.asarray(s_inv * (y0 - np.linalg.pinv(Js) @ (Js @ y0)), float)
+
     def orientation_reference(self, task: OrientationTask) -> tuple[Array, Array]:
         """The orientation task's weight W (3x3) [m^2/rad^2] and reference angular velocity
         w_ref [rad/s] in {w} (see the module docstring)."""
@@ -159,7 +169,7 @@ class QpController(Controller):
             H = self._hessian(J)
             g = -2.0 * self.config.position_weight * J[:3].T @ v_ref
             if self._home is not None:
-                g = g - 2.0 * self.config.damping * self._S2 @ (POSTURE_RATE * (self._home - psi))
+                g = g - 2.0 * self.config.damping * self._S2 @ self._posture_rate(J, psi)
         else:
             W, w_ref = self.orientation_reference(orientation)
             H = self._hessian(J, W)

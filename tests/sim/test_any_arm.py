@@ -8,6 +8,7 @@ import csv
 import dataclasses
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from wristmark.models.arm_spec import ArmSpec, shipped_robot_files
@@ -58,3 +59,83 @@ def test_the_v1_actuator_box_refuses_an_arm_of_another_actuator_count() -> None:
     setup = load_setup(robot=[p for p in ARMS if p.stem == "tendon3"][0])
     with pytest.raises(ConfigError, match=r"protocol v1, which carries 6 actuators; this arm has 10 .*servo --direct"):
         check_protocol_arm(setup.params)
+
+
+@pytest.mark.parametrize("robot", ARMS, ids=[p.stem for p in ARMS])
+def test_the_camera_frames_each_arm_as_close_as_the_reference(robot: Path) -> None:
+    """camera_for_arm backs off only as far as the image's edges need (per side): the arm's
+    markers over the cube reach no nearer to them than the reference arm's do, and sit no more
+    than 20 % deeper (planar was once framed ~45 % deeper, its marker too small to track)."""
+    from wristmark.models.robot_params import RobotParams
+    from wristmark.sim.setup import _cube_markers, _image_fill
+
+    setup, ref = load_setup(robot=robot), load_setup()
+    W, W_ref = (np.asarray(s.camera.T_world_left, float) for s in (setup, ref))
+    pts, ref_pts = _cube_markers(setup.params), _cube_markers(RobotParams().with_marker(ref.marker))
+    assert _image_fill(setup.camera, pts, W) <= _image_fill(ref.camera, ref_pts, W_ref) + 1e-9
+
+    def depth(P: np.ndarray, T: np.ndarray) -> float:
+        inv = np.linalg.inv(T)
+        return float(np.mean(P @ inv[2, :3] + inv[2, 3]))
+
+    assert depth(pts, W) <= 1.2 * depth(ref_pts, W_ref)
+
+
+def test_the_planar_marker_is_tracked_where_the_cube_once_lost_it() -> None:
+    """The pose at which the planar arm's closed-loop cube stopped (marker lost at 10.5 s: the
+    pitch segment near its limit, the camera framed too far) is tracked."""
+    from wristmark.cvs.tracking.tracker import MarkerTracker
+    from wristmark.sim.render.settings import noise_preset
+    from wristmark.sim.render.stereo_renderer import StereoRenderer
+    from wristmark.sim.setup import make_plant
+
+    setup = load_setup(robot=next(p for p in ARMS if p.stem == "planar"))
+    shape = make_plant(setup, np.array([0.091, 0.071, 1.504, -0.045])).true_shape()
+    pair = StereoRenderer(setup.render_camera, setup.marker, noise_preset("default"), seed=0).render(shape)
+    res = MarkerTracker(setup.tracking_camera, setup.marker).track(pair.left, pair.right)
+    assert res.ok, res.doubt
+
+
+@pytest.mark.parametrize("robot", ARMS, ids=[p.stem for p in ARMS])
+def test_the_cube_lies_inside_each_arms_reach(robot: Path) -> None:
+    """workspace_centre moves the cube into the arm's nominal reach (planar's +x corners were
+    2.1 mm beyond its pitch segment's limit around the home tip); an arm that reaches the cube
+    around its home tip keeps it."""
+    from wristmark.models.arm_spec import home_psi
+    from wristmark.models.ik import solve_tip_ik
+    from wristmark.models.kinematics import tip_position
+    from wristmark.rig.targets.trajectories import CUBE_SIZE, workspace_centre
+
+    arm = load_setup(robot=robot).params
+    q0 = home_psi(arm)
+    centre = workspace_centre(arm)
+    for corner in np.array(np.meshgrid([-0.5, 0.5], [-0.5, 0.5], [-0.5, 0.5])).reshape(3, -1).T:
+        target = centre + corner * np.asarray(CUBE_SIZE)
+        assert np.linalg.norm(tip_position(arm, solve_tip_ik(arm, target, q0).psi) - target) < 1e-6
+    if robot.stem in ("paper", "tendon3", "single_tendon"):
+        assert np.array_equal(centre, tip_position(arm, q0))
+
+
+def test_the_planar_arm_walks_the_cube_without_drifting_along_its_null_space() -> None:
+    """The qp controller on a 4-joint arm under a position task (one spare joint): nominal
+    kinematics, the full cube walk; the arm comes back to the start corner in about the
+    configuration it left it in, the yaw segment never far bent (it once ran to 1 rad and tilted
+    the marker out of view)."""
+    from wristmark.models.arm_spec import home_psi
+    from wristmark.models.ik import solve_tip_ik
+    from wristmark.models.kinematics import tip_position
+    from wristmark.rig.targets.trajectories import CUBE_SIZE, CUBE_SPEED, cube_trajectory, workspace_centre
+    from wristmark.solvers.controller_registry import make_controller
+
+    setup = load_setup(robot=next(p for p in ARMS if p.stem == "planar"))
+    arm, dt = setup.params, 0.06
+    ctrl = make_controller(arm, dataclasses.replace(setup.controller, backlash_compensation=False))
+    traj = cube_trajectory(workspace_centre(arm), CUBE_SIZE, CUBE_SPEED)
+    psi = solve_tip_ik(arm, traj.sample(0.0)[0], home_psi(arm)).psi
+    start, yaw = psi.copy(), []
+    for t in np.arange(dt, traj.duration + dt, dt):
+        p, v = traj.sample(min(t, traj.duration))
+        psi = ctrl.step(psi, tip_position(arm, psi), p, v, dt).psi_next
+        yaw.append(abs(psi[3]))
+    assert max(yaw) < 0.6
+    assert np.max(np.abs(psi - start)) < 0.25  # without the pull: phi +1.5 rad

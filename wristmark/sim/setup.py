@@ -102,8 +102,9 @@ def camera_for_arm(camera: StereoCamera, arm: Arm, marker: MarkerModel) -> Stere
     translated so that the centre of the arm's marker positions over the cube's corners (nominal
     IK from home) sits where the reference arm's does, rolled about its optical axis so that the
     arm's marker axis at home crosses the image as the reference arm's does, then backed off
-    along the optical axis (with 10 % margin) until the markers' spread in the image is no larger
-    than the reference arm's.
+    along the optical axis (with 10 % margin) until the markers reach no nearer to the image's
+    edges than the reference arm's do (``_image_fill``; side by side, so a spread along the
+    image's width, which the reference arm leaves mostly free, does not push the camera away).
     The reference arm (flat file) keeps the file's pose."""
     if not isinstance(arm, ArmSpec) or camera.T_world_left is None:
         return camera
@@ -122,27 +123,35 @@ def camera_for_arm(camera: StereoCamera, arm: Arm, marker: MarkerModel) -> Stere
     c, s_ = math.cos(roll), math.sin(roll)
     W[:3, :3] = W[:3, :3] @ np.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]])
     depth = float(np.linalg.inv(W)[:3, :3][2] @ pts.mean(0) + np.linalg.inv(W)[2, 3])
-
-    def spread(P: Array, T: Array) -> Array:
-        inv = np.linalg.inv(T)
-        c = P @ inv[:3, :3].T + inv[:3, 3]
-        xy = c[:, :2] / c[:, 2:]
-        return np.asarray(xy.max(0) - xy.min(0))
-
-    ref_spread = spread(ref_pts, np.asarray(camera.T_world_left, float))
-    ratio = max(1.0, float(np.max(spread(pts, W) / ref_spread))) * _MARGIN
-    W[:3, 3] -= W[:3, 2] * depth * (ratio - 1.0)
+    ref_fill = _image_fill(camera, ref_pts, np.asarray(camera.T_world_left, float))
+    ratio = max(1.0, _image_fill(camera, pts, W) / ref_fill)
+    W[:3, 3] -= W[:3, 2] * depth * (ratio * _MARGIN - 1.0)
     return dataclasses.replace(camera, T_world_left=W)
+
+
+def _image_fill(camera: StereoCamera, P: Array, T_world_left: Array) -> float:
+    """How far the points ``P`` (N,3) in {w} [m] reach towards the left image's edges, seen from
+    ``T_world_left``: the largest of their (undistorted) offsets from the principal point over
+    the image's extent on that side (1: at the edge; per side, so a spread along the image's long
+    side counts against its width)."""
+    inv = np.linalg.inv(T_world_left)
+    c = P @ inv[:3, :3].T + inv[:3, 3]
+    xy = c[:, :2] / c[:, 2:]
+    K = np.asarray(camera.left.K, float)
+    w, h = camera.image_size
+    f, cc, size = np.array([K[0, 0], K[1, 1]]), np.array([K[0, 2], K[1, 2]]), np.array([w - 1.0, h - 1.0])
+    lo, hi = -cc / f, (size - cc) / f  # the image's normalised extent on each side (< 0, > 0)
+    return float(max(np.max(xy.min(0) / lo), np.max(xy.max(0) / hi)))
 
 
 def _cube_markers(arm: Arm) -> Array:
     """Marker centres in {w} [m] with the tip at the cube's 8 corners around the workspace
-    centre (nominal IK from home)."""
+    centre (``workspace_centre``: inside the arm's reach; nominal IK from home)."""
     from wristmark.models.ik import solve_tip_ik
-    from wristmark.rig.targets.trajectories import CUBE_SIZE
+    from wristmark.rig.targets.trajectories import CUBE_SIZE, workspace_centre
 
     q0 = home_psi(arm)
-    centre = forward_kinematics(arm, q0).tip
+    centre = workspace_centre(arm)
     out = []
     for corner in itertools.product((-0.5, 0.5), repeat=3):
         q = solve_tip_ik(arm, centre + np.multiply(corner, CUBE_SIZE), q0).psi

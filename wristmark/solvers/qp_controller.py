@@ -1,7 +1,7 @@
 """Velocity-bounded QP controller formulated in CasADi (kind "qp").
 
     minimise    w_p || Jv psi_dot - v_ref ||^2 + (Jw psi_dot - w_ref)' W (Jw psi_dot - w_ref)
-                + lambda || S psi_dot ||^2
+                + lambda || S (psi_dot - psi_dot_0) ||^2
     subject to  lo <= psi_dot <= hi
 
 Position only (no orientation task): W = orientation_weight I and w_ref = 0 (the tip frame's
@@ -12,6 +12,9 @@ pose_orientation_weight I and w_ref = w_des + sat(kr log(R_des R_meas^T), max_an
 W = pose_orientation_weight (I - z z') + orientation_weight z z' and w_ref = (I - z z') (w_des +
 sat(kr e_axis)), e_axis the shortest turn of the measured axis onto the desired one: the axis
 direction (2 DoF) is controlled and the roll about it only damped, never steered by a guess.
+psi_dot_0 = 0, except for an arm of 4 or 5 joints under a position task (nothing holds its null
+space): POSTURE_RATE (psi_home - psi) projected onto the null space of Jv (S-weighted), a slow
+pull home of the spare joint that stops its drift and leaves the tip alone.
 
 v_ref = v_des (feed-forward) + sat(kp (p_des - p_meas), max_correction_speed) + v_i [m/s], v_i the
 clamped integral ki sum(e dt) of solvers/tip_integral.py (ki = 0: none; ``integral_mode: path``:
@@ -30,7 +33,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
-from wristmark.models.arm_spec import Arm, ArmSpec
+from wristmark.models.arm_spec import Arm, ArmSpec, home_psi
 from wristmark.models.kinematics import tip_jacobian
 from wristmark.models.limits import psi_bounds, velocity_limits
 from wristmark.models.so3 import axis_error, rotation_error
@@ -38,6 +41,8 @@ from wristmark.solvers.controller import Controller, ControllerConfig, Orientati
 from wristmark.solvers.tip_integral import TipErrorIntegral
 
 Array = NDArray[np.float64]
+
+POSTURE_RATE = 0.5  # [1/s] an arm of 4 or 5 joints under a position task: its null space's pull home
 class BoxQp:
     """min 1/2 x'Hx + g'x  s.t. lo <= x <= hi (``n`` variables), CasADi conic through a buffer."""
 
@@ -95,6 +100,10 @@ class QpController(Controller):
         # keeping the tip frame's orientation (orientation_weight) needs spare joints: an arm of
         # fewer than 6 has none once the position is served, and the term only makes it lag
         self._keep_orientation = config.orientation_weight if self.n >= 6 else 0.0
+        # ... so an arm of 4 or 5 joints under a position task has a null space nothing holds: it
+        # drifts along it over a walk (planar: the yaw segment ran to 1 rad and tilted the marker
+        # out of view). Its damping pulls psi_dot towards POSTURE_RATE (home - psi) instead of 0.
+        self._home = home_psi(params) if 3 < self.n < 6 else None
         self._lo, self._hi = psi_bounds(params)
         self.integral = TipErrorIntegral(config.ki, config.integral_speed_limit)
 
@@ -108,6 +117,15 @@ class QpController(Controller):
         Jv, Jw = J[:3], J[3:]
         W = self._keep_orientation * np.eye(3) if W is None else W
         return 2.0 * (cfg.position_weight * Jv.T @ Jv + Jw.T @ W @ Jw + cfg.damping * self._S2)
+
+    def _posture_rate(self, J: Array, psi: Array) -> Array:
+        """POSTURE_RATE (home - psi) [rad/s, m/s] projected onto the null space of the tip's
+        linear rows (S-weighted): it moves the spare joint only, never the tip."""
+        s_inv = 1.0 / np.sqrt(np.diag(self._S2))
+        Js = J[:3] * s_inv  # Jv S^-1
+        x0 = POSTURE_RATE * (np.asarray(self._home) - psi)
+        y0 = x0 / s_inv  # S x0
+        return np.asarray(s_inv * (y0 - np.linalg.pinv(Js) @ (Js @ y0)), float)
 
     def orientation_reference(self, task: OrientationTask) -> tuple[Array, Array]:
         """The orientation task's weight W (3x3) [m^2/rad^2] and reference angular velocity
@@ -150,6 +168,8 @@ class QpController(Controller):
         if orientation is None:
             H = self._hessian(J)
             g = -2.0 * self.config.position_weight * J[:3].T @ v_ref
+            if self._home is not None:
+                g = g - 2.0 * self.config.damping * self._S2 @ self._posture_rate(J, psi)
         else:
             W, w_ref = self.orientation_reference(orientation)
             H = self._hessian(J, W)

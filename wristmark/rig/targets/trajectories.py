@@ -127,9 +127,33 @@ def feedforward_velocity(traj: Trajectory, t: float, dt: float, preview: float, 
     return (p1 + lead * v1 - p0 - lead * v0) / dt
 
 
-def workspace_centre(params: Arm) -> Array:
-    """The cube's centre in {w}: the tip at the home configuration [m]."""
-    return tip_position(params, home_psi(params))
+REACH_MARGIN = 0.005  # [m] a cube moved into the arm's reach goes this much further in (workspace_centre)
+
+
+def workspace_centre(params: Arm, size: tuple[float, float, float] = CUBE_SIZE,
+                     margin: float = REACH_MARGIN) -> Array:
+    """The cube's centre in {w} [m]: the tip at the home configuration; when a corner of the cube
+    of edges ``size`` [m] around it lies beyond the arm's nominal reach (the tip IK from home
+    falls short), moved until every corner is reached, then ``margin`` [m] further the same way
+    (room for the closed loop to drive the true arm, whose errors ask for more, to the corner).
+    An arm that reaches the cube around its home tip (the reference arm) keeps the home tip."""
+    from wristmark.models.ik import solve_tip_ik
+
+    q0 = home_psi(params)
+    home = tip_position(params, q0)
+    centre = home.copy()
+    corners = np.array([(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    corners *= 0.5 * np.asarray(size, float)
+    for _ in range(40):
+        short = np.array([tip_position(params, solve_tip_ik(params, centre + c, q0).psi) - (centre + c)
+                          for c in corners])  # reached - asked, per corner [m]
+        if np.max(np.linalg.norm(short, axis=1)) <= 1e-6:
+            break
+        centre = centre + short.mean(0) + short[np.argmax(np.linalg.norm(short, axis=1))] / len(corners)
+    moved = centre - home
+    if np.linalg.norm(moved) > 1e-6:
+        centre = centre + margin * moved / np.linalg.norm(moved)
+    return centre
 
 
 def cube_trajectory(centre_world: Array, size: tuple[float, float, float] = CUBE_SIZE,

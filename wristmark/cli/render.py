@@ -55,6 +55,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="JPEG round trip at quality Q (1-100)")
     p.add_argument("--motion-blur", type=nonnegative_float(MAX_BLUR_PX), default=None, metavar="PX",
                    help="linear motion blur length [px]")
+    p.add_argument("--sleeve-specular", type=float_in(0.0, 1.0), default=None, metavar="F0",
+                   help="glossy sleeve: the laminate's Fresnel F0 (0: matte, the default; 0.04: plastic): a "
+                        "highlight stripe from the lights beside the lenses, clipped by the sensor")
+    p.add_argument("--sleeve-roughness", type=float_in(0.01, 1.0), default=None, metavar="ALPHA",
+                   help="glossy sleeve: the laminate's GGX roughness (default 0.1; 0.03 mirror-like .. 0.3 satin)")
+    p.add_argument("--light-offset", type=float_in(0.0, 0.01), default=None, metavar="M",
+                   help="glossy sleeve: light outputs this far [m] above and below each lens (default 0)")
     p.add_argument("--image-scale", "--scale", dest="scale", type=float_in(MIN_IMAGE_SCALE, MAX_IMAGE_SCALE),
                    default=1.0, metavar="F", help="render at F x the calibrated size (default 1; --scale: old name)")
     add_json_flag(p, "a summary")
@@ -123,6 +130,9 @@ def run(args: argparse.Namespace) -> int:
         if not args.motion_blur >= 0:
             raise InputError(f"--motion-blur must be >= 0 px, got {args.motion_blur}")
         overrides["motion_blur"] = args.motion_blur
+    for key in ("sleeve_specular", "sleeve_roughness", "light_offset"):  # the glossy sleeve (RenderSettings)
+        if getattr(args, key, None) is not None:
+            overrides[key] = getattr(args, key)
     if args.settings:
         from dataclasses import replace
 

@@ -1,6 +1,7 @@
 """The tracker under the endoscope's own light: a glossy sleeve's highlight stripe (fast renderer).
 
 Usage: python bench/highlight_tracking.py [--pairs N] [--seed S] [--roughness 0.03,0.1,0.3]
+                                          [--motion-blur PX] [--blur-sigma PX]
 Prints JSON. Renders N poses per sleeve (reference and coded) whose sleeve axis lies within
 ``--max-tilt`` degrees of square to the line of sight (where the coaxial light's highlight runs
 along the sleeve: docs/notes/highlight-stripe.md), each with a glossy laminate (F0 0.04) of each
@@ -72,11 +73,14 @@ def main() -> int:
     ap.add_argument("--max-tilt", type=float, default=4.0, help="largest sleeve tilt from square [deg]")
     ap.add_argument("--light-offset", type=float, default=0.002, help="light outputs beside each lens [m]")
     ap.add_argument("--wrong-mm", type=float, default=0.5, help="a tracked tip farther off is wrong [mm]")
+    ap.add_argument("--motion-blur", type=float, default=0.0, help="linear motion blur [px] (the arm's top speed)")
+    ap.add_argument("--blur-sigma", type=float, default=None, help="optics blur [px] (defocus; default: the preset's)")
     a = ap.parse_args()
     warm_up()
     cam = load_calibration(str(default_config("camera.yaml")))
     alphas = [float(x) for x in a.roughness.split(",")]
-    report: dict = {"load": os.getloadavg(), "pairs_per_sleeve": a.pairs, "max_tilt_deg": a.max_tilt}
+    report: dict = {"load": os.getloadavg(), "pairs_per_sleeve": a.pairs, "max_tilt_deg": a.max_tilt,
+                    "motion_blur_px": a.motion_blur, "blur_sigma_px": a.blur_sigma}
     for name, path in (("reference", None), ("coded", default_config("marker_coded.yaml"))):
         marker = MarkerModel.load(path) if path else MarkerModel()
         params = load_loop_arm(None, marker)
@@ -93,7 +97,9 @@ def main() -> int:
         rows: dict[str, dict[str, list[dict]]] = {}
         for label, f0, alpha in [("matte", 0.0, 0.1)] + [(f"gloss_{x}", 0.04, x) for x in alphas]:
             st = replace(noise_preset("default"), sleeve_specular=f0, sleeve_roughness=alpha,
-                         light_offset=a.light_offset)
+                         light_offset=a.light_offset, motion_blur=a.motion_blur)
+            if a.blur_sigma is not None:
+                st = replace(st, blur_sigma=a.blur_sigma)
             renderer = StereoRenderer(cam, marker, st, seed=a.seed)
             for q in qs:
                 pair = renderer.render(arm_shape(params, q))

@@ -88,7 +88,9 @@ def main() -> int:
         for k, tr in trackers[name].items():
             tr.reset()
             r = tr.track(pair.left, pair.right)
-            out = {"ok": r.ok, "reason": r.reason, "ms": r.time_ms, "roll_known": r.roll_known}
+            out = {"ok": r.ok, "reason": r.reason, "ms": r.time_ms, "roll_known": r.roll_known, "rms_px": r.rms_px,
+                   "retried": "gap_chain" in r.timings,
+                   "pairs": None if r.match is None else r.match.n_pairs}
             if r.ok and r.tip_left is not None and r.T_left_marker is not None:
                 out["tip_mm"] = 1e3 * float(np.linalg.norm(r.tip_left - pair.tip_left))
                 out["rot_deg"] = _rotation_deg(r.T_left_marker[:3, :3], pair.T_left_marker[:3, :3])
@@ -111,6 +113,7 @@ def main() -> int:
             "lost": [{"sleeve": r["sleeve"], "roughness": round(r["roughness"], 3), "tilt_deg": round(r["tilt_deg"], 1),
                       "reason": r[k]["reason"]} for r in rows if not r[k]["ok"]],
         }
+    report["rows"] = rows  # per pair: the draw and each tracker's result
     print(json.dumps(report, indent=1))
     return 0
 

@@ -24,7 +24,7 @@ Debian's ``libLLVM.so.19.1`` when present and not set already).
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -69,12 +69,11 @@ class PbrSettings:
         """Raise ConfigError naming the offending key."""
         if not 1 <= self.spp <= 4096:
             raise ConfigError(f"'spp' must be in 1..4096, got {self.spp}")
-        if not 0 <= self.sleeve_specular < 0.5:
+        if not self.sleeve_specular < 0.5:  # (a clear coat's index must stay finite)
             raise ConfigError(f"'sleeve_specular' must be in [0, 0.5), got {self.sleeve_specular}")
-        if not 0.01 <= self.sleeve_roughness <= 1:
-            raise ConfigError(f"'sleeve_roughness' must be in [0.01, 1], got {self.sleeve_roughness}")
-        if not 0 <= self.light_offset <= 0.01:
-            raise ConfigError(f"'light_offset' must be in [0, 0.01] m, got {self.light_offset}")
+        # the sleeve and lights as the fast renderer's settings take them
+        replace(RenderSettings(), sleeve_specular=self.sleeve_specular, sleeve_roughness=self.sleeve_roughness,
+                light_offset=self.light_offset).validate()
         if not 0 <= self.aperture_radius <= 0.005:
             raise ConfigError(f"'aperture_radius' must be in [0, 0.005] m, got {self.aperture_radius}")
         if not 0.01 <= self.focus_distance <= 1:

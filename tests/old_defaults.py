@@ -36,6 +36,7 @@ OLD_CONTROLLER: dict[str, object] = {
 OLD_RIG: dict[str, object] = {
     "delay_compensation_tau": 0.0,
     "reuse_measurement_age": 0.0,
+    "lost_dither": 0.0,
 }
 
 

@@ -37,6 +37,19 @@ def test_render_given_psi_and_file(tmp_path: Path) -> None:
     np.testing.assert_allclose(ds.truth[0].tip, ds.truth[1].tip, atol=1e-15)
 
 
+def test_render_a_glossy_sleeve(tmp_path: Path) -> None:
+    # the same pose matte and glossy: the laminate only adds light (a highlight, clipped)
+    import cv2
+
+    psi = ["--psi", "0.0942", "0.0373", "0.554", "0.2658", "0.9152", "-0.2277"]  # sleeve square to the view
+    base = ["render", "--scale", "0.5", "--noise", "none", *psi]
+    assert main([*base, "--out", str(tmp_path / "matte")]) == 0
+    assert main([*base, "--out", str(tmp_path / "gloss"), "--sleeve-specular", "0.04", "--sleeve-roughness", "0.05",
+                 "--light-offset", "0.002"]) == 0
+    a, b = (cv2.imread(str(load_dataset(tmp_path / d).pairs[0][0])).astype(int) for d in ("matte", "gloss"))
+    assert (b - a).min() >= 0 and np.count_nonzero((b - a).max(axis=2) > 40) > 10
+
+
 @pytest.mark.parametrize(
     ("extra", "needle"),
     [
@@ -48,6 +61,9 @@ def test_render_given_psi_and_file(tmp_path: Path) -> None:
         (["--psi", "0", "0.04", "3.0", "0", "0.9", "0"], "theta1"),
         (["--psi-file", "/nonexistent/psi.txt"], "psi file not found"),
         (["--psi", "0", "0.04", "0.7", "0", "0.9", "0", "--pairs", "3"], "disagrees"),
+        (["--sleeve-specular", "2"], "--sleeve-specular"),
+        (["--sleeve-roughness", "0"], "--sleeve-roughness"),
+        (["--light-offset", "0.5"], "--light-offset"),
     ],
 )
 def test_bad_options_give_one_line_errors(tmp_path: Path, extra: list[str], needle: str) -> None:

@@ -6,6 +6,7 @@ import argparse
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -55,6 +56,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="JPEG round trip at quality Q (1-100)")
     p.add_argument("--motion-blur", type=nonnegative_float(MAX_BLUR_PX), default=None, metavar="PX",
                    help="linear motion blur length [px]")
+    p.add_argument("--sleeve-specular", type=float_in(0.0, 1.0), default=None, metavar="F0",
+                   help="glossy sleeve: the laminate's Fresnel F0 (0: matte, the default; 0.04: plastic): a "
+                        "highlight stripe from the lights beside the lenses, clipped by the sensor")
+    p.add_argument("--sleeve-roughness", type=float_in(0.01, 1.0), default=None, metavar="ALPHA",
+                   help="glossy sleeve: the laminate's GGX roughness (default 0.1; 0.03 mirror-like .. 0.3 satin)")
+    p.add_argument("--light-offset", type=float_in(0.0, 0.01), default=None, metavar="M",
+                   help="glossy sleeve: light outputs this far [m] above and below each lens (default 0)")
+    p.add_argument("--engine", choices=("fast", "pbr"), default="fast",
+                   help="fast: the numba ray caster (default); pbr: path-traced with Mitsuba 3 (the optional extra "
+                        "'pbr', scripts/ensure-pbr.sh; slow: about 10 s a half-size pair at 8 spp)")
+    p.add_argument("--spp", type=int_in(1, 4096), default=None, help="--engine pbr: samples per pixel (default 24)")
+    p.add_argument("--aperture-radius", type=float_in(0.0, 0.005), default=None, metavar="M",
+                   help="--engine pbr: thin-lens aperture radius [m] (default 0: pinhole, no defocus)")
+    p.add_argument("--focus-distance", type=float_in(0.01, 1.0), default=None, metavar="M",
+                   help="--engine pbr: focus distance of the thin lens [m] (default 0.08)")
     p.add_argument("--image-scale", "--scale", dest="scale", type=float_in(MIN_IMAGE_SCALE, MAX_IMAGE_SCALE),
                    default=1.0, metavar="F", help="render at F x the calibrated size (default 1; --scale: old name)")
     add_json_flag(p, "a summary")
@@ -97,6 +113,16 @@ def read_psi_file(path: str | Path) -> list[Array]:
     return rows
 
 
+def _pbr_renderer(args: argparse.Namespace, camera: Any, marker: Any, settings: Any) -> Any:
+    """The path tracer (sim.render.pbr) with the render settings' sleeve and lights and the pbr options."""
+    from wristmark.sim.render.pbr import PbrSettings, PbrStereoRenderer
+
+    given = {"spp": args.spp, "aperture_radius": args.aperture_radius, "focus_distance": args.focus_distance}
+    pbr = PbrSettings(sleeve_specular=settings.sleeve_specular, sleeve_roughness=settings.sleeve_roughness,
+                      light_offset=settings.light_offset, **{k: v for k, v in given.items() if v is not None})
+    return PbrStereoRenderer(camera, marker, settings, pbr, seed=args.seed)
+
+
 def run(args: argparse.Namespace) -> int:
     from wristmark.cvs.calibration.load import load_calibration
     from wristmark.cvs.camera import scaled_stereo_camera
@@ -123,6 +149,9 @@ def run(args: argparse.Namespace) -> int:
         if not args.motion_blur >= 0:
             raise InputError(f"--motion-blur must be >= 0 px, got {args.motion_blur}")
         overrides["motion_blur"] = args.motion_blur
+    for key in ("sleeve_specular", "sleeve_roughness", "light_offset"):  # the glossy sleeve (RenderSettings)
+        if getattr(args, key, None) is not None:
+            overrides[key] = getattr(args, key)
     if args.settings:
         from dataclasses import replace
 
@@ -161,7 +190,8 @@ def run(args: argparse.Namespace) -> int:
 
     claim_outputs(dirs=[args.out], force=args.force)
     warm_up(jit=False)  # OpenCV's threads (cvs.tracking.warmup); the renderer's kernels load on its first frame
-    renderer = StereoRenderer(camera, marker, settings, seed=args.seed)
+    renderer: Any = (_pbr_renderer(args, camera, marker, settings) if args.engine == "pbr"
+                     else StereoRenderer(camera, marker, settings, seed=args.seed))
     writer = DatasetWriter(args.out, camera, marker)
     for q in configs:
         writer.add(renderer.render(arm_shape(params, q)))

@@ -108,6 +108,7 @@ def run_open_closed(setup: SimSetup, traj: Trajectory, experiment: str, out_dir:
     for k, s in stats.items():
         res[k]["lost"] = s.lost
         res[k]["rejected"] = s.rejected
+        res[k]["dithers"] = s.dithers
         res[k]["stopped"] = s.stopped
     write_json(out_dir / "result.json", res)
     (out_dir / "results.md").write_text(cube_table(res))

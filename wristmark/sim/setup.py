@@ -166,7 +166,8 @@ def make_measurement(setup: SimSetup, arm: ActuatedArm, clock: Callable[[], floa
     if setup.rig.sensor == "truth-noise":
         return SynchronousFeed(TruthClockSource(clock)), NoisyTruthSensor(arm, setup.rig.truth_noise_rms, seed)
     source = RenderedStereoSource(arm, setup.render_camera, setup.marker, clock, noise=setup.rig.render_noise,
-                                  seed=seed, age=setup.rig.frame_age)
+                                  seed=seed, age=setup.rig.frame_age,
+                                  gloss=(setup.rig.sleeve_specular, setup.rig.sleeve_roughness))
     return SynchronousFeed(source), VisionTipSensor(setup.tracking_camera, setup.marker)
 
 

@@ -5,7 +5,11 @@ chain of ``min_corners``: the second corner is the nearest found by moving the w
 four edge directions; then the chain grows outward both ways along the local edge direction
 closest to the last step (turned by half the change of that edge since the previous corner: the
 corner circle's image is curved) until the searched distance exceeds ``stop_ratio`` times the
-last spacing. Consecutive corners alternate in polarity.
+last spacing. Consecutive corners alternate in polarity. ``find_chain(..., gaps=k)``: a
+chain that stops may step, up to k times, over one missed corner: the next corner of the *same*
+polarity between 1.5 and ``gap_ratio`` times the last spacing along the same direction (a
+specular highlight washing out the corner the camera sees best, docs/notes/highlight-stripe.md);
+the stereo match then indexes it two steps on (repeated polarity).
 
 A window search moves the paper's 10x10 square (widened across the step to 20% of the distance
 so that a curved corner circle stays inside it) in half-window steps and takes the first window
@@ -35,7 +39,7 @@ _MAX_CHAIN = 64  # corners per chain, at most
 #   c   = (xs, ys, normalised CL, grey range, tested, ok, |CC|, polarity, edges) of the candidates
 #   im  = (grey, I_x, I_y, histogram scratch)
 #   prm = (half_window, template_scale, cc_min, contrast_ratio, cos(edge_tol), max_step_px,
-#          stop_ratio, min_corners, max_seeds, seed_candidates)
+#          stop_ratio, min_corners, max_seeds, seed_candidates, max_gaps, gap_ratio)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -47,16 +51,18 @@ def _xtest(c: Any, im: Any, prm: Any, k: int) -> None:  # pragma: no cover
 
 @numba.njit(cache=True, nogil=True)
 def _search(
-    c: Any, im: Any, prm: Any, cur: int, dx: float, dy: float, max_dist: float, used: Any
+    c: Any, im: Any, prm: Any, cur: int, dx: float, dy: float, max_dist: float, used: Any, skip: bool = False,
+    min_dist: float = 0.0,
 ) -> int:  # pragma: no cover
     """The window search from candidate ``cur`` along unit (dx, dy) up to ``max_dist`` [px]
-    (module doc); the candidate index or -1."""
+    (module doc); the candidate index or -1. ``skip``: a corner of the same polarity at least
+    ``min_dist`` [px] away (the next one beyond a corner the search did not find)."""
     xs, ys, cln, rng, _, ok, _, pol, edges = c
     r = prm[0]
     min_rng = np.float32(prm[3] * np.float64(rng[cur]))
     cos_tol = prm[4]
     px, py = np.float64(xs[cur]), np.float64(ys[cur])
-    want = -pol[cur]
+    want = pol[cur] if skip else -pol[cur]
     n = xs.size
     band = np.empty(n, np.int64)
     al = np.empty(n)
@@ -94,7 +100,7 @@ def _search(
             continue
         sx, sy = xs[k] - px, ys[k] - py
         dist = math.hypot(sx, sy)
-        if dist < 2.0 or dist > max_dist + r:
+        if dist < max(2.0, min_dist) or dist > max_dist + r:
             continue
         ux, uy = sx / dist, sy / dist
         along_a = abs(math.cos(edges[k, 0]) * ux + math.sin(edges[k, 0]) * uy)
@@ -140,6 +146,7 @@ def _grow(c: Any, im: Any, prm: Any, seed: int, out: Any) -> int:  # pragma: no 
     head, tail = _MAX_CHAIN, _MAX_CHAIN + 2  # chain = buf[head:tail]
     buf[head], buf[head + 1] = seed, best
     used[best] = True
+    gaps = 0
     for forward in (True, False):
         while tail - head < _MAX_CHAIN:
             cur, prev = (buf[tail - 1], buf[tail - 2]) if forward else (buf[head], buf[head + 1])
@@ -150,7 +157,11 @@ def _grow(c: Any, im: Any, prm: Any, seed: int, out: Any) -> int:  # pragma: no 
             qx, qy = _best_edge(edges, prev, ux, uy)
             a = math.atan2(cy, cx)  # the current edge turned on by half its change since prev
             da = math.atan2(qx * cy - qy * cx, qx * cx + qy * cy)
-            k = _search(c, im, prm, cur, math.cos(a + 0.5 * da), math.sin(a + 0.5 * da), prm[6] * dist, used)
+            ex, ey = math.cos(a + 0.5 * da), math.sin(a + 0.5 * da)
+            k = _search(c, im, prm, cur, ex, ey, prm[6] * dist, used)
+            if k < 0 and gaps < prm[10]:  # beyond one missed corner (a highlight over it): same polarity
+                k = _search(c, im, prm, cur, ex, ey, prm[11] * dist, used, True, 1.5 * dist)
+                gaps += 1
             if k < 0:
                 break
             used[k] = True
@@ -186,15 +197,16 @@ def _chain_kernel(c: Any, im: Any, prm: Any) -> Any:  # pragma: no cover
     return out[:0].copy()
 
 
-def find_chain(cands: CornerCandidates, s: DetectorSettings) -> IntArray:
+def find_chain(cands: CornerCandidates, s: DetectorSettings, gaps: int = 0) -> IntArray:
     """Candidate indices of the marker chain (module doc), ordered along the chain; empty when
-    no seed grows a chain of ``s.min_corners``."""
+    no seed grows a chain of ``s.min_corners``. ``gaps``: missed corners the chain may step over
+    (0: the paper's chain)."""
     c = cands
     arrays = (c.xs, c.ys, c.cln, c.rng, c.tested, c.ok, c.cc, c.pol, c.edges)
     prm = (
         int(s.half_window), float(s.template_scale), float(s.cc_min), float(s.contrast_ratio),
         math.cos(math.radians(s.edge_tol_deg)), float(s.max_step_px), float(s.stop_ratio), int(s.min_corners),
-        int(s.max_seeds), int(s.seed_candidates),
+        int(s.max_seeds), int(s.seed_candidates), max(int(gaps), 0), float(s.gap_ratio),
     )
     chain: IntArray = _chain_kernel(arrays, (c.gray, c.ix, c.iy, np.empty((2, NBINS))), prm)
     return chain

@@ -132,6 +132,8 @@ class MarkerCornerDetector:
         self.settings = settings or DetectorSettings()
         self._last: Array | None = None
         self._ws = Workspace()
+        # the last search's candidates, settings and image origin (for retry_with_gaps)
+        self._searched: tuple[CornerCandidates, DetectorSettings, int, int] | None = None
 
     def _chain_in(
         self, img: NDArray[np.uint8], roi: Roi | None, s: DetectorSettings, times: dict[str, float]
@@ -158,6 +160,14 @@ class MarkerCornerDetector:
         t3 = time.perf_counter()
         for key, dt in (("gray_ms", t1 - t0), ("candidates_ms", t2 - t1), ("chain_ms", t3 - t2)):
             times[key] = times.get(key, 0.0) + 1e3 * dt
+        self._searched = (cands, s, x0, y0)
+        return self._corners(cands, chain, s, x0, y0, times)
+
+    def _corners(self, cands: CornerCandidates, chain: Any, s: DetectorSettings, x0: int, y0: int,
+                 times: dict[str, float]) -> XCorners:
+        """The chain's sub-pixel corners in full-image pixels (the searched image's origin at
+        (x0, y0)), first corner the end with the smaller y; empty for a chain under min_corners."""
+        t3 = time.perf_counter()
         if chain.size < s.min_corners:
             return XCorners.empty()
         gaps = np.hypot(*np.diff(cands.points(chain), axis=0).T)
@@ -168,6 +178,20 @@ class MarkerCornerDetector:
         off = np.array([x0, y0], float)
         xc = XCorners(ref + off, q + off, cands.pol[chain].copy(), cands.cc[chain].copy(), cands.cln[chain].copy(), e)
         return xc if xc.corners[0, 1] <= xc.corners[-1, 1] else xc.take(np.arange(chain.size)[::-1])
+
+    def retry_with_gaps(self) -> CornerChain:
+        """The chain of the last search's candidates (whole frame or ROI, as searched last) that may
+        step over ``settings.max_gaps`` missed corners (cvs.corners.chain): the tracker's last try on
+        a pair whose chains were too short (a highlight over the corner the camera sees best). No
+        new image search; the ROI follows the result. Empty without a search or with max_gaps 0."""
+        t0 = time.perf_counter()
+        extras: dict[str, float] = {}
+        if self._searched is None or self.settings.max_gaps <= 0:
+            return self._result(XCorners.empty(), None, t0, extras)
+        cands, s, x0, y0 = self._searched
+        chain = find_chain(cands, s, s.max_gaps)
+        extras["chain_ms"] = 1e3 * (time.perf_counter() - t0)
+        return self._result(self._corners(cands, chain, s, x0, y0, extras), None, t0, extras)
 
     def detect(self, gray: Any, roi: Roi | None = None) -> CornerChain:
         """The marker chain in the whole image or in ``roi`` = (x, y, w, h) [px]; uint8 grey or

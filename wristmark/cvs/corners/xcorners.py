@@ -35,7 +35,11 @@ class DetectorSettings:
     marker's first corner ranks below 40) [-]; max_candidates: candidates kept [-];
     roi_margin_px: ROI margin around the previous corners, plus their largest spacing [px];
     coarse_scale: downscale of the cold whole-frame search (1: off) [-]; coarse_min_width:
-    narrowest image that gets it [px].
+    narrowest image that gets it [px]; max_gaps: missed corners the chain of
+    ``MarkerCornerDetector.retry_with_gaps`` may step over (the tracker's last try on a pair it
+    could not track: a specular highlight over the corner the camera sees best; 0: no such try;
+    cvs.corners.chain, docs/notes/highlight-stripe.md) [-]; gap_ratio: the farthest such step in
+    units of the last spacing [-].
     """
 
     epsilon: float = 2.0
@@ -60,6 +64,8 @@ class DetectorSettings:
     roi_margin_px: int = 25
     coarse_scale: int = 2
     coarse_min_width: int = 1000
+    max_gaps: int = 1
+    gap_ratio: float = 3.6
 
 
 def scaled_settings(s: DetectorSettings, k: int) -> DetectorSettings:

@@ -7,7 +7,9 @@ when a camera sees fewer than 4 corners or the homography start does not converg
 stereo solve (eq. 16) and the tip (eq. 5). It returns ``ok=False`` with a reason rather than a
 doubtful pose: no marker, too few corners, no stereo pairs, a residual above ``max_rms_px``, or
 a fit that hinges on corners seen in one view only (the best fit of the stereo pairs alone puts
-the tip more than ``max_single_view_shift_m`` away).
+the tip more than ``max_single_view_shift_m`` away). A pair lost for too few corners gets one
+last try with chains that step over a missed corner (a specular highlight over the corner the
+camera sees best: cvs.corners.detector ``retry_with_gaps``, docs/notes/highlight-stripe.md).
 ``track_corners`` takes corners directly (controller loops, baselines, tests).
 
 The sleeve looks the same after a half turn about x_wm, so which way z_wm (distal) points is
@@ -49,6 +51,9 @@ from wristmark.cvs.tracking.stereo_match import StereoMatch, StereoRectifier, ma
 from wristmark.cvs.tracking.stereo_pose import MarkerPose, StereoPoseSolver
 from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
+
+# failures for too few corners (track_corners' words): a chain broken by a highlight
+_CORNER_REASONS = ("no marker found", "too few marker corners", "only ")
 
 __all__ = ["CornerDetector", "MarkerTracker", "TrackResult", "TrackerSettings", "kabsch"]
 
@@ -117,6 +122,8 @@ class MarkerTracker:
             if res2.ok:
                 res = res2
             res.timings["second_detector"] = t_second
+        if not res.ok and res.reason.startswith(_CORNER_REASONS):
+            res = self._retry_with_gaps(res, t0)
         found = res.ok
         if res.ok:
             t3 = time.perf_counter()
@@ -127,6 +134,21 @@ class MarkerTracker:
         self._last_pose = res.pose if found else None
         self._last_oriented = res.ok
         return res
+
+    def _retry_with_gaps(self, res: TrackResult, t0: float) -> TrackResult:
+        """A pair lost for too few corners: a highlight over the corner each camera sees best
+        breaks the chain in two. One more try with the chains of each view's last search that
+        step over a missed corner (cvs.corners.detector ``retry_with_gaps``: no new image search),
+        under the same pose gates; ``res`` unchanged when that fails or the detectors cannot."""
+        retry = [getattr(d, "retry_with_gaps", None) for d in (self.detector_left, self.detector_right)]
+        if not all(callable(r) for r in retry):
+            return res
+        t1 = time.perf_counter()
+        bl, br = (r() for r in retry)  # type: ignore[misc]
+        res2 = self.track_corners(bl.corners, br.corners, bl.polarity, br.polarity, _t0=t0)
+        out = res2 if res2.ok else res
+        out.timings["gap_chain"] = 1e3 * (time.perf_counter() - t1)
+        return out
 
     def _second_detectors(self) -> tuple[CornerDetector, CornerDetector]:
         """The saddle detector of each view ('auto': the second try), made on first use."""

@@ -23,7 +23,7 @@ NOISE_LEVELS = ("none", "default", "strong")
 PHASE_LOCKS = ("none", "capture", "arrival")  # rig frame_phase_lock
 # the keys only the simulated bench uses (rig.yaml's 'bench:'); every other key is the loop's
 BENCH_KEYS = ("vision_latency", "plant_dt", "sensor", "truth_noise_rms", "render_noise", "tracker_rms", "seed",
-              "realtime", "frame_age")
+              "realtime", "frame_age", "sleeve_specular", "sleeve_roughness")
 SECTIONS = {"loop": "the servo loop, on hardware as on the bench", "bench": "the simulated bench only"}
 
 
@@ -40,6 +40,11 @@ class RigConfig:
     gate: largest accepted jump between consecutive measurements [m]; model_gate: largest
     accepted distance between a measurement and the model's commanded tip [m].
     max_lost_cycles: consecutive cycles without a measurement after which the loop stops.
+    lost_dither: when frames show no marker for ``lost_dither_after`` cycles or more while the arm
+    holds, each further lost cycle moves the command by a step of one configuration entry that
+    moves the nominal model's tip this far [m] from the held command (entries and signs in turn,
+    never adding up; 0: the arm just holds): a view the tracker cannot read (a highlight over the
+    marker's corners, docs/notes/highlight-stripe.md) changes before the loop gives up.
     settle_time: closed-loop approach to the trajectory's start before logging metrics [s].
     feedforward_preview, feedforward_lead: the feed-forward tip velocity takes the desired path
     ``preview`` [s] ahead plus a first-order lead of ``lead`` [s] (rig.targets.trajectories.feedforward_velocity).
@@ -73,8 +78,11 @@ class RigConfig:
     bench's frames show the arm this long [s] before the cycle's start and are stamped so (a
     camera whose frames reach the host that late, e.g. the virtual lab's at 1080p); capture to
     command is then ``frame_age + vision_latency`` (vision sensor only; at most 1 s).
-    vision_latency, frame_age, plant_dt, sensor, truth_noise_rms, render_noise, tracker_rms, seed
-    and realtime concern the simulated bench only (:data:`BENCH_KEYS`, rig.yaml's ``bench:``).
+    sleeve_specular, sleeve_roughness: the simulated bench renders the sleeve under a glossy
+    laminate of this Fresnel F0 (0: matte, as always before) and GGX roughness
+    (sim.render.settings.RenderSettings; configs/rig_glossy.yaml).
+    vision_latency, frame_age, plant_dt, sensor, truth_noise_rms, render_noise, tracker_rms, seed,
+    realtime and the sleeve's gloss concern the simulated bench only (:data:`BENCH_KEYS`, rig.yaml's ``bench:``).
     """
 
     control_dt: float = 0.060
@@ -88,6 +96,8 @@ class RigConfig:
     gate: float = 0.004  # [m]
     model_gate: float = 0.025  # [m]
     max_lost_cycles: int = 25
+    lost_dither: float = 0.001  # [m] a lost marker's dither: tip move of each step around the held arm (0: off)
+    lost_dither_after: int = 3  # lost cycles (a frame without the marker) before the dither starts
     settle_time: float = 1.5  # [s]
     feedforward_preview: float = 0.035  # [s] desired path previewed this far ahead (loop delay)
     feedforward_lead: float = 0.06  # [s] first-order lead on the feed-forward (actuator lag)
@@ -103,6 +113,8 @@ class RigConfig:
     frame_phase_lock: str = "none"  # wall clock: lock the cycle grid to the frames' capture or arrival
     frame_lock_phase: float = 0.0  # [s] with the lock: frames captured / arriving this long after a cycle's start
     frame_age: float = 0.0  # [s] simulated bench: its frames show the arm this long before the cycle's start
+    sleeve_specular: float = 0.0  # simulated bench: the sleeve's glossy laminate, Fresnel F0 (0: matte)
+    sleeve_roughness: float = 0.1  # simulated bench: the laminate's GGX roughness alpha
 
     def validate(self) -> None:
         """Raise ConfigError naming the offending key."""
@@ -149,6 +161,14 @@ class RigConfig:
             raise ConfigError(
                 f"'render_noise' must be one of {', '.join(NOISE_LEVELS)}, got {self.render_noise!r}"
             )
+        if not 0 <= self.sleeve_specular <= 1:
+            raise ConfigError(f"'sleeve_specular' must be in [0, 1], got {self.sleeve_specular}")
+        if not 0.01 <= self.sleeve_roughness <= 1:
+            raise ConfigError(f"'sleeve_roughness' must be in [0.01, 1], got {self.sleeve_roughness}")
+        if not 0 <= self.lost_dither <= 0.005:
+            raise ConfigError(f"'lost_dither' must be in [0, 0.005] m, got {self.lost_dither}")
+        if self.lost_dither_after < 1:
+            raise ConfigError(f"'lost_dither_after' must be >= 1, got {self.lost_dither_after}")
         if self.max_lost_cycles < 1:
             raise ConfigError(f"'max_lost_cycles' must be >= 1, got {self.max_lost_cycles}")
 

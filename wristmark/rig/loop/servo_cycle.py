@@ -37,10 +37,11 @@ def ramp_to(params: Arm, start: Array, target: Array, dt: float) -> list[Array]:
 @dataclass
 class PhaseStats:
     """Counters of one phase: cycles run, measurements lost (no frame or no marker) and
-    rejected by the gates, cycles without a new frame (and of those, the ones driven by the
-    last measurement, compensated: rig ``reuse_measurement_age``), the longest run of lost cycles, cycles
-    skipped because the host fell a whole period behind the wall clock (a late cycle runs at
-    once; the ones it missed are not made up), and why the phase stopped early ("" when it did not)."""
+    rejected by the gates, lost cycles that dithered the held arm (rig ``lost_dither``), cycles
+    without a new frame (and of those, the ones driven by the last measurement, compensated: rig
+    ``reuse_measurement_age``), the longest run of lost cycles, cycles skipped because the host
+    fell a whole period behind the wall clock (a late cycle runs at once; the ones it missed are
+    not made up), and why the phase stopped early ("" when it did not)."""
 
     cycles: int = 0
     lost: int = 0
@@ -50,6 +51,7 @@ class PhaseStats:
     max_consecutive_lost: int = 0
     skipped: int = 0
     stopped: str = ""
+    dithers: int = 0  # lost cycles that moved the held arm a little (rig ``lost_dither``)
 
 
 class MarkerLostError(WristmarkError):
@@ -95,6 +97,7 @@ class TrackingMemory:
     lost_run: int = 0
     last_reason: str = ""
     last_meas: TipMeasurement | None = None  # the last accepted measurement (for cycles without a frame)
+    held_psi: Array | None = None  # the command in force when the marker was lost (the dither's centre)
 
 
 @dataclass(frozen=True)

@@ -284,10 +284,12 @@ class ServoLoop:
         outcome = self._measure_and_control(frame, truth, target, memory)
         if outcome.accepted:
             memory.lost_run = 0
+            memory.held_psi = None
         else:
             self._count_lost(outcome, memory, stats)
             if memory.lost_run > self.rig.max_lost_cycles:
                 self._stop_lost(target, t_wall, phase, outcome, memory, stats)
+            self._dither(outcome, memory, stats)
         if not self.wall_clock:
             self.advance_to(target.t + self.rig.vision_latency)  # the simulated processing time
         else:
@@ -401,6 +403,36 @@ class ServoLoop:
             return CycleOutcome(None, truth, False, False, 0.0)
         ctrl_us = self._control(target, self._compensated(last), last)
         return CycleOutcome(None, truth, False, False, ctrl_us, reused=True)
+
+    def _dither(self, outcome: CycleOutcome, memory: TrackingMemory, stats: PhaseStats) -> None:
+        """A frame showed no marker (not a gate's rejection, not a missing frame) for
+        ``lost_dither_after`` cycles or more while the arm holds: move the command a little
+        around the held one, so that a view the tracker cannot read (e.g. a highlight over the
+        marker's corners, docs/notes/highlight-stripe.md) changes before the loop gives up.
+        Lost cycle k >= after steps configuration entry j = (k - after) // 2 mod n by
+        +-(the step that moves the nominal model's tip ``lost_dither`` [m]) from the held command,
+        clamped to the joint limits: each move is bounded by ``lost_dither`` and never adds up
+        (counted in ``PhaseStats.dithers``; the log's psi_cmd shows it)."""
+        rig = self.rig
+        if (rig.lost_dither <= 0 or outcome.meas is None or outcome.rejected
+                or memory.lost_run < rig.lost_dither_after or self.psi_cmd is None):
+            return
+        if memory.held_psi is None:
+            memory.held_psi = self.psi_cmd.copy()
+        k = memory.lost_run - rig.lost_dither_after
+        base = memory.held_psi
+        j = (k // 2) % base.size
+        tip0 = forward_kinematics(self.params, base).tip
+        probe = base.copy()
+        h = 1e-4 if abs(base[j]) < 1 else 1e-4 * abs(base[j])
+        probe[j] += h
+        rate = float(np.linalg.norm(forward_kinematics(self.params, probe).tip - tip0)) / h  # tip [m] per unit
+        if not rate > 0:
+            return
+        step = base.copy()
+        step[j] += (1.0 if k % 2 == 0 else -1.0) * rig.lost_dither / rate
+        self.psi_cmd = clamp_psi(self.params, step)
+        stats.dithers += 1
 
     def _count_lost(self, outcome: CycleOutcome, memory: TrackingMemory, stats: PhaseStats) -> None:
         stats.lost += int(not outcome.rejected)

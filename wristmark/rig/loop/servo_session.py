@@ -147,6 +147,7 @@ class ServoOutcome:
     no_frame: int = 0
     reused: int = 0
     skipped: int = 0
+    dithers: int = 0  # lost cycles that moved the held arm a little (rig lost_dither)
     stopped: str = ""
     cause: str = ""
     t_stop: float = float("nan")
@@ -162,7 +163,7 @@ class ServoOutcome:
 
 def _count(out: ServoOutcome, stats: Any) -> None:
     """Copy a phase's counters (rig.loop.servo_loop.PhaseStats) into the outcome."""
-    for name in ("cycles", "lost", "rejected", "no_frame", "reused", "skipped"):
+    for name in ("cycles", "lost", "rejected", "no_frame", "reused", "skipped", "dithers"):
         setattr(out, name, int(getattr(stats, name)))
 
 

@@ -98,7 +98,7 @@ def summarize(setup: LoopSetup, traj: Trajectory, session: ServoSession, out: Se
     recs = out.log.phase("servo")
     closed = {**closed_loop_errors(recs), **orientation_errors_of(traj, recs), "lost": out.lost,
               "rejected": out.rejected, "no_frame": out.no_frame,
-              "skipped": out.skipped}
+              "skipped": out.skipped, "dithers": out.dithers}
     if out.play_probe is not None:  # the play probe before the walk (rig/loop/play_probe.py), SI units
         closed["play_probe"] = out.play_probe
     if out.motion_map is not None:  # measured tip motion ~ matrix @ the model's (rig/loop/motion_correction.py)

@@ -46,6 +46,17 @@ MATERIALS = (TUBE, METAL, MARKER_BLACK, MARKER_WHITE)  # ids used by the kernels
 _MATS = np.array([[*m.albedo, m.specular, m.shininess] for m in MATERIALS], np.float64)
 
 
+def glossy_materials(f0: float, alpha: float, lights: Array) -> Array:
+    """The kernels' material rows with the sleeve's glossy laminate: the matte rows, then
+    (F0, GGX alpha) and one row per light output (x, y, z [m] in the camera frame, weight:
+    its share of the coaxial light's irradiance); see :mod:`sim.render.raycast`."""
+    L = np.asarray(lights, float).reshape(-1, 4)
+    rows = np.zeros((1 + len(L), _MATS.shape[1]))
+    rows[0, :2] = f0, alpha
+    rows[1:, :4] = L
+    return np.ascontiguousarray(np.vstack([_MATS, rows]))
+
+
 @dataclass(frozen=True)
 class Capsule:
     """A capsule (cylinder with spherical ends) from a to b [m, camera frame] of radius r [m]."""
@@ -185,18 +196,21 @@ def render_arm(
     origin: tuple[int, int],
     flat: bool = False,
     adaptive: bool = True,
+    mats: Array | None = None,
 ) -> int:
     """Ray-cast ``plan`` and blend the arm over the background radiance already in ``out``
     (float32 BGR [grey levels]; ``out[0, 0]`` is pixel ``origin`` = (u, v)). Each pixel becomes
     the mean of its samples (background where a sample misses). ``gain``: grey levels for unit
     radiance; ``flat``: albedo only, no lighting; ``adaptive``: supersample only pixels whose
-    neighbourhood changes surface (see :func:`sim.render.raycast.raycast_tiles`). Returns the
-    number of rays cast."""
+    neighbourhood changes surface (see :func:`sim.render.raycast.raycast_tiles`); ``mats``: the
+    kernels' material rows (default: the matte :data:`MATERIALS`; :func:`glossy_materials` adds
+    the sleeve's laminate and the light outputs). Returns the number of rays cast."""
     if out.dtype != np.float32 or out.ndim != 3 or out.shape[2] != 3:
         raise InputError(f"out must be a float32 (h, w, 3) image, got {out.dtype} {out.shape}")
     return int(
         raycast_tiles(
-            ray_map.xy, ray_map.dirs, plan.tiles, plan.ptr, plan.prim, plan.caps, plan.sleeve, plan.patches, _MATS,
-            float(gain), bool(flat), bool(adaptive), out, int(origin[0]), int(origin[1]),
+            ray_map.xy, ray_map.dirs, plan.tiles, plan.ptr, plan.prim, plan.caps, plan.sleeve, plan.patches,
+            _MATS if mats is None else mats, float(gain), bool(flat), bool(adaptive), out, int(origin[0]),
+            int(origin[1]),
         )
     )

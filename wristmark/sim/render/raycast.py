@@ -21,7 +21,10 @@ Packed primitives (float64 rows, built by :mod:`sim.render.arm`):
 Materials (rows of ``mats``): albedo B, G, R in [0, 1], specular strength, shininess; ids 0
 tube, 1 metal, 2 marker black, 3 marker white. Shading: coaxial light at the camera, ambient
 0.06 + Lambert 0.94 plus a specular lobe ``spec * (n.v)^shin``, inverse-square falloff with
-unit irradiance at ``D0``; ``flat`` shades albedo only (geometry tests).
+unit irradiance at ``D0``; ``flat`` shades albedo only (geometry tests). A glossy sleeve
+(optional rows from ``GLOSS_ROW``: F0 and GGX alpha, then the light outputs' positions in the
+camera frame [m] and weights) adds the laminate's specular lobe of each light output on both
+patch colours (:func:`_laminate`); without those rows the shading is exactly the matte one.
 
 Kernels are compiled with ``cache=True`` (paid once per machine) and ``nogil=True`` (the two
 cameras render in parallel threads), without ``parallel=True`` (the two cores are already
@@ -49,6 +52,7 @@ SIDE, RING_TOP, RING_BOTTOM = 0, 2, 3  # sleeve surfaces hit (the side's colour 
 
 D0 = 0.08  # distance at which the light gives unit irradiance [m]
 MAT_BLACK, MAT_WHITE = 2, 3
+GLOSS_ROW = 4  # ``mats`` row of the sleeve's glossy laminate (F0, alpha), then one row per light output
 BATCH = 2048  # rays traced together (fits the L1/L2 caches)
 RING = TILE + 2  # centre rays of a tile plus a 1 px ring, for adaptive supersampling
 # Largest |f_uu| + |f_vv| (second differences of the centre rays' radiance [grey levels]) for
@@ -187,6 +191,34 @@ def sleeve_dark(s: F64, pat: F64, ang: float, z: float) -> bool:
 
 
 @jit_inline
+def _laminate(px: float, py: float, pz: float, nx: float, ny: float, nz: float, t: float, mats: F64) -> float:
+    """Specular radiance of the sleeve's glossy laminate at point p (normal n) seen from the
+    camera centre at distance t [m], relative to the coaxial light's unit irradiance at D0:
+    for each light output (rows GLOSS_ROW + 1.. of ``mats``: position x, y, z [m], weight) a
+    GGX (Trowbridge-Reitz) lobe ``pi F0 D(n.h) / (4 n.v)`` (roughness alpha, Fresnel F0 at
+    normal incidence, shadowing ~1 near the highlight) times the output's irradiance relative to
+    the coaxial light's, ``weight (t / |l|)^2 (n.l)``."""
+    f0, a2 = mats[GLOSS_ROW, 0], mats[GLOSS_ROW, 1] * mats[GLOSS_ROW, 1]
+    vx, vy, vz = -px / t, -py / t, -pz / t
+    ndv = max(nx * vx + ny * vy + nz * vz, 1e-3)
+    out = 0.0
+    for k in range(GLOSS_ROW + 1, mats.shape[0]):
+        lx, ly, lz = mats[k, 0] - px, mats[k, 1] - py, mats[k, 2] - pz
+        dl = math.sqrt(lx * lx + ly * ly + lz * lz)
+        lx, ly, lz = lx / dl, ly / dl, lz / dl
+        ndl = nx * lx + ny * ly + nz * lz
+        if ndl <= 0.0:
+            continue
+        hx, hy, hz = lx + vx, ly + vy, lz + vz
+        hn = math.sqrt(hx * hx + hy * hy + hz * hz)
+        ndh = (nx * hx + ny * hy + nz * hz) / hn
+        den = ndh * ndh * (a2 - 1.0) + 1.0
+        d = a2 / (math.pi * den * den)
+        out += mats[k, 3] * (t / dl) ** 2 * ndl * math.pi * f0 * d / (4.0 * ndv)
+    return out
+
+
+@jit_inline
 def _shade(
     dx: float, dy: float, dz: float, t: float, q: int, code: int, caps: F64, s: F64, pat: F64, mats: F64, gain: float,
     flat: bool,
@@ -222,6 +254,8 @@ def _shade(
     fall = gain * (D0 / t) ** 2
     lam = 0.06 + 0.94 * ndv
     spec = mats[mat, 3] * ndv ** mats[mat, 4]
+    if q >= nc and mats.shape[0] > GLOSS_ROW:  # the sleeve's glossy laminate (RenderSettings.sleeve_specular)
+        spec += _laminate(dx * t, dy * t, dz * t, nx, ny, nz, t, mats)
     b, g, r = mats[mat, 0], mats[mat, 1], mats[mat, 2]
     return key, fall * (b * lam + spec), fall * (g * lam + spec), fall * (r * lam + spec)
 

@@ -45,18 +45,22 @@ class OnDemandSource:
 
 
 class RenderedStereoSource(OnDemandSource):
-    """Renders ``arm`` through ``camera`` (noise preset ``noise``, seeded) at every read.
+    """Renders ``arm`` through ``camera`` (noise preset ``noise``, seeded) at every read;
+    ``gloss``: the sleeve's laminate (F0, GGX roughness; RenderSettings.sleeve_specular, F0 0: matte).
 
     age: each frame shows the arm as it was this long [s] before the read, and is stamped so
     (a camera whose frames reach the host that late; the arm must keep that much history:
     ``true_shape_at``, e.g. :class:`sim.plant.TruePlant` with ``history``)."""
 
     def __init__(self, arm: ActuatedArm, camera: StereoCamera, marker: MarkerModel, clock: Callable[[], float],
-                 noise: str = "default", seed: int = 0, name: str = "simulated endoscope", age: float = 0.0) -> None:
+                 noise: str = "default", seed: int = 0, name: str = "simulated endoscope", age: float = 0.0,
+                 gloss: tuple[float, float] = (0.0, 0.1)) -> None:
         super().__init__(clock, name)
         self.arm = arm
         self.age = float(age)
-        self.renderer = StereoRenderer(camera, marker, noise_preset(noise), seed=seed)
+        spec, rough = gloss
+        self.renderer = StereoRenderer(camera, marker, noise_preset(noise, sleeve_specular=spec,
+                                                                   sleeve_roughness=rough), seed=seed)
         self.last_pair: RenderedPair | None = None
 
     def read(self) -> StereoFrame:

@@ -25,6 +25,14 @@ class RenderSettings:
     their centre ray (within 0.1 grey levels of full supersampling, about half the rays);
     colour: BGR images if true, else grayscale; shading: 'phong' (coaxial light, Lambert plus
     specular, inverse-square falloff) or 'flat' (albedo only: pure geometry, for tests).
+    Glossy sleeve (docs/notes/highlight-stripe.md): sleeve_specular: Fresnel reflectance F0 at
+    normal incidence of a clear laminate over the sleeve's print (0: off, the matte sleeve of
+    today's renders; 0.04: a plastic laminate), whose GGX lobe adds a highlight stripe along the
+    sleeve where its surface faces the lights, clipped by the sensor at 255;
+    sleeve_roughness: the laminate's GGX roughness alpha (0.03 mirror-like .. 0.3 satin);
+    light_offset: distance [m] of the light outputs from each lens centre (two outputs per lens,
+    above and below it along the camera's y axis, both lenses' outputs lighting both views; 0:
+    one output at each lens centre). Only with shading 'phong'.
     """
 
     read_noise: float = 1.5
@@ -38,6 +46,9 @@ class RenderSettings:
     adaptive_supersampling: bool = True
     colour: bool = True
     shading: str = "phong"
+    sleeve_specular: float = 0.0
+    sleeve_roughness: float = 0.1
+    light_offset: float = 0.0
 
     def validate(self) -> None:
         """Raise ConfigError naming the offending key."""
@@ -51,6 +62,12 @@ class RenderSettings:
                 raise ConfigError(f"'{k}' must be in 1..8, got {getattr(self, k)}")
         if self.shading not in SHADINGS:
             raise ConfigError(f"'shading' must be one of {', '.join(SHADINGS)}, got '{self.shading}'")
+        if not 0 <= self.sleeve_specular <= 1:
+            raise ConfigError(f"'sleeve_specular' must be in [0, 1], got {self.sleeve_specular}")
+        if not 0.01 <= self.sleeve_roughness <= 1:
+            raise ConfigError(f"'sleeve_roughness' must be in [0.01, 1], got {self.sleeve_roughness}")
+        if not 0 <= self.light_offset <= 0.01:
+            raise ConfigError(f"'light_offset' must be in [0, 0.01] m, got {self.light_offset}")
         if not 0 <= self.vignetting < 1:
             raise ConfigError(f"'vignetting' must be in [0, 1), got {self.vignetting}")
 

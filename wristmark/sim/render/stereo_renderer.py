@@ -29,7 +29,18 @@ from wristmark.cvs.camera import Camera, StereoCamera
 from wristmark.models.arm_shape import ArmShape
 from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
-from wristmark.sim.render.arm import METAL, TUBE, ArmPlan, Box, Capsule, RayMap, Sleeve, plan_arm, render_arm
+from wristmark.sim.render.arm import (
+    METAL,
+    TUBE,
+    ArmPlan,
+    Box,
+    Capsule,
+    RayMap,
+    Sleeve,
+    glossy_materials,
+    plan_arm,
+    render_arm,
+)
 from wristmark.sim.render.background import stereo_backgrounds
 from wristmark.sim.render.optics import blur_radius, grow_box, optics_signal, optics_signal_box, vignetting_map
 from wristmark.sim.render.raycast import TILE
@@ -138,6 +149,22 @@ class StereoRenderer:
         T_right_left = np.eye(4)
         T_right_left[:3, :3], T_right_left[:3, 3] = camera.R, camera.T
         self.T_right_world = T_right_left @ self.T_left_world
+        self._mats = (self._glossy(np.eye(4)), self._glossy(T_right_left))
+
+    def _glossy(self, T_cam_left: Array) -> Array | None:
+        """The kernels' material rows for the camera at ``T_cam_left`` (pose of {ll} in it): the
+        sleeve's laminate lit by the light outputs beside both lenses (None: the matte sleeve)."""
+        st = self.settings
+        if st.sleeve_specular <= 0 or st.shading != "phong":
+            return None
+        R, T = np.asarray(self.camera.R, float), np.asarray(self.camera.T, float).reshape(3)
+        c_right = -R.T @ T  # the right lens's centre in {ll}
+        y = np.array([0.0, 1.0, 0.0])
+        offs = [0.0] if st.light_offset == 0 else [st.light_offset, -st.light_offset]
+        pts = np.array([c + o * y for c in (np.zeros(3), c_right) for o in offs])
+        pts = pts @ T_cam_left[:3, :3].T + T_cam_left[:3, 3]
+        lights = np.column_stack([pts, np.full(len(pts), 1.0 / len(pts))])
+        return glossy_materials(st.sleeve_specular, st.sleeve_roughness, lights)
 
     def _row_boxes(self, plan: ArmPlan) -> list[Box]:
         """Pixel boxes (u0, v0, u1, v1) of the plan's tile rows, each from its first to its last
@@ -169,7 +196,7 @@ class StereoRenderer:
             rad, size, r = self._rad[cam], self.camera.image_size, blur_radius(st)
             boxes = self._row_boxes(plan)
             try:
-                render_arm(rmap, plan, EXPOSURE, rad, (0, 0), flat, st.adaptive_supersampling)
+                render_arm(rmap, plan, EXPOSURE, rad, (0, 0), flat, st.adaptive_supersampling, self._mats[cam])
                 for b in boxes:  # each row's optics from the radiance around it (arm rows above and below included)
                     outer = grow_box(b, 2 * r, size)
                     patch, (u0, v0) = optics_signal_box(rad[outer[1] : outer[3], outer[0] : outer[2]],
@@ -182,7 +209,7 @@ class StereoRenderer:
             return sig, [grow_box(b, r, size) for b in boxes]
         img = self._bg[cam].copy()
         if plan is not None:
-            render_arm(rmap, plan, EXPOSURE, img, (0, 0), flat, st.adaptive_supersampling)
+            render_arm(rmap, plan, EXPOSURE, img, (0, 0), flat, st.adaptive_supersampling, self._mats[cam])
         return optics_signal(img, self._vignette, st, angle), []
 
     def _restore(self, cam: int, boxes: list[Box]) -> None:

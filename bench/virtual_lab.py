@@ -318,7 +318,7 @@ def main() -> int:
     ap.add_argument("--marker", metavar="YAML", help="marker file of both loops (default configs/marker.yaml)")
     ap.add_argument("--robot", metavar="YAML",
                     help="robot file of both loops (default configs/robot.yaml); a format-2 arm's lab frames it "
-                         "(its plant: NAME_plant.yaml beside it unless --plant) and the host gets the lab's calibration")
+                         "(its plant: NAME_plant.yaml beside it unless --plant), the host gets the lab's calibration")
     ap.add_argument("--controller-config", metavar="YAML", help="controller file of both loops "
                                                                 "(default configs/controller.yaml)")
     ap.add_argument("--orientation", choices=("none", "hold", "follow"), default="none",
@@ -346,10 +346,12 @@ def main() -> int:
         rig_file = a.rig
         if a.phase_lock != "none":  # the host's rig file with the lock (the in-process run ignores it)
             rig_file = str(Path(tmp) / "rig_phase_locked.yaml")
-            keys = ("frame_phase_lock:", "frame_lock_phase:", "frame_wait:")
-            text = "\n".join(ln for ln in Path(a.rig).read_text().splitlines() if not ln.startswith(keys))
-            Path(rig_file).write_text(f"{text}\nframe_phase_lock: {a.phase_lock}\nframe_lock_phase: {a.lock_phase:g}\n"
-                                      f"frame_wait: {a.frame_wait:g}\n")
+            import yaml  # the rig file's sections (loop, bench): the lock belongs to the loop
+
+            data = yaml.safe_load(Path(a.rig).read_text())
+            loop = data["loop"] if "loop" in data else data
+            loop.update(frame_phase_lock=a.phase_lock, frame_lock_phase=a.lock_phase, frame_wait=a.frame_wait)
+            Path(rig_file).write_text(yaml.safe_dump(data, sort_keys=False))
             RigConfig.load(rig_file)
         for scale in a.scales:
             sustained = sustained_fps(scale, robot=a.robot)

@@ -108,7 +108,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--render-normal-priority needs --rt-priority N")
     from wristmark.rig.recording.output_dir import claim_outputs
 
-    claim_outputs(files=[args.truth_out, args.truth_dense_out, args.calib_out], force=args.force)  # before anything is served
+    # before anything is served
+    claim_outputs(files=[args.truth_out, args.truth_dense_out, args.calib_out], force=args.force)
     params = load_loop_arm(args.robot, MarkerModel.load(args.marker or default_config("marker.yaml")))
     n = arm_size(params)[0]
     plant_path = Path(args.plant) if args.plant else arm_plant_file(args.robot) or DEFAULT_PLANT
@@ -130,9 +131,6 @@ def run(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGTERM, _stop)
     signal.signal(signal.SIGINT, _stop)
     if args.ros2 is not None:
-        if not isinstance(params, RobotParams):
-            raise InputError("--ros2 serves the reference arm (the flat robot file) only; for a format-2 arm "
-                             "use --pty")
         return _serve_ros2_lab(args, params, plant, psi0, done)
     if args.camera_port is None:
         if args.rt_priority is not None:
@@ -207,7 +205,7 @@ def _serve_lab(args: argparse.Namespace, params: Arm, plant: object, psi0: np.nd
     return 0
 
 
-def _serve_ros2_lab(args: argparse.Namespace, params: RobotParams, plant: object, psi0: np.ndarray,
+def _serve_ros2_lab(args: argparse.Namespace, params: Arm, plant: object, psi0: np.ndarray,
                     done: threading.Event) -> int:
     """The virtual lab over ROS 2 (sim/ros2_lab.py): stdout's first line the ``--actuator`` SPEC
     (ros2:/NS), its second the ``--camera`` SPEC (ros2:LEFT,RIGHT)."""

@@ -34,7 +34,7 @@ import serial
 from numpy.typing import NDArray
 
 from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
-from wristmark.models.arm_spec import Arm, ArmSpec, actuator_names, arm_size, as_spec
+from wristmark.models.arm_spec import Arm, ArmSpec, actuator_names, actuator_units, arm_size
 from wristmark.models.errors import ConfigError, LimitError, WristmarkError
 from wristmark.models.limits import actuator_bounds
 from wristmark.models.robot_params import RobotParams
@@ -122,20 +122,6 @@ class DeviceState:
     def from_packet(cls, s: P.State) -> DeviceState:
         """Convert a STATE packet to SI."""
         return cls(P.si_from_micro(s.positions_micro, len(s.positions_micro)), s.flags, s.clock_ms)
-
-
-def actuator_units(params: Arm) -> tuple[str, ...]:
-    """SI unit of each of the arm's actuators, in its actuator order: 'rad' for a revolute stem
-    joint and a ``direct`` segment's theta / delta, 'm' for a prismatic stem joint and every pull
-    (push-pull backbone, tendon). On the wire each travels in micro-units (µrad, µm)."""
-    spec = as_spec(params)
-    out = ["rad" if j.joint.startswith("revolute") else "m" for j in spec.stem]
-    for s in spec.segments:
-        if s.actuation.type == "direct":
-            out += ["rad"] * (1 if s.planar is not None else 2)
-        else:
-            out += ["m"] * len(s.actuation.angles)
-    return tuple(out)
 
 
 def _arm_label(params: Arm) -> str:

@@ -123,3 +123,29 @@ def test_the_labs_calibration_frames_a_format2_arm_and_is_written_for_the_host(t
     assert np.abs(np.asarray(cam.T_world_left) - shipped.T_world_left).max() > 1e-3
     reference = lab_calibration(argparse.Namespace(calib=None, calib_out=None), RobotParams(), marker)
     np.testing.assert_array_equal(reference.T_world_left, shipped.T_world_left)
+
+
+def test_a_target_at_a_limit_stays_within_it_on_the_wire() -> None:
+    """phi = pi, the end of single_tendon's phi range, rounded to the nearest micro-unit would be
+    3141593 urad > pi: the device rejected the whole target and the lab's cube stopped at 24 s
+    (the loop drove phi to its limit). The driver rounds a target within the limits inwards; one
+    beyond them is still rejected."""
+    from wristmark.models.limits import actuator_bounds
+
+    arm = load_loop_arm(CONFIG_DIR / "robots" / "single_tendon.yaml", MarkerModel())
+    q = home_psi(arm)
+    emu = ActuatorEmulator(TruePlant(arm, PlantParams(), psi0=q), arm)
+    path = emu.serve_pty()
+    try:
+        with ActuatorDriver(path, timeout=0.5, retries=1, params=arm) as drv:
+            drv.ping()
+            drv.enable()
+            lo, hi = actuator_bounds(arm)
+            a = actuators_from_psi(arm, q)
+            for phi in (hi[0], lo[0]):
+                st = drv.set_target(np.r_[phi, a[1:]])
+                assert st.enabled and not st.target_rejected
+            with pytest.raises(ActuatorRejected, match=r"phi=.* rad not in"):
+                drv.set_target(np.r_[hi[0] + 1e-5, a[1:]])
+    finally:
+        emu.stop()

@@ -38,6 +38,7 @@ from wristmark.models.arm_spec import Arm, ArmSpec, actuator_names, actuator_uni
 from wristmark.models.errors import ConfigError, LimitError, WristmarkError
 from wristmark.models.limits import actuator_bounds
 from wristmark.models.robot_params import RobotParams
+from wristmark.models.units import MICRO
 from wristmark.rig.link import protocol as P
 
 try:  # pyserial's POSIX port: flush (tcdrain) and the buffer resets raise termios.error, not OSError
@@ -183,6 +184,9 @@ class ActuatorDriver:
             raise ConfigError(f"the actuator box protocol carries 1 to {P.MAX_ACTUATORS} actuators; "
                               f"{_arm_label(self.params)} has {m}")
         self.count = m  # actuators on the wire: the arm's (confirmed by ping())
+        lo, hi = actuator_bounds(self.params)  # in micro-units, rounded inwards: see set_target
+        self._bounds_si = (lo, hi)
+        self._bounds_micro = (np.ceil(np.round(lo * MICRO, 6)), np.floor(np.round(hi * MICRO, 6)))
         self.version: int | None = None  # the device's protocol version, once ping() answered
         self._parser = P.StreamParser(count=m)
         self._seq = 0
@@ -378,6 +382,13 @@ class ActuatorDriver:
             micro = P.micro_from_si(actuators, self.count)
         except LimitError as e:
             raise ActuatorRejected(f"target not sendable: {e}") from e
+        # a target within the limits stays within them on the wire: rounded to the nearest
+        # micro-unit, a value within half a unit of a limit (phi = pi at its range's end) would
+        # land beyond it and the device would reject the whole target
+        a = np.asarray(actuators, float)
+        inside = (a >= self._bounds_si[0]) & (a <= self._bounds_si[1])
+        clipped = np.where(inside, np.clip(micro, *self._bounds_micro), micro)
+        micro = tuple(int(x) for x in clipped)
         return self._state_request(P.MsgType.SET_TARGET, P.payload_of(P.SetTarget(micro)))
 
     def set_psi(self, psi: object) -> DeviceState:

@@ -260,6 +260,11 @@ def test_approach_offset_of_any_arm_follows_its_psi() -> None:
     np.testing.assert_array_equal(approach_offset(arm), [APPROACH[1], *[APPROACH[2], APPROACH[3]] * 3])
     np.testing.assert_array_equal(approach_offset(ArmSpec.from_params(PARAMS)), APPROACH)  # same numbers
     np.testing.assert_array_equal(approach_offset(PARAMS), APPROACH)
+    # the registration rig on hardware (or the virtual lab) waits for each entry of psi to settle
+    from wristmark.rig.registration.hardware import SETTLE_TOL
+    from wristmark.rig.registration.poses import per_kind
+
+    np.testing.assert_array_equal(per_kind(arm, SETTLE_TOL), [SETTLE_TOL[1], *[SETTLE_TOL[2], SETTLE_TOL[3]] * 3])
 
 
 ANY_ARMS = [CONFIGS / "robots" / f"{name}.yaml" for name in ("tendon3", "single_tendon", "planar")]

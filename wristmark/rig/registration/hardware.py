@@ -22,10 +22,11 @@ from wristmark.cvs.sources.frames import FrameSourceError, StereoSource
 from wristmark.models.arm_spec import Arm
 from wristmark.models.limits import check_limits, delta_indices, velocity_limits
 from wristmark.rig.link.actuator_driver import ActuatorDriver, ActuatorError, ActuatorNotEnabled
+from wristmark.rig.registration.poses import per_kind
 
 Array = NDArray[np.float64]
 MAX_RESUMES = 5  # watchdog trips a run may recover from before it gives up
-SETTLE_TOL = np.array([2e-4, 5e-6, 2e-4, 2e-3, 2e-4, 2e-3])  # [rad, m, rad, rad, rad, rad] per poll
+SETTLE_TOL = np.array([2e-4, 5e-6, 2e-4, 2e-3, 2e-4, 2e-3])  # [rad, m, rad, rad, rad, rad] per poll (any arm: per kind)
 
 
 class HardwareRegistrationRig:
@@ -90,7 +91,7 @@ class HardwareRegistrationRig:
                 raise ActuatorError(f"the arm did not settle within {self.timeout:.0f} s of reaching its target")
             self.sleep(self.period)
             now = self.driver.measured_psi()
-            if np.any(np.abs(now - last) > SETTLE_TOL):
+            if np.any(np.abs(now - last) > per_kind(self.params, SETTLE_TOL)):
                 since = self.clock()
             last = now
         self._settled_at = self.clock()

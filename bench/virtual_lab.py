@@ -77,20 +77,20 @@ from wristmark.rig.loop.rig_config import RigConfig  # noqa: E402
 WRISTMARK = [sys.executable, "-m", "wristmark"]
 
 
-def sustained_fps(scale: float, n: int = 12) -> dict[str, float]:
+def sustained_fps(scale: float, n: int = 12, robot: str | None = None) -> dict[str, float]:
     """Median render + JPEG-encode time of the lab's camera at ``scale`` and the rate it allows."""
     import cv2
 
     from wristmark.cvs.camera import scaled_stereo_camera
-    from wristmark.models.robot_params import HOME_PSI
+    from wristmark.models.arm_spec import home_psi
     from wristmark.sim.render.settings import noise_preset
     from wristmark.sim.render.stereo_renderer import StereoRenderer
     from wristmark.sim.setup import load_setup, make_plant
 
-    setup = load_setup()
+    setup = load_setup(robot=robot)
     cam = setup.camera if scale == 1.0 else scaled_stereo_camera(setup.camera, scale)
     renderer = StereoRenderer(cam, setup.marker, noise_preset("default"))
-    plant = make_plant(setup, np.asarray(HOME_PSI, float))
+    plant = make_plant(setup, home_psi(setup.params))
     times = []
     for k in range(n + 2):
         t0 = time.perf_counter()
@@ -123,14 +123,16 @@ class Scenario:
     marker: str | None = None
     controller: str | None = None
     orientation: str = "none"
+    robot: str | None = None
 
     def lab_args(self) -> list[str]:
         """The emulator's options for it (its true arm and its marker)."""
-        return [*(["--plant", self.plant] if self.plant else []), *(["--marker", self.marker] if self.marker else [])]
+        return [*(["--plant", self.plant] if self.plant else []), *(["--marker", self.marker] if self.marker else []),
+                *(["--robot", self.robot] if self.robot else [])]
 
     def host_args(self) -> list[str]:
         """The hardware path's options for it (no plant: the host never knows the true arm)."""
-        return [*(["--marker", self.marker] if self.marker else []),
+        return [*(["--marker", self.marker] if self.marker else []), *(["--robot", self.robot] if self.robot else []),
                 *(["--controller-config", self.controller] if self.controller else []),
                 *(["--orientation", self.orientation] if self.orientation != "none" else [])]
 
@@ -150,7 +152,8 @@ def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_r
     dense = tmp / f"truth_dense_{scale}.csv"
     emu = subprocess.Popen([*WRISTMARK, "emulator", "--pty", "--camera-port", "0", "--fps", f"{fps:.6g}",
                             "--image-scale", str(scale), "--jpeg-quality", "95", "--truth-out", str(truth),
-                            "--truth-dense-out", str(dense), *scenario.lab_args(),
+                            "--truth-dense-out", str(dense), "--calib-out", str(tmp / f"calib_{scale}.yaml"),
+                            *scenario.lab_args(),
                             *(["--psi0", *(f"{x:.17g}" for x in psi_rest)] if psi_rest is not None else []),
                             *(["--rt-priority", "10"] if rt else []),
                             *(["--render-normal-priority"] if rt and not rt_render else [])],
@@ -160,7 +163,8 @@ def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_r
         run_dir = tmp / f"run_{scale}"
         r = subprocess.run([*WRISTMARK, "servo", "--serial", pty, "--camera", url, "--image-scale", str(scale),
                             "--duration", str(duration), "--no-progress", "--out", str(run_dir),
-                            "--json", str(tmp / f"res_{scale}.json"), *(["--rt-priority", "20"] if rt else []),
+                            "--json", str(tmp / f"res_{scale}.json"), "--calib", str(tmp / f"calib_{scale}.yaml"),
+                            *(["--rt-priority", "20"] if rt else []),
                             *(["--rig", rig] if rig else []), *(["--dt", f"{dt:g}"] if dt else []),
                             *scenario.host_args()],
                            cwd=ROOT, capture_output=True, text=True, timeout=600)
@@ -219,7 +223,8 @@ def _setup_and_cube(scale: float, duration: float, rig: str | None, dt: float | 
     from wristmark.cli import servo as S
     from wristmark.sim.setup import load_setup
 
-    setup = load_setup(plant=scenario.plant, marker=scenario.marker, controller=scenario.controller)
+    setup = load_setup(robot=scenario.robot, plant=scenario.plant, marker=scenario.marker,
+                       controller=scenario.controller)
     base = RigConfig.load(rig) if rig else setup.rig
     every: dict[str, Any] = {"image_scale": scale, **({"control_dt": dt} if dt else {}), **(changes or {})}
     setup = setup.with_changes(rig=dataclasses.replace(base, **every))
@@ -247,7 +252,7 @@ def in_process_run(scale: float, duration: float, rig: str | None = None, dt: fl
     from_home: the arm rests at the home configuration and the loop ramps it to the start, as the
     lab's with ``--lab-start home``; else it rests at the start)."""
     from wristmark.cli import servo as S
-    from wristmark.models.robot_params import HOME_PSI
+    from wristmark.models.arm_spec import home_psi
     from wristmark.rig.loop.servo_summary import summarize
     from wristmark.sim.servo_bench import open_sim_session
 
@@ -258,7 +263,7 @@ def in_process_run(scale: float, duration: float, rig: str | None = None, dt: fl
         setup = setup.with_changes(rig=dataclasses.replace(setup.rig, frame_age=age, vision_latency=delay))
     psi0 = S.start_configuration(setup, traj)
     session = open_sim_session(setup, psi0, S.LinkOptions(kind="emulator"), seed=setup.rig.seed,
-                               rest=np.asarray(HOME_PSI, float) if from_home else None)
+                               rest=home_psi(setup.params) if from_home else None)
     out = S.run_servo(setup, traj, session, psi0, settle=setup.rig.settle_time)
     c = summarize(setup, traj, session, out)["closed_loop"]
     return {"true_tip_mm": {"mean": c["noise_free"]["mean_mm"], "max": c["noise_free"]["max_mm"],
@@ -311,6 +316,9 @@ def main() -> int:
     ap.add_argument("--plant", metavar="YAML",
                     help="the lab's true arm (and the in-process one; default configs/plant.yaml)")
     ap.add_argument("--marker", metavar="YAML", help="marker file of both loops (default configs/marker.yaml)")
+    ap.add_argument("--robot", metavar="YAML",
+                    help="robot file of both loops (default configs/robot.yaml); a format-2 arm's lab frames it "
+                         "(its plant: NAME_plant.yaml beside it unless --plant), the host gets the lab's calibration")
     ap.add_argument("--controller-config", metavar="YAML", help="controller file of both loops "
                                                                 "(default configs/controller.yaml)")
     ap.add_argument("--orientation", choices=("none", "hold", "follow"), default="none",
@@ -324,7 +332,7 @@ def main() -> int:
                          "emulator's home, ramped to the start by the loop, in the lab and in process alike")
     a = ap.parse_args()
     warm_up()  # OpenCV threads and the tracker's kernels, explicitly (building a tracker changes nothing)
-    scenario = Scenario(a.plant, a.marker, a.controller_config, a.orientation)
+    scenario = Scenario(a.plant, a.marker, a.controller_config, a.orientation, a.robot)
     rt = realtime_priority_allowed(20)
     out: dict[str, Any] = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
                                        "load_avg_1min_at_start": os.getloadavg()[0]},
@@ -338,13 +346,15 @@ def main() -> int:
         rig_file = a.rig
         if a.phase_lock != "none":  # the host's rig file with the lock (the in-process run ignores it)
             rig_file = str(Path(tmp) / "rig_phase_locked.yaml")
-            keys = ("frame_phase_lock:", "frame_lock_phase:", "frame_wait:")
-            text = "\n".join(ln for ln in Path(a.rig).read_text().splitlines() if not ln.startswith(keys))
-            Path(rig_file).write_text(f"{text}\nframe_phase_lock: {a.phase_lock}\nframe_lock_phase: {a.lock_phase:g}\n"
-                                      f"frame_wait: {a.frame_wait:g}\n")
+            import yaml  # the rig file's sections (loop, bench): the lock belongs to the loop
+
+            data = yaml.safe_load(Path(a.rig).read_text())
+            loop = data["loop"] if "loop" in data else data
+            loop.update(frame_phase_lock=a.phase_lock, frame_lock_phase=a.lock_phase, frame_wait=a.frame_wait)
+            Path(rig_file).write_text(yaml.safe_dump(data, sort_keys=False))
             RigConfig.load(rig_file)
         for scale in a.scales:
-            sustained = sustained_fps(scale)
+            sustained = sustained_fps(scale, robot=a.robot)
             base_dt = RigConfig.load(a.rig).control_dt
             dt = camera_matched_cycle(sustained["fps"], base_dt, a.lab_share) if a.camera_matched else None
             fps = a.max_fps if dt is None else min(a.max_fps, 1.25 / dt)  # a little faster than the loop

@@ -11,8 +11,12 @@ import numpy as np
 import pytest
 
 from wristmark.cli.main import main
+from wristmark.models.arm_spec import home_psi, load_arm
+from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.robot_params import HOME_PSI
 from wristmark.sim.dataset import load_dataset
+
+TENDON3 = CONFIG_DIR / "robots" / "tendon3.yaml"
 
 
 def test_render_one_pair_end_to_end(tmp_path: Path, capsys) -> None:
@@ -64,11 +68,36 @@ def test_render_a_glossy_sleeve(tmp_path: Path) -> None:
         (["--sleeve-specular", "2"], "--sleeve-specular"),
         (["--sleeve-roughness", "0"], "--sleeve-roughness"),
         (["--light-offset", "0.5"], "--light-offset"),
+        (["--psi", "0", "0.04", "0.7", "0", "0.9"], "expected 6 values (phi d theta1 delta1 theta2 delta2)"),
+        (["--robot", str(TENDON3), "--psi", "0", "0.04", "0.7", "0", "0.9", "0"],
+         "expected 7 values (d theta1 delta1 theta2 delta2 theta3 delta3)"),
     ],
 )
 def test_bad_options_give_one_line_errors(tmp_path: Path, extra: list[str], needle: str) -> None:
     cmd = [sys.executable, "-m", "wristmark", "render", "--out", str(tmp_path / "x"), "--scale", "0.25", *extra]
     p = subprocess.run(cmd, capture_output=True, text=True, cwd=Path(__file__).resolve().parents[2], timeout=120)
-    assert p.returncode != 0
+    assert p.returncode == 2
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and needle in lines[0], p.stderr
+    assert not (tmp_path / "x").exists() or not any((tmp_path / "x").iterdir())  # nothing written
+
+
+def test_render_takes_a_format2_arms_n_values_of_psi(tmp_path: Path) -> None:
+    """--robot tendon3.yaml --psi with its 7 values (and a psi file of 7 per line): the pair shows
+    that configuration (the truth's tip is the arm's forward kinematics at it, in the left camera)."""
+    from wristmark.cvs.calibration.load import load_calibration
+    from wristmark.models.kinematics import forward_kinematics
+
+    arm = load_arm(TENDON3)
+    q = home_psi(arm)
+    f = tmp_path / "psi.txt"
+    f.write_text("# d theta1 delta1 theta2 delta2 theta3 delta3\n" + ", ".join(map(str, q)) + "\n")
+    out = tmp_path / "ds"
+    assert main(["render", "--robot", str(TENDON3), "--out", str(out), "--scale", "0.25", "--noise", "none",
+                 "--psi", *map(str, q), "--psi-file", str(f)]) == 0
+    ds = load_dataset(out)
+    assert len(ds.truth) == 2
+    W = np.asarray(load_calibration(out / "calib.yaml").T_world_left)
+    tip_left = np.linalg.inv(W) @ np.r_[forward_kinematics(arm, q).tip, 1.0]
+    np.testing.assert_allclose(ds.truth[0].tip, tip_left[:3], atol=1e-9)
+    np.testing.assert_allclose(ds.truth[1].tip, ds.truth[0].tip, atol=1e-15)

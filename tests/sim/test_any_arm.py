@@ -1,6 +1,7 @@
 """Every shipped arm (configs/robots/*.yaml) runs the cube on the simulated bench with its own
 plant file: a short walk with fast settings (the truth-noise sensor) closes the loop
-(closed-loop error below the open loop's), and the run's log and result name the arm's joints."""
+(closed-loop error below the open loop's), and the run's log and result name the arm's joints;
+a short walk with vision in the loop (the default sensor) meets issue 28's error targets."""
 
 from __future__ import annotations
 
@@ -34,6 +35,32 @@ def test_a_short_cube_closes_the_loop(robot: Path, tmp_path: Path) -> None:
     with open(tmp_path / "log.csv", newline="") as f:
         header = next(csv.reader(f))
     assert [c for c in header if c.startswith("psi_cmd_")] == [f"psi_cmd_{n}" for n in setup.params.names]
+
+
+# Vision in the loop (rendered 1080p pairs, the tracker, the optical tracker's errors) for each
+# shipped arm that is not the paper's (which `make run` walks in full), an 8 s cube after a 0.5 s
+# settle: ~30 s an arm on the shared 2-core machine. Measured 2026-12-03 (simulated clock, so
+# independent of the load): closed loop mean / max tendon3 0.187 / 0.658 mm, single_tendon
+# 0.162 / 0.422 mm, planar 0.150 / 0.605 mm, against the open loop's 1.24 / 0.93 / 1.34 mm mean.
+# The bounds are issue 28's targets for the full cube (0.3 mm mean, 1.0 mm max): 1.6 x and 1.5 x
+# the worst arm's, room for the controller's tuning to move, not for the loop to fail (a lost
+# marker stops the run; an open loop is 6-9 x the mean).
+VISION_ARMS = [p for p in ARMS if p.stem in ("tendon3", "single_tendon", "planar")]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("robot", VISION_ARMS, ids=[p.stem for p in VISION_ARMS])
+def test_a_short_cube_with_vision_in_the_loop_converges(robot: Path, tmp_path: Path) -> None:
+    setup = load_setup(robot=robot)
+    assert setup.rig.sensor == "vision"  # the default: rendered pairs, tracked
+    rig = dataclasses.replace(setup.rig, settle_time=0.5)
+    res = run_cube(setup.with_changes(rig=rig), tmp_path, progress=False, duration=8.0)
+    c, o = res["closed_loop"], res["open_loop"]
+    print(f"\n{robot.stem}: open {o['mean_mm']:.3f} / {o['max_mm']:.3f} mm, closed {c['mean_mm']:.3f} / "
+          f"{c['max_mm']:.3f} mm (vision in the loop)")
+    assert not c["stopped"] and c["lost"] == 0 and c["cycles"] >= 130
+    assert c["mean_mm"] < 0.3 and c["max_mm"] < 1.0
+    assert c["mean_mm"] < 0.25 * o["mean_mm"]
 
 
 def test_each_shipped_arm_has_its_plant_file() -> None:

@@ -94,8 +94,58 @@ def test_cli_emulator_psi0_of_the_wrong_size_is_one_line() -> None:
     assert r.stderr.strip().count("\n") == 0 and "--psi0 needs 7 values" in r.stderr
 
 
-def test_cli_virtual_lab_with_another_arm_is_refused_in_one_line() -> None:
-    r = subprocess.run([str(EXE), "emulator", "--pty", "--camera-port", "0", "--robot", str(TENDON3_FILE)],
+def test_cli_calib_out_without_the_lab_is_refused_in_one_line(tmp_path: Path) -> None:
+    """--calib-out belongs to the virtual lab (--camera-port or --ros2); nothing is served or written."""
+    out = tmp_path / "lab_calib.yaml"
+    r = subprocess.run([str(EXE), "emulator", "--pty", "--robot", str(TENDON3_FILE), "--calib-out", str(out)],
                        capture_output=True, text=True, timeout=60)
-    assert r.returncode != 0 and r.stdout == ""
-    assert r.stderr.strip().count("\n") == 0 and "--camera-port (the virtual lab) plays the reference arm" in r.stderr
+    assert r.returncode == 2 and r.stdout == "" and not out.exists()
+    assert r.stderr.strip().count("\n") == 0 and "--calib-out need --camera-port PORT" in r.stderr
+
+
+def test_the_labs_calibration_frames_a_format2_arm_and_is_written_for_the_host(tmp_path: Path) -> None:
+    """Without --calib the lab's endoscope stands where the simulated bench frames the arm
+    (sim.setup.camera_for_arm), which --calib-out writes; the reference arm keeps configs/camera.yaml."""
+    import argparse
+
+    from wristmark.cli.emulator import lab_calibration
+    from wristmark.cvs.calibration.load import load_calibration
+    from wristmark.sim.setup import load_setup
+
+    marker = MarkerModel()
+    out = tmp_path / "lab_calib.yaml"
+    args = argparse.Namespace(calib=None, calib_out=str(out))
+    cam = lab_calibration(args, load_loop_arm(TENDON3_FILE, marker), marker)
+    bench = load_setup(robot=TENDON3_FILE).camera  # the simulated bench's framing of tendon3
+    np.testing.assert_allclose(cam.T_world_left, bench.T_world_left, atol=1e-12)
+    np.testing.assert_allclose(load_calibration(out).T_world_left, cam.T_world_left, atol=1e-9)
+    shipped = load_calibration(default_config("camera.yaml"))
+    assert np.abs(np.asarray(cam.T_world_left) - shipped.T_world_left).max() > 1e-3
+    reference = lab_calibration(argparse.Namespace(calib=None, calib_out=None), RobotParams(), marker)
+    np.testing.assert_array_equal(reference.T_world_left, shipped.T_world_left)
+
+
+def test_a_target_at_a_limit_stays_within_it_on_the_wire() -> None:
+    """phi = pi, the end of single_tendon's phi range, rounded to the nearest micro-unit would be
+    3141593 urad > pi: the device rejected the whole target and the lab's cube stopped at 24 s
+    (the loop drove phi to its limit). The driver rounds a target within the limits inwards; one
+    beyond them is still rejected."""
+    from wristmark.models.limits import actuator_bounds
+
+    arm = load_loop_arm(CONFIG_DIR / "robots" / "single_tendon.yaml", MarkerModel())
+    q = home_psi(arm)
+    emu = ActuatorEmulator(TruePlant(arm, PlantParams(), psi0=q), arm)
+    path = emu.serve_pty()
+    try:
+        with ActuatorDriver(path, timeout=0.5, retries=1, params=arm) as drv:
+            drv.ping()
+            drv.enable()
+            lo, hi = actuator_bounds(arm)
+            a = actuators_from_psi(arm, q)
+            for phi in (hi[0], lo[0]):
+                st = drv.set_target(np.r_[phi, a[1:]])
+                assert st.enabled and not st.target_rejected
+            with pytest.raises(ActuatorRejected, match=r"phi=.* rad not in"):
+                drv.set_target(np.r_[hi[0] + 1e-5, a[1:]])
+    finally:
+        emu.stop()

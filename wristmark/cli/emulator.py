@@ -24,6 +24,7 @@ import numpy as np
 
 from wristmark.cli.common_options import add_config_option, add_force_argument, set_example
 from wristmark.cli.option_types import MAX_TIMEOUT_S, PSI_ABS_MAX, float_in, int_in, positive_float, seed_int
+from wristmark.cvs.camera import StereoCamera
 from wristmark.models.arm_spec import Arm, arm_size, home_psi, load_loop_arm
 from wristmark.models.config_files import default_config
 from wristmark.models.errors import InputError, WristmarkError
@@ -65,7 +66,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                           "evaluated at any instant rather than interpolated between frames")
     cam.add_argument("--image-scale", type=float_in(0.05, 1.0), default=1.0, metavar="F",
                      help="render at F x the calibrated size (default 1)")
-    add_config_option(cam, "--calib", note="the endoscope's calibration and pose")
+    add_config_option(cam, "--calib", note="the endoscope's calibration and pose; default configs/camera.yaml, "
+                      "placed for another arm to frame its workspace as the simulated bench does")
+    cam.add_argument("--calib-out", metavar="YAML",
+                     help="write the calibration the host must use (the endoscope as the lab believes it placed: "
+                          "pass it to 'wristmark servo --calib'); with --camera-port or --ros2")
     add_config_option(cam, "--marker")
     cam.add_argument("--jpeg-quality", type=int_in(1, 100), default=90, metavar="Q", help="JPEG quality (default 90)")
     cam.add_argument("--seed", type=seed_int(), default=0, help="render noise seed (default 0)")
@@ -78,7 +83,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def _camera_options_without_port(args: argparse.Namespace) -> list[str]:
     given = [("--fps", args.fps != 30.0), ("--truth-out", args.truth_out), ("--truth-dense-out", args.truth_dense_out),
              ("--image-scale", args.image_scale != 1.0),
-             ("--calib", args.calib), ("--marker", args.marker),
+             ("--calib", args.calib), ("--calib-out", args.calib_out), ("--marker", args.marker),
              ("--render-normal-priority", args.render_normal_priority)]
     return [name for name, set_ in given if set_]
 
@@ -103,12 +108,10 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--render-normal-priority needs --rt-priority N")
     from wristmark.rig.recording.output_dir import claim_outputs
 
-    claim_outputs(files=[args.truth_out, args.truth_dense_out], force=args.force)  # before anything is served
+    # before anything is served
+    claim_outputs(files=[args.truth_out, args.truth_dense_out, args.calib_out], force=args.force)
     params = load_loop_arm(args.robot, MarkerModel.load(args.marker or default_config("marker.yaml")))
     n = arm_size(params)[0]
-    if args.camera_port is not None and not isinstance(params, RobotParams):
-        raise InputError("--camera-port (the virtual lab) plays the reference arm (the flat robot file) only so far: "
-                         "its endoscope pose is not yet fitted to another arm; for a format-2 arm use --pty alone")
     plant_path = Path(args.plant) if args.plant else arm_plant_file(args.robot) or DEFAULT_PLANT
     plant = PlantParams.load(plant_path) if plant_path.exists() or args.plant else PlantParams()
     if args.psi0 is not None and len(args.psi0) != n:
@@ -128,9 +131,6 @@ def run(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGTERM, _stop)
     signal.signal(signal.SIGINT, _stop)
     if args.ros2 is not None:
-        if not isinstance(params, RobotParams):
-            raise InputError("--ros2 serves the reference arm (the flat robot file) only; for a format-2 arm "
-                             "use --pty")
         return _serve_ros2_lab(args, params, plant, psi0, done)
     if args.camera_port is None:
         if args.rt_priority is not None:
@@ -150,16 +150,35 @@ def run(args: argparse.Namespace) -> int:
     return _serve_lab(args, params, plant, psi0, done)
 
 
+def lab_calibration(args: argparse.Namespace, params: Arm, marker: MarkerModel) -> StereoCamera:
+    """The lab's endoscope as the host is to believe it (before the plant's ``camera_offset``):
+    ``--calib``, else configs/camera.yaml, which the simulated bench places for another arm than
+    the reference one to frame that arm's workspace (sim.setup.camera_for_arm, as ``experiment``
+    does); written to ``--calib-out`` when given, for the host's ``--calib``."""
+    from wristmark.cvs.calibration.load import load_calibration, save_calibration
+    from wristmark.sim.setup import camera_for_arm
+
+    calib = load_calibration(args.calib or default_config("camera.yaml"))
+    if not args.calib:
+        placed = camera_for_arm(calib, params, marker)
+        if placed is not calib and not args.calib_out:
+            print("wristmark emulator: the endoscope is placed to frame this arm, not where configs/camera.yaml "
+                  "says: --calib-out FILE writes its calibration for the host's --calib", file=sys.stderr, flush=True)
+        calib = placed
+    if args.calib_out:
+        save_calibration(args.calib_out, calib)
+    return calib
+
+
 def _serve_lab(args: argparse.Namespace, params: Arm, plant: object, psi0: np.ndarray,
                done: threading.Event) -> int:
-    from wristmark.cvs.calibration.load import load_calibration
     from wristmark.models.marker import MarkerModel
     from wristmark.rig.loop.heap_freeze import freeze_heap
     from wristmark.rig.loop.loop_setup import default_config
     from wristmark.sim.virtual_lab import LabCamera, VirtualLab
 
-    calib = load_calibration(args.calib or default_config("camera.yaml"))
     marker = MarkerModel.load(args.marker or default_config("marker.yaml"))
+    calib = lab_calibration(args, params, marker)
     camera = LabCamera(fps=args.fps, image_scale=args.image_scale, seed=args.seed, jpeg_quality=args.jpeg_quality,
                        port=args.camera_port)
     lab = VirtualLab(params, plant, calib, marker, camera, psi0=psi0, watchdog_s=args.watchdog,  # type: ignore[arg-type]
@@ -186,11 +205,10 @@ def _serve_lab(args: argparse.Namespace, params: Arm, plant: object, psi0: np.nd
     return 0
 
 
-def _serve_ros2_lab(args: argparse.Namespace, params: RobotParams, plant: object, psi0: np.ndarray,
+def _serve_ros2_lab(args: argparse.Namespace, params: Arm, plant: object, psi0: np.ndarray,
                     done: threading.Event) -> int:
     """The virtual lab over ROS 2 (sim/ros2_lab.py): stdout's first line the ``--actuator`` SPEC
     (ros2:/NS), its second the ``--camera`` SPEC (ros2:LEFT,RIGHT)."""
-    from wristmark.cvs.calibration.load import load_calibration
     from wristmark.rig.ros2.bridge import clean_namespace
     from wristmark.rig.ros2.dds_config import require_cyclonedds
     from wristmark.sim.ros2_lab import Ros2Lab
@@ -200,8 +218,8 @@ def _serve_ros2_lab(args: argparse.Namespace, params: RobotParams, plant: object
     except ValueError as e:
         raise InputError(f"--ros2: {e}") from None
     require_cyclonedds("--ros2")
-    calib = load_calibration(args.calib or default_config("camera.yaml"))
     marker = MarkerModel.load(args.marker or default_config("marker.yaml"))
+    calib = lab_calibration(args, params, marker)
     lab = Ros2Lab(params, plant, calib, marker, namespace=ns, fps=args.fps, image_scale=args.image_scale,  # type: ignore[arg-type]
                   seed=args.seed, jpeg_quality=args.jpeg_quality, watchdog_s=args.watchdog, truth_out=args.truth_out,
                   psi0=psi0)

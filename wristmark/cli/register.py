@@ -20,7 +20,6 @@ import numpy as np
 
 from wristmark.cli.common_options import add_config_option, add_force_argument, add_json_flag, set_example
 from wristmark.cli.option_types import float_in, int_in, positive_float, seed_int
-from wristmark.models.arm_spec import robot_file_format
 from wristmark.models.config_files import default_config
 from wristmark.models.errors import InputError
 from wristmark.models.robot_params import RobotParams
@@ -89,8 +88,8 @@ def _observe_hardware(args: argparse.Namespace, progress: bool) -> tuple[Any, li
     from wristmark.cvs.calibration.load import load_calibration
     from wristmark.cvs.calibration.registration_file import apply_registration
     from wristmark.cvs.tracking.tracker import MarkerTracker
+    from wristmark.models.arm_spec import load_loop_arm
     from wristmark.models.marker import MarkerModel
-    from wristmark.models.robot_params import load_robot
     from wristmark.rig.link.actuator_driver import ActuatorDriver
     from wristmark.rig.registration.hardware import HardwareRegistrationRig
     from wristmark.rig.registration.poses import choose_poses
@@ -102,7 +101,7 @@ def _observe_hardware(args: argparse.Namespace, progress: bool) -> tuple[Any, li
     calib = args.calib or str(default_config("camera.yaml"))
     cam = apply_registration(load_calibration(calib), args.registration)
     marker = MarkerModel.load(args.marker) if args.marker else MarkerModel()
-    params = load_robot(args.robot, marker)
+    params = load_loop_arm(args.robot, marker)
     poses = choose_poses(params, args.poses, cam, marker, seed=args.seed)
     source = open_stereo_source(args.camera, SourceOptions(image_size=cam.image_size))
     try:
@@ -121,11 +120,24 @@ def _observe_hardware(args: argparse.Namespace, progress: bool) -> tuple[Any, li
     return params, obs, {"simulated": False}
 
 
+def arm_summary(params: Any, arm: Any) -> dict[str, Any]:
+    """The arm correction fitted alongside, as JSON: the reference arm's keys; any other arm's
+    by name (``bend_gain`` and ``plane_offset`` per segment, ``half_play`` per actuator)."""
+    out = {"bend_gain": list(arm.bend_gain), "plane_offset_2": arm.plane_offset_2,
+           "stem_coupling": arm.stem_coupling, "half_play": list(arm.half_play)}
+    if isinstance(params, RobotParams):
+        return out
+    from wristmark.models.arm_spec import actuator_names
+
+    del out["plane_offset_2"]
+    return {**out, "plane_offset": list(arm.plane_offset), "actuators": list(actuator_names(params))}
+
+
 def run(args: argparse.Namespace) -> int:
     from wristmark.cvs.calibration.registration_file import Registration, save_registration
     from wristmark.cvs.tracking.warmup import warm_up
+    from wristmark.models.arm_spec import load_loop_arm, log_psi_names
     from wristmark.models.marker import MarkerModel
-    from wristmark.models.robot_params import load_robot
     from wristmark.rig.registration.log import read_log, write_log
     from wristmark.rig.registration.run import registration_poses
     from wristmark.solvers.registration import solve_registration, transform_error
@@ -137,31 +149,24 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("give either --from-log DIR or --serial PORT, not both")
     if args.camera and not args.serial:
         raise InputError("--camera SPEC is for hardware: give --serial PORT too (the simulated bench renders its own)")
-    if args.robot and robot_file_format(args.robot) == 2 and (args.log or args.from_log):
-        raise InputError("--log/--from-log: the registration log holds the reference arm's six psi columns; "
-                         "register a format-2 arm without them")
     warm_up(jit=not args.from_log)  # OpenCV's threads, the tracker's kernels (cvs.tracking.warmup)
     progress = not args.no_progress
     extra: dict[str, Any] = {}
     if args.from_log:
-        params = load_robot(args.robot, MarkerModel.load(args.marker) if args.marker else MarkerModel())
-        obs = read_log(args.from_log)
+        params = load_loop_arm(args.robot, MarkerModel.load(args.marker) if args.marker else MarkerModel())
+        obs = read_log(args.from_log, log_psi_names(params))
     elif args.serial:
         params, obs, extra = _observe_hardware(args, progress)
     else:
         params, obs, extra = _observe_sim(args, progress)
     if args.log:
-        write_log(args.log, obs)
+        write_log(args.log, obs, log_psi_names(params))
     for o in obs:
         if not o.ok:
             print(f"wristmark register: pose {o.pose} ({'-' if o.approach < 0 else '+'}): marker not tracked "
                   f"({o.reason})", file=sys.stderr)
     poses = registration_poses(params, obs)
-    rigid = args.rigid_arm or not isinstance(params, RobotParams)
-    if rigid and not args.rigid_arm:
-        print("wristmark register: note: a format-2 arm is fit rigidly (world_T_left alone; the arm correction "
-              "models the reference arm)", file=sys.stderr)
-    res = solve_registration(params, poses, estimate_arm=not rigid)
+    res = solve_registration(params, poses, estimate_arm=not args.rigid_arm)
     n_poses = len({o.pose for o in obs if o.ok})
     save_registration(out, Registration(res.world_T_left, res.rms_m, n_poses))
     per_pose = [{"pose": n, "centre_mm": 1000 * float(c), "axis_deg": float(np.degrees(a))}
@@ -172,8 +177,7 @@ def run(args: argparse.Namespace) -> int:
     summary: dict[str, Any] = {
         "out": str(out), "world_T_left": res.world_T_left.tolist(), "rms_m": res.rms_m, "poses": n_poses,
         "visits": len(obs), "per_pose": per_pose, "outliers": res.outliers,
-        "arm": {"bend_gain": list(res.arm.bend_gain), "plane_offset_2": res.arm.plane_offset_2,
-                "stem_coupling": res.arm.stem_coupling, "half_play": list(res.arm.half_play)}, **extra}
+        "arm": arm_summary(params, res.arm), **extra}
     if "true_world_T_left" in extra:
         t, r = transform_error(np.asarray(extra["true_world_T_left"]), res.world_T_left)
         summary["error"] = {"translation_mm": 1000 * t, "rotation_deg": float(np.degrees(r))}

@@ -43,13 +43,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_config_option(p, "--robot")
     p.add_argument(
         "--psi",
-        nargs=6,
+        nargs="+",
         type=float_in(-PSI_ABS_MAX, PSI_ABS_MAX),
         action="append",
-        metavar=("PHI", "D", "THETA1", "DELTA1", "THETA2", "DELTA2"),
-        help="render this configuration [rad, m, rad, rad, rad, rad]; repeatable",
+        metavar="Q",
+        help="render this configuration: the arm's n values of psi in its order (the reference arm: phi d "
+             "theta1 delta1 theta2 delta2 [rad, m, rad, rad, rad, rad]; a format-2 --robot: its names); repeatable",
     )
-    p.add_argument("--psi-file", help="text file with one configuration (6 numbers) per line")
+    p.add_argument("--psi-file", help="text file with one configuration (the arm's n numbers) per line")
     p.add_argument("--noise", choices=("none", "default", "strong"), default="default", help="noise preset")
     p.add_argument("--settings", help="render settings YAML (overrides --noise)")
     p.add_argument("--jpeg", type=int_in(1, 100), default=None, metavar="Q",
@@ -91,8 +92,10 @@ def psi_spread(params: object) -> tuple[float, ...]:
     return tuple(out)
 
 
-def read_psi_file(path: str | Path) -> list[Array]:
-    """Configurations from a text file: 6 numbers per line (spaces or commas), '#' comments."""
+def read_psi_file(path: str | Path, names: tuple[str, ...] = ("phi", "d", "theta1", "delta1", "theta2", "delta2"),
+                  ) -> list[Array]:
+    """Configurations from a text file: one number per entry of psi (``names``, in order) per line
+    (spaces or commas), '#' comments."""
     p = Path(path)
     if not p.is_file():
         raise InputError(f"{p}: psi file not found")
@@ -104,9 +107,9 @@ def read_psi_file(path: str | Path) -> list[Array]:
         try:
             vals = [float(x) for x in line.split()]
         except ValueError as e:
-            raise InputError(f"{p}:{k}: expected 6 numbers, got '{line}'") from e
-        if len(vals) != 6 or not all(math.isfinite(v) for v in vals):
-            raise InputError(f"{p}:{k}: expected 6 finite numbers (phi d theta1 delta1 theta2 delta2)")
+            raise InputError(f"{p}:{k}: expected {len(names)} numbers, got '{line}'") from e
+        if len(vals) != len(names) or not all(math.isfinite(v) for v in vals):
+            raise InputError(f"{p}:{k}: expected {len(names)} finite numbers ({' '.join(names)})")
         rows.append(np.array(vals))
     if not rows:
         raise InputError(f"{p}: no configurations in the file")
@@ -128,7 +131,7 @@ def run(args: argparse.Namespace) -> int:
     from wristmark.cvs.camera import scaled_stereo_camera
     from wristmark.cvs.tracking.warmup import warm_up
     from wristmark.models.arm_shape import arm_shape
-    from wristmark.models.arm_spec import ArmSpec, load_loop_arm
+    from wristmark.models.arm_spec import ArmSpec, arm_names, load_loop_arm
     from wristmark.models.limits import check_limits
     from wristmark.models.marker import MarkerModel
     from wristmark.sim.dataset import DatasetWriter
@@ -171,9 +174,14 @@ def run(args: argparse.Namespace) -> int:
 
         camera = camera_for_arm(camera, params, marker)
 
+    names = arm_names(params)
+    for q in args.psi or []:
+        if len(q) != len(names):
+            raise InputError(f"argument --psi: expected {len(names)} values ({' '.join(names)}) for "
+                             f"{args.robot or 'the reference arm'}, got {len(q)}")
     given: list[Array] = [np.asarray(q, float) for q in (args.psi or [])]
     if args.psi_file:
-        given += read_psi_file(args.psi_file)
+        given += read_psi_file(args.psi_file, names)
     rng = np.random.default_rng(args.seed)
     if given:
         if args.pairs is not None and args.pairs != len(given):

@@ -19,7 +19,19 @@ if TYPE_CHECKING:
     from wristmark.models.arm_pinocchio import PinocchioAnyArm
     from wristmark.models.arm_shape import ArmShape
     from wristmark.models.arm_shape import arm_shape as arm_shape_of
-    from wristmark.models.arm_spec import Actuation, ArmSpec, Segment, StemJoint, load_arm
+    from wristmark.models.arm_spec import (
+        Actuation,
+        Arm,
+        ArmSpec,
+        Segment,
+        StemJoint,
+        actuator_names,
+        actuator_units,
+        arm_names,
+        arm_size,
+        home_psi,
+        load_arm,
+    )
     from wristmark.models.arm_urdf import generate_arm_urdf
     from wristmark.models.config_files import default_config, find_config, shipped_configs
     from wristmark.models.config_io import from_mapping, load_yaml, save_yaml, to_mapping

@@ -410,6 +410,17 @@ def actuator_names(arm: Arm) -> tuple[str, ...]:
     return as_spec(arm).actuator_names
 
 
+def actuator_units(arm: Arm) -> tuple[str, ...]:
+    """SI unit of each of the arm's actuators, in its actuator order: 'rad' for a revolute stem
+    joint and a ``direct`` segment's theta / delta, 'm' for a prismatic stem joint and every pull
+    (push-pull backbone, tendon). On the wire each travels in micro-units (µrad, µm)."""
+    spec = as_spec(arm)
+    out = ["rad" if j.joint.startswith("revolute") else "m" for j in spec.stem]
+    for s in spec.segments:
+        out += ["rad" if s.actuation.type == "direct" else "m"] * s.actuators
+    return tuple(out)
+
+
 def log_psi_names(arm: Arm) -> tuple[str, ...] | None:
     """The names a run log gives psi's entries: None for the reference arm's flat parameters
     (log.csv keeps psi_cmd_0..5), the arm's names otherwise."""

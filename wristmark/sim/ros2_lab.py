@@ -3,8 +3,9 @@ only through ROS 2 topics (Cyclone DDS, no ROS; loopback unless ``CYCLONEDDS_URI
 otherwise), the way a lab's arm driver and camera driver would expose them.
 
 Topics under ``NS`` (CRTK names, as rig/ros2/actuator_link.py speaks them): in ``NS/servo_jp``
-(sensor_msgs/JointState: actuator targets by name phi, d, s1a, s1b, s2a, s2b [rad, m]; obeyed only
-while enabled) and ``NS/crtk_command`` (std_msgs/String enable | disable); out ``NS/measured_js``
+(sensor_msgs/JointState: actuator targets by the robot file's actuator names, [rad] or [m] each:
+phi, d, s1a, s1b, s2a, s2b for the reference arm; obeyed only while enabled) and
+``NS/crtk_command`` (std_msgs/String enable | disable); out ``NS/measured_js``
 (the encoders, every ``js_period`` s) and the endoscope, ``NS/left/image_raw/compressed`` and
 ``NS/right/image_raw/compressed`` (sensor_msgs/CompressedImage, JPEG, both images of a frame
 stamped alike with the instant the arm was sampled, on the system clock), up to ``fps`` frames a
@@ -35,10 +36,9 @@ import cv2
 import numpy as np
 
 from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera
-from wristmark.models.actuation import ACTUATOR_NAMES
+from wristmark.models.arm_spec import Arm, actuator_names, home_psi
 from wristmark.models.errors import InputError, WristmarkError
 from wristmark.models.marker import MarkerModel
-from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.rig.ros2.bridge import clean_namespace
 from wristmark.rig.ros2.dds_config import open_participant, require_cyclonedds
 from wristmark.sim.dense_truth import TRUTH_HEADER
@@ -50,7 +50,7 @@ from wristmark.sim.plant_params import PlantParams
 class Ros2Lab:
     """The simulated arm behind ROS 2 topics (module docstring)."""
 
-    def __init__(self, params: RobotParams, plant: PlantParams, calibration: StereoCamera, marker: MarkerModel,
+    def __init__(self, params: Arm, plant: PlantParams, calibration: StereoCamera, marker: MarkerModel,
                  namespace: str = "lab", fps: float = 15.0, image_scale: float = 0.35, noise: str = "default",
                  seed: int = 0, jpeg_quality: int = 90, watchdog_s: float = 0.25, js_period: float = 0.01,
                  truth_out: str | Path | None = None, psi0: Any = None, state_period: float = 0.1,
@@ -66,6 +66,7 @@ class Ros2Lab:
         self.camera = calibration if image_scale == 1.0 else scaled_stereo_camera(calibration, image_scale)
         self.namespace = clean_namespace(namespace)
         self.params = params
+        self.names = actuator_names(params)
         self.marker = marker
         self.fps = float(fps)
         self.noise, self.seed, self.jpeg_quality = noise, int(seed), int(jpeg_quality)
@@ -73,7 +74,8 @@ class Ros2Lab:
         self.js_period = float(js_period)
         self.state_period = float(state_period)
         self.publish_state = bool(publish_state)
-        self.arm = LockedArm(TruePlant(params, plant, psi0=np.asarray(psi0 if psi0 is not None else HOME_PSI, float)))
+        self.arm = LockedArm(TruePlant(params, plant, psi0=np.asarray(psi0, float) if psi0 is not None
+                                       else home_psi(params)))
         self.enabled = False
         self.watchdog_trips = 0
         self.malformed = 0
@@ -137,10 +139,10 @@ class Ros2Lab:
             if not hasattr(msg, "position"):
                 continue  # an InvalidSample: the writer left (no data)
             names, pos = list(msg.name), list(msg.position)
-            if len(names) != len(pos) or not set(ACTUATOR_NAMES) <= set(names):
+            if len(names) != len(pos) or not set(self.names) <= set(names):
                 self.malformed += 1
                 continue
-            a = np.array([pos[names.index(n)] for n in ACTUATOR_NAMES], float)
+            a = np.array([pos[names.index(n)] for n in self.names], float)
             if not np.all(np.isfinite(a)):
                 self.malformed += 1
                 continue
@@ -176,7 +178,7 @@ class Ros2Lab:
             q = self.arm.measured_actuators()
             ns = time.time_ns()
             self._js.write(M.JointState(M.Header(M.Time(ns // 1_000_000_000, ns % 1_000_000_000), ""),
-                                        list(ACTUATOR_NAMES), [float(x) for x in q], [], []))
+                                        list(self.names), [float(x) for x in q], [], []))
 
     def _run_state(self) -> None:
         while not self._stop.wait(self.state_period):

@@ -21,14 +21,23 @@ marker's roll is not used (it is only known modulo the pattern's period).
 Residuals are scaled by the tracker's accuracy (centre 0.05 mm, axis 0.2 deg), so the loss's
 knee is at about 3 sigma. Units: metres, radians.
 
-Any arm (a format-2 robot file, models.arm_spec.ArmSpec): the arm correction above is the
-reference arm's, so the fit is rigid (``estimate_arm=False``): world_T_left alone from the
-model's marker poses (models.kinematics.forward_kinematics of the ArmSpec).
+Any arm (a format-2 robot file, models.arm_spec.ArmSpec): the same correction sized to the arm
+(:meth:`ArmCorrection.for_arm`), as the simulated true arm (sim/plant.py) errs: a bend gain per
+segment, a plane offset per segment but the first (segment 1's is a turn about z_w, as above:
+every format-2 stem joint turns about or feeds along z_w; a planar segment's offset turns its
+fixed plane), the stem coupling where the stem feeds (a prismatic joint: the exposed stem's length
+varies; without one it has no length and no effect) and the half play of every actuator. What is
+not separable: segment 1's plane offset (in world_T_left's turn about z_w); for tendon segments
+the plays of a segment's tendons only as far as the visits' motion signs differ (the true arm's
+output is the least-squares psi of its tendons, so a play common to all of a segment's tendons
+moves nothing; such a play fits to anything and is reported, not trusted); a tip load (stays in
+the residuals). ``estimate_arm=False`` fits world_T_left alone (rigid).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,7 +45,7 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
-from wristmark.models.arm_spec import Arm, ArmSpec
+from wristmark.models.arm_spec import Arm, ArmSpec, actuator_units
 from wristmark.models.constant_curvature import rot_z, segment_transform
 from wristmark.models.errors import InputError
 from wristmark.models.kinematics import forward_kinematics
@@ -54,34 +63,58 @@ _PLAY_SCALE = np.array([1e-2, 1e-4, 1e-4, 1e-4, 1e-4, 1e-4])  # [rad, m, ...] ty
 class RegistrationPose:
     """One observation: configuration psi (from the encoders) [rad, m, rad, rad, rad, rad], the
     marker centre (3,) [m] and unit z axis (3,) in {ll}, a name for messages, and the sign of
-    each actuator's last motion before the observation (6,) (zeros: unknown)."""
+    each actuator's last motion before the observation (m,) (zeros: unknown). Any arm (an
+    ArmSpec) may also give ``approach_move``, each actuator's last move [rad or m] (from the
+    approach point to psi) and ``prior_sign``, the sign of its move into the approach point:
+    then a move shorter than the play leaves the output inside its dead band, as it truly does
+    (a tendon whose angle lies across the approach's bend moves little)."""
 
     psi: Array
     centre_left: Array
     axis_left: Array
     name: str = ""
     motion_sign: Array = field(default_factory=lambda: np.zeros(6))
+    approach_move: Array | None = None
+    prior_sign: Array | None = None
 
 
 @dataclass(frozen=True)
 class ArmCorrection:
-    """Observable model errors of the arm: bend gains [-], segment 2's plane offset [rad], stem
-    coupling zeta [-] and the half play of each actuator's backlash [rad, m, m, m, m, m]."""
+    """Observable model errors of the arm: bend gains per segment [-], segment 2's plane offset
+    [rad] (the reference arm), stem coupling zeta [-], the half play of each actuator's backlash
+    [rad or m each, in the arm's actuator order], and for any arm (an ArmSpec) ``plane_offset``,
+    one per segment [rad] (the first always 0: not observable)."""
 
-    bend_gain: tuple[float, float] = (1.0, 1.0)
+    bend_gain: tuple[float, ...] = (1.0, 1.0)
     plane_offset_2: float = 0.0
     stem_coupling: float = 0.0
     half_play: tuple[float, ...] = (0.0,) * 6
+    plane_offset: tuple[float, ...] = ()
 
-    def marker_frame(self, params: Arm, psi: Array, motion_sign: Array) -> Array:
-        """The model's 4x4 pose of {wm} in {w} with the corrections applied (none: any arm's
-        forward kinematics; the corrections model the reference arm's RobotParams only)."""
+    @classmethod
+    def for_arm(cls, params: Arm) -> ArmCorrection:
+        """No correction, sized to ``params`` (N segments, m actuators)."""
+        if not isinstance(params, ArmSpec):
+            return cls()
+        return cls(bend_gain=(1.0,) * len(params.segments), half_play=(0.0,) * params.m,
+                   plane_offset=(0.0,) * len(params.segments))
+
+    def is_identity(self) -> bool:
+        """Whether it corrects nothing (the model's forward kinematics as they are)."""
+        return (all(g == 1.0 for g in self.bend_gain) and self.plane_offset_2 == 0.0 and self.stem_coupling == 0.0
+                and not any(self.half_play) and not any(self.plane_offset))
+
+    def marker_frame(self, params: Arm, psi: Array, motion_sign: Array, approach_move: Array | None = None,
+                     prior_sign: Array | None = None) -> Array:
+        """The model's 4x4 pose of {wm} in {w} with the corrections applied (any arm: each
+        segment's gain and plane offset, the stem bent in segment 1's plane, the plays, as
+        sim/plant.py's true arm; with ``approach_move`` and ``prior_sign``, RegistrationPose's,
+        each output's lag after its last two moves through the dead band)."""
         q = np.array(psi, float)
-        if self == ArmCorrection() or isinstance(params, ArmSpec):
-            if isinstance(params, ArmSpec) and self != ArmCorrection():
-                raise InputError("the arm correction (bend gains, stem coupling, play) models the reference arm "
-                                 "only: fit a format-2 arm rigidly (--rigid-arm)")
+        if self.is_identity():
             return forward_kinematics(params, q).T_world_marker
+        if isinstance(params, ArmSpec):
+            return self._spec_marker_frame(params, q, motion_sign, approach_move, prior_sign)
         if any(self.half_play):
             a = actuators_from_psi(params, q) - np.asarray(self.half_play) * motion_sign
             q = psi_from_actuators(params, a, q)
@@ -96,6 +129,30 @@ class ArmCorrection:
             straight[2, 3] = q[1]
             T = S @ segment_transform(q[1], self.stem_coupling * q[2], q[3]) @ np.linalg.inv(straight) @ T
         return T
+
+    def _spec_marker_frame(self, spec: ArmSpec, q: Array, motion_sign: Array, approach_move: Array | None,
+                           prior_sign: Array | None) -> Array:
+        """:meth:`marker_frame` of any arm (sim/plant.py's TruePlant._bend_any and _chain without the tip load)."""
+        n_seg = len(spec.segments)
+        if len(self.bend_gain) != n_seg or len(self.half_play) != spec.m or len(self.plane_offset) != n_seg:
+            raise InputError(f"an arm correction of {spec.name} needs {n_seg} bend gains and plane offsets and "
+                             f"{spec.m} plays (ArmCorrection.for_arm)")
+        if any(self.half_play):
+            h = np.abs(np.asarray(self.half_play))
+            if approach_move is not None and prior_sign is not None:  # output - motor after the two moves
+                lag = np.clip(-prior_sign * h - approach_move, -h, h)
+            else:
+                lag = -h * motion_sign
+            q = psi_from_actuators(spec, actuators_from_psi(spec, q) + lag, q)
+        if any(sg.planar is not None and o for sg, o in zip(spec.segments, self.plane_offset)):
+            spec = replace(spec, segments=tuple(replace(sg, planar=sg.planar + o) if sg.planar is not None else sg
+                                                for sg, o in zip(spec.segments, self.plane_offset)))
+        for t, (ti, di) in enumerate(zip(spec.theta_index, spec.delta_index)):
+            q[ti] *= self.bend_gain[t]
+            if di is not None:
+                q[di] += self.plane_offset[t]
+        bend = self.stem_coupling * float(q[spec.theta_index[0]])
+        return forward_kinematics(spec, q, stem_bend=bend).T_world_marker
 
 
 @dataclass
@@ -116,7 +173,7 @@ class RegistrationResult:
 
 
 def _model(params: Arm, poses: list[RegistrationPose], arm: ArmCorrection) -> tuple[Array, Array]:
-    frames = [arm.marker_frame(params, p.psi, p.motion_sign) for p in poses]
+    frames = [arm.marker_frame(params, p.psi, p.motion_sign, p.approach_move, p.prior_sign) for p in poses]
     return np.array([T[:3, 3] for T in frames]), np.array([T[:3, 2] for T in frames])
 
 
@@ -151,28 +208,23 @@ def closed_form(centres_left: Array, centres_world: Array) -> Array:
 def solve_registration(params: Arm, poses: list[RegistrationPose], estimate_arm: bool = True,
                        loss: str = "soft_l1") -> RegistrationResult:
     """world_T_left from the observations (see the module docstring). InputError on too few or
-    degenerate poses, or on ``estimate_arm`` for any arm but the reference arm."""
-    if estimate_arm and isinstance(params, ArmSpec):
-        raise InputError("the arm correction (bend gains, stem coupling, play) models the reference arm only: "
-                         "fit a format-2 arm rigidly (--rigid-arm)")
+    degenerate poses."""
     if estimate_arm and len(poses) < MIN_POSES_ARM:
         raise InputError(f"estimating the arm's gains with the registration needs at least {MIN_POSES_ARM} "
                          f"tracked poses, got {len(poses)}: use more --poses (or --rigid-arm)")
     cl = np.array([p.centre_left for p in poses], float).reshape(-1, 3)
     al = np.array([p.axis_left for p in poses], float).reshape(-1, 3)
     al /= np.linalg.norm(al, axis=1, keepdims=True)
-    cw, aw = _model(params, poses, ArmCorrection())
+    cw, aw = _model(params, poses, ArmCorrection.for_arm(params))
     check_spread(cw)
     W0 = closed_form(cl, cw)
     al = al * np.sign(np.sum((al @ W0[:3, :3].T) * aw, axis=1, keepdims=True) + 1e-12)
 
     backlash = estimate_arm and any(np.any(p.motion_sign != 0) for p in poses)
+    unpack_arm, n_arm = _arm_unpacker(params, backlash) if estimate_arm else (None, 0)
 
     def unpack(x: Array) -> tuple[Array, Array, ArmCorrection]:
-        arm = ArmCorrection()
-        if estimate_arm:
-            play = tuple(x[10:16] * _PLAY_SCALE) if backlash else (0.0,) * 6
-            arm = ArmCorrection((1.0 + x[6], 1.0 + x[7]), x[8], x[9], play)
+        arm = unpack_arm(x[6:]) if unpack_arm is not None else ArmCorrection.for_arm(params)
         return Rotation.from_rotvec(x[:3]).as_matrix(), x[3:6], arm
 
     keep = np.ones(len(poses), bool)
@@ -190,7 +242,6 @@ def solve_registration(params: Arm, poses: list[RegistrationPose], estimate_arm:
         return (np.linalg.norm(cl @ R.T + t - mw, axis=1),
                 np.arccos(np.clip(np.sum((al @ R.T) * ma, axis=1), -1.0, 1.0)))
 
-    n_arm = (10 if backlash else 4) if estimate_arm else 0
     x = np.concatenate([Rotation.from_matrix(W0[:3, :3]).as_rotvec(), W0[:3, 3], np.zeros(n_arm)])
     x = least_squares(residuals, x, loss=loss, f_scale=3.0, x_scale="jac", method="trf").x
     dc, da = errors(x)
@@ -203,6 +254,28 @@ def solve_registration(params: Arm, poses: list[RegistrationPose], estimate_arm:
     names = [p.name or str(i) for i, p in enumerate(poses)]
     return RegistrationResult(_transform(R, t), float(np.sqrt(np.mean(dc[keep] ** 2))), dc, da, arm, W0, names,
                               [n for n, k in zip(names, keep) if not k])
+
+
+def _arm_unpacker(params: Arm, backlash: bool) -> tuple[Callable[[Array], ArmCorrection], int]:
+    """The arm correction's free parameters (offsets from no correction, scaled) -> ArmCorrection,
+    and their count: the reference arm's g1, g2, o2, zeta (and 6 plays); any arm's N gains, N - 1
+    plane offsets (segments 2..N), zeta where the stem feeds, and m plays (module docstring)."""
+    if not isinstance(params, ArmSpec):
+        def reference(y: Array) -> ArmCorrection:
+            play = tuple(y[4:10] * _PLAY_SCALE) if backlash else (0.0,) * 6
+            return ArmCorrection((1.0 + y[0], 1.0 + y[1]), y[2], y[3], play)
+        return reference, 10 if backlash else 4
+    n_seg, m = len(params.segments), params.m
+    feeds = any(j.joint.startswith("prismatic") for j in params.stem)
+    scale = np.array([1e-2 if u == "rad" else 1e-4 for u in actuator_units(params)])
+
+    def any_arm(y: Array) -> ArmCorrection:
+        k = 2 * n_seg - 1
+        zeta = float(y[k]) if feeds else 0.0
+        k += int(feeds)
+        play = tuple(y[k:k + m] * scale) if backlash else (0.0,) * m
+        return ArmCorrection(tuple(1.0 + y[:n_seg]), 0.0, zeta, play, (0.0, *y[n_seg:2 * n_seg - 1]))
+    return any_arm, 2 * n_seg - 1 + int(feeds) + (m if backlash else 0)
 
 
 def transform_error(A: Array, B: Array) -> tuple[float, float]:

@@ -154,3 +154,24 @@ def test_bad_bags(tmp_path: Path) -> None:
     assert "\n" not in str(e.value)
     with pytest.raises(FrameSourceError, match="no such bag"):
         open_stereo_source(str(tmp_path / "nope.mcap"))
+
+
+def test_a_format2_arm_records_its_actuators_by_name(tmp_path: Path) -> None:
+    """servo --record for another arm: /wristmark/actuators carries the robot file's actuator
+    names (tendon3: d, s1a, ..., s3c), and a count other than the arm's is refused."""
+    from wristmark.models.arm_spec import actuator_names, load_arm
+    from wristmark.models.config_files import CONFIG_DIR
+    from wristmark.rig.recording.servo_recorder import ServoRecorder
+
+    arm = load_arm(CONFIG_DIR / "robots" / "tendon3.yaml")
+    rec = ServoRecorder(str(tmp_path / "t3.mcap"), arm)
+    assert rec.bag.actuator_names == actuator_names(arm) and len(actuator_names(arm)) == 10
+    with pytest.raises(InputError, match="expected 10 actuator positions, got 6"):
+        rec.bag.write_actuators(time.monotonic(), np.zeros(6), np.zeros(6))
+    rec.bag.write_actuators(time.monotonic(), np.arange(10) * 1e-4, np.arange(10) * 1e-4)
+    rec.close()
+    with AnyReader([tmp_path / "t3.mcap"], default_typestore=typestore()) as reader:
+        joints = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages()
+                  if c.topic == "/wristmark/actuators"]
+    assert len(joints) == 2 and list(joints[0].name) == list(actuator_names(arm))
+    np.testing.assert_allclose(joints[1].position, np.arange(10) * 1e-4)

@@ -34,10 +34,11 @@ import serial
 from numpy.typing import NDArray
 
 from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
-from wristmark.models.arm_spec import Arm, ArmSpec, actuator_names, arm_size, as_spec
+from wristmark.models.arm_spec import Arm, ArmSpec, actuator_names, actuator_units, arm_size
 from wristmark.models.errors import ConfigError, LimitError, WristmarkError
 from wristmark.models.limits import actuator_bounds
 from wristmark.models.robot_params import RobotParams
+from wristmark.models.units import MICRO
 from wristmark.rig.link import protocol as P
 
 try:  # pyserial's POSIX port: flush (tcdrain) and the buffer resets raise termios.error, not OSError
@@ -124,20 +125,6 @@ class DeviceState:
         return cls(P.si_from_micro(s.positions_micro, len(s.positions_micro)), s.flags, s.clock_ms)
 
 
-def actuator_units(params: Arm) -> tuple[str, ...]:
-    """SI unit of each of the arm's actuators, in its actuator order: 'rad' for a revolute stem
-    joint and a ``direct`` segment's theta / delta, 'm' for a prismatic stem joint and every pull
-    (push-pull backbone, tendon). On the wire each travels in micro-units (µrad, µm)."""
-    spec = as_spec(params)
-    out = ["rad" if j.joint.startswith("revolute") else "m" for j in spec.stem]
-    for s in spec.segments:
-        if s.actuation.type == "direct":
-            out += ["rad"] * (1 if s.planar is not None else 2)
-        else:
-            out += ["m"] * len(s.actuation.angles)
-    return tuple(out)
-
-
 def _arm_label(params: Arm) -> str:
     return f"this arm ({params.name})" if isinstance(params, ArmSpec) and params.name else "this arm"
 
@@ -197,6 +184,9 @@ class ActuatorDriver:
             raise ConfigError(f"the actuator box protocol carries 1 to {P.MAX_ACTUATORS} actuators; "
                               f"{_arm_label(self.params)} has {m}")
         self.count = m  # actuators on the wire: the arm's (confirmed by ping())
+        lo, hi = actuator_bounds(self.params)  # in micro-units, rounded inwards: see set_target
+        self._bounds_si = (lo, hi)
+        self._bounds_micro = (np.ceil(np.round(lo * MICRO, 6)), np.floor(np.round(hi * MICRO, 6)))
         self.version: int | None = None  # the device's protocol version, once ping() answered
         self._parser = P.StreamParser(count=m)
         self._seq = 0
@@ -392,6 +382,13 @@ class ActuatorDriver:
             micro = P.micro_from_si(actuators, self.count)
         except LimitError as e:
             raise ActuatorRejected(f"target not sendable: {e}") from e
+        # a target within the limits stays within them on the wire: rounded to the nearest
+        # micro-unit, a value within half a unit of a limit (phi = pi at its range's end) would
+        # land beyond it and the device would reject the whole target
+        a = np.asarray(actuators, float)
+        inside = (a >= self._bounds_si[0]) & (a <= self._bounds_si[1])
+        clipped = np.where(inside, np.clip(micro, *self._bounds_micro), micro)
+        micro = tuple(int(x) for x in clipped)
         return self._state_request(P.MsgType.SET_TARGET, P.payload_of(P.SetTarget(micro)))
 
     def set_psi(self, psi: object) -> DeviceState:

@@ -37,9 +37,11 @@ def open_hardware_session(setup: LoopSetup, options: LinkOptions, camera: str, c
         raise ActuatorError("--serial needs a device path or pyserial URL")
     link: SerialLink | Any
     if options.kind == "ros2":  # an arm on a ROS 2 graph (rig/ros2/actuator_link.py)
+        from wristmark.models.arm_spec import actuator_names
         from wristmark.rig.ros2.actuator_link import Ros2ActuatorLink
 
-        link = Ros2ActuatorLink(options.port, require_operating_state=options.operating_state)
+        link = Ros2ActuatorLink(options.port, require_operating_state=options.operating_state,
+                                names=actuator_names(setup.params))
     else:
         timeout = options.timeout if options.timeout is not None else HW_TIMEOUT_S
         driver = ActuatorDriver(options.port, options.baudrate, timeout, options.retries, params=setup.params)

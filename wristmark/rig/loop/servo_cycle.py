@@ -136,11 +136,14 @@ def cycle_record(params: Arm, psi_cmd: Array, target: CycleTarget, t_wall: float
     meas, truth = outcome.meas, outcome.truth
     ok = meas is not None and meas.ok and meas.p_world is not None and bool(np.all(np.isfinite(meas.p_world)))
     p_est = meas.p_world if ok and meas is not None else None
+    psi_true = np.asarray(truth.psi_true, float)
+    if psi_true.shape != psi_cmd.shape:  # no observer (hardware): NO_TRUTH's NaNs, one per entry of psi
+        psi_true = np.full(psi_cmd.shape, np.nan)
     return CycleRecord(
         t=target.t, phase=phase + (":settle" if target.settling else ""), p_des=np.asarray(target.p_des, float),
         p_cmd=tip_position(params, psi_cmd), p_est=p_est, p_true=np.asarray(truth.p_true, float),
         p_trk=np.asarray(truth.p_trk, float), psi_cmd=psi_cmd.copy(),
-        psi_true=np.asarray(truth.psi_true, float), meas_ok=outcome.accepted, rejected=outcome.rejected,
+        psi_true=psi_true, meas_ok=outcome.accepted, rejected=outcome.rejected,
         vision_ms=meas.time_ms if meas is not None else 0.0, ctrl_us=outcome.ctrl_us, t_wall=t_wall,
         t_capture=meas.t_capture if meas is not None else float("nan"), latency_ms=1000.0 * latency_s,
         transport_ms=1000.0 * (arrival - meas.t_capture) if meas is not None and arrival is not None else float("nan"),

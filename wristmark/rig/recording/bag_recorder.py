@@ -6,7 +6,8 @@ bgr8 or mono8, or ``sensor_msgs/msg/CompressedImage`` jpeg with ``jpeg=True``, f
 (``geometry_msgs/msg/PoseStamped``: the pose of {wm}, and the tip with {wm}'s orientation, in
 frame ``left_camera``; with a ``world_T_left`` a second message in frame ``world`` on the same
 topic); ``/wristmark/actuators`` (``sensor_msgs/msg/JointState``, names phi, d, s1a, s1b, s2a,
-s2b, positions in rad and m: one message with ``frame_id`` ``commanded`` and one ``measured``).
+s2b for the reference arm, the robot file's actuator names for another, positions in rad and m:
+one message with ``frame_id`` ``commanded`` and one ``measured``).
 
 Every message is stamped (header and log time) with the frame's capture time mapped from the
 host's ``time.monotonic()`` to the wall clock once, when the recorder opens:
@@ -44,12 +45,15 @@ class BagRecorder:
     """Writes the topics of the module docstring to ``path`` (must end in .mcap and not exist).
 
     jpeg: images as CompressedImage (JPEG at ``jpeg_quality``) instead of raw bgr8;
-    world_T_left: 4x4 pose of {ll} in {w} [m] (poses are then also written in ``world``)."""
+    world_T_left: 4x4 pose of {ll} in {w} [m] (poses are then also written in ``world``);
+    actuator_names: the JointState names of the actuators, in the arm's order (the reference arm's
+    by default; any arm's from models.arm_spec.actuator_names)."""
 
     def __init__(self, path: str | Path, jpeg: bool = False, jpeg_quality: int = 90,
-                 world_T_left: Array | None = None) -> None:
+                 world_T_left: Array | None = None, actuator_names: tuple[str, ...] = ACTUATOR_NAMES) -> None:
         from rosbags.rosbag2 import StoragePlugin, Writer
 
+        self.actuator_names = tuple(actuator_names)
         self.path = Path(path)
         if self.path.suffix.lower() != ".mcap":
             raise InputError(f"{self.path}: a recording must be an .mcap file")
@@ -115,15 +119,16 @@ class BagRecorder:
             self._write(TIP_TOPIC, self._pose(t, frame_id, T_frame_left @ T_tip), t)
 
     def write_actuators(self, t: float, commanded: Array, measured: Array) -> None:
-        """Commanded and measured actuator positions (phi [rad], d, s1a, s1b, s2a, s2b [m]) at
-        host monotonic time ``t`` [s] (e.g. the capture time of the frame the command used)."""
+        """Commanded and measured actuator positions (the reference arm: phi [rad], d, s1a, s1b,
+        s2a, s2b [m]; any arm: its ``actuator_names``, rad or m each) at host monotonic time ``t``
+        [s] (e.g. the capture time of the frame the command used)."""
         t_ns = self.stamp_ns(t)
         for frame_id, values in (("commanded", commanded), ("measured", measured)):
             q = np.asarray(values, float).reshape(-1)
-            if q.size != len(ACTUATOR_NAMES):
-                raise InputError(f"expected {len(ACTUATOR_NAMES)} actuator positions, got {q.size}")
+            if q.size != len(self.actuator_names):
+                raise InputError(f"expected {len(self.actuator_names)} actuator positions, got {q.size}")
             msg = self._store.types[JOINT_TYPE](
-                header=header_msg(self._store, t_ns, frame_id), name=list(ACTUATOR_NAMES), position=q,
+                header=header_msg(self._store, t_ns, frame_id), name=list(self.actuator_names), position=q,
                 velocity=np.zeros(0), effort=np.zeros(0),
             )
             self._write(ACTUATOR_TOPIC, msg, t_ns)

@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.models.actuation import actuators_from_psi
-from wristmark.models.arm_spec import Arm
+from wristmark.models.arm_spec import Arm, actuator_names
 from wristmark.rig.recording.bag_recorder import BagRecorder
 from wristmark.rig.recording.run_log import CycleRecord
 
@@ -31,7 +31,7 @@ class ServoRecorder:
 
     def __init__(self, path: str, params: Arm, jpeg: bool = False, world_T_left: Array | None = None) -> None:
         self.params = params
-        self.bag = BagRecorder(path, jpeg=jpeg, world_T_left=world_T_left)
+        self.bag = BagRecorder(path, jpeg=jpeg, world_T_left=world_T_left, actuator_names=actuator_names(params))
         self.cycles = 0
         self.dropped = 0
         self.error = ""

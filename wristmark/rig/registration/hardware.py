@@ -19,19 +19,20 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.cvs.sources.frames import FrameSourceError, StereoSource
-from wristmark.models.limits import check_limits
-from wristmark.models.robot_params import RobotParams
+from wristmark.models.arm_spec import Arm
+from wristmark.models.limits import check_limits, delta_indices, velocity_limits
 from wristmark.rig.link.actuator_driver import ActuatorDriver, ActuatorError, ActuatorNotEnabled
+from wristmark.rig.registration.poses import per_kind
 
 Array = NDArray[np.float64]
 MAX_RESUMES = 5  # watchdog trips a run may recover from before it gives up
-SETTLE_TOL = np.array([2e-4, 5e-6, 2e-4, 2e-3, 2e-4, 2e-3])  # [rad, m, rad, rad, rad, rad] per poll
+SETTLE_TOL = np.array([2e-4, 5e-6, 2e-4, 2e-3, 2e-4, 2e-3])  # [rad, m, rad, rad, rad, rad] per poll (any arm: per kind)
 
 
 class HardwareRegistrationRig:
     """:class:`rig.registration.run.RegistrationRig` over an :class:`ActuatorDriver` and a source."""
 
-    def __init__(self, driver: ActuatorDriver, source: StereoSource, params: RobotParams, speed: float = 0.5,
+    def __init__(self, driver: ActuatorDriver, source: StereoSource, params: Arm, speed: float = 0.5,
                  period: float = 0.05,
                  settle_time: float = 0.3, timeout: float = 20.0, clock: Callable[[], float] = time.monotonic,
                  sleep: Callable[[float], None] = time.sleep) -> None:
@@ -73,9 +74,10 @@ class HardwareRegistrationRig:
     def _ramp(self, target: Array) -> None:
         q = self.driver.measured_psi()
         diff = target - q
-        diff[[3, 5]] = (diff[[3, 5]] + np.pi) % (2 * np.pi) - np.pi  # bending planes: the short way round
+        planes = list(delta_indices(self.params))
+        diff[planes] = (diff[planes] + np.pi) % (2 * np.pi) - np.pi  # bending planes: the short way round
         target = q + diff
-        step = self.speed * np.asarray(self.params.max_velocity) * self.period
+        step = self.speed * velocity_limits(self.params) * self.period
         while np.any(np.abs(target - q) > 1e-12):
             q = q + np.clip(target - q, -step, step)
             self.driver.set_psi(q)
@@ -89,7 +91,7 @@ class HardwareRegistrationRig:
                 raise ActuatorError(f"the arm did not settle within {self.timeout:.0f} s of reaching its target")
             self.sleep(self.period)
             now = self.driver.measured_psi()
-            if np.any(np.abs(now - last) > SETTLE_TOL):
+            if np.any(np.abs(now - last) > per_kind(self.params, SETTLE_TOL)):
                 since = self.clock()
             last = now
         self._settled_at = self.clock()

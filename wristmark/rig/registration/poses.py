@@ -32,15 +32,22 @@ def approach_offset(params: Arm) -> Array:
     """The approach offset of each entry of psi: APPROACH for the reference arm; for any arm
     0.02 rad per revolute and 0.5 mm per prismatic stem joint, 0.03 rad per theta, 0.05 rad per
     delta (APPROACH's values for the same kinds of entry)."""
+    return per_kind(params, APPROACH)
+
+
+def per_kind(params: Arm, reference: Array) -> Array:
+    """A value per entry of psi from the reference arm's six (phi, d, theta1, delta1, theta2,
+    delta2): as they are for the reference arm; for any arm by kind, a revolute stem joint phi's,
+    a prismatic one d's, each theta theta1's, each delta delta1's."""
     if not isinstance(params, ArmSpec):
-        return APPROACH
+        return np.asarray(reference, float)
     out = np.zeros(params.n)
     for i, j in enumerate(params.stem):
-        out[i] = APPROACH[0] if j.joint == "revolute_z" else APPROACH[1]
+        out[i] = reference[0] if j.joint == "revolute_z" else reference[1]
     for ti, di in zip(params.theta_index, params.delta_index):
-        out[ti] = APPROACH[2]
+        out[ti] = reference[2]
         if di is not None:
-            out[di] = APPROACH[3]
+            out[di] = reference[3]
     return out
 
 

@@ -18,7 +18,7 @@ from tqdm import tqdm
 
 from wristmark.cvs.tracking.tracker import MarkerTracker
 from wristmark.models.actuation import actuators_from_psi
-from wristmark.models.arm_spec import Arm
+from wristmark.models.arm_spec import Arm, ArmSpec
 from wristmark.models.kinematics import forward_kinematics
 from wristmark.rig.registration.poses import approach_offset
 from wristmark.solvers.registration import RegistrationPose
@@ -83,10 +83,24 @@ def collect(rig: RegistrationRig, tracker: MarkerTracker, params: Arm, poses: li
 
 
 def registration_poses(params: Arm, observations: list[Observation]) -> list[RegistrationPose]:
-    """The tracked observations as solver inputs (encoder psi, centre and z axis in {ll})."""
-    return [RegistrationPose(o.psi_meas, o.T_left_marker[:3, 3], o.T_left_marker[:3, 2],
-                             f"pose {o.pose}{'-' if o.approach < 0 else '+'}", motion_sign(params, o))
-            for o in observations if o.T_left_marker is not None]
+    """The tracked observations as solver inputs (encoder psi, centre and z axis in {ll}); for any
+    arm (an ArmSpec) also each actuator's last move and the sign of the one before it (from the
+    previous visit's pose, in the order visited; unknown, 0, for the first)."""
+    out = []
+    previous: Array | None = None
+    for o in observations:
+        start = np.asarray(o.psi_cmd, float) + o.approach * approach_offset(params)
+        move = prior = None
+        if isinstance(params, ArmSpec):
+            a_start = actuators_from_psi(params, start)
+            move = actuators_from_psi(params, o.psi_cmd) - a_start
+            prior = np.zeros_like(move) if previous is None else np.sign(a_start - actuators_from_psi(params, previous))
+        previous = np.asarray(o.psi_cmd, float)
+        if o.T_left_marker is not None:
+            out.append(RegistrationPose(o.psi_meas, o.T_left_marker[:3, 3], o.T_left_marker[:3, 2],
+                                        f"pose {o.pose}{'-' if o.approach < 0 else '+'}", motion_sign(params, o),
+                                        move, prior))
+    return out
 
 
 def motion_sign(params: Arm, o: Observation) -> Array:

@@ -2,8 +2,9 @@
 :class:`rig.link.actuator_link.ActuatorLink` over Cyclone DDS, without ROS, in real time on the
 host's ``time.monotonic()``.
 
-Topics (CRTK names): out ``NS/servo_jp`` (sensor_msgs/JointState: the actuator targets, names
-phi, d, s1a, s1b, s2a, s2b, positions [rad, m, m, m, m, m]) and ``NS/crtk_command``
+Topics (CRTK names): out ``NS/servo_jp`` (sensor_msgs/JointState: the actuator targets, named
+after the robot file's actuators: phi, d, s1a, s1b, s2a, s2b [rad, m, m, m, m, m] for the
+reference arm, e.g. d, s1a, ..., s3c for tendon3) and ``NS/crtk_command``
 (std_msgs/String: ``enable`` before the first target, ``disable`` at the end); in
 ``NS/measured_js`` (sensor_msgs/JointState from the arm's driver: the encoders, by name, any
 order, extra joints ignored) and ``NS/operating_state`` (crtk_msgs/OperatingState: ENABLED,
@@ -53,7 +54,7 @@ STATE_CAUSES = {"DISABLED": "its watchdog or an operator", "PAUSED": "paused by 
 
 @dataclass(frozen=True)
 class ArmState:
-    """The newest ``measured_js``: positions [rad, m, ...] in ACTUATOR_NAMES' order, arrival [s]."""
+    """The newest ``measured_js``: positions [rad, m, ...] in the link's actuator order, arrival [s]."""
 
     positions: Array
     arrival: float
@@ -64,7 +65,10 @@ class Ros2ActuatorLink:
 
     simulated = False
 
-    def __init__(self, namespace: str, timeout: float = ARM_TIMEOUT_S, require_operating_state: bool = True) -> None:
+    def __init__(self, namespace: str, timeout: float = ARM_TIMEOUT_S, require_operating_state: bool = True,
+                 names: tuple[str, ...] = ACTUATOR_NAMES) -> None:
+        """names: the arm's actuator names, in its order (models.arm_spec.actuator_names; default
+        the reference arm's six)."""
         require_cyclonedds("--actuator ros2:NS")
         from cyclonedds.core import Listener, Policy, Qos
         from cyclonedds.pub import DataWriter
@@ -75,6 +79,7 @@ class Ros2ActuatorLink:
 
         self.M = M
         self.namespace = clean_namespace(namespace)
+        self.names = tuple(names)
         self.timeout = float(timeout)
         self.state: ArmState | None = None
         self.malformed = 0
@@ -160,12 +165,11 @@ class Ros2ActuatorLink:
             raise ActuatorNotEnabled(f"{self.port}: the arm reports {state} ({why}; the longest gap between this "
                                      f"host's servo_jp was {1000 * gap:.0f} ms)")
 
-    @staticmethod
-    def _positions(msg: Any) -> Array | None:
+    def _positions(self, msg: Any) -> Array | None:
         names, pos = list(getattr(msg, "name", [])), list(getattr(msg, "position", []))
-        if len(names) != len(pos) or not set(ACTUATOR_NAMES) <= set(names):
+        if len(names) != len(pos) or not set(self.names) <= set(names):
             return None
-        q = np.array([pos[names.index(n)] for n in ACTUATOR_NAMES], float)
+        q = np.array([pos[names.index(n)] for n in self.names], float)
         return q if np.all(np.isfinite(q)) else None
 
     def _fresh_state(self) -> ArmState:
@@ -250,12 +254,12 @@ class Ros2ActuatorLink:
 
     def _publish(self, actuators: Array) -> None:
         a = np.asarray(actuators, float)
-        if a.shape != (len(ACTUATOR_NAMES),) or not np.all(np.isfinite(a)):
-            raise ActuatorError(f"{self.port}: refusing a target that is not {len(ACTUATOR_NAMES)} finite numbers")
+        if a.shape != (len(self.names),) or not np.all(np.isfinite(a)):
+            raise ActuatorError(f"{self.port}: refusing a target that is not {len(self.names)} finite numbers")
         M = self.M
         ns = time.time_ns()
         self._servo_jp.write(M.JointState(M.Header(M.Time(ns // 1_000_000_000, ns % 1_000_000_000), ""),
-                                          list(ACTUATOR_NAMES), [float(x) for x in a], [], []))
+                                          list(self.names), [float(x) for x in a], [], []))
         self.sent += 1
         now = time.monotonic()
         self._longest_gap = max(self._longest_gap, now - self._last_sent) if self._enable_sent else 0.0

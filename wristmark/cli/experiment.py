@@ -9,7 +9,13 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from wristmark.cli.common_options import JSON_FILE_HELP, add_force_argument, add_host_argument, set_example
+from wristmark.cli.common_options import (
+    JSON_FILE_HELP,
+    add_config_option,
+    add_force_argument,
+    add_host_argument,
+    set_example,
+)
 from wristmark.cli.option_types import (
     MAX_DURATION_S,
     MAX_POSITIONS,
@@ -42,6 +48,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_force_argument(p)
     add_setup_arguments(p)
     add_registration_argument(p)
+    add_config_option(p, "--model")
     p.add_argument("--duration", type=positive_float(MAX_DURATION_S), metavar="S",
                    help="cube/load: run only the first S seconds of the cube walk (quick checks); "
                         "point: hold for S seconds (default 5)")
@@ -70,6 +77,10 @@ def check_args(args: argparse.Namespace) -> SimSetup:
     if args.orientation != "none" and args.name == "accuracy":
         raise ConfigError("--orientation needs the cube, point or load experiment")
     setup = setup_from_args(args)
+    if args.model:  # docs/identification.md
+        from wristmark.models.model_file import load_model
+
+        setup = setup.with_changes(model=load_model(args.model))
     from wristmark.sim.experiments import check_orientation
 
     check_orientation(setup, args.orientation)

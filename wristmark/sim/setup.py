@@ -196,7 +196,7 @@ def make_direct_loop(setup: SimSetup, psi0: Array, closed_loop: bool, seed: int 
     if setup.model is not None:  # --model: command the identified arm's inverse (docs/identification.md)
         from wristmark.rig.loop.model_loop import use_model
 
-        link = use_model(link, setup.params, setup.model, controller)
+        link = use_model(link, setup.params, setup.model, controller, setup.rig.control_dt)
     loop = ServoLoop(setup.params, setup.rig, link, frames=frames, sensor=sensor, truth=make_truth(setup, plant, seed),
                      controller=controller)
     loop.start_at(psi0)

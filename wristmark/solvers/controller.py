@@ -271,8 +271,13 @@ class Controller(abc.ABC):
         # the servo loop passes the encoder readings to step() when this is true
         self.uses_encoders = self.compensator is not None and config.backlash_method == "encoders"
         self.play_probed = False  # a play probe (rig/loop/play_probe.py) has run, or was skipped
-        # --model: the identified plays and lags, for a probe without a 6-DoF pose (rig/loop/model_loop.py)
-        self.model_fits: list[PlayFit] | None = None
+
+    def hand_over_compensation(self, note: str) -> None:
+        """Leave the dead-band inversion to the link (``--model``: rig/link/model_link.py inverts
+        the identified plays and lag): no compensator, no encoders, no play probe; ``note`` says so."""
+        self.compensator = None
+        self.uses_encoders = False
+        self.compensation_note = note
 
     @property
     def wants_play_probe(self) -> bool:

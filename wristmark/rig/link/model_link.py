@@ -6,13 +6,17 @@ file fitted by ``wristmark identify``) puts its tip where the nominal model woul
 (models/plant_map.py ``plant_command``); the encoder readings handed back are shifted by that
 correction, so the loop, its controller and the controller's dead-band inversion see an arm that
 behaves as the nominal model (their feed-forward and Jacobian are then the identified arm's).
-Open loop (``dynamics``) the link also inverts the identified plays (each actuator's target
-offset by half its play on the side it last moved to) and the motors' lag (a first-order lead
-of the identified tau); closed loop the controller's inversion does that, seeded with the
-identified plays and lags. Actuator values [rad, m, ...], time [s].
+The identified plays are inverted (``plays``: each actuator's target offset by half its play on
+the side it last moved to, the side changing once the target came back REVERSAL x the play),
+then the motors' lag: each target becomes the one that brings a first-order motor from its
+encoder reading to the target in one control cycle (a motor that trails the path by tau x its
+speed turns a cube's corner 1 mm off), sent for that cycle only. Actuator values [rad, m, ...],
+time [s].
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,17 +34,20 @@ REVERSAL = 0.1  # x the play: how far an actuator's target must come back before
 
 
 class ModelLink:
-    """:class:`rig.link.actuator_link.ActuatorLink` through the identified arm's inverse."""
+    """:class:`rig.link.actuator_link.ActuatorLink` through the identified arm's inverse: its
+    static map always, the motors' lag (targets sent every ``cycle`` [s]) always, the plays when
+    ``plays`` (open loop)."""
 
-    def __init__(self, link: ActuatorLink, params: Arm, model: PlantParams, dynamics: bool = False) -> None:
+    def __init__(self, link: ActuatorLink, params: Arm, model: PlantParams, cycle: float, plays: bool = False) -> None:
         self.link = link
         self.params = params
         self.model = model
-        self.dynamics = bool(dynamics)
+        self.cycle = float(cycle)
+        self.plays = bool(plays)
         self._shift: Array | None = None  # nominal - corrected actuators of the last target
         self._hint: Array | None = None
-        self._last: Array | None = None  # the last corrected target (before the play and lead)
-        self._last_t = 0.0
+        self._plain: Array | None = None  # the target without the lag's inversion, due a cycle after it
+        self._sent_at = -math.inf
         self._side: Array | None = None
         self._turn: Array | None = None  # per actuator the extreme since its last reversal
 
@@ -50,7 +57,12 @@ class ModelLink:
         return self.link.time
 
     def advance_to(self, t: float) -> None:
-        """Let the world run to ``t`` [s]."""
+        """Let the world run to ``t`` [s]; a lag-inverting target is sent for one cycle only,
+        then the plain one (a loop that holds a target for longer does not hold an overshoot)."""
+        if self._plain is not None and t > self._sent_at + self.cycle + 1e-9:
+            self.link.advance_to(self._sent_at + self.cycle)
+            self.link.send_target(self._plain)
+            self._plain = None
         self.link.advance_to(t)
 
     def corrected(self, actuators: Array) -> Array:
@@ -66,10 +78,9 @@ class ModelLink:
         a_nom = np.asarray(actuators, float)
         a = self.corrected(a_nom)
         self._shift = a_nom - a
-        out = a
-        if self.dynamics:
-            out = a + self._play_offset(a) + self._lead(a)
-        self._last, self._last_t = a, self.link.time
+        goal = a + self._play_offset(a) if self.plays else a
+        out = self._lag_inverse(goal)
+        self._plain, self._sent_at = (goal if np.any(out != goal) else None), self.link.time
         self.link.send_target(out)
 
     def _play_offset(self, a: Array) -> Array:
@@ -88,16 +99,18 @@ class ModelLink:
         self._turn = np.where(flip_up | flip_down, a, self._turn)
         return 0.5 * b * self._side
 
-    def _lead(self, a: Array) -> Array:
-        """tau x the target's rate since the last send (a first-order lag's steady lag)."""
+    def _lag_inverse(self, goal: Array) -> Array:
+        """The target that brings a first-order motor of the identified lag from its reading now
+        to ``goal`` in one cycle: m + (goal - m) / (1 - exp(-dt / tau)) (``goal`` without a lag)."""
         tau = self.model.actuator_tau
-        dt = self.link.time - self._last_t
-        if self._last is None or tau <= 0 or dt <= 0:
-            return np.zeros_like(a)
-        return tau * (a - self._last) / dt
+        if tau <= 0 or self.cycle <= 0:
+            return goal
+        m = np.asarray(self.link.measured_actuators(), float)
+        return m + (goal - m) / (1.0 - math.exp(-self.cycle / tau))
 
     def hold(self) -> None:
         """Hold the actuators."""
+        self._plain = None
         self.link.hold()
 
     def measured_actuators(self) -> Array:

@@ -60,9 +60,10 @@ class ExcitationPlan:
 def excitation_plan(params: Arm, play_unit: Array, poses: int = 30, seed: int = 0, spread: float = 1.5,
                     joint_noise: float = 0.08) -> ExcitationPlan:
     """``poses`` poses around the experiments' cube (tips uniform in ``spread`` x its size about
-    the workspace centre, position IK from home, then each joint moved by up to ``joint_noise`` x
-    its range's half-width... capped at 0.15 rad / 3 mm so the marker stays in view), approached
-    from random sides 2.5 x the play unit away."""
+    the workspace centre, position IK from home, then each joint moved at random by up to
+    ``joint_noise`` / 0.08 x 0.15 rad or 3 mm, so that the gains, offsets and coupling are seen in
+    more than the IK's family of shapes while the marker stays in view), ordered nearest first,
+    approached from random sides 2.5 x the play unit away."""
     rng = np.random.default_rng(seed)
     centre = workspace_centre(params)
     q0 = home_psi(params)
@@ -75,7 +76,23 @@ def excitation_plan(params: Arm, play_unit: Array, poses: int = 30, seed: int = 
         q = q + rng.uniform(-1.0, 1.0, n) * np.where(_is_prismatic(params, n), 0.003, 0.15) * joint_noise / 0.08
         out.append(clamp_psi(params, q))
     sides = rng.choice([-1.0, 1.0], size=(poses, m))
-    return ExcitationPlan(np.array(out), sides, 2.5 * np.asarray(play_unit, float))
+    return ExcitationPlan(_nearest_first(params, np.array(out)), sides, 2.5 * np.asarray(play_unit, float))
+
+
+def _nearest_first(params: Arm, poses: Array) -> Array:
+    """The poses reordered greedily, each next the one the velocity limits reach soonest (the
+    ramps between poses are most of the excitation's time)."""
+    from wristmark.models.limits import velocity_limits
+
+    v = velocity_limits(params)
+    left = list(range(1, len(poses)))
+    order = [0]
+    while left:
+        here = poses[order[-1]]
+        k = min(left, key=lambda i: float(np.max(np.abs(poses[i] - here) / v)))
+        order.append(k)
+        left.remove(k)
+    return poses[order]
 
 
 def _is_prismatic(params: Arm, n: int) -> NDArray[np.bool_]:

@@ -39,7 +39,6 @@ from wristmark.models.arm_spec import arm_size
 from wristmark.models.limits import clamp_psi, clamp_velocity
 from wristmark.models.pose_ik import solve_pose_ik
 from wristmark.models.units import on_micro_grid
-from wristmark.rig.loop.model_loop import model_play_fit
 from wristmark.rig.loop.probe_loop import ProbeLoop
 from wristmark.rig.loop.servo_cycle import CycleOutcome, CycleTarget
 from wristmark.solvers.play_probe_fit import PlayFit, fit_motor_lag, fit_play
@@ -85,8 +84,7 @@ def run_play_probe(loop: ProbeLoop, template: CycleTarget) -> list[PlayFit] | No
         loop.skip(FEW_JOINTS)
         ctrl.start_play(None)
         return None
-    model = ctrl.model_fits  # --model: the identified plays, so no pose is needed (rig/loop/model_loop.py)
-    if model is None and (meas0 is None or meas0.R_world is None or not meas0.roll_known):
+    if meas0 is None or meas0.R_world is None or not meas0.roll_known:
         loop.skip(NO_POSE)
         ctrl.start_play(None)
         return None
@@ -124,11 +122,7 @@ def run_play_probe(loop: ProbeLoop, template: CycleTarget) -> list[PlayFit] | No
         # every 250 ms: six fits at the end were 0.47 s of silence in the virtual lab)
         loop.command(psi)
         rows = np.flatnonzero(np.asarray(samples.probed) == j)
-        motor = np.asarray(samples.motor)[rows, j]
-        if model is not None:
-            raw.append(model_play_fit(model[j], motor, float(a0[j])))
-            continue
-        fit = fit_play(motor, np.asarray(samples.arm)[rows, j], float(play_max[j]))
+        fit = fit_play(np.asarray(samples.motor)[rows, j], np.asarray(samples.arm)[rows, j], float(play_max[j]))
         seg = reads[first_read:]  # the motor's lag from the encoders alone (no pose needed)
         tau = fit_motor_lag(np.array([t for t, _ in sends]), np.array([a[j] for _, a in sends]),
                             np.array([t for t, _ in seg]), np.array([m[j] for _, m in seg]))

@@ -87,9 +87,11 @@ class ModelLink:
         """Half the identified play on the side each actuator last moved to (a reversal counts
         once the target came back REVERSAL x the play from its extreme)."""
         b = np.asarray(self.model.backlash, float)
-        if self._side is None or self._turn is None:
-            self._side, self._turn = np.zeros_like(a), a.copy()
-            return np.zeros_like(a)
+        if self._side is None or self._turn is None:  # the first target: the motors will move towards it
+            gap = a - np.asarray(self.link.measured_actuators(), float)
+            self._side = np.where(np.abs(gap) > REVERSAL * b, np.sign(gap), 0.0)
+            self._turn = a.copy()
+            return 0.5 * b * self._side
         up = (self._side > 0) & (a > self._turn)
         down = (self._side < 0) & (a < self._turn)
         self._turn = np.where(up | down, a, self._turn)

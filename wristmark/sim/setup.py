@@ -193,11 +193,13 @@ def make_direct_loop(setup: SimSetup, psi0: Array, closed_loop: bool, seed: int 
     link: ActuatorLink = DirectLink(plant)
     frames, sensor = make_measurement(setup, plant, lambda: link.time, seed) if closed_loop else (None, None)
     controller = make_controller(setup.params, setup.controller) if closed_loop else None
+    rig = setup.rig
     if setup.model is not None:  # --model: command the identified arm's inverse (docs/identification.md)
-        from wristmark.rig.loop.model_loop import use_model
+        from wristmark.rig.loop.model_loop import model_rig, use_model
 
         link = use_model(link, setup.params, setup.model, controller, setup.rig.control_dt)
-    loop = ServoLoop(setup.params, setup.rig, link, frames=frames, sensor=sensor, truth=make_truth(setup, plant, seed),
+        rig = model_rig(rig)
+    loop = ServoLoop(setup.params, rig, link, frames=frames, sensor=sensor, truth=make_truth(setup, plant, seed),
                      controller=controller)
     loop.start_at(psi0)
     return loop

@@ -7,13 +7,16 @@ sleeve needs no probe)."""
 
 from __future__ import annotations
 
+import dataclasses
+
 from wristmark.models.arm_spec import Arm
 from wristmark.models.plant_params import PlantParams
 from wristmark.rig.link.actuator_link import ActuatorLink
 from wristmark.rig.link.model_link import ModelLink
+from wristmark.rig.loop.rig_config import RigConfig
 from wristmark.solvers.controller import Controller
 
-__all__ = ["MODEL_NOTE", "use_model"]
+__all__ = ["MODEL_NOTE", "model_rig", "use_model"]
 
 MODEL_NOTE = "dead-band inversion by the identified model (--model): the link inverts the identified plays and lag"
 
@@ -25,3 +28,11 @@ def use_model(link: ActuatorLink, params: Arm, model: PlantParams, controller: C
     if controller is not None:
         controller.hand_over_compensation(MODEL_NOTE)
     return ModelLink(link, params, model, cycle, plays=True)
+
+
+def model_rig(rig: RigConfig) -> RigConfig:
+    """The rig's loop settings for the link through the identified arm, which removes the motors'
+    lag (each target reached at the cycle's end): no feed-forward lead for that lag
+    (``feedforward_lead`` 0) and a delay compensation whose commands take effect at once
+    (``delay_compensation_tau`` 0)."""
+    return dataclasses.replace(rig, feedforward_lead=0.0, delay_compensation_tau=0.0)

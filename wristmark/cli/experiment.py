@@ -49,6 +49,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_setup_arguments(p)
     add_registration_argument(p)
     add_config_option(p, "--model")
+    p.add_argument("--open-loop-on-lost", type=nonnegative_float(MAX_DURATION_S), metavar="S",
+                   help="with --model: while the marker is lost, walk on along the target open loop for S seconds, "
+                        "then hold (default 0: hold at once; rig open_loop_on_lost)")
     p.add_argument("--duration", type=positive_float(MAX_DURATION_S), metavar="S",
                    help="cube/load: run only the first S seconds of the cube walk (quick checks); "
                         "point: hold for S seconds (default 5)")
@@ -76,7 +79,9 @@ def check_args(args: argparse.Namespace) -> SimSetup:
         raise ConfigError("--point needs the point experiment")
     if args.orientation != "none" and args.name == "accuracy":
         raise ConfigError("--orientation needs the cube, point or load experiment")
-    setup = setup_from_args(args)
+    if args.open_loop_on_lost and not args.model:
+        raise ConfigError("--open-loop-on-lost needs --model (an identified arm to trust without the marker)")
+    setup = setup_from_args(args, open_loop_on_lost=args.open_loop_on_lost)
     if args.model:  # docs/identification.md
         from wristmark.models.model_file import load_model
 

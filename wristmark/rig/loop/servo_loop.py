@@ -284,6 +284,11 @@ class ServoLoop:
             memory.lost_run = 0
         else:
             self._count_lost(outcome, memory, stats)
+            if memory.lost_run * self.rig.control_dt <= self.rig.open_loop_on_lost:  # walk on open loop
+                assert self.psi_cmd is not None
+                stats.open_on_lost += 1
+                self.psi_cmd = clamp_psi(self.params, nominal_ik(self.params, target.p_next, target.R_next,
+                                                                 self.psi_cmd))
             if memory.lost_run > self.rig.max_lost_cycles:
                 self._stop_lost(target, t_wall, phase, outcome, memory, stats)
         if not self.wall_clock:

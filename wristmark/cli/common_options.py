@@ -21,8 +21,6 @@ CONFIG_OPTIONS: dict[str, tuple[str, str]] = {
     "--plant": ("YAML", "plant file of the simulated bench: how the simulated true arm differs from the model"),
     "--registration": ("REG.yaml", "registration file (wristmark register): its world_T_left replaces the "
                                    "calibration's"),
-    "--model": ("MODEL.yaml", "identified arm (wristmark identify): the controller's model of the arm, its "
-                              "inverse commanded (docs/identification.md)"),
 }
 SHIPPED_DEFAULT = {"--calib": "configs/camera.yaml", "--marker": "configs/marker.yaml",
                    "--robot": "configs/robot.yaml", "--plant": "configs/plant.yaml"}

@@ -9,13 +9,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from wristmark.cli.common_options import (
-    JSON_FILE_HELP,
-    add_config_option,
-    add_force_argument,
-    add_host_argument,
-    set_example,
-)
+from wristmark.cli.common_options import JSON_FILE_HELP, add_force_argument, add_host_argument, set_example
 from wristmark.cli.option_types import (
     MAX_DURATION_S,
     MAX_POSITIONS,
@@ -48,7 +42,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_force_argument(p)
     add_setup_arguments(p)
     add_registration_argument(p)
-    add_config_option(p, "--model")
+    p.add_argument("--model", metavar="MODEL.yaml",
+                   help="identified arm (wristmark identify): the loop commands its inverse, plays and lag "
+                        "(docs/identification.md)")
     p.add_argument("--open-loop-on-lost", type=nonnegative_float(MAX_DURATION_S), metavar="S",
                    help="with --model: while the marker is lost, walk on along the target open loop for S seconds, "
                         "then hold (default 0: hold at once; rig open_loop_on_lost)")

@@ -27,7 +27,7 @@ DATA_KEYS = ("times", "encoders", "targets", "sample_index", "tips", "psi_hint")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", required=True, metavar="MODEL.yaml", help="output file: the identified arm")
+    p.add_argument("--out", required=True, metavar="FILE.yaml", help="output file: the identified arm (MODEL.yaml)")
     add_force_argument(p)
     p.add_argument("--poses", type=int_in(8, 500), default=24, metavar="N",
                    help="poses of the excitation (each approached from random sides of every play; default 24)")
@@ -47,7 +47,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_json_flag(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     set_example(p, "wristmark identify --plant configs/plant_unseen.yaml --out model.yaml",
-                "wristmark experiment cube --plant configs/plant_unseen.yaml --model model.yaml")
+                "wristmark identify --plant configs/plant_unseen.yaml --log idlog --out model.yaml --force",
+                "wristmark identify --from-log idlog --out model2.yaml")
 
 
 def _check(args: argparse.Namespace) -> None:

@@ -19,7 +19,12 @@ from wristmark.cli.option_types import (
     nonnegative_float,
     positive_float,
 )
-from wristmark.cli.setup_args import add_registration_argument, add_setup_arguments, setup_from_args
+from wristmark.cli.setup_args import (
+    add_model_arguments,
+    add_registration_argument,
+    add_setup_arguments,
+    setup_from_args,
+)
 from wristmark.cvs.tracking.warmup import warm_up
 from wristmark.models.errors import ConfigError
 from wristmark.rig.recording.output_dir import claim_outputs, link_latest, new_run_dir
@@ -42,12 +47,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_force_argument(p)
     add_setup_arguments(p)
     add_registration_argument(p)
-    p.add_argument("--model", metavar="MODEL.yaml",
-                   help="identified arm (wristmark identify): the loop commands its inverse, plays and lag "
-                        "(docs/identification.md)")
-    p.add_argument("--open-loop-on-lost", type=nonnegative_float(MAX_DURATION_S), metavar="S",
-                   help="with --model: while the marker is lost, walk on along the target open loop for S seconds, "
-                        "then hold (default 0: hold at once; rig open_loop_on_lost)")
+    add_model_arguments(p)
     p.add_argument("--duration", type=positive_float(MAX_DURATION_S), metavar="S",
                    help="cube/load: run only the first S seconds of the cube walk (quick checks); "
                         "point: hold for S seconds (default 5)")
@@ -75,13 +75,7 @@ def check_args(args: argparse.Namespace) -> SimSetup:
         raise ConfigError("--point needs the point experiment")
     if args.orientation != "none" and args.name == "accuracy":
         raise ConfigError("--orientation needs the cube, point or load experiment")
-    if args.open_loop_on_lost and not args.model:
-        raise ConfigError("--open-loop-on-lost needs --model (an identified arm to trust without the marker)")
-    setup = setup_from_args(args, open_loop_on_lost=args.open_loop_on_lost)
-    if args.model:  # docs/identification.md
-        from wristmark.models.model_file import load_model
-
-        setup = setup.with_changes(model=load_model(args.model))
+    setup = setup_from_args(args)
     from wristmark.sim.experiments import check_orientation
 
     check_orientation(setup, args.orientation)

@@ -46,7 +46,6 @@ class SimSetup(LoopSetup):
     """A :class:`rig.loop.loop_setup.LoopSetup` plus the plant file of the simulated true arm."""
 
     plant: PlantParams = field(default_factory=PlantParams)
-    model: PlantParams | None = None  # --model: the identified arm the loop commands through (rig/link/model_link.py)
 
     @property
     def true_camera(self) -> StereoCamera:

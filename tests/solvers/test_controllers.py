@@ -134,3 +134,31 @@ def test_box_qp_matches_bounded_least_squares() -> None:
         x = qp.solve(2 * A.T @ A, -2 * A.T @ b, lo, hi)
         ref = lsq_linear(A, b, bounds=(lo, hi), tol=1e-12).x
         np.testing.assert_allclose(x, ref, atol=1e-7)
+
+
+@pytest.mark.parametrize("robot", ["tendon3.yaml", "single_tendon.yaml", "planar.yaml"])
+def test_undamped_feed_forward_realises_the_path_velocity(robot: str) -> None:
+    """The QP's damping shortens the tip velocity it asks for (near home: by percents); with
+    feed_forward_undamped the damping pulls towards the rates that realise the desired velocity,
+    so at zero error the tip velocity is the desired one where nothing else competes (an arm of
+    fewer than 6 joints; tendon3, n = 7, also keeps its tip frame's orientation: exact once that
+    weight is 0, docs/notes/any-arm-residual.md)."""
+    import dataclasses
+
+    from wristmark.models.arm_spec import home_psi, load_arm
+
+    arm = load_arm(CONFIG_DIR / "robots" / robot)
+    psi = home_psi(arm)
+    p = tip_position(arm, psi)
+    v = np.array([0.006, -0.004, 0.007])  # [m/s]
+    cfg = dataclasses.replace(ControllerConfig(), backlash_compensation=False, ki=0.0)
+    if arm.n > 6:
+        cfg = dataclasses.replace(cfg, orientation_weight=0.0)
+    realised = {}
+    for undamped in (False, True):
+        ctrl = make_controller(arm, dataclasses.replace(cfg, feed_forward_undamped=undamped))
+        psi_dot, _, status = ctrl.velocity(psi, p, p, v, 0.06)
+        assert status == "ok"
+        realised[undamped] = tip_jacobian(arm, psi)[:3] @ psi_dot
+    assert np.linalg.norm(realised[False] - v) > 0.005 * np.linalg.norm(v)
+    np.testing.assert_allclose(realised[True], v, atol=1e-3 * np.linalg.norm(v))

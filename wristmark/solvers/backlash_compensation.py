@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 
 from wristmark.models.actuation import actuator_jacobian, actuators_from_psi, psi_from_actuators
 from wristmark.models.arm_spec import Arm
-from wristmark.models.limits import delta_indices, wrap_angle
+from wristmark.models.limits import actuator_bounds, delta_indices, wrap_angle
 
 Array = NDArray[np.float64]
 
@@ -202,8 +202,60 @@ class CommandCompensator:
         self._offset = np.clip(off, -self.inverse.half, self.inverse.half)
         self._last_out = np.asarray(psi_out, float).copy()
 
+    def actuators(self, psi_cmd: Array) -> Array:
+        """The actuator targets [rad, m, ...] to send for the commanded configuration ``psi_cmd``:
+        its actuator coordinates (the offsets are already in it)."""
+        return actuators_from_psi(self.params, psi_cmd)
+
     def _to_psi(self, a: Array, near: Array) -> Array:
         q = psi_from_actuators(self.params, a, delta_hint=near)
         for i in self._deltas:  # the bending-plane angle nearest the reference (no 2 pi jumps)
             q[i] = near[i] + wrap_angle(float(q[i] - near[i]))
         return q
+
+
+class ActuatorCompensator(CommandCompensator):
+    """The dead-band inversion in actuator space, for an arm with more actuators than joints
+    (tendons, antagonistic pairs: m > n), where an offset of one actuator alone has no
+    configuration: the controller's configuration stays the nominal one, and the offsets live
+    beside it, per actuator. The loop sends ``actuators(psi_cmd)`` = the nominal actuator
+    coordinates (models.actuation, the arm's map) + the offsets, instead of the map of a
+    configuration: each actuator's motor crosses its own play. What the arm does with the
+    offsets is its least-squares inverse map's business (the simulated true arm reads its
+    outputs back so, models/arm_actuation.py): on a side the play takes the offset back out.
+
+    Same interface as :class:`CommandCompensator`; ``nominal`` and ``compensate`` return the
+    nominal configuration itself (the offsets move the motors across the bands, not the arm)."""
+
+    def __init__(self, params: Arm, inverse: BacklashInverse) -> None:
+        super().__init__(params, inverse)
+        self._pending = np.zeros(inverse.play_max.size)  # the offsets computed, not yet committed
+
+    def nominal_of(self, psi_cmd: Array) -> Array:
+        """The nominal configuration behind ``psi_cmd``: ``psi_cmd`` itself (the offsets are not in it)."""
+        return np.asarray(psi_cmd, float).copy()
+
+    def compensate(self, psi_nom: Array, dt: float, psi_dot_path: Array | None = None) -> Array:
+        """The nominal ``psi_nom`` itself; the offsets for its actuators are computed and kept
+        for :meth:`actuators` (``psi_dot_path``: the joint rates the desired path alone asks for)."""
+        a_nom = actuators_from_psi(self.params, psi_nom)
+        a_dot = None if psi_dot_path is None else actuator_jacobian(self.params, psi_nom) @ psi_dot_path
+        self._pending = np.asarray(self.inverse.offset(a_nom, dt, a_dot), float)
+        return np.asarray(psi_nom, float).copy()
+
+    def commit(self, psi_nom: Array, psi_out: Array) -> None:
+        """Record what was finally commanded (after the limits): its offsets are the last ones
+        computed (:meth:`compensate`; none when it has not run)."""
+        self._offset = np.clip(self._pending, -self.inverse.half, self.inverse.half)
+        self._pending = np.zeros_like(self._offset)
+        self._last_out = np.asarray(psi_out, float).copy()
+
+    def actuators(self, psi_cmd: Array) -> Array:
+        """The actuator targets [rad, m, ...] for ``psi_cmd``: its actuator coordinates plus the
+        offsets when it is the configuration last returned (within the actuators' bounds,
+        models.limits.actuator_bounds, which a box enforces), else its coordinates alone."""
+        a = actuators_from_psi(self.params, psi_cmd)
+        if self._last_out is None or not np.allclose(psi_cmd, self._last_out, rtol=0.0, atol=1e-12):
+            return a
+        lo, hi = actuator_bounds(self.params)
+        return np.asarray(np.clip(a + self._offset, lo, hi), float)

@@ -18,12 +18,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from wristmark.models.actuation import actuators_from_psi
 from wristmark.models.arm_spec import Arm, ArmSpec, actuator_names, arm_size
 from wristmark.models.config_io import flatten_sections, from_mapping, load_layered, sectioned, to_mapping
 from wristmark.models.errors import ConfigError
 from wristmark.models.kinematics import check_psi, tip_jacobian
 from wristmark.models.limits import clamp_psi, clamp_velocity, psi_bounds
-from wristmark.solvers.backlash_compensation import BacklashInverse, CommandCompensator
+from wristmark.solvers.backlash_compensation import ActuatorCompensator, BacklashInverse, CommandCompensator
 from wristmark.solvers.play_probe_fit import PlayFit
 
 Array = NDArray[np.float64]
@@ -45,7 +46,11 @@ class ControllerConfig:
     the smallest singular value; saturate_near_target: use min(v_xlim, |dp|/dt) instead of the
     paper's constant speed; lock_saturated_joints: re-solve eq. 19-20 without a joint the step
     would push through its limit (not in the paper). qp: kp feedback gain [1/s]; max_correction_speed [m/s];
-    feed_forward: add the desired velocity; damping: weight of ||S psi_dot||^2 relative to the
+    feed_forward: add the desired velocity; feed_forward_undamped: the damping pulls psi_dot towards
+    the least-motion rates that realise the desired velocity (QpController.feed_forward_rates)
+    instead of zero, so that it shortens only the feedback, not the path's velocity (off in
+    configs/controller.yaml: it moves the paper arm's numbers; docs/notes/any-arm-residual.md);
+    damping: weight of ||S psi_dot||^2 relative to the
     tip-velocity error (S converts rad to tip metres, ``lever`` [m/rad]); orientation_weight:
     weight [m^2/rad^2] on keeping the tip frame's orientation (0 = position only); ki: integral
     gain on the tip error [1/s^2] (0 = none), its velocity capped at integral_speed_limit [m/s]
@@ -71,6 +76,10 @@ class ControllerConfig:
     lead). backlash_kinds: the
     controller kinds the inversion applies to (configs/controller.yaml: qp only; the paper's
     constant-speed controller reverses the actuators every cycle and is not helped by it).
+    backlash_actuator_space: an arm with more actuators than joints (tendons, antagonistic pairs),
+    whose actuators cannot each be offset through a configuration, gets the inversion in actuator
+    space (solvers/backlash_compensation.ActuatorCompensator: the offsets ride on the actuator
+    targets, ``Controller.actuator_targets``); false: no inversion for such an arm.
     play_probe (the encoders' inversion only): before the first closed-loop walk the loop probes
     each actuator's play (rig/loop/play_probe.py: a triangle of play_probe_amplitude x its bound over
     play_probe_time [s] per actuator, then play_probe_settle [s] of closed-loop settle) and the
@@ -88,6 +97,7 @@ class ControllerConfig:
     kp: float = 8.0
     max_correction_speed: float = 0.02
     feed_forward: bool = True
+    feed_forward_undamped: bool = False
     damping: float = 1e-3
     lever: float = 0.2
     orientation_weight: float = 1e-3
@@ -113,6 +123,7 @@ class ControllerConfig:
     backlash_freeze: float = 0.5
     backlash_motor_burst: bool = True
     backlash_kinds: tuple[str, ...] = ("qp",)
+    backlash_actuator_space: bool = True
     play_probe: bool = True
     play_probe_amplitude: float = 2.0
     play_probe_time: float = 0.6
@@ -193,14 +204,15 @@ CONTROLLER_SECTIONS: dict[str, tuple[str, tuple[str, ...]]] = {
     "paper": ("the paper's controller, eq. 17-21",
               ("v_xlim", "gamma", "xi", "saturate_near_target", "lock_saturated_joints")),
     "qp": ("the velocity-bounded QP, its pose task and its tip-error integral",
-           ("kp", "max_correction_speed", "feed_forward", "damping", "lever", "orientation_weight", "position_weight",
+           ("kp", "max_correction_speed", "feed_forward", "feed_forward_undamped", "damping", "lever",
+            "orientation_weight", "position_weight",
             "pose_orientation_weight", "kr", "max_angular_speed", "qp_solver", "ki", "integral_speed_limit",
             "integral_mode")),
     "backlash": ("the dead-band inversion, either kind",
                  ("backlash_compensation", "backlash_play_max", "backlash_start", "backlash_fraction",
                   "backlash_hysteresis", "backlash_learning", "backlash_window", "backlash_learning_rate",
                   "backlash_lead", "backlash_method", "backlash_margin", "backlash_freeze", "backlash_motor_burst",
-                  "backlash_kinds")),
+                  "backlash_kinds", "backlash_actuator_space")),
     "probe": ("the play probe before the first closed-loop walk",
               ("play_probe", "play_probe_amplitude", "play_probe_time", "play_probe_settle", "play_probe_learning")),
 }
@@ -262,12 +274,19 @@ class Controller(abc.ABC):
         self.play_max = config.play_max_for(params) if config.backlash_compensation else np.zeros(arm_size(params)[1])
         n, m = arm_size(params)
         # the inversion offsets each actuator on its own: an arm with more actuators than joints
-        # (tendons, antagonistic pairs) maps actuators to psi by least squares, which drops them
-        self.compensation_note = "" if m == n or not config.backlash_compensation else (
-            f"dead-band inversion off: the arm's {m} actuators drive {n} joints (tendons or pairs), so an offset "
-            "of one actuator alone cannot be commanded; the feedback covers the play")
-        if config.backlash_compensation and config.kind in config.backlash_kinds and m == n:
+        # (tendons, antagonistic pairs) has no configuration for an offset of one actuator alone,
+        # so its offsets go to the actuators beside the configuration (ActuatorCompensator), or,
+        # with backlash_actuator_space off, nowhere
+        on = config.backlash_compensation and config.kind in config.backlash_kinds
+        self.compensation_note = "" if m == n or not on else (
+            f"dead-band inversion in actuator space: the arm's {m} actuators drive {n} joints (tendons or pairs), "
+            "so the offsets are added to the actuator targets" if config.backlash_actuator_space else
+            f"dead-band inversion off: the arm's {m} actuators drive {n} joints (tendons or pairs) and "
+            "backlash_actuator_space is off; the feedback covers the play")
+        if on and m == n:
             self.compensator = CommandCompensator(params, make_inverse(config, self.play_max))
+        elif on and config.backlash_actuator_space:
+            self.compensator = ActuatorCompensator(params, make_inverse(config, self.play_max))
         # the servo loop passes the encoder readings to step() when this is true
         self.uses_encoders = self.compensator is not None and config.backlash_method == "encoders"
         self.play_probed = False  # a play probe (rig/loop/play_probe.py) has run, or was skipped
@@ -316,6 +335,14 @@ class Controller(abc.ABC):
         comp = self.compensator
         if comp is not None and isinstance(comp.inverse, PlayObserverInverse):
             comp.inverse.after_move(encoders_before, encoders_after)
+
+    def actuator_targets(self, psi_cmd: Array) -> Array:
+        """The actuator targets [rad, m, ...] to send for the command ``psi_cmd``: its actuator
+        coordinates (models.actuation), plus the dead-band inversion's per-actuator offsets when they
+        live in actuator space (an arm with more actuators than joints: ActuatorCompensator)."""
+        if self.compensator is None:
+            return actuators_from_psi(self.params, psi_cmd)
+        return self.compensator.actuators(psi_cmd)
 
     def output_model(self, psi_cmd: Array) -> Array:
         """The configuration [rad, m, ...] the arm is expected to reach for the command ``psi_cmd``:

@@ -14,7 +14,10 @@ sat(kr e_axis)), e_axis the shortest turn of the measured axis onto the desired 
 direction (2 DoF) is controlled and the roll about it only damped, never steered by a guess.
 psi_dot_0 = 0, except for an arm of 4 or 5 joints under a position task (nothing holds its null
 space): POSTURE_RATE (psi_home - psi) projected onto the null space of Jv (S-weighted), a slow
-pull home of the spare joint that stops its drift and leaves the tip alone.
+pull home of the spare joint that stops its drift and leaves the tip alone; with
+``feed_forward_undamped`` (position task) psi_dot_0 also holds the least-motion rates that realise
+v_des (:meth:`QpController.feed_forward_rates`), so that the damping does not shorten the path's
+velocity (it does by 2-5 % on the paper arm, up to 17 % on tendon3: docs/notes/any-arm-residual.md).
 
 v_ref = v_des (feed-forward) + sat(kp (p_des - p_meas), max_correction_speed) + v_i [m/s], v_i the
 clamped integral ki sum(e dt) of solvers/tip_integral.py (ki = 0: none; ``integral_mode: path``:
@@ -38,6 +41,7 @@ from wristmark.models.kinematics import tip_jacobian
 from wristmark.models.limits import psi_bounds, velocity_limits
 from wristmark.models.so3 import axis_error, rotation_error
 from wristmark.solvers.controller import Controller, ControllerConfig, OrientationTask
+from wristmark.solvers.pseudo_inverse import sr_pseudo_inverse
 from wristmark.solvers.tip_integral import TipErrorIntegral
 
 Array = NDArray[np.float64]
@@ -127,6 +131,15 @@ class QpController(Controller):
         y0 = x0 / s_inv  # S x0
         return np.asarray(s_inv * (y0 - np.linalg.pinv(Js) @ (Js @ y0)), float)
 
+    def feed_forward_rates(self, J: Array, v_des: Array) -> Array:
+        """The joint rates [rad/s, m/s] that realise the desired tip velocity ``v_des`` [m/s] in {w}
+        with the least S-weighted motion (Jv x = v_des; the singularity-robust pseudo-inverse of
+        eq. 20 with the config's gamma and xi); the 6 x n Jacobian ``J`` in {w}."""
+        cfg = self.config
+        s_inv = 1.0 / np.sqrt(np.diag(self._S2))
+        A = J[:3] * s_inv  # Jv S^-1
+        return np.asarray(s_inv * (sr_pseudo_inverse(A, cfg.gamma, cfg.xi) @ np.asarray(v_des, float)), float)
+
     def orientation_reference(self, task: OrientationTask) -> tuple[Array, Array]:
         """The orientation task's weight W (3x3) [m^2/rad^2] and reference angular velocity
         w_ref [rad/s] in {w} (see the module docstring)."""
@@ -168,8 +181,13 @@ class QpController(Controller):
         if orientation is None:
             H = self._hessian(J)
             g = -2.0 * self.config.position_weight * J[:3].T @ v_ref
+            x0 = np.zeros(self.n)
+            if self.config.feed_forward_undamped and self.config.feed_forward and v_des is not None:
+                x0 = x0 + self.feed_forward_rates(J, v_des)
             if self._home is not None:
-                g = g - 2.0 * self.config.damping * self._S2 @ self._posture_rate(J, psi)
+                x0 = x0 + self._posture_rate(J, psi)
+            if np.any(x0 != 0.0):
+                g = g - 2.0 * self.config.damping * self._S2 @ x0
         else:
             W, w_ref = self.orientation_reference(orientation)
             H = self._hessian(J, W)

@@ -47,6 +47,8 @@ Array = NDArray[np.float64]
 RESTORE_CYCLES = 3  # cycles the probe waits after its last command (the motor's lag is ~0.07 s)
 FEW_JOINTS = ("play probe skipped: the arm has fewer than 6 joints, so a measured pose does not give its actuators "
               "(the play is learnt online)")
+MORE_ACTUATORS = ("play probe skipped: the arm has more actuators than joints (tendons or pairs), so a measured pose "
+                  "does not give each actuator's output (the play is learnt online)")
 NO_POSE = "play probe skipped: the tracker gives no 6-DoF pose (position-only marker or roll code not read); " \
           "the play is learnt online at the reversals"
 
@@ -80,8 +82,9 @@ def run_play_probe(loop: ProbeLoop, template: CycleTarget) -> list[PlayFit] | No
     controller (None when skipped: no 6-DoF pose). ``template`` is the target logged."""
     ctrl = loop.controller
     meas0 = loop.last_measurement
-    if arm_size(loop.params)[0] < 6:
-        loop.skip(FEW_JOINTS)
+    n, m = arm_size(loop.params)
+    if n < 6 or m > n:
+        loop.skip(FEW_JOINTS if n < 6 else MORE_ACTUATORS)
         ctrl.start_play(None)
         return None
     if meas0 is None or meas0.R_world is None or not meas0.roll_known:

@@ -154,7 +154,9 @@ class ServoLoop:
     def send(self, psi: Array) -> None:
         """Send the configuration ``psi`` [rad, m, ...] to the link, and record it for the delay
         compensation as the configuration the arm should follow."""
-        self.link.send_target(actuators_from_psi(self.params, psi))
+        # the controller's targets: with a dead-band inversion in actuator space, its offsets ride on them
+        self.link.send_target(self.controller.actuator_targets(psi) if self.controller is not None
+                              else actuators_from_psi(self.params, psi))
         if self.delay is not None:  # what the arm should do: a dead-band inversion's offsets do not move it
             expected = self.controller.output_model(psi) if self.controller is not None else psi
             self.delay.record(self.now(), expected)

@@ -31,7 +31,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     set_example(pr, "wristmark marker print --marker configs/marker_coded.yaml --out runs/tour/sleeve.pdf")
     fa = sub.add_parser("family", help="write N coded marker files (and sheets) of one sleeve family, one per arm")
     fa.add_argument("--arms", required=True, type=int, metavar="N", help="number of arms (sleeves)")
-    fa.add_argument("--out", required=True, metavar="DIR", help="output folder: armK.yaml and armK.pdf per arm (created)")
+    fa.add_argument("--out", required=True, metavar="DIR",
+                    help="output folder: armK.yaml and armK.pdf per arm (created)")
     fa.add_argument("--bands-per-side", type=int, choices=(2, 3), default=None, metavar="B",
                     help="code bands on each side of the checker rows: 2 (10.4 mm sleeve, up to 2 arms) or "
                          "3 (13.0 mm, more arms); default the shortest sleeve that has N arms")

@@ -169,6 +169,8 @@ def test_decoder_reads_each_sleeve_as_its_own_arm_never_another(per_side: int, a
             if res.code.ok:
                 assert res.code.arm == m.arm and res.code.member == i and res.roll_known
                 own += 1
+            else:  # an undecided sleeve is no arm's
+                assert res.code.arm is None and res.code.member == -1 and not res.roll_known
             facing = _facing_cells(m, f)
             for n_bad in (1, 2):  # a glint on one or on two adjacent cells of a column
                 k, b = facing[int(rng.integers(len(facing)))]
@@ -177,6 +179,26 @@ def test_decoder_reads_each_sleeve_as_its_own_arm_never_another(per_side: int, a
                 res = tracker.track(*_glint(m, f, cells))
                 if res.ok and res.code is not None:
                     assert res.code.arm in (None, m.arm), (m.arm, res.code)
+                    assert res.code.ok == (res.code.arm is not None)
                     spoiled += res.code.ok
     assert own >= 0.8 * 8 * arms
     assert spoiled >= 8 * arms  # most spoiled frames are still read (as their own arm)
+
+
+@pytest.mark.slow
+def test_a_family_sleeve_outside_the_marker_set_is_no_arms() -> None:
+    """arm2's sleeve in view of a decoder given {arm0, arm1}: its windows differ from theirs in >= 4
+    cells per 3 columns, so it is never read as arm0's or arm1's (while arm2 itself is readable)."""
+    arm0, arm1, arm2 = family_markers(3, bands_per_side=3)
+    tracker = MarkerTracker(CAM, arm0, family=[arm0, arm1])
+    own = MarkerTracker(CAM, arm2)
+    readable = 0
+    for f in _frames(arm2, 71, range(0, 360, 60)):
+        tracker.reset()
+        res = tracker.track(f.left, f.right)
+        assert res.ok and res.code is not None and not res.code.ok and res.code.arm is None
+        assert not res.roll_known
+        own.reset()
+        mine = own.track(f.left, f.right)
+        readable += bool(mine.code is not None and mine.code.ok and mine.code.arm == "arm2")
+    assert readable >= 4

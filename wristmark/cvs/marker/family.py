@@ -98,10 +98,12 @@ def family_margin(codes: Sequence[Bits], width: int) -> int:
 
 def search_family(members: int, bands: int, seed: int, columns: int = 12, steps: int = 20000,
                   restarts: int = 20, margin: int = FAMILY_MARGIN, margin2: int = 0,
-                  fixed: Sequence[Bits] = ()) -> tuple[Bits, ...] | None:
+                  fixed: Sequence[Bits] = (), temperature: tuple[float, float] = (2.0, 0.02)
+                  ) -> tuple[Bits, ...] | None:
     """Simulated annealing on single-cell flips: ``members`` codes of ``columns`` x ``bands``
     (``fixed`` codes first, never flipped) whose union keeps ``margin`` over 3 columns (and
-    ``margin2`` over 2); returns the first family found, or None after ``restarts``."""
+    ``margin2`` over 2), the temperature falling geometrically from ``temperature[0]`` to
+    ``[1]`` over ``steps``; returns the first family found, or None after ``restarts``."""
     rng = np.random.default_rng(seed)
 
     def cost(codes: list[Bits]) -> float:
@@ -111,6 +113,7 @@ def search_family(members: int, bands: int, seed: int, columns: int = 12, steps:
         return c
 
     nfix = len(fixed)
+    t0, t1 = temperature
     for _ in range(restarts):
         codes = [np.asarray(f, np.int8).copy() for f in fixed]
         codes += [rng.integers(0, 2, (columns, bands)).astype(np.int8) for _ in range(members - nfix)]
@@ -118,7 +121,7 @@ def search_family(members: int, bands: int, seed: int, columns: int = 12, steps:
         for k in range(steps):
             if c == 0:
                 return tuple(codes)
-            temp = 2.0 * (0.02 / 2.0) ** (k / steps)
+            temp = t0 * (t1 / t0) ** (k / steps)
             m = int(rng.integers(nfix, members))
             i, b = int(rng.integers(columns)), int(rng.integers(bands))
             codes[m][i, b] ^= 1

@@ -66,6 +66,15 @@ def test_search_family_finds_a_family_with_the_margin() -> None:
     assert found is not None and family_margin(found, 3) >= 4 and family_margin(found, 2) >= 2
 
 
+@pytest.mark.slow
+def test_search_family_completes_the_shipped_four_band_arm0() -> None:
+    """The reproducibility note of docs/marker_code.md: given arm0 of the 2-bands-per-side family the
+    kept search finds a second member (seed 4)."""
+    arm0 = words_to_bits(FAMILIES[2][0])
+    found = search_family(2, 4, seed=4, restarts=1, fixed=[arm0])
+    assert found is not None and (found[0] == arm0).all() and family_margin(found, 3) >= FAMILY_MARGIN
+
+
 def test_marker_family_cli_writes_files_whose_union_keeps_the_margin(tmp_path: Path,
                                                                     capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "fam"

@@ -5,10 +5,10 @@
 name) for a lab to print on label film at 100 % and wrap around the arm. An existing --out is
 kept unless --force.
 
-``wristmark marker family --arms N --out DIR [--bands-per-side 2|3] [--sheet pdf|svg] [--force]``
-writes N coded marker files ``DIR/armK.yaml`` (each naming its arm) of one shipped sleeve family
-and their sheets ``DIR/armK.pdf``: no sleeve's code window can be read as another's. Existing
-files are kept (nothing written) unless --force.
+``wristmark marker family --arms N --out DIR [--bands-per-side 2|3] [--sheet pdf|svg] [--names A,B]
+[--force]`` writes N coded marker files ``DIR/armK.yaml`` (or ``NAME.yaml``; each naming its arm)
+of one shipped sleeve family and their sheets ``DIR/armK.pdf``: no sleeve's code window can be
+read as another's. Existing files are kept (nothing written) unless --force.
 """
 
 from __future__ import annotations
@@ -37,6 +37,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                     help="code bands on each side of the checker rows: 2 (10.4 mm sleeve, up to 2 arms) or "
                          "3 (13.0 mm, more arms); default the shortest sleeve that has N arms")
     fa.add_argument("--sheet", choices=("pdf", "svg"), default="pdf", help="format of the sheets (default pdf)")
+    fa.add_argument("--names", metavar="A,B,...", help="the arms' names, one per arm (default arm0,arm1,...); "
+                    "the files are NAME.yaml and NAME.pdf")
     add_force_argument(fa)
     set_example(fa, "wristmark marker family --arms 2 --out runs/tour/family")
     set_example(p, "wristmark marker print --marker configs/marker_coded.yaml --out runs/tour/sleeve.pdf")
@@ -74,7 +76,8 @@ def _family(args: argparse.Namespace) -> int:
         raise InputError(f"--out {out}: exists and is not a folder")
     if not out.parent.is_dir():
         raise InputError(f"{out.parent}: folder not found")
-    markers = family_markers(args.arms, bands_per_side=args.bands_per_side)  # too many arms: InputError
+    names = None if args.names is None else [n.strip() for n in args.names.split(",")]
+    markers = family_markers(args.arms, names=names, bands_per_side=args.bands_per_side)  # InputError: too many
     files = [(out / f"{m.arm}.yaml", out / f"{m.arm}.{args.sheet}") for m in markers]
     if not args.force:  # refuse existing outputs before writing anything
         claim_outputs(files=[f for pair in files for f in pair])

@@ -95,8 +95,9 @@ def test_marker_family_cli_writes_files_whose_union_keeps_the_margin(tmp_path: P
     assert main(["marker", "family", "--arms", "3", "--out", str(out), "--sheet", "svg", "--force"]) == 0
     assert (out / "arm0.yaml").read_text() == before  # deterministic
     two = tmp_path / "two"
-    assert main(["marker", "family", "--arms", "2", "--out", str(two), "--sheet", "svg"]) == 0
-    m2 = [MarkerModel.load(two / f"arm{i}.yaml") for i in range(2)]
+    assert main(["marker", "family", "--arms", "2", "--out", str(two), "--sheet", "svg", "--names", "left,right"]) == 0
+    m2 = [MarkerModel.load(two / f"{n}.yaml") for n in ("left", "right")]
+    assert [m.arm for m in m2] == ["left", "right"] and (two / "right.svg").is_file()
     assert m2[0].z_extent == pytest.approx((-0.0052, 0.0052))  # the shortest sleeve: 2 bands per side
     assert family_margin([m.code.bits() for m in m2 if m.code is not None], 3) >= FAMILY_MARGIN
 
@@ -105,6 +106,9 @@ def test_marker_family_cli_writes_files_whose_union_keeps_the_margin(tmp_path: P
     (["--arms", "9"], "has 8 arms"),
     (["--arms", "3", "--bands-per-side", "2"], "with 2 bands per side"),
     (["--arms", "0"], "--arms must be >= 1"),
+    (["--arms", "2", "--names", "left,left"], "need 2 distinct arm names"),
+    (["--arms", "2", "--names", "left"], "need 2 distinct arm names"),
+    (["--arms", "2", "--names", "left,right arm"], "'right arm' is not a name"),
 ])
 def test_marker_family_too_large_is_one_line_and_writes_nothing(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                                                 argv: list[str], cause: str) -> None:

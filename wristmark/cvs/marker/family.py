@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.models.errors import InputError
-from wristmark.models.marker import MarkerModel
+from wristmark.models.marker import ARM_NAME, MarkerModel
 
 Bits = NDArray[np.int8]
 
@@ -162,7 +162,10 @@ def family_markers(arms: int, base: MarkerModel | None = None, names: Sequence[s
     words = FAMILIES[fits[0]]
     names = list(names) if names is not None else [f"arm{i}" for i in range(arms)]
     if len(names) != arms or len(set(names)) != arms:
-        raise InputError(f"need {arms} distinct arm names, got {names}")
+        raise InputError(f"--names: need {arms} distinct arm names, got {','.join(names)}")
+    for name in names:
+        if not ARM_NAME.fullmatch(name):
+            raise InputError(f"--names: '{name}' is not a name of letters, digits, '_', '-' or '.'")
     out = []
     for name, w in zip(names, words[:arms]):
         m = replace(coded_marker(base, w), arm=name)

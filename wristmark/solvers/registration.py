@@ -56,6 +56,11 @@ SIGMA_AXIS = np.radians(0.2)  # [rad] axis accuracy (NOTES: ~0.19 deg median)
 MIN_POSES = 4
 MIN_POSES_ARM = 8
 OUTLIER_SIGMAS = 8.0  # an observation this many sigmas off after the first solve is dropped (at most 25 %)
+# starts of the bend gains' fit, as offsets from 1 (real arms' gains are below 1: tendon stretch,
+# friction): the cost is not smooth (each play's dead band clips), and with tendon3's plant the
+# nominal start stopped in a local minimum 0.6 mm from the true camera (2026-12-03)
+GAIN_STARTS = (0.0, -0.05, -0.1)
+_EXACT_COST = 1e-10  # [sigma^2] a fit's cost this low is exact (simulated, noise-free observations)
 _PLAY_SCALE = np.array([1e-2, 1e-4, 1e-4, 1e-4, 1e-4, 1e-4])  # [rad, m, ...] typical half plays (scaling)
 
 
@@ -67,7 +72,11 @@ class RegistrationPose:
     ArmSpec) may also give ``approach_move``, each actuator's last move [rad or m] (from the
     approach point to psi) and ``prior_sign``, the sign of its move into the approach point:
     then a move shorter than the play leaves the output inside its dead band, as it truly does
-    (a tendon whose angle lies across the approach's bend moves little)."""
+    (a tendon whose angle lies across the approach's bend moves little). ``path`` (any arm): the
+    actuator targets (k, m) [rad or m] of every move since the first visit's approach point, in
+    the order visited, ending with this visit's; each output then follows the play operator along
+    all of them (a move shorter than the full play keeps the lag the moves before it left: the
+    last two moves do not tell it when the plays are as wide as the approach's tendon moves)."""
 
     psi: Array
     centre_left: Array
@@ -76,6 +85,13 @@ class RegistrationPose:
     motion_sign: Array = field(default_factory=lambda: np.zeros(6))
     approach_move: Array | None = None
     prior_sign: Array | None = None
+    path: Array | None = None
+
+    @property
+    def play_unknown(self) -> bool:
+        """Whether the outputs' places in their dead bands before this visit's moves are unknown
+        (any arm: the first visit, whose prior move is not known, ``prior_sign`` all zeros)."""
+        return self.prior_sign is not None and not np.any(self.prior_sign)
 
 
 @dataclass(frozen=True)
@@ -105,16 +121,17 @@ class ArmCorrection:
                 and not any(self.half_play) and not any(self.plane_offset))
 
     def marker_frame(self, params: Arm, psi: Array, motion_sign: Array, approach_move: Array | None = None,
-                     prior_sign: Array | None = None) -> Array:
+                     prior_sign: Array | None = None, path: Array | None = None) -> Array:
         """The model's 4x4 pose of {wm} in {w} with the corrections applied (any arm: each
         segment's gain and plane offset, the stem bent in segment 1's plane, the plays, as
         sim/plant.py's true arm; with ``approach_move`` and ``prior_sign``, RegistrationPose's,
-        each output's lag after its last two moves through the dead band)."""
+        each output's lag after its last two moves through the dead band; with ``path``, after
+        all the moves of the path)."""
         q = np.array(psi, float)
         if self.is_identity():
             return forward_kinematics(params, q).T_world_marker
         if isinstance(params, ArmSpec):
-            return self._spec_marker_frame(params, q, motion_sign, approach_move, prior_sign)
+            return self._spec_marker_frame(params, q, motion_sign, approach_move, prior_sign, path)
         if any(self.half_play):
             a = actuators_from_psi(params, q) - np.asarray(self.half_play) * motion_sign
             q = psi_from_actuators(params, a, q)
@@ -131,7 +148,7 @@ class ArmCorrection:
         return T
 
     def _spec_marker_frame(self, spec: ArmSpec, q: Array, motion_sign: Array, approach_move: Array | None,
-                           prior_sign: Array | None) -> Array:
+                           prior_sign: Array | None, path: Array | None = None, lag: Array | None = None) -> Array:
         """:meth:`marker_frame` of any arm (sim/plant.py's TruePlant._bend_any and _chain without the tip load)."""
         n_seg = len(spec.segments)
         if len(self.bend_gain) != n_seg or len(self.half_play) != spec.m or len(self.plane_offset) != n_seg:
@@ -139,7 +156,11 @@ class ArmCorrection:
                              f"{spec.m} plays (ArmCorrection.for_arm)")
         if any(self.half_play):
             h = np.abs(np.asarray(self.half_play))
-            if approach_move is not None and prior_sign is not None:  # output - motor after the two moves
+            if lag is not None:  # given (_model: every pose's at once)
+                pass
+            elif path is not None and len(path) > 0:  # the play operator along every move (sim/plant.py)
+                lag = path_lags([np.asarray(path, float)], h)[0]
+            elif approach_move is not None and prior_sign is not None:  # output - motor after the two moves
                 lag = np.clip(-prior_sign * h - approach_move, -h, h)
             else:
                 lag = -h * motion_sign
@@ -172,8 +193,28 @@ class RegistrationResult:
     outliers: list[str] = field(default_factory=list)
 
 
+def path_lags(paths: list[Array], half_play: Array) -> Array:
+    """Output - motor (n, m) at the end of each of ``n`` paths of actuator targets (k_i, m), the
+    output starting at the path's first target and following the play operator of half width
+    ``half_play`` (m,) (as sim/plant.py's true arm, whose motors reach each target). All paths
+    at once: each padded with its last target (a repeated target moves nothing)."""
+    k = max(len(p) for p in paths)
+    P = np.array([np.concatenate([p, np.repeat(p[-1:], k - len(p), axis=0)]) for p in paths])  # (n, k, m)
+    out = P[:, 0].copy()
+    for j in range(1, k):
+        out = np.minimum(np.maximum(out, P[:, j] - half_play), P[:, j] + half_play)
+    return out - P[:, -1]
+
+
 def _model(params: Arm, poses: list[RegistrationPose], arm: ArmCorrection) -> tuple[Array, Array]:
-    frames = [arm.marker_frame(params, p.psi, p.motion_sign, p.approach_move, p.prior_sign) for p in poses]
+    if (isinstance(params, ArmSpec) and any(arm.half_play) and poses
+            and all(p.path is not None and len(p.path) for p in poses)):
+        lags = path_lags([np.asarray(p.path, float) for p in poses], np.abs(np.asarray(arm.half_play, float)))
+        frames = [arm._spec_marker_frame(params, np.array(p.psi, float), p.motion_sign, None, None, lag=g)
+                  for p, g in zip(poses, lags)]
+    else:
+        frames = [arm.marker_frame(params, p.psi, p.motion_sign, p.approach_move, p.prior_sign, p.path)
+                  for p in poses]
     return np.array([T[:3, 3] for T in frames]), np.array([T[:3, 2] for T in frames])
 
 
@@ -227,7 +268,14 @@ def solve_registration(params: Arm, poses: list[RegistrationPose], estimate_arm:
         arm = unpack_arm(x[6:]) if unpack_arm is not None else ArmCorrection.for_arm(params)
         return Rotation.from_rotvec(x[:3]).as_matrix(), x[3:6], arm
 
-    keep = np.ones(len(poses), bool)
+    # with the plays estimated, a visit whose outputs' place in the dead band is unknown (any arm's
+    # first visit) is not fitted: a lag guessed wrong by up to a play pulls the camera along the
+    # fit's weakly observed gains (tendon3's plant: 0.8 mm), like a wrong observation
+    fit = np.array([not (backlash and p.play_unknown) for p in poses]) if isinstance(params, ArmSpec) \
+        else np.ones(len(poses), bool)
+    if fit.sum() < (MIN_POSES_ARM if estimate_arm else MIN_POSES):
+        fit[:] = True
+    keep = fit.copy()
 
     def residuals(x: Array) -> Array:
         R, t, arm = unpack(x)
@@ -242,18 +290,31 @@ def solve_registration(params: Arm, poses: list[RegistrationPose], estimate_arm:
         return (np.linalg.norm(cl @ R.T + t - mw, axis=1),
                 np.arccos(np.clip(np.sum((al @ R.T) * ma, axis=1), -1.0, 1.0)))
 
-    x = np.concatenate([Rotation.from_matrix(W0[:3, :3]).as_rotvec(), W0[:3, 3], np.zeros(n_arm)])
-    x = least_squares(residuals, x, loss=loss, f_scale=3.0, x_scale="jac", method="trf").x
+    x0 = np.concatenate([Rotation.from_matrix(W0[:3, :3]).as_rotvec(), W0[:3, 3], np.zeros(n_arm)])
+    best = None
+    n_seg = len(params.segments) if isinstance(params, ArmSpec) else 2
+    for g in GAIN_STARTS if n_arm else (0.0,):  # the plays' kinks leave local minima along the gains
+        x0[6:6 + n_seg] = g
+        sol = least_squares(residuals, x0, loss=loss, f_scale=3.0, x_scale="jac", method="trf")
+        if best is None or sol.cost < best.cost:
+            best = sol
+        if best.cost < _EXACT_COST:  # the data fitted exactly: no start does better
+            break
+    assert best is not None
+    x = best.x
+    if n_arm and best.cost >= _EXACT_COST:  # to the bottom of the best start's basin (one basin: one result)
+        x = least_squares(residuals, x, loss=loss, f_scale=3.0, x_scale="jac", method="trf", ftol=1e-12, xtol=1e-12,
+                          gtol=1e-12).x
     dc, da = errors(x)
-    bad = (dc > OUTLIER_SIGMAS * SIGMA_CENTRE) | (da > OUTLIER_SIGMAS * SIGMA_AXIS)
+    bad = ((dc > OUTLIER_SIGMAS * SIGMA_CENTRE) | (da > OUTLIER_SIGMAS * SIGMA_AXIS)) & fit
     if 0 < bad.sum() <= 0.25 * len(poses):  # a few wrong observations: solve again without them
-        keep = ~bad
+        keep = fit & ~bad
         x = least_squares(residuals, x, loss=loss, f_scale=3.0, x_scale="jac", method="trf").x
         dc, da = errors(x)
     R, t, arm = unpack(x)
     names = [p.name or str(i) for i, p in enumerate(poses)]
     return RegistrationResult(_transform(R, t), float(np.sqrt(np.mean(dc[keep] ** 2))), dc, da, arm, W0, names,
-                              [n for n, k in zip(names, keep) if not k])
+                              [n for n, k, f in zip(names, keep, fit) if f and not k])
 
 
 def _arm_unpacker(params: Arm, backlash: bool) -> tuple[Callable[[Array], ArmCorrection], int]:

@@ -337,3 +337,25 @@ def test_a_fit_that_hinges_on_a_corner_seen_in_one_view_only_is_refused() -> Non
     # the stereo pairs alone fit the truth
     pairs = MarkerTracker(cam, MARKER).track_corners(ARC_LEFT, ARC_RIGHT[1:], ARC_POL_LEFT, ARC_POL_RIGHT[1:])
     assert pairs.ok and np.linalg.norm(pairs.tip_left - ARC_TRUE_TIP_LEFT) < 5e-4
+
+
+@pytest.mark.slow
+def test_a_corner_beside_the_chain_end_does_not_lose_the_pair() -> None:
+    """planar's cube (vision in the loop, 2026-12-03, t = 2.18 s; merge of the backlash
+    inversion): the arm nearly end-on, 3 + 3 true corners in view and, in the right image, one
+    more X-like corner at a chain end (the sleeve's silhouette): no pose fits them all (the paper
+    chain's 0 right corners, the saddle's 4 at 5 px). Leaving one chain end out fits the true three."""
+    from pathlib import Path
+
+    from wristmark.sim.render.settings import noise_preset
+    from wristmark.sim.setup import load_setup, make_plant
+
+    setup = load_setup(robot=Path(CONFIG_DIR) / "robots" / "planar.yaml")
+    shape = make_plant(setup, np.array([-0.24754993, 0.02842169, 0.23921744, 0.27380712])).true_shape()
+    pair = StereoRenderer(setup.render_camera, setup.marker, noise_preset(setup.rig.render_noise), seed=0).render(shape)
+    before = MarkerTracker(setup.tracking_camera, setup.marker)
+    before._retry_without_chain_ends = lambda res, t0: res  # type: ignore[method-assign]
+    assert not before.track(pair.left, pair.right).ok  # the pair the loop lost
+    res = MarkerTracker(setup.tracking_camera, setup.marker).track(pair.left, pair.right)
+    assert res.ok and res.rms_px < 0.1 and "chain_end" in res.timings, res.reason
+    assert res.tip_left is not None and np.linalg.norm(res.tip_left - pair.tip_left) < 2e-4

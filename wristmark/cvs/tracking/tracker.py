@@ -9,7 +9,9 @@ doubtful pose: no marker, too few corners, no stereo pairs, a residual above ``m
 a fit that hinges on corners seen in one view only (the best fit of the stereo pairs alone puts
 the tip more than ``max_single_view_shift_m`` away). A pair lost for too few corners gets one
 last try with chains that step over a missed corner (a specular highlight over the corner the
-camera sees best: cvs.corners.detector ``retry_with_gaps``, docs/notes/highlight-stripe.md).
+camera sees best: cvs.corners.detector ``retry_with_gaps``, docs/notes/highlight-stripe.md). A
+pair whose corners fit no pose (RMS above ``max_rms_px``) gets one more with one end corner of
+a view's chain left out (an X-like corner at the sleeve's silhouette that extends a chain).
 ``track_corners`` takes corners directly (controller loops, baselines, tests).
 
 The sleeve looks the same after a half turn about x_wm, so which way z_wm (distal) points is
@@ -85,6 +87,7 @@ class MarkerTracker:
         self._last_oriented = False  # the previous pose's direction was decided
         self.decoder = None if marker.code is None else CodeDecoder(camera, marker, self.settings.code, family)
         self._second: tuple[CornerDetector, CornerDetector] | None = None
+        self._misfits: list[tuple[Array, Array, Array | None, Array | None]] = []  # this pair's
         self._use_second = self.settings.detector == "auto" and type(self.detector_left).__name__ != (
             "SaddleCornerDetector")
 
@@ -100,6 +103,7 @@ class MarkerTracker:
         ``axis_hint_left``: expected direction of z_wm (distal) in {ll}, if the caller knows it."""
         t0 = time.perf_counter()
         self._continuous = False
+        self._misfits = []
         il = check_view(left_img, self.camera.image_size, "left")
         ir = check_view(right_img, self.camera.image_size, "right")
         res, full = self._track_in_rois(il, ir, t0) if self._tracking else (None, (None, None))
@@ -127,6 +131,8 @@ class MarkerTracker:
             res.timings["second_detector"] = t_second
         if not res.ok and res.reason.startswith(_CORNER_REASONS):
             res = self._retry_with_gaps(res, t0)
+        if not res.ok and self._misfits:
+            res = self._retry_without_chain_ends(res, t0)
         found = res.ok
         if res.ok:
             t3 = time.perf_counter()
@@ -151,6 +157,43 @@ class MarkerTracker:
         res2 = self.track_corners(bl.corners, br.corners, bl.polarity, br.polarity, _t0=t0)
         out = res2 if res2.ok else res
         out.timings["gap_chain"] = 1e3 * (time.perf_counter() - t1)
+        return out
+
+    def _retry_without_chain_ends(self, res: TrackResult, t0: float) -> TrackResult:
+        """A pair whose corners did not fit the marker (reprojection RMS above ``max_rms_px``):
+        one more try of each such set of chains with one end corner of one view's chain left out,
+        where that view keeps ``min_corners``. A corner beside the marker's silhouette (grey sleeve
+        against the background where the sleeve turns away, or its dark end face against the
+        last row of squares) can pass the X-corner test and extend a chain by one: its relative
+        index then shifts the view's others, and no pose fits them all (planar's cube, t = 2.12 s:
+        3 + 3 true corners and one such corner, 1.14 px). The same pose gates; the fit with the
+        lowest RMS is kept, ``res`` unchanged when none passes. The detectors' next ROIs follow
+        the corners used."""
+        t1 = time.perf_counter()
+        n = self.settings.min_corners
+        best: TrackResult | None = None
+        best_sets: tuple[Array, Array] | None = None
+        misfits, self._misfits = self._misfits, []
+        for cl, cr, pl, pr in misfits:
+            for view in (0, 1):
+                c, p = (cl, pl) if view == 0 else (cr, pr)
+                if c.shape[0] <= n:
+                    continue
+                for keep in (slice(1, None), slice(None, -1)):
+                    c2, p2 = c[keep], None if p is None else p[keep]
+                    use_l, use_r = (c2, cr) if view == 0 else (cl, c2)
+                    pol_l, pol_r = (p2, pr) if view == 0 else (pl, p2)
+                    r = self.track_corners(use_l, use_r, pol_l, pol_r, _t0=t0)
+                    if r.ok and (best is None or r.rms_px < best.rms_px):
+                        best, best_sets = r, (use_l, use_r)
+        self._misfits = []
+        out = best if best is not None else res
+        out.timings["chain_end"] = 1e3 * (time.perf_counter() - t1)
+        if best_sets is not None:
+            for d, c in zip((self.detector_left, self.detector_right), best_sets):
+                follow = getattr(d, "follow", None)
+                if callable(follow):
+                    follow(c)
         return out
 
     def _second_detectors(self) -> tuple[CornerDetector, CornerDetector]:
@@ -414,6 +457,9 @@ class MarkerTracker:
         elif (shift := self._single_view_shift(best, idx_l, ul, idx_r, ur, m)) > s.max_single_view_shift_m:
             doubt = f"the fit hinges on corners seen in one view only (the tip moves {1e3 * shift:.1f} mm without them)"
         if doubt:
+            if doubt.startswith("reprojection RMS"):  # a corner beside the chain? (_retry_without_chain_ends)
+                pols = [None if p is None else p.astype(float) for p in (pl, pr)]
+                self._misfits = [*self._misfits[-3:], (cl, cr, pols[0], pols[1])]  # bounded (track_corners alone)
             return self._fail(doubt, cl, cr, t0, timings, pose=best, match=m)
         return TrackResult(
             True,

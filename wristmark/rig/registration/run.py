@@ -84,23 +84,40 @@ def collect(rig: RegistrationRig, tracker: MarkerTracker, params: Arm, poses: li
 
 def registration_poses(params: Arm, observations: list[Observation]) -> list[RegistrationPose]:
     """The tracked observations as solver inputs (encoder psi, centre and z axis in {ll}); for any
-    arm (an ArmSpec) also each actuator's last move and the sign of the one before it (from the
-    previous visit's pose, in the order visited; unknown, 0, for the first)."""
+    arm (an ArmSpec) also each actuator's last move, the sign of the one before it (from the
+    previous visit's pose, in the order visited; unknown, 0, for the first) and the path of
+    actuator targets since the first visit's approach point (the plays' state after them all)."""
     out = []
     previous: Array | None = None
-    for o in observations:
+    targets: list[Array] = []
+    for o in map(as_logged, observations):
         start = np.asarray(o.psi_cmd, float) + o.approach * approach_offset(params)
-        move = prior = None
+        move = prior = path = None
         if isinstance(params, ArmSpec):
             a_start = actuators_from_psi(params, start)
-            move = actuators_from_psi(params, o.psi_cmd) - a_start
+            a_end = actuators_from_psi(params, o.psi_cmd)
+            move = a_end - a_start
             prior = np.zeros_like(move) if previous is None else np.sign(a_start - actuators_from_psi(params, previous))
+            targets += [a_start, a_end]
+            path = np.array(targets)
         previous = np.asarray(o.psi_cmd, float)
         if o.T_left_marker is not None:
             out.append(RegistrationPose(o.psi_meas, o.T_left_marker[:3, 3], o.T_left_marker[:3, 2],
                                         f"pose {o.pose}{'-' if o.approach < 0 else '+'}", motion_sign(params, o),
-                                        move, prior))
+                                        move, prior, path=path))
     return out
+
+
+def as_logged(o: Observation) -> Observation:
+    """``o`` with its configurations and pose to the registration log's 12 significant digits
+    (rig.registration.log): the fit of a run and of its log (``--from-log``) then see the same
+    numbers. They must: with any arm's plays the fit's cost has kinks (each dead band clips), and
+    a difference in the 13th digit once sent tendon3's fit to another of its near-equal minima
+    (14 um apart, 2026-12-03)."""
+    def r(x: Array) -> Array:
+        return np.array([float(f"{v:.12g}") for v in np.ravel(x)]).reshape(np.shape(x))
+    T = None if o.T_left_marker is None else np.vstack([r(np.asarray(o.T_left_marker)[:3]), [0.0, 0.0, 0.0, 1.0]])
+    return Observation(o.pose, o.approach, r(o.psi_cmd), r(o.psi_meas), T, o.rms_px, o.reason)
 
 
 def motion_sign(params: Arm, o: Observation) -> Array:

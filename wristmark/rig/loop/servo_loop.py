@@ -28,6 +28,7 @@ Ground truth (true tip, optical tracker, true configuration) is logged when an o
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from typing import NoReturn
@@ -355,6 +356,9 @@ class ServoLoop:
             self.on_frame(frame, meas)
         if not (meas.ok and meas.p_world is not None and np.all(np.isfinite(meas.p_world))):
             memory.last_reason = meas.reason or "marker not found"
+            if self.rig.reuse_lost:  # step on the last measurement, as a cycle without a frame
+                reused = self._reuse(truth, target, memory, any_clock=True)
+                return dataclasses.replace(reused, meas=meas)
             return CycleOutcome(meas, truth, False, False, 0.0)
         p_est = meas.p_world
         jump_ok = memory.last_ok is None or (
@@ -393,12 +397,14 @@ class ServoLoop:
         self.psi_cmd = step.psi_next
         return 1e6 * (time.perf_counter() - c0)
 
-    def _reuse(self, truth: TruthSample, target: CycleTarget, memory: TrackingMemory) -> CycleOutcome:
-        """A cycle without a new frame (wall clock): the last accepted measurement, moved on by the
-        delay compensation, drives the controller while it is at most ``reuse_measurement_age`` old
+    def _reuse(self, truth: TruthSample, target: CycleTarget, memory: TrackingMemory,
+               any_clock: bool = False) -> CycleOutcome:
+        """A cycle without a new frame (wall clock; ``any_clock``: either clock, a frame without
+        the marker with rig ``reuse_lost``): the last accepted measurement, moved on by the delay
+        compensation, drives the controller while it is at most ``reuse_measurement_age`` old
         at the cycle's start; else (or without the compensation) the arm holds."""
         last = memory.last_meas
-        if (not self.wall_clock or self.delay is None or last is None
+        if (not (self.wall_clock or any_clock) or self.delay is None or last is None
                 or not self._cycle_start - last.t_capture <= self.rig.reuse_measurement_age):
             return CycleOutcome(None, truth, False, False, 0.0)
         ctrl_us = self._control(target, self._compensated(last), last)
@@ -414,7 +420,7 @@ class ServoLoop:
         clamped to the joint limits: each move is bounded by ``lost_dither`` and never adds up
         (counted in ``PhaseStats.dithers``; the log's psi_cmd shows it)."""
         rig = self.rig
-        if (rig.lost_dither <= 0 or outcome.meas is None or outcome.rejected
+        if (rig.lost_dither <= 0 or outcome.meas is None or outcome.rejected or outcome.reused
                 or memory.lost_run < rig.lost_dither_after or self.psi_cmd is None):
             return
         if memory.held_psi is None:

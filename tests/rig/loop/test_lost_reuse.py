@@ -42,7 +42,7 @@ def _walk(reuse_lost: bool, gap: int, age: float = 0.3) -> tuple[RunLog, object]
 
 
 def _lost_stretch_error(log: RunLog) -> float:
-    """The largest true tip error [m] from the first lost cycle to two cycles after the last."""
+    """The largest true tip error [m] from the first lost (or rejected) cycle to two cycles after the last."""
     ok = [r.meas_ok for r in log.records]
     first, last = ok.index(False), len(ok) - 1 - ok[::-1].index(False)
     return max(float(np.linalg.norm(r.p_true - r.p_des)) for r in log.records[first:last + 3])
@@ -70,3 +70,40 @@ def test_a_lost_marker_holds_the_arm_once_the_last_measurement_is_too_old() -> N
     assert stats.reused == 2  # type: ignore[attr-defined]  # 0.06 and 0.12 s old; 0.18 s is too old
     moved = [not np.array_equal(log.records[i].psi_cmd, log.records[i - 1].psi_cmd) for i in lost]
     assert moved == [True, True, False, False, False, False]
+
+
+class _Outliers(_Gap):
+    """As :class:`_Gap`, but the ``gap`` cycles measure the tip 10 mm off (the jump gate, 4 mm,
+    rejects them)."""
+
+    def measure(self, frame: object, axis_hint_world: object = None) -> TipMeasurement:
+        meas = self.inner.measure(frame)  # type: ignore[arg-type]
+        self.n += 1
+        if self.lose_at <= self.n < self.lose_at + self.gap and meas.p_world is not None:
+            return dataclasses.replace(meas, p_world=meas.p_world + np.array([0.01, 0.0, 0.0]))
+        return meas
+
+
+def _outlier_walk(reuse_lost: bool) -> tuple[RunLog, object]:
+    plant = _plant()
+    rig = dataclasses.replace(RIG, reuse_lost=reuse_lost, reuse_measurement_age=0.3, lost_dither=0.0)
+    loop, _ = _loop(_Outliers(plant, lose_at=6, gap=3), True, rig=rig, plant=plant)
+    log = RunLog()
+    return log, loop.run(_line(), "closed", True, log, settle=0.0)
+
+
+def test_a_rejected_measurement_steps_on_the_last_accepted_one() -> None:
+    held_log, held = _outlier_walk(False)
+    log, stats = _outlier_walk(True)
+    rejected = [i for i, r in enumerate(log.records) if r.rejected]
+    assert len(rejected) == 3 and stats.rejected == 3 and stats.reused == 3  # type: ignore[attr-defined]
+    assert held.reused == 0  # type: ignore[attr-defined]
+    for i in rejected:
+        assert not np.array_equal(log.records[i].psi_cmd, log.records[i - 1].psi_cmd)
+    held_rejected = [i for i, r in enumerate(held_log.records) if r.rejected]
+    assert held_rejected  # (the jump gate widens with each: the held arm's last outlier may pass it)
+    for i in held_rejected:
+        assert np.array_equal(held_log.records[i].psi_cmd, held_log.records[i - 1].psi_cmd)
+    # the 10 mm outliers never drove the arm, and it did not fall behind while they came
+    assert _lost_stretch_error(held_log) > 1.0e-3
+    assert _lost_stretch_error(log) < 0.5 * _lost_stretch_error(held_log)

@@ -69,9 +69,9 @@ class RigConfig:
     ``vision_latency`` after the capture). reuse_measurement_age: on the wall clock, a cycle
     without a new frame steps the controller with the last accepted measurement moved on by the
     delay compensation when that is at most this old at the cycle's start [s] (0: such a cycle
-    holds the arm; a rejected measurement always holds it). reuse_lost: a frame that shows no
-    marker (not a gate's rejection) does the same, on either clock (the simulated bench's too),
-    before the lost marker's dither (false: such a cycle holds the arm): a held arm falls behind
+    holds the arm). reuse_lost: a frame that shows no marker, or whose measurement the gates
+    reject, does the same, on either clock (the simulated bench's too), before the lost marker's
+    dither (false: such a cycle holds the arm): a held arm falls behind
     the path by its speed x the cycle each lost cycle (0.6 mm at the cube's 10 mm/s), the walk's
     largest error on the shipped arms at 0.35 x image scale. frame_phase_lock: on the wall
     clock, shift the cycle grid (a bounded step per cycle, rig.loop.frame_phase_lock) so that each
@@ -114,7 +114,7 @@ class RigConfig:
     tracking_budget: float = 0.15  # [s] wall clock: longest wait of a cycle for its frame's tracking
     command_phase: float = 0.0  # [s] wall clock: a cycle's command goes out this long after its start
     reuse_measurement_age: float = 0.3  # [s] wall clock: a cycle without a frame reuses a measurement this old
-    reuse_lost: bool = True  # a frame without the marker steps on the last measurement too (either clock)
+    reuse_lost: bool = True  # a frame without the marker (or rejected) steps on the last measurement (either clock)
     frame_phase_lock: str = "none"  # wall clock: lock the cycle grid to the frames' capture or arrival
     frame_lock_phase: float = 0.0  # [s] with the lock: frames captured / arriving this long after a cycle's start
     frame_age: float = 0.0  # [s] simulated bench: its frames show the arm this long before the cycle's start

@@ -40,7 +40,7 @@ class PhaseStats:
     rejected by the gates, lost cycles that dithered the held arm (rig ``lost_dither``), cycles
     without a new frame, the cycles driven by the last measurement, compensated (rig
     ``reuse_measurement_age``: without a new frame, and with ``reuse_lost`` a frame without the
-    marker), the longest run of lost cycles, cycles skipped because the host
+    marker or rejected), the longest run of lost cycles, cycles skipped because the host
     fell a whole period behind the wall clock (a late cycle runs at once; the ones it missed are
     not made up), and why the phase stopped early ("" when it did not)."""
 

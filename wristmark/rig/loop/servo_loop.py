@@ -10,9 +10,11 @@ One cycle k at t_k = t0 + k dt on the loop's clock:
    that arrives after the cycle began, or after t_k for a cycle that began late); the tip
    sensor measures it; the measurement is gated (jump from the previous accepted one, distance
    from the model's commanded tip); the controller computes the next commanded configuration,
-   clamped to the joint and velocity limits; no frame, a lost or a rejected measurement holds
-   the arm (the command unchanged). Open loop: the nominal model's IK of the desired tip gives
-   the command (pose IK when the trajectory asks for an orientation; closed loop, the measured
+   clamped to the joint and velocity limits; no frame, a lost or a rejected measurement steps
+   the controller on the last accepted measurement (compensated) while it is young enough (rig
+   ``reuse_measurement_age``; without a frame on the wall clock only, a lost or rejected one with
+   ``reuse_lost``), else holds the arm (the command unchanged). Open loop: the nominal model's IK
+   of the desired tip gives the command (pose IK when the trajectory asks for an orientation; closed loop, the measured
    orientation then goes to the controller's orientation task);
 3. the command is sent: on the wall clock as soon as it is computed, or, with a rig
    ``command_phase`` > 0, at that fixed instant after the cycle's nominal start (at once when it
@@ -366,6 +368,9 @@ class ServoLoop:
         model_ok = np.linalg.norm(p_est - model.tip) <= self.rig.model_gate
         if not (jump_ok and model_ok):
             memory.last_reason = "measurement rejected by the gates"
+            if self.rig.reuse_lost:  # the same: the last accepted measurement, not this one
+                reused = self._reuse(truth, target, memory, any_clock=True)
+                return dataclasses.replace(reused, meas=meas, rejected=True)
             return CycleOutcome(meas, truth, False, True, 0.0)
         memory.last_ok = p_est
         memory.last_meas = meas
@@ -400,9 +405,10 @@ class ServoLoop:
     def _reuse(self, truth: TruthSample, target: CycleTarget, memory: TrackingMemory,
                any_clock: bool = False) -> CycleOutcome:
         """A cycle without a new frame (wall clock; ``any_clock``: either clock, a frame without
-        the marker with rig ``reuse_lost``): the last accepted measurement, moved on by the delay
-        compensation, drives the controller while it is at most ``reuse_measurement_age`` old
-        at the cycle's start; else (or without the compensation) the arm holds."""
+        the marker or with a rejected measurement, rig ``reuse_lost``): the last accepted
+        measurement, moved on by the delay compensation, drives the controller while it is at
+        most ``reuse_measurement_age`` old at the cycle's start; else (or without the
+        compensation) the arm holds."""
         last = memory.last_meas
         if (not (self.wall_clock or any_clock) or self.delay is None or last is None
                 or not self._cycle_start - last.t_capture <= self.rig.reuse_measurement_age):

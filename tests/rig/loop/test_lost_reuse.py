@@ -107,3 +107,32 @@ def test_a_rejected_measurement_steps_on_the_last_accepted_one() -> None:
     # the 10 mm outliers never drove the arm, and it did not fall behind while they came
     assert _lost_stretch_error(held_log) > 1.0e-3
     assert _lost_stretch_error(log) < 0.5 * _lost_stretch_error(held_log)
+
+
+class _LostThenOutlier(_Gap):
+    """As :class:`_Gap` (``gap`` cycles without the marker), then one measurement 8 mm off."""
+
+    def measure(self, frame: object, axis_hint_world: object = None) -> TipMeasurement:
+        meas = self.inner.measure(frame)  # type: ignore[arg-type]
+        self.n += 1
+        if self.lose_at <= self.n < self.lose_at + self.gap:
+            return TipMeasurement(False, None, "marker not found")
+        if self.n == self.lose_at + self.gap and meas.p_world is not None:
+            return dataclasses.replace(meas, p_world=meas.p_world + np.array([0.0, 0.008, 0.0]))
+        return meas
+
+
+def test_after_cycles_that_stepped_on_the_last_measurement_the_jump_gate_does_not_widen() -> None:
+    """Three lost cycles that held the arm widen the 4 mm jump gate to 16 mm (an 8 mm wrong pose
+    passes and drives the arm); three that stepped on the last measurement count the jump from
+    where it predicts the tip, at 4 mm."""
+    results = {}
+    for reuse in (False, True):
+        plant = _plant()
+        rig = dataclasses.replace(RIG, reuse_lost=reuse, reuse_measurement_age=0.3, lost_dither=0.0)
+        loop, _ = _loop(_LostThenOutlier(plant, lose_at=6, gap=3), True, rig=rig, plant=plant)
+        log = RunLog()
+        stats = loop.run(_line(), "closed", True, log, settle=0.0)
+        results[reuse] = (log.records[8].meas_ok, log.records[8].rejected, stats.rejected)  # type: ignore[attr-defined]
+    assert results[False][:2] == (True, False)  # the wrong pose accepted: the arm chases it
+    assert results[True] == (False, True, 1)  # rejected, the only one

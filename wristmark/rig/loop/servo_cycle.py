@@ -99,6 +99,7 @@ class TrackingMemory:
     last_reason: str = ""
     last_meas: TipMeasurement | None = None  # the last accepted measurement (for cycles without a frame)
     held_psi: Array | None = None  # the command in force when the marker was lost (the dither's centre)
+    reused_run: int = 0  # of the lost run, the cycles that stepped on the last measurement (rig reuse_lost)
 
 
 @dataclass(frozen=True)

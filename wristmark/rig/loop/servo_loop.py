@@ -287,6 +287,7 @@ class ServoLoop:
         outcome = self._measure_and_control(frame, truth, target, memory)
         if outcome.accepted:
             memory.lost_run = 0
+            memory.reused_run = 0
             memory.held_psi = None
         else:
             self._count_lost(outcome, memory, stats)
@@ -363,8 +364,12 @@ class ServoLoop:
                 return dataclasses.replace(reused, meas=meas)
             return CycleOutcome(meas, truth, False, False, 0.0)
         p_est = meas.p_world
-        jump_ok = memory.last_ok is None or (
-            np.linalg.norm(p_est - memory.last_ok) <= self.rig.gate * (1 + memory.lost_run))
+        # the jump gate widens with every lost cycle that held the arm; with reuse_lost, cycles that
+        # stepped on the last measurement moved the arm as it predicts: the jump counts from there
+        last, widen = memory.last_ok, memory.lost_run
+        if self.rig.reuse_lost and memory.reused_run > 0 and memory.last_meas is not None:
+            last, widen = self._compensated(memory.last_meas), memory.lost_run - memory.reused_run
+        jump_ok = last is None or np.linalg.norm(p_est - last) <= self.rig.gate * (1 + widen)
         model_ok = np.linalg.norm(p_est - model.tip) <= self.rig.model_gate
         if not (jump_ok and model_ok):
             memory.last_reason = "measurement rejected by the gates"
@@ -451,6 +456,7 @@ class ServoLoop:
         stats.rejected += int(outcome.rejected)
         stats.no_frame += int(outcome.meas is None)
         stats.reused += int(outcome.reused)
+        memory.reused_run += int(outcome.reused)
         memory.lost_run += 1
         stats.max_consecutive_lost = max(stats.max_consecutive_lost, memory.lost_run)
 

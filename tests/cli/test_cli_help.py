@@ -57,7 +57,7 @@ def test_help_ends_with_an_example_that_parses(name: str, capsys: pytest.Capture
 
 def test_nested_commands_have_examples_too() -> None:
     nested = [(n, p) for n, p in all_parsers() if " " in n]
-    assert [n for n, _ in nested] == ["marker print"]
+    assert [n for n, _ in nested] == ["marker print", "marker family"]
     for name, p in nested:
         for line in examples(p):
             assert line.startswith(f"wristmark {name} ")

@@ -32,13 +32,15 @@ HOST_HELP = ("3D view: also listen on ADDRESS (e.g. 0.0.0.0: every interface; de
 
 
 def add_config_option(p: argparse.ArgumentParser | argparse._ArgumentGroup, option: str, required: bool = False,
-                      default: bool = True, note: str = "") -> argparse.Action:
+                      default: bool = True, note: str = "", repeat: bool = False) -> argparse.Action:
     """Add ``option`` (a key of CONFIG_OPTIONS) with its shared metavar and help; ``default``:
-    say that the shipped file is the default; ``note``: what this command adds (after a ';')."""
+    say that the shipped file is the default; ``note``: what this command adds (after a ';');
+    ``repeat``: the option may be given several times (a list)."""
     metavar, text = CONFIG_OPTIONS[option]
     if default and not required and option in SHIPPED_DEFAULT:
         text += f" (default {SHIPPED_DEFAULT[option]})"
-    return p.add_argument(option, metavar=metavar, required=required, help=text + (f"; {note}" if note else ""))
+    return p.add_argument(option, metavar=metavar, required=required, help=text + (f"; {note}" if note else ""),
+                          action="append" if repeat else "store")
 
 
 def add_json_flag(p: argparse.ArgumentParser, what: str = "the result") -> argparse.Action:

@@ -19,7 +19,12 @@ from wristmark.cli.option_types import (
     nonnegative_float,
     positive_float,
 )
-from wristmark.cli.setup_args import add_registration_argument, add_setup_arguments, setup_from_args
+from wristmark.cli.setup_args import (
+    add_model_arguments,
+    add_registration_argument,
+    add_setup_arguments,
+    setup_from_args,
+)
 from wristmark.cvs.tracking.warmup import warm_up
 from wristmark.models.errors import ConfigError
 from wristmark.rig.recording.output_dir import claim_outputs, link_latest, new_run_dir
@@ -42,6 +47,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_force_argument(p)
     add_setup_arguments(p)
     add_registration_argument(p)
+    add_model_arguments(p)
     p.add_argument("--duration", type=positive_float(MAX_DURATION_S), metavar="S",
                    help="cube/load: run only the first S seconds of the cube walk (quick checks); "
                         "point: hold for S seconds (default 5)")

@@ -31,6 +31,7 @@ COMMANDS: dict[str, str] = {
     "calib": "convert a calibration (YAML, OpenCV, ROS pair, Kalibr) to the project's YAML, or summarise it",
     "calibrate": "stereo calibration from chessboard or ChArUco image pairs or a video source",
     "register": "find world_T_left (the camera's pose in {w}) by moving the arm and tracking the marker",
+    "identify": "fit how the real arm differs from its robot file from tracked motion (the --model of experiment)",
 }
 
 

@@ -46,7 +46,12 @@ from wristmark.cli.option_types import (
     nonnegative_float,
     positive_float,
 )
-from wristmark.cli.setup_args import add_registration_argument, add_setup_arguments, setup_from_args
+from wristmark.cli.setup_args import (
+    add_model_arguments,
+    add_registration_argument,
+    add_setup_arguments,
+    setup_from_args,
+)
 from wristmark.cvs.tracking.warmup import warm_up
 from wristmark.models.errors import InputError
 from wristmark.rig.loop.servo_session import (
@@ -150,6 +155,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_force_argument(p)
     add_registration_argument(p)
     add_setup_arguments(p)
+    add_model_arguments(p)
     p.add_argument("--view", action="store_true", help="show the run live in the Meshcat view (paced)")
     add_host_argument(p)
     p.add_argument("--view-hold", type=nonnegative_float(MAX_HOLD_S), default=0.0, metavar="S",

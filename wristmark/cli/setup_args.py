@@ -27,6 +27,7 @@ if TYPE_CHECKING:
     from wristmark.rig.loop.loop_setup import LoopSetup
 
 SIM_ONLY = ("plant", "latency", "sensor")  # options that only the simulated bench has
+MAX_OPEN_ON_LOST_S = 5.0  # [s] the longest open-loop walk without the marker --open-loop-on-lost takes
 
 
 def add_setup_arguments(p: argparse.ArgumentParser) -> None:
@@ -49,6 +50,16 @@ def add_setup_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=seed_int(), help="random seed (noise, rendering, tracker)")
 
 
+def add_model_arguments(p: argparse.ArgumentParser) -> None:
+    """``--model MODEL.yaml`` (the identified arm the loop commands) and ``--open-loop-on-lost S``."""
+    p.add_argument("--model", metavar="MODEL.yaml",
+                   help="identified arm (wristmark identify): the loop commands its inverse, plays and lag "
+                        "(docs/identification.md)")
+    p.add_argument("--open-loop-on-lost", type=nonnegative_float(MAX_OPEN_ON_LOST_S), metavar="S",
+                   help="with --model: while the marker is lost, walk on along the target open loop for S seconds, "
+                        "then hold (default 0: hold at once; rig open_loop_on_lost)")
+
+
 def add_registration_argument(p: argparse.ArgumentParser) -> None:
     """``--registration FILE``: the host's world_T_left from a registration file (wristmark register)."""
     add_config_option(p, "--registration")
@@ -62,6 +73,10 @@ def setup_from_args(args: argparse.Namespace, simulated: bool = True, **rig_over
     hardware path (the simulated bench is not imported; its options are refused)."""
     from wristmark.solvers.controller_registry import make_controller
 
+    if getattr(args, "open_loop_on_lost", None) and not getattr(args, "model", None):
+        raise ConfigError("--open-loop-on-lost needs --model (an identified arm to trust without the marker)")
+    if getattr(args, "open_loop_on_lost", None) is not None:
+        rig_overrides = {**rig_overrides, "open_loop_on_lost": args.open_loop_on_lost}
     setup: LoopSetup
     if simulated:
         from wristmark.sim.setup import load_setup
@@ -76,6 +91,10 @@ def setup_from_args(args: argparse.Namespace, simulated: bool = True, **rig_over
             raise InputError(f"{', '.join(given)}: only for the simulated bench, not with a camera")
         setup = load_loop_setup(robot=args.robot, marker=args.marker, camera=args.calib, rig=args.rig,
                                 controller=args.controller_config)
+    if getattr(args, "model", None):  # --model (experiment, servo): docs/identification.md
+        from wristmark.models.model_file import load_model
+
+        setup = setup.with_changes(model=load_model(args.model))
     if getattr(args, "registration", None):
         from wristmark.cvs.calibration.registration_file import load_registration
 

@@ -66,7 +66,9 @@ size_type.__name__ = "size"
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_config_option(p, "--calib", required=True)
-    add_config_option(p, "--marker")
+    add_config_option(p, "--marker", repeat=True,
+                      note="repeat it for several arms (coded sleeves of one family, each naming its 'arm': "
+                           "one JSON object per marker file and pair, with \"arm\"; image pairs only)")
     add_config_option(p, "--registration", note="the JSON then also has tip_world, in {w} and metres")
     p.add_argument("images", nargs="*", metavar="LEFT RIGHT", help="stereo pairs: left and right image paths")
     p.add_argument("--source", metavar="SPEC", help="frame source instead of image pairs: DIR, VIDEO, LEFT,RIGHT, "
@@ -243,7 +245,16 @@ def run(args: argparse.Namespace) -> int:
     if args.source is None:
         source = open_stereo_source(args.images)  # paths checked before anything is loaded
     camera = apply_registration(load_calibration(args.calib), args.registration)
-    marker = MarkerModel.load(args.marker) if args.marker else MarkerModel()
+    marker_files = args.marker or []
+    markers = [MarkerModel.load(f) for f in marker_files] or [MarkerModel()]
+    if len(markers) > 1:
+        from wristmark.models.marker import check_marker_set
+
+        if args.source is not None or args.ros2 is not None:
+            raise InputError("several --marker files: track image pairs (LEFT RIGHT ...), not --source or --ros2")
+        check_marker_set(markers, [str(f) for f in marker_files])
+        return _track_arms(args, camera, markers, hint, fields, source)
+    marker = markers[0]
     publisher = None
     if args.ros2 is not None:  # before the warm-up: subscribers are discovered meanwhile
         from wristmark.rig.ros2.track_publisher import TrackPublisher
@@ -255,6 +266,46 @@ def run(args: argparse.Namespace) -> int:
         if publisher is not None:
             publisher.close()
             print(publisher.line(), file=sys.stderr, flush=True)
+
+
+def arm_objects(res: Any, arms: list[str], fields: Any) -> list[dict[str, Any]]:
+    """One object per arm for one pair tracked with a marker set: the arm the code decided gets
+    the pose fields; every other arm ``"ok": false`` with the reason (not in view, or the sleeve
+    in view could not be identified: a pose with an undecided identity is no arm's)."""
+    arm = res.code.arm if res.ok and res.roll_known and res.code is not None else None
+    if arm is None and res.ok:
+        why = res.code.reason if res.code is not None else "no code"
+        reason = f"sleeve in view not identified ({why})"
+    elif arm is None:
+        reason = res.reason
+    else:
+        reason = f"not in view (the sleeve in view is arm '{arm}')"
+    return [{"arm": a} | (fields(res) if a == arm else {"ok": False, "reason": reason}) for a in arms]
+
+
+def _track_arms(args: argparse.Namespace, camera: Any, markers: list[Any], hint: Any, fields: Any,
+                source: Any) -> int:
+    """Image pairs with a marker set (one sleeve in view at a time): per pair one line per arm."""
+    from wristmark.cvs.tracking.tracker import MarkerTracker
+    from wristmark.cvs.tracking.warmup import warm_up
+
+    warm_up()
+    tracker = MarkerTracker(camera, markers[0], _settings(args), family=markers)
+    arms = [m.arm for m in markers]
+    for frame in iter(source.read, None):
+        try:
+            res = tracker.track(frame.left, frame.right, axis_hint_left=hint)
+        except InputError as e:
+            raise InputError(f"{frame.name_left} / {frame.name_right}: {e}") from e
+        for obj in arm_objects(res, arms, fields):
+            out = {"left": frame.name_left, "right": frame.name_right} | obj
+            if args.json:
+                print(json.dumps(out), flush=True)
+            elif obj["ok"]:
+                print(f"{obj['arm']}: {_text_line(frame, res)}", flush=True)
+            else:
+                print(f"{obj['arm']}: no pose ({obj['reason']})", flush=True)
+    return 0
 
 
 def _track(args: argparse.Namespace, camera: Any, marker: Any, hint: Any, fields: Any, publisher: Any,

@@ -12,11 +12,17 @@ are the cells' z ranges [m] (symmetric under z -> -z, outside the checker rows) 
 one string per column k of '1' (dark) / '0' (white), one character per band in the order of
 ``bands``; cell (k, b) spans column k's angles and band b's heights. The patches must draw the
 code exactly (checked on load). The sleeve extends over [min z, max z] of all rows and patches.
+
+A marker file may name its arm (``arm``: letters, digits, '_', '-', '.'; docs/design.md "Several
+arms in one view"). ``check_marker_set`` refuses a set of marker files that could be confused:
+two with the same arm name, or coded sleeves that share a code (cvs.marker.family checks margins).
 """
 
 from __future__ import annotations
 
 import math
+import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,6 +35,7 @@ from wristmark.models.errors import ConfigError
 Array = NDArray[np.float64]
 Patch = tuple[float, float, float, float]
 TWO_PI = 2.0 * math.pi
+ARM_NAME = re.compile(r"[A-Za-z0-9_.-]{1,40}")
 
 
 @dataclass(frozen=True)
@@ -52,7 +59,8 @@ class MarkerCode:
 @dataclass(frozen=True)
 class MarkerModel:
     """Marker geometry [m]: sleeve radius, patch columns, row height, tip offset along z_wm;
-    optional dark ``patches`` [a0, a1, z0, z1] ([rad], [m]) and their ``code`` (module doc)."""
+    optional dark ``patches`` [a0, a1, z0, z1] ([rad], [m]) and their ``code``; optional ``arm``
+    name (module doc)."""
 
     radius: float = 0.00455
     columns: int = 12
@@ -60,6 +68,7 @@ class MarkerModel:
     tip_offset: float = 0.015
     patches: tuple[Patch, ...] = ()
     code: MarkerCode | None = None
+    arm: str | None = None
 
     def validate(self) -> None:
         """Raise ConfigError naming the offending key."""
@@ -73,6 +82,8 @@ class MarkerModel:
         for i, (a0, a1, z0, z1) in enumerate(self.patches):
             if not (a0 < a1 <= a0 + TWO_PI and z0 < z1):
                 raise ConfigError(f"'patches[{i}]' must be [a0, a1, z0, z1] with a0 < a1 <= a0 + 2 pi, z0 < z1")
+        if self.arm is not None and not ARM_NAME.fullmatch(self.arm):
+            raise ConfigError(f"'arm' must be a name of letters, digits, '_', '-' or '.', got {self.arm!r}")
         if self.code is not None:
             self._validate_code(self.code)
 
@@ -149,3 +160,25 @@ class MarkerModel:
     def tip(self) -> Array:
         """Tip position in {wm} [m]."""
         return np.array([0.0, 0.0, self.tip_offset])
+
+
+def check_marker_set(markers: Sequence[MarkerModel], names: Sequence[str]) -> None:
+    """Refuse marker files that could be confused with each other (``names``: their file names
+    for the message): with more than one, every one needs a ``code`` and an ``arm``, arm names
+    and codes differ, and all share the cell layout (columns, radius, rows, bands). ConfigError,
+    one line naming the files and the cause."""
+    if len(markers) < 2:
+        return
+    for m, n in zip(markers, names):
+        if m.code is None or m.arm is None:
+            raise ConfigError(f"{n}: several markers need coded sleeves that name their arm ('code' and 'arm')")
+    first = markers[0]
+    for i, (m, n) in enumerate(zip(markers, names)):
+        if (m.columns, m.radius, m.row_height) != (first.columns, first.radius, first.row_height) or \
+                m.code is None or first.code is None or m.code.bands != first.code.bands:
+            raise ConfigError(f"{n} and {names[0]}: the sleeves of one set need the same geometry and code bands")
+        for m2, n2 in zip(markers[:i], names[:i]):
+            if m.arm == m2.arm:
+                raise ConfigError(f"{n} and {n2}: the same arm name '{m.arm}'")
+            if m2.code is not None and m.code.words == m2.code.words:
+                raise ConfigError(f"{n} and {n2}: the same code (arm '{m2.arm}' and arm '{m.arm}')")

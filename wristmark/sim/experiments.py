@@ -110,6 +110,8 @@ def run_open_closed(setup: SimSetup, traj: Trajectory, experiment: str, out_dir:
         res[k]["rejected"] = s.rejected
         res[k]["dithers"] = s.dithers
         res[k]["stopped"] = s.stopped
+        if s.open_on_lost:  # rig open_loop_on_lost: the cycles walked open loop while the marker was lost
+            res[k]["open_on_lost"] = s.open_on_lost
     write_json(out_dir / "result.json", res)
     (out_dir / "results.md").write_text(cube_table(res))
     plot_cube(log, out_dir)

@@ -2,20 +2,15 @@
 
 Signal path, per actuator: target -> first-order motor lag (actuator_tau) -> motor position
 (what the encoders measure) -> backlash play operator of width b (the output that moves the
-backbones) -> nominal inverse actuation map -> psi_out. Then the arm's true bending:
-theta_t = g_t theta_out, delta_t = delta_out + o_t; the exposed stem (length d, incision to
-{1b}) bends as a constant-curvature arc of angle zeta * theta_1 in segment 1's plane (stem
-coupling); a tip force F adds to each segment's bend vector the moment of F about the
-segment's base, perpendicular to its axis, divided by its stiffness (small-deflection,
-evaluated on the unloaded shape). A bend (theta, delta) is the vector theta [sin d, cos d] in
-the base-ring plane (the rotation axis of eq. 2), so load bends compose with commanded ones.
+backbones) -> nominal inverse actuation map -> psi_out. Then the arm's true bending (gains,
+plane offsets, stem coupling, tip load): models/plant_map.py, shared with the identification's
+fit.
 """
 
 from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -23,19 +18,12 @@ from numpy.typing import NDArray
 from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
 from wristmark.models.arm_shape import ArmShape, shape_from_frames
 from wristmark.models.arm_spec import Arm, ArmSpec, arm_size
-from wristmark.models.constant_curvature import rot_z, segment_point
 from wristmark.models.errors import InputError
-from wristmark.models.kinematics import ArmFrames, check_psi, forward_kinematics
-from wristmark.sim.plant_params import PlantParams
+from wristmark.models.kinematics import ArmFrames, check_psi
+from wristmark.models.plant_map import plant_bend, true_arm
+from wristmark.models.plant_params import PlantParams
 
 Array = NDArray[np.float64]
-
-
-def _add_bend(theta: float, delta: float, dv: Array) -> tuple[float, float]:
-    bx = theta * math.sin(delta) + dv[0]
-    by = theta * math.cos(delta) + dv[1]
-    th = math.hypot(bx, by)
-    return th, (math.atan2(bx, by) if th > 0 else delta)
 
 
 class TruePlant:
@@ -54,11 +42,7 @@ class TruePlant:
         self.plant = plant = plant.for_arm(segments, m)
         self._m = m
         # any arm: the true arm's planar segments bend in their plane turned by the plane offset
-        self._true: Arm = params
-        if isinstance(params, ArmSpec):
-            self._true = replace(params, segments=tuple(
-                replace(sg, planar=sg.planar + plant.plane_offset[t]) if sg.planar is not None else sg
-                for t, sg in enumerate(params.segments)))
+        self._true: Arm = true_arm(params, plant)
         self.dt_internal = float(dt_internal)
         q0 = check_psi(psi0 if psi0 is not None else np.zeros(n), params)
         a0 = actuators_from_psi(params, q0)
@@ -148,63 +132,7 @@ class TruePlant:
             self._cache = self._bend(q)
         return self._cache
 
-    def _chain(self, q: Array) -> tuple[ArmFrames, Array]:
-        """The model's chain (models.kinematics) with the stem bent by stem_coupling x theta1, and
-        points along the bent stem."""
-        if isinstance(self._true, ArmSpec):
-            spec = self._true
-            lay = spec.layout
-            th1 = float(q[spec.theta_index[0]])
-            de1 = spec.segments[0].planar if spec.delta_index[0] is None else float(q[spec.delta_index[0]])
-            theta_s = self.plant.stem_coupling * th1
-            R_w_s = rot_z(float(q[lay.revolute].sum()))
-            d = float(q[lay.prismatic].sum())
-            stem = np.array([R_w_s @ segment_point(d, theta_s, de1 or 0.0, s) for s in np.linspace(0, 1, 8)])
-            return forward_kinematics(spec, q, stem_bend=theta_s), stem
-        theta_s = self.plant.stem_coupling * q[2]
-        R_w_s = rot_z(q[0])
-        stem = np.array([R_w_s @ segment_point(q[1], theta_s, q[3], s) for s in np.linspace(0, 1, 8)])
-        return forward_kinematics(self.params, q, stem_bend=theta_s), stem
-
     def _bend(self, q_out: Array) -> tuple[Array, ArmFrames, Array]:
-        if isinstance(self._true, ArmSpec):
-            return self._bend_any(self._true, q_out)
-        P = self.plant
-        q = q_out.copy()
-        for t in range(2):
-            q[2 + 2 * t] *= P.bend_gain[t]
-            q[3 + 2 * t] += P.plane_offset[t]
-        frames, stem = self._chain(q)
-        F = np.asarray(P.tip_force, float)
-        if np.any(F != 0.0):
-            for t, T_base in ((0, frames.T_world_1b), (1, frames.T_world_2b)):
-                M = np.cross(frames.tip - T_base[:3, 3], F)
-                m_loc = T_base[:3, :3].T @ M
-                th, de = _add_bend(q[2 + 2 * t], q[3 + 2 * t], m_loc[:2] / P.segment_stiffness[t])
-                q[2 + 2 * t], q[3 + 2 * t] = th, de
-            frames, stem = self._chain(q)
-        return q, frames, stem
-
-    def _bend_any(self, spec: ArmSpec, q_out: Array) -> tuple[Array, ArmFrames, Array]:
-        """:meth:`_bend` for any arm: per segment the gain on theta and the offset on delta (a
-        planar segment's offset is in its turned plane), then the tip load's bend."""
-        P = self.plant
-        q = q_out.copy()
-        idx = list(zip(spec.theta_index, spec.delta_index))
-        for t, (ti, di) in enumerate(idx):
-            q[ti] *= P.bend_gain[t]
-            if di is not None:
-                q[di] += P.plane_offset[t]
-        frames, stem = self._chain(q)
-        F = np.asarray(P.tip_force, float)
-        if np.any(F != 0.0):
-            for t, ((ti, di), T_base) in enumerate(zip(idx, frames.segment_bases)):
-                M = np.cross(frames.tip - T_base[:3, 3], F)
-                dv = (T_base[:3, :3].T @ M)[:2] / P.segment_stiffness[t]
-                if di is None:  # planar: the load's bend along the plane, theta [sin p, cos p]
-                    plane = spec.segments[t].planar or 0.0
-                    q[ti] += dv[0] * math.sin(plane) + dv[1] * math.cos(plane)
-                else:
-                    q[ti], q[di] = _add_bend(q[ti], q[di], dv)
-            frames, stem = self._chain(q)
-        return q, frames, stem
+        """The true configuration, frames and stem for the backbones' configuration ``q_out``
+        (models/plant_map.py)."""
+        return plant_bend(self._true, self.plant, q_out)

@@ -23,7 +23,7 @@ from wristmark.models.kinematics import forward_kinematics
 from wristmark.models.marker import MarkerModel
 from wristmark.models.plant_interface import ActuatedArm
 from wristmark.models.robot_params import RobotParams
-from wristmark.rig.link.actuator_link import DirectLink
+from wristmark.rig.link.actuator_link import ActuatorLink, DirectLink
 from wristmark.rig.loop.frame_feed import FrameFeed, SynchronousFeed
 from wristmark.rig.loop.loop_setup import LoopSetup, config_paths, load_loop_setup
 from wristmark.rig.loop.servo_loop import ServoLoop
@@ -62,7 +62,10 @@ class SimSetup(LoopSetup):
 
     def describe(self) -> dict[str, Any]:
         """Everything as plain data for config.json."""
-        return {**super().describe(), "plant": to_mapping(self.plant)}
+        out = {**super().describe(), "plant": to_mapping(self.plant)}
+        if self.model is not None:
+            out["model"] = to_mapping(self.model)
+        return out
 
 
 def load_setup(
@@ -187,11 +190,16 @@ def make_plant(setup: SimSetup, psi0: Array) -> TruePlant:
 def make_direct_loop(setup: SimSetup, psi0: Array, closed_loop: bool, seed: int = 0) -> ServoLoop:
     """An in-process servo loop on a fresh plant, started (settled) at psi0."""
     plant = make_plant(setup, psi0)
-    link = DirectLink(plant)
+    link: ActuatorLink = DirectLink(plant)
     frames, sensor = make_measurement(setup, plant, lambda: link.time, seed) if closed_loop else (None, None)
-    loop = ServoLoop(
-        setup.params, setup.rig, link, frames=frames, sensor=sensor, truth=make_truth(setup, plant, seed),
-        controller=make_controller(setup.params, setup.controller) if closed_loop else None,
-    )
+    controller = make_controller(setup.params, setup.controller) if closed_loop else None
+    rig = setup.rig
+    if setup.model is not None:  # --model: command the identified arm's inverse (docs/identification.md)
+        from wristmark.rig.loop.model_loop import model_rig, use_model
+
+        link = use_model(link, setup.params, setup.model, controller, setup.rig.control_dt)
+        rig = model_rig(rig)
+    loop = ServoLoop(setup.params, rig, link, frames=frames, sensor=sensor, truth=make_truth(setup, plant, seed),
+                     controller=controller)
     loop.start_at(psi0)
     return loop

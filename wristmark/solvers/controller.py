@@ -291,6 +291,13 @@ class Controller(abc.ABC):
         self.uses_encoders = self.compensator is not None and config.backlash_method == "encoders"
         self.play_probed = False  # a play probe (rig/loop/play_probe.py) has run, or was skipped
 
+    def hand_over_compensation(self, note: str) -> None:
+        """Leave the dead-band inversion to the link (``--model``: rig/link/model_link.py inverts
+        the identified plays and lag): no compensator, no encoders, no play probe; ``note`` says so."""
+        self.compensator = None
+        self.uses_encoders = False
+        self.compensation_note = note
+
     @property
     def wants_play_probe(self) -> bool:
         """True until the loop has run the play probe this controller is configured for."""

@@ -261,6 +261,9 @@ class _FixedOutput:
     def output_model(self, psi: np.ndarray) -> np.ndarray:
         return PSI_A.copy()
 
+    def actuator_targets(self, psi: np.ndarray) -> np.ndarray:  # as Controller's without an inversion
+        return actuators_from_psi(P, psi)
+
 
 class _NullLink:
     time = 0.0

@@ -90,12 +90,14 @@ def search_code(seed: int, columns: int = 12, bands: int = 4, restarts: int = 30
 
 def coded_marker(base: MarkerModel | None = None, words: tuple[str, ...] = CODE_WORDS) -> MarkerModel:
     """The coded sleeve of configs/marker_coded.yaml: ``base``'s checker rows and, on each side,
-    two bands of code cells (GAP, BAND, BAND_GAP) drawn as one patch per dark cell."""
+    len(word) / 2 bands of code cells (GAP, then BAND, BAND_GAP, BAND, ...) drawn as one patch
+    per dark cell (two bands per side for ``CODE_WORDS``; sleeve families may use more)."""
     from dataclasses import replace
 
     m = base or MarkerModel()
     h = m.row_height
-    up = [(h + GAP, h + GAP + BAND), (h + GAP + BAND + BAND_GAP, h + GAP + 2 * BAND + BAND_GAP)]
+    per_side = len(words[0]) // 2
+    up = [(h + GAP + i * (BAND + BAND_GAP), h + GAP + i * (BAND + BAND_GAP) + BAND) for i in range(per_side)]
     bands = tuple(sorted([(-z1, -z0) for z0, z1 in up] + up))
     code = MarkerCode(bands=tuple((float(a), float(b)) for a, b in bands), words=tuple(words))
     beta = 2 * math.pi / m.columns

@@ -19,10 +19,16 @@ least 2 (no disagreement) or 3 (one disagreement) of those cells. So one misread
 corrected or rejected, never turned into a wrong identity, whatever cells are seen; with the
 shipped code three readable columns always give margin 4 (docs/marker_code.md). Otherwise the
 reading is not ok and the caller keeps the modulo-column pose (``roll_known`` false).
+
+A marker set (``family``: the sleeves of one family in use, cvs.marker.family) is decoded over
+the union of all members' hypotheses with the same rule: the identity is (arm, shift,
+direction), so one misread cell is corrected or rejected, never read as another arm's; a
+sleeve whose cells cannot decide it gets no arm (``ok`` false, ``arm`` None).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -66,7 +72,8 @@ class CodeReading:
     hypothesis (cvs.marker.code); T_fit_abs: 4x4 with T_abs = T_fit @ T_fit_abs (the absolute,
     rolled and oriented pose of {wm}); cells: confidently read cells; errors: of them, those
     that disagree with the decision; margin: least cell difference to another hypothesis over
-    those cells; llr: log-likelihood of the best hypothesis minus the second best [-]."""
+    those cells; llr: log-likelihood of the best hypothesis minus the second best [-]; member:
+    index of the decided sleeve in the decoder's marker set (-1: none), arm: its ``arm`` name."""
 
     ok: bool
     reason: str
@@ -77,6 +84,8 @@ class CodeReading:
     errors: int = 0
     margin: int = 0
     llr: float = 0.0
+    member: int = -1
+    arm: str | None = None
 
     def absolute_ids(self, relative: IntArray, columns: int) -> IntArray:
         """Absolute corner ids of relative corner indices (-1 stays -1)."""
@@ -93,11 +102,17 @@ def _rz(a: float) -> Array:
 
 
 class CodeDecoder:
-    """Reads one coded marker's cells in stereo pairs of one calibration (module doc)."""
+    """Reads one coded marker's cells in stereo pairs of one calibration (module doc); with a
+    ``family`` (marker set with ``marker``'s cell layout), decides which member it is too."""
 
-    def __init__(self, camera: StereoCamera, marker: MarkerModel, settings: CodeReadSettings | None = None) -> None:
+    def __init__(self, camera: StereoCamera, marker: MarkerModel, settings: CodeReadSettings | None = None,
+                 family: Sequence[MarkerModel] = ()) -> None:
         if marker.code is None:
             raise ConfigError("this marker has no 'code': nothing to decode")
+        self.members: tuple[MarkerModel, ...] = tuple(family) or (marker,)
+        for m in self.members:
+            if m.code is None or m.code.bands != marker.code.bands or m.columns != marker.columns:
+                raise ConfigError("a marker set needs coded sleeves with the same columns and code bands")
         self.settings = settings or CodeReadSettings()
         self.settings.validate()
         self.camera, self.marker = camera, marker
@@ -122,8 +137,16 @@ class CodeDecoder:
         own = np.column_stack([col, col]) + row0[:, None]
         self._dark_ref = np.where(own_dark[:, None], own, nb_idx)
         self._white_ref = np.where(own_dark[:, None], nb_idx, own)
-        pred, self._shift, self._dir = hypotheses(code.bits(), code.mirror())
-        self._pred = pred.reshape(pred.shape[0], -1).astype(bool)  # (2 n, cells)
+        preds, shifts, dirs, member = [], [], [], []
+        for i, m in enumerate(self.members):  # the union of all members' hypotheses
+            assert m.code is not None
+            pred, sh, di = hypotheses(m.code.bits(), m.code.mirror())
+            preds.append(pred.reshape(pred.shape[0], -1))
+            shifts.append(sh)
+            dirs.append(di)
+            member.append(np.full(sh.size, i))
+        self._shift, self._dir, self._member = (np.concatenate(v) for v in (shifts, dirs, member))
+        self._pred = np.concatenate(preds).astype(bool)  # (2 n M, cells)
         self._hyp = [np.flatnonzero(self._shift % 2 == ph) for ph in (0, 1)]
         self._pred_phase = [self._pred[h] for h in self._hyp]
         T_rl = np.eye(4)
@@ -170,5 +193,6 @@ class CodeDecoder:
             return CodeReading(False, f"code ambiguous ({errors} misread of {n_conf}, margin {margin})",
                                cells=n_conf, errors=errors, margin=margin, llr=llr)
         sh, di = int(self._shift[hyp[best]]), int(self._dir[hyp[best]])
+        member = int(self._member[hyp[best]])
         T = (_rz(-sh * self.marker.beta) if di > 0 else HALF_TURN_X @ _rz(-sh * self.marker.beta))
-        return CodeReading(True, "", sh, di, T, n_conf, errors, margin, llr)
+        return CodeReading(True, "", sh, di, T, n_conf, errors, margin, llr, member, self.members[member].arm)

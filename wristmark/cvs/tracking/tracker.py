@@ -31,7 +31,7 @@ decided.
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import replace
 from typing import Any
 
@@ -62,7 +62,10 @@ class MarkerTracker:
     """Stereo tip tracker for one calibration and marker; keeps ROI state between pairs. Poses in
     {ll} [m]; the tip also in {w} when the calibration has ``world_T_left``."""
 
-    def __init__(self, camera: StereoCamera, marker: MarkerModel, settings: TrackerSettings | None = None) -> None:
+    def __init__(self, camera: StereoCamera, marker: MarkerModel, settings: TrackerSettings | None = None,
+                 family: Sequence[MarkerModel] = ()) -> None:
+        """``family``: the coded sleeves in use (a marker set of ``marker``'s layout); the code then
+        decides which of them this sleeve is (``res.code.arm``; cvs.marker.decode)."""
         self.settings = settings or TrackerSettings()
         camera.validate()
         marker.validate()
@@ -80,7 +83,7 @@ class MarkerTracker:
         self._last_fit_px = float("inf")  # RMS of the previous pose's corners on this pair's [px]
         self._last_shift = 0  # even index shift from the previous pair's fit to this pair's (tracking)
         self._last_oriented = False  # the previous pose's direction was decided
-        self.decoder = None if marker.code is None else CodeDecoder(camera, marker, self.settings.code)
+        self.decoder = None if marker.code is None else CodeDecoder(camera, marker, self.settings.code, family)
         self._second: tuple[CornerDetector, CornerDetector] | None = None
         self._use_second = self.settings.detector == "auto" and type(self.detector_left).__name__ != (
             "SaddleCornerDetector")

@@ -21,6 +21,7 @@ from wristmark.models.config_files import default_config
 from wristmark.models.config_io import load_layered, to_mapping
 from wristmark.models.errors import ConfigError
 from wristmark.models.marker import MarkerModel
+from wristmark.models.plant_params import PlantParams
 from wristmark.rig.loop.rig_config import RigConfig
 from wristmark.solvers.controller import ControllerConfig
 
@@ -39,6 +40,7 @@ class LoopSetup:
     controller: ControllerConfig
     sources: dict[str, str] = field(default_factory=dict)
     registration: Array | None = None
+    model: PlantParams | None = None  # --model: the identified arm the loop commands through (rig/loop/model_loop.py)
 
     @property
     def host_camera(self) -> StereoCamera:

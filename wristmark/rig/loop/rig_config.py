@@ -45,6 +45,9 @@ class RigConfig:
     moves the nominal model's tip this far [m] from the held command (entries and signs in turn,
     never adding up; 0: the arm just holds): a view the tracker cannot read (a highlight over the
     marker's corners, docs/notes/highlight-stripe.md) changes before the loop gives up.
+    open_loop_on_lost: while the marker is lost, the loop walks on along the target open loop
+    (the model's IK: with ``--model`` the identified arm's inverse, docs/identification.md) for
+    this long [s], then holds the arm (0: it holds at once; the stop after max_lost_cycles stays).
     settle_time: closed-loop approach to the trajectory's start before logging metrics [s].
     feedforward_preview, feedforward_lead: the feed-forward tip velocity takes the desired path
     ``preview`` [s] ahead plus a first-order lead of ``lead`` [s] (rig.targets.trajectories.feedforward_velocity).
@@ -120,6 +123,7 @@ class RigConfig:
     frame_age: float = 0.0  # [s] simulated bench: its frames show the arm this long before the cycle's start
     sleeve_specular: float = 0.0  # simulated bench: the sleeve's glossy laminate, Fresnel F0 (0: matte)
     sleeve_roughness: float = 0.1  # simulated bench: the laminate's GGX roughness alpha
+    open_loop_on_lost: float = 0.0  # [s] marker lost: walk on open loop this long, then hold (0: hold at once)
 
     def validate(self) -> None:
         """Raise ConfigError naming the offending key."""
@@ -128,7 +132,7 @@ class RigConfig:
                 raise ConfigError(f"'{k}' must be > 0, got {getattr(self, k)}")
         for k in ("vision_latency", "truth_noise_rms", "tracker_rms", "settle_time", "feedforward_preview",
                   "feedforward_lead", "frame_wait", "delay_compensation_tau", "delay_compensation_learn_window",
-                  "command_phase", "reuse_measurement_age", "frame_age"):
+                  "command_phase", "reuse_measurement_age", "frame_age", "open_loop_on_lost"):
             if getattr(self, k) < 0:
                 raise ConfigError(f"'{k}' must be >= 0, got {getattr(self, k)}")
         if self.vision_latency >= self.control_dt:

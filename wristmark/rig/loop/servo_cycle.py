@@ -51,6 +51,7 @@ class PhaseStats:
     reused: int = 0
     max_consecutive_lost: int = 0
     skipped: int = 0
+    open_on_lost: int = 0  # cycles walked open loop while the marker was lost (rig open_loop_on_lost)
     stopped: str = ""
     dithers: int = 0  # lost cycles that moved the held arm a little (rig ``lost_dither``)
 

@@ -291,9 +291,16 @@ class ServoLoop:
             memory.held_psi = None
         else:
             self._count_lost(outcome, memory, stats)
+            walking = memory.lost_run * self.rig.control_dt <= self.rig.open_loop_on_lost
+            if walking:  # walk on open loop (the arm does not hold: no dither)
+                assert self.psi_cmd is not None
+                stats.open_on_lost += 1
+                self.psi_cmd = clamp_psi(self.params, nominal_ik(self.params, target.p_next, target.R_next,
+                                                                 self.psi_cmd))
             if memory.lost_run > self.rig.max_lost_cycles:
                 self._stop_lost(target, t_wall, phase, outcome, memory, stats)
-            self._dither(outcome, memory, stats)
+            if not walking:
+                self._dither(outcome, memory, stats)
         if not self.wall_clock:
             self.advance_to(target.t + self.rig.vision_latency)  # the simulated processing time
         else:

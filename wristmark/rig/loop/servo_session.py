@@ -197,7 +197,12 @@ def run_servo(setup: LoopSetup, traj: Trajectory, session: ServoSession, psi0: A
                 if on_cycle is not None:
                     on_cycle(rec)
 
-        loop = ServoLoop(setup.params, rig, session.link, frames=session.frames,
+        link = session.link
+        if setup.model is not None:  # --model: command the identified arm (docs/identification.md)
+            from wristmark.rig.loop.model_loop import model_rig, use_model
+
+            link, rig = use_model(link, setup.params, setup.model, controller, rig.control_dt), model_rig(rig)
+        loop = ServoLoop(setup.params, rig, link, frames=session.frames,
                          sensor=sensor if sensor is not None else session.sensor, controller=controller,
                          truth=session.truth, wall_clock=session.wall_clock, frame_wait=rig.frame_wait,
                          on_cycle=hook, on_frame=on_frame)

@@ -1,0 +1,47 @@
+"""``wristmark track --marker A.yaml --marker B.yaml``: one object per marker file and pair with "arm";
+the sleeve in view under its own arm, ``ok: false`` for the other (docs/design.md "Several arms in one
+view"); marker sets that could be confused are refused in one line."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from wristmark.cli.main import main
+
+
+@pytest.mark.slow
+def test_one_sleeve_in_view_is_reported_under_its_arm_only(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    fam = tmp_path / "fam"
+    assert main(["marker", "family", "--arms", "2", "--out", str(fam), "--bands-per-side", "3", "--sheet", "svg"]) == 0
+    a, b = str(fam / "arm0.yaml"), str(fam / "arm1.yaml")
+    scene = tmp_path / "scene"
+    assert main(["render", "--out", str(scene), "--pairs", "3", "--marker", b]) == 0
+    capsys.readouterr()
+    pairs = [str(scene / f"pair_{i:02d}_{s}.png") for i in range(3) for s in ("left", "right")]
+    assert main(["track", "--calib", str(scene / "calib.yaml"), "--marker", a, "--marker", b, *pairs, "--json"]) == 0
+    lines = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
+    assert len(lines) == 6 and [x["arm"] for x in lines] == ["arm0", "arm1"] * 3
+    assert all(not x["ok"] for x in lines if x["arm"] == "arm0")  # never read as the other arm's
+    mine = [x for x in lines if x["arm"] == "arm1" and x["ok"]]
+    assert len(mine) >= 2 and all(x["roll_known"] and x["axis_source"] == "code" for x in mine)
+    assert any("the sleeve in view is arm 'arm1'" in x["reason"] for x in lines if x["arm"] == "arm0")
+
+
+@pytest.mark.parametrize("second, cause", [("same", "the same arm name 'arm0'"),
+                                           ("coded", "name their arm")])
+def test_confusable_marker_sets_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                             second: str, cause: str) -> None:
+    fam = tmp_path / "fam"
+    assert main(["marker", "family", "--arms", "2", "--out", str(fam), "--sheet", "svg"]) == 0
+    a = str(fam / "arm0.yaml")
+    other = a if second == "same" else "configs/marker_coded.yaml"
+    images = [tmp_path / "l.png", tmp_path / "r.png"]
+    for im in images:
+        im.write_bytes(b"")  # never read: the marker set is refused first
+    capsys.readouterr()
+    rc = main(["track", "--calib", "configs/camera.yaml", "--marker", a, "--marker", other, *map(str, images)])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and cause in err and len(err.splitlines()) == 1

@@ -1,0 +1,157 @@
+"""The identification's excitation: the arm moved through poses, each approached from a chosen
+side of every actuator's play, and its tip measured at rest (docs/identification.md).
+
+Per pose: a ramp within the velocity limits (fast: the motors' lag shows) to the approach point,
+each actuator ``approach`` x its play unit past the pose on its side (random per pose and
+actuator, so that every play is seen from both sides in many combinations), a short hold, the
+step to the pose, ``settle`` [s] at rest, then ``frames`` measured frames. Every cycle the
+encoders are read and the target sent is recorded: the fit (solvers/identification.py) runs the
+play through those readings, so the path between poses needs no model. Works through any
+:class:`rig.link.actuator_link.ActuatorLink` with a frame feed and a tip sensor: the simulated
+bench, the virtual lab and hardware alike.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
+from wristmark.models.arm_spec import Arm, arm_size, home_psi
+from wristmark.models.ik import solve_tip_ik
+from wristmark.models.kinematics import forward_kinematics
+from wristmark.models.limits import clamp_psi
+from wristmark.rig.link.actuator_link import ActuatorLink
+from wristmark.rig.loop.frame_feed import FrameFeed
+from wristmark.rig.loop.servo_cycle import ramp_to
+from wristmark.rig.loop.tip_sensors import TipSensor
+from wristmark.rig.targets.trajectories import CUBE_SIZE, workspace_centre
+from wristmark.solvers.identification import ExcitationData
+
+Array = NDArray[np.float64]
+__all__ = ["ExcitationPlan", "excitation_plan", "run_excitation"]
+
+
+@dataclass(frozen=True)
+class ExcitationPlan:
+    """The poses (N, n) [rad, m, ...], per pose and actuator the side (+-1) it is approached from,
+    the approach distance per actuator (actuator units), the hold at the approach point and the
+    settle at the pose [s], and the frames measured per pose."""
+
+    poses: Array
+    sides: Array
+    approach: Array
+    hold: float = 0.12
+    settle: float = 0.42
+    frames: int = 2
+
+    def duration(self, dt: float, params: Arm) -> float:
+        """Seconds of arm motion the plan takes at control cycle ``dt`` (ramps included)."""
+        total, psi = 0.0, self.poses[0]
+        for q, side in zip(self.poses, self.sides):
+            a = psi_from_actuators(params, actuators_from_psi(params, q) + side * self.approach, delta_hint=q)
+            total += (len(ramp_to(params, psi, a, dt)) + 1) * dt + self.hold + self.settle + self.frames * dt
+            psi = q
+        return total
+
+
+def excitation_plan(params: Arm, play_unit: Array, poses: int = 30, seed: int = 0, spread: float = 1.5,
+                    joint_noise: float = 0.08) -> ExcitationPlan:
+    """``poses`` poses around the experiments' cube (tips uniform in ``spread`` x its size about
+    the workspace centre, position IK from home, then each joint moved at random by up to
+    ``joint_noise`` / 0.08 x 0.15 rad or 3 mm, so that the gains, offsets and coupling are seen in
+    more than the IK's family of shapes while the marker stays in view), ordered nearest first,
+    approached from random sides 2.5 x the play unit away."""
+    rng = np.random.default_rng(seed)
+    centre = workspace_centre(params)
+    q0 = home_psi(params)
+    n, m = arm_size(params)
+    size = np.asarray(CUBE_SIZE) * spread
+    out = []
+    for _ in range(poses):
+        p = centre + (rng.uniform(-0.5, 0.5, 3) * size)
+        q = solve_tip_ik(params, p, q0).psi
+        q = q + rng.uniform(-1.0, 1.0, n) * np.where(_is_prismatic(params, n), 0.003, 0.15) * joint_noise / 0.08
+        out.append(clamp_psi(params, q))
+    sides = rng.choice([-1.0, 1.0], size=(poses, m))
+    return ExcitationPlan(_nearest_first(params, np.array(out)), sides, 2.5 * np.asarray(play_unit, float))
+
+
+def _nearest_first(params: Arm, poses: Array) -> Array:
+    """The poses reordered greedily, each next the one the velocity limits reach soonest (the
+    ramps between poses are most of the excitation's time)."""
+    from wristmark.models.limits import velocity_limits
+
+    v = velocity_limits(params)
+    left = list(range(1, len(poses)))
+    order = [0]
+    while left:
+        here = poses[order[-1]]
+        k = min(left, key=lambda i: float(np.max(np.abs(poses[i] - here) / v)))
+        order.append(k)
+        left.remove(k)
+    return poses[order]
+
+
+def _is_prismatic(params: Arm, n: int) -> NDArray[np.bool_]:
+    from wristmark.models.arm_spec import ArmSpec
+
+    idx = set(params.layout.prismatic.tolist()) if isinstance(params, ArmSpec) else {1}
+    return np.array([i in idx for i in range(n)])
+
+
+def run_excitation(params: Arm, link: ActuatorLink, frames: FrameFeed, sensor: TipSensor, plan: ExcitationPlan,
+                   dt: float, on_pose: object = None) -> ExcitationData:
+    """Move the arm through ``plan`` one target per control cycle of ``dt`` [s], reading the
+    encoders every cycle and measuring ``plan.frames`` frames at rest at every pose; the arm is
+    held at the end. ``on_pose(i)`` after each pose (progress)."""
+    times: list[float] = []
+    enc: list[Array] = []
+    tgt: list[Array] = []
+    idx: list[int] = []
+    tips: list[Array] = []
+    hints: list[Array] = []
+    psi = psi_from_actuators(params, np.asarray(link.measured_actuators(), float), delta_hint=plan.poses[0])
+    t = float(link.time)
+
+    def cycle(command: Array, measure: bool) -> None:
+        nonlocal t
+        t += dt
+        link.advance_to(t)
+        times.append(t)
+        enc.append(np.asarray(link.measured_actuators(), float).copy())
+        if measure:
+            frame = frames.take()
+            axis = forward_kinematics(params, command).T_world_marker[:3, 2]
+            meas = None if frame is None else sensor.measure(frame, axis_hint_world=axis)
+            ok = meas is not None and meas.ok and meas.p_world is not None
+            idx.append(len(times) - 1)
+            tips.append(np.asarray(meas.p_world, float) if ok and meas is not None and meas.p_world is not None
+                        else np.full(3, np.nan))
+            hints.append(np.asarray(command, float))
+        a = actuators_from_psi(params, command)
+        link.send_target(a)
+        tgt.append(a)
+
+    try:
+        for i, (q, side) in enumerate(zip(plan.poses, plan.sides)):
+            a_q = actuators_from_psi(params, q) + side * plan.approach
+            approach = clamp_psi(params, psi_from_actuators(params, a_q, delta_hint=q))
+            for step in ramp_to(params, psi, approach, dt) + [approach]:
+                cycle(step, False)
+            for _ in range(max(1, round(plan.hold / dt))):
+                cycle(approach, False)
+            for _ in range(max(1, round(plan.settle / dt))):
+                cycle(q, False)
+            for _ in range(plan.frames):
+                cycle(q, True)
+            psi = q
+            if callable(on_pose):
+                on_pose(i)
+    finally:
+        link.hold()
+    return ExcitationData(np.array(times), np.array(enc), np.array(tgt), np.array(idx, dtype=int),
+                          np.array(tips).reshape(-1, 3), np.array(hints).reshape(len(hints), -1),
+                          {"motion_s": float(times[-1] - times[0]) if times else 0.0, "poses": len(plan.poses)})

@@ -1,0 +1,33 @@
+"""The identification's excitation on the simulated bench: a fresh true arm of the setup's
+plant file, its rendered frames tracked (vision, the default; or the rig's truth-noise option),
+moved through an excitation plan (rig/loop/excitation.py) and fitted (solvers/identification.py)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from wristmark.rig.link.actuator_link import DirectLink
+from wristmark.rig.loop.excitation import ExcitationPlan, excitation_plan, run_excitation
+from wristmark.sim.setup import SimSetup, make_measurement, make_plant
+from wristmark.solvers.controller import ControllerConfig
+from wristmark.solvers.identification import ExcitationData
+
+__all__ = ["bench_plan", "excite_on_bench"]
+
+
+def bench_plan(setup: SimSetup, poses: int = 30, seed: int | None = None) -> ExcitationPlan:
+    """The default excitation for the setup's arm: plays in units of the controller's
+    backlash_play_max (sized to the arm)."""
+    unit = ControllerConfig.play_max_for(setup.controller, setup.params)
+    return excitation_plan(setup.params, unit, poses=poses, seed=setup.rig.seed if seed is None else seed)
+
+
+def excite_on_bench(setup: SimSetup, plan: ExcitationPlan, seed: int | None = None,
+                    on_pose: Callable[[int], None] | None = None) -> ExcitationData:
+    """Run ``plan`` on a fresh simulated true arm (started at the plan's first pose) with the
+    rig's sensor; the record for the fit."""
+    seed = setup.rig.seed if seed is None else seed
+    plant = make_plant(setup, plan.poses[0])
+    link = DirectLink(plant)
+    frames, sensor = make_measurement(setup, plant, lambda: link.time, seed)
+    return run_excitation(setup.params, link, frames, sensor, plan, setup.rig.control_dt, on_pose=on_pose)

@@ -37,6 +37,7 @@ OLD_RIG: dict[str, object] = {
     "delay_compensation_tau": 0.0,
     "reuse_measurement_age": 0.0,
     "lost_dither": 0.0,
+    "reuse_lost": False,
 }
 
 

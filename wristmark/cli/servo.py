@@ -454,7 +454,7 @@ def run(args: argparse.Namespace) -> int:
     if session.wall_clock:  # the host's own work after a frame's arrival, before the command instant
         res["latency"]["arrival_to_ready"] = percentiles_ms(np.asarray(out.ready_after_arrival_ms, float))
         res["latency"]["command_phase_ms"] = 1000.0 * setup.rig.command_phase
-        res["closed_loop"]["reused"] = out.reused  # cycles without a frame driven by the last measurement
+        res["closed_loop"]["reused"] = out.reused  # cycles without a frame (or marker) driven by the last measurement
         if setup.rig.frame_phase_lock != "none":  # the cycle locked to the frames (second half: locked)
             late = np.asarray(out.frame_lock_offsets_ms[len(out.frame_lock_offsets_ms) // 2:], float)
             res["timing"]["phase_lock"] = {

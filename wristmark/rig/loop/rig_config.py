@@ -72,7 +72,12 @@ class RigConfig:
     ``vision_latency`` after the capture). reuse_measurement_age: on the wall clock, a cycle
     without a new frame steps the controller with the last accepted measurement moved on by the
     delay compensation when that is at most this old at the cycle's start [s] (0: such a cycle
-    holds the arm; a marker not found or rejected always holds it). frame_phase_lock: on the wall
+    holds the arm). reuse_lost: a frame that shows no marker, or whose measurement the gates
+    reject, does the same, on either clock (the simulated bench's too), before the lost marker's
+    dither (false, the default: such a cycle holds the arm, the safe rule; true is a bounded open
+    loop like ``open_loop_on_lost``, for the user to choose): a held arm falls behind
+    the path by its speed x the cycle each lost cycle (0.6 mm at the cube's 10 mm/s), the walk's
+    largest error on the shipped arms at 0.35 x image scale. frame_phase_lock: on the wall
     clock, shift the cycle grid (a bounded step per cycle, rig.loop.frame_phase_lock) so that each
     frame is captured ('capture', from the frames' capture stamps) or arrives ('arrival') at the
     host ``frame_lock_phase`` [s] after a cycle's nominal start (negative: before it); 'none': the
@@ -113,6 +118,7 @@ class RigConfig:
     tracking_budget: float = 0.15  # [s] wall clock: longest wait of a cycle for its frame's tracking
     command_phase: float = 0.0  # [s] wall clock: a cycle's command goes out this long after its start
     reuse_measurement_age: float = 0.3  # [s] wall clock: a cycle without a frame reuses a measurement this old
+    reuse_lost: bool = False  # a frame without the marker (or rejected) steps on the last measurement (either clock)
     frame_phase_lock: str = "none"  # wall clock: lock the cycle grid to the frames' capture or arrival
     frame_lock_phase: float = 0.0  # [s] with the lock: frames captured / arriving this long after a cycle's start
     frame_age: float = 0.0  # [s] simulated bench: its frames show the arm this long before the cycle's start

@@ -38,8 +38,9 @@ def ramp_to(params: Arm, start: Array, target: Array, dt: float) -> list[Array]:
 class PhaseStats:
     """Counters of one phase: cycles run, measurements lost (no frame or no marker) and
     rejected by the gates, lost cycles that dithered the held arm (rig ``lost_dither``), cycles
-    without a new frame (and of those, the ones driven by the last measurement, compensated: rig
-    ``reuse_measurement_age``), the longest run of lost cycles, cycles skipped because the host
+    without a new frame, the cycles driven by the last measurement, compensated (rig
+    ``reuse_measurement_age``: without a new frame, and with ``reuse_lost`` a frame without the
+    marker or rejected), the longest run of lost cycles, cycles skipped because the host
     fell a whole period behind the wall clock (a late cycle runs at once; the ones it missed are
     not made up), and why the phase stopped early ("" when it did not)."""
 
@@ -99,6 +100,7 @@ class TrackingMemory:
     last_reason: str = ""
     last_meas: TipMeasurement | None = None  # the last accepted measurement (for cycles without a frame)
     held_psi: Array | None = None  # the command in force when the marker was lost (the dither's centre)
+    reused_run: int = 0  # of the lost run, the cycles that stepped on the last measurement (rig reuse_lost)
 
 
 @dataclass(frozen=True)
@@ -110,7 +112,7 @@ class CycleOutcome:
     accepted: bool
     rejected: bool
     ctrl_us: float
-    reused: bool = False  # no new frame: the last accepted measurement, compensated, drove the controller
+    reused: bool = False  # no frame (or marker: reuse_lost): the last measurement, compensated, drove the controller
 
 
 def cycle_target(traj: Trajectory, rig: RigConfig, k: int, t_k: float, n_settle: int) -> CycleTarget:

@@ -10,9 +10,11 @@ One cycle k at t_k = t0 + k dt on the loop's clock:
    that arrives after the cycle began, or after t_k for a cycle that began late); the tip
    sensor measures it; the measurement is gated (jump from the previous accepted one, distance
    from the model's commanded tip); the controller computes the next commanded configuration,
-   clamped to the joint and velocity limits; no frame, a lost or a rejected measurement holds
-   the arm (the command unchanged). Open loop: the nominal model's IK of the desired tip gives
-   the command (pose IK when the trajectory asks for an orientation; closed loop, the measured
+   clamped to the joint and velocity limits; no frame, a lost or a rejected measurement steps
+   the controller on the last accepted measurement (compensated) while it is young enough (rig
+   ``reuse_measurement_age``; without a frame on the wall clock only, a lost or rejected one with
+   ``reuse_lost``), else holds the arm (the command unchanged). Open loop: the nominal model's IK
+   of the desired tip gives the command (pose IK when the trajectory asks for an orientation; closed loop, the measured
    orientation then goes to the controller's orientation task);
 3. the command is sent: on the wall clock as soon as it is computed, or, with a rig
    ``command_phase`` > 0, at that fixed instant after the cycle's nominal start (at once when it
@@ -28,6 +30,7 @@ Ground truth (true tip, optical tracker, true configuration) is logged when an o
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from typing import NoReturn
@@ -284,6 +287,7 @@ class ServoLoop:
         outcome = self._measure_and_control(frame, truth, target, memory)
         if outcome.accepted:
             memory.lost_run = 0
+            memory.reused_run = 0
             memory.held_psi = None
         else:
             self._count_lost(outcome, memory, stats)
@@ -362,13 +366,23 @@ class ServoLoop:
             self.on_frame(frame, meas)
         if not (meas.ok and meas.p_world is not None and np.all(np.isfinite(meas.p_world))):
             memory.last_reason = meas.reason or "marker not found"
+            if self.rig.reuse_lost:  # step on the last measurement, as a cycle without a frame
+                reused = self._reuse(truth, target, memory, any_clock=True)
+                return dataclasses.replace(reused, meas=meas)
             return CycleOutcome(meas, truth, False, False, 0.0)
         p_est = meas.p_world
-        jump_ok = memory.last_ok is None or (
-            np.linalg.norm(p_est - memory.last_ok) <= self.rig.gate * (1 + memory.lost_run))
+        # the jump gate widens with every lost cycle that held the arm; with reuse_lost, cycles that
+        # stepped on the last measurement moved the arm as it predicts: the jump counts from there
+        last, widen = memory.last_ok, memory.lost_run
+        if self.rig.reuse_lost and memory.reused_run > 0 and memory.last_meas is not None:
+            last, widen = self._compensated(memory.last_meas), memory.lost_run - memory.reused_run
+        jump_ok = last is None or np.linalg.norm(p_est - last) <= self.rig.gate * (1 + widen)
         model_ok = np.linalg.norm(p_est - model.tip) <= self.rig.model_gate
         if not (jump_ok and model_ok):
             memory.last_reason = "measurement rejected by the gates"
+            if self.rig.reuse_lost:  # the same: the last accepted measurement, not this one
+                reused = self._reuse(truth, target, memory, any_clock=True)
+                return dataclasses.replace(reused, meas=meas, rejected=True)
             return CycleOutcome(meas, truth, False, True, 0.0)
         memory.last_ok = p_est
         memory.last_meas = meas
@@ -400,12 +414,15 @@ class ServoLoop:
         self.psi_cmd = step.psi_next
         return 1e6 * (time.perf_counter() - c0)
 
-    def _reuse(self, truth: TruthSample, target: CycleTarget, memory: TrackingMemory) -> CycleOutcome:
-        """A cycle without a new frame (wall clock): the last accepted measurement, moved on by the
-        delay compensation, drives the controller while it is at most ``reuse_measurement_age`` old
-        at the cycle's start; else (or without the compensation) the arm holds."""
+    def _reuse(self, truth: TruthSample, target: CycleTarget, memory: TrackingMemory,
+               any_clock: bool = False) -> CycleOutcome:
+        """A cycle without a new frame (wall clock; ``any_clock``: either clock, a frame without
+        the marker or with a rejected measurement, rig ``reuse_lost``): the last accepted
+        measurement, moved on by the delay compensation, drives the controller while it is at
+        most ``reuse_measurement_age`` old at the cycle's start; else (or without the
+        compensation) the arm holds."""
         last = memory.last_meas
-        if (not self.wall_clock or self.delay is None or last is None
+        if (not (self.wall_clock or any_clock) or self.delay is None or last is None
                 or not self._cycle_start - last.t_capture <= self.rig.reuse_measurement_age):
             return CycleOutcome(None, truth, False, False, 0.0)
         ctrl_us = self._control(target, self._compensated(last), last)
@@ -421,7 +438,7 @@ class ServoLoop:
         clamped to the joint limits: each move is bounded by ``lost_dither`` and never adds up
         (counted in ``PhaseStats.dithers``; the log's psi_cmd shows it)."""
         rig = self.rig
-        if (rig.lost_dither <= 0 or outcome.meas is None or outcome.rejected
+        if (rig.lost_dither <= 0 or outcome.meas is None or outcome.rejected or outcome.reused
                 or memory.lost_run < rig.lost_dither_after or self.psi_cmd is None):
             return
         if memory.held_psi is None:
@@ -446,6 +463,7 @@ class ServoLoop:
         stats.rejected += int(outcome.rejected)
         stats.no_frame += int(outcome.meas is None)
         stats.reused += int(outcome.reused)
+        memory.reused_run += int(outcome.reused)
         memory.lost_run += 1
         stats.max_consecutive_lost = max(stats.max_consecutive_lost, memory.lost_run)
 

@@ -55,6 +55,15 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path: Path, args: tuple[str, ...],
     assert not (tmp_path / "m.yaml").exists()
 
 
+def test_the_hardware_path_never_imports_the_simulated_bench(tmp_path: Path) -> None:
+    code = ("import sys\nfrom wristmark.cli.main import main\nsys.argv = ['wristmark', 'identify', '--serial', "
+            "'/dev/no-such-port', '--camera', '0', '--calib', 'wristmark/configs/camera.yaml', '--out', "
+            f"{str(tmp_path / 'm.yaml')!r}]\nrc = main()\n"
+            "print(rc, sorted(m for m in sys.modules if m.startswith('wristmark.sim')))")
+    r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert r.stdout.strip() == "2 []", r.stdout + r.stderr  # refused at the port, bench never loaded
+
+
 def test_a_servo_run_folder_is_refused_naming_what_its_log_lacks(tmp_path: Path) -> None:
     run = tmp_path / "run"
     run.mkdir()

@@ -126,12 +126,15 @@ def excite_on_hardware(setup: Any, port: str, camera: str, poses: int, progress:
     from wristmark.cvs.tracking.warmup import warm_up
     from wristmark.rig.loop.excitation import excitation_plan, run_excitation
     from wristmark.rig.loop.hardware_session import open_hardware_session
+    from wristmark.rig.loop.heap_freeze import freeze_heap
     from wristmark.rig.loop.servo_session import LinkOptions
 
     unit = setup.controller.play_max_for(setup.params)
     plan = excitation_plan(setup.params, unit, poses=poses, seed=setup.rig.seed)
+    plan.duration(setup.rig.control_dt, setup.params)  # the ramps' first (slow) calls before the box is enabled
     warm_up()
     with open_hardware_session(setup, LinkOptions(kind="serial", port=port), camera) as session:
+        freeze_heap()  # no full garbage collection of the start-up heap mid-run (as servo: a silent host trips the box)
         session.start()
         with tqdm(total=poses, desc="identify: excitation", disable=not progress, leave=False) as bar:
             data = run_excitation(setup.params, session.link, session.frames, session.sensor, plan,

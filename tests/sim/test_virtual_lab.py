@@ -9,8 +9,6 @@ import dataclasses
 import gc
 import json
 import os
-import select
-import signal
 import subprocess
 import sys
 import time
@@ -31,6 +29,7 @@ from wristmark.sim.actuator_emulator import ActuatorEmulator
 from wristmark.sim.servo_bench import open_sim_session
 from wristmark.sim.setup import SimSetup, load_setup
 from wristmark.sim.virtual_lab import LabCamera, VirtualLab, true_tip_errors
+from wristmark_testing.lab_process import read_lines, stop
 
 ROOT = Path(__file__).resolve().parents[2]
 # Image scale of the lab's endoscope and of the in-process reference. Measured on the loaded
@@ -76,23 +75,6 @@ def hardware_servo(*args: str, timeout: float = 120) -> subprocess.CompletedProc
                           timeout=timeout)
 
 
-def read_lines(proc: subprocess.Popen[bytes], n: int, timeout: float) -> list[str]:
-    """The first ``n`` lines of a process's stdout (unbuffered reads), within ``timeout`` s."""
-    assert proc.stdout is not None
-    fd = proc.stdout.fileno()
-    got = b""
-    deadline = time.monotonic() + timeout
-    while got.count(b"\n") < n:
-        ready, _, _ = select.select([fd], [], [], max(0.0, deadline - time.monotonic()))
-        if not ready:
-            raise AssertionError(f"only {got!r} on stdout within {timeout} s")
-        chunk = os.read(fd, 4096)
-        if not chunk:
-            raise AssertionError(f"stdout closed after {got!r}")
-        got += chunk
-    return [ln.strip() for ln in got.decode().splitlines()[:n]]
-
-
 @pytest.fixture(scope="module")
 def setup() -> SimSetup:
     s = load_setup()
@@ -115,13 +97,8 @@ def lab_process(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str,
         assert pty.startswith("/dev/") and url.startswith("http://127.0.0.1:")
         yield pty, url, truth, dense
     finally:
-        proc.send_signal(signal.SIGTERM)
-        try:
-            _, err = proc.communicate(timeout=20)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            _, err = proc.communicate()
-        assert proc.returncode == 0, err.decode(errors="replace")
+        rc, err = stop(proc)
+        assert rc == 0, err
 
 
 def in_process(setup: SimSetup, kind: str, duration: float) -> dict:

@@ -2,7 +2,9 @@
 real arm differs from its robot file (docs/identification.md; DESIGN.md "Identification").
 
 Sources: the simulated bench (default, in process: ``--plant P`` is the true arm, never shown to
-the fit), or ``--from-log DIR`` (an excitation recorded with ``--log DIR``: DIR/excitation.npz).
+the fit), hardware or the virtual lab (``--serial PORT --camera SPEC --calib CALIB``: the same
+serial link and threaded frame feed as ``wristmark servo``, rig/loop/hardware_session.py), or
+``--from-log DIR`` (an excitation recorded with ``--log DIR``: DIR/excitation.npz).
 Writes MODEL.yaml (``--out``: the plant-file keys with the fitted values, ``rms_m``, ``poses``
 and the fit's report), a summary on stderr and ``--json`` on stdout.
 """
@@ -18,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from wristmark.cli.common_options import add_config_option, add_force_argument, add_json_flag, set_example
-from wristmark.cli.option_types import int_in, seed_int
+from wristmark.cli.option_types import MAX_IMAGE_SCALE, MIN_IMAGE_SCALE, float_in, int_in, seed_int
 from wristmark.models.errors import InputError
 from wristmark.rig.recording.output_dir import claim_outputs
 
@@ -42,23 +44,38 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=seed_int(), help="pose choice and render noise seed (default the rig's)")
     p.add_argument("--serial", metavar="PORT", help="hardware / virtual lab: the actuator box's serial port")
     p.add_argument("--camera", metavar="SPEC", help="hardware / virtual lab: the stereo frame source")
-    p.add_argument("--from-log", metavar="DIR", help=f"identify offline from DIR/{LOG_FILE} (written by --log)")
+    p.add_argument("--image-scale", type=float_in(MIN_IMAGE_SCALE, MAX_IMAGE_SCALE), metavar="F",
+                   help="images at F x the calibrated size (simulated bench: rendered so; a camera: delivers so)")
+    p.add_argument("--from-log", metavar="DIR", help=f"identify offline from DIR/{LOG_FILE} (written by --log; "
+                   "a servo run's folder is refused: its log has no encoder readings)")
     p.add_argument("--log", metavar="DIR", help=f"write the excitation's record to DIR/{LOG_FILE}")
     add_json_flag(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     set_example(p, "wristmark identify --plant configs/plant_unseen.yaml --out model.yaml",
                 "wristmark identify --plant configs/plant_unseen.yaml --log idlog --out model.yaml --force",
-                "wristmark identify --from-log idlog --out model2.yaml")
+                "wristmark identify --from-log idlog --out model2.yaml",
+                "wristmark identify --serial /dev/pts/3 --camera http://127.0.0.1:41234/stream.mjpg --calib calib.yaml "
+                "--registration reg.yaml --image-scale 0.35 --out model.yaml")
 
 
 def _check(args: argparse.Namespace) -> None:
     if args.serial or args.camera:
-        raise InputError("--serial/--camera: identification on hardware and the virtual lab is not built yet; "
-                         "record a servo run or use the simulated bench (--plant)")
+        if not (args.serial and args.camera):
+            raise InputError("hardware / the virtual lab needs both --serial PORT and --camera SPEC")
+        if args.from_log or args.plant or args.sensor:
+            raise InputError("--serial/--camera identify the arm on the port: --from-log, --plant and --sensor "
+                             "are for other sources")
+        if not args.calib:
+            raise InputError("--serial/--camera need --calib CALIB (the stereo calibration of that camera)")
     if args.from_log and (args.plant or args.sensor):
         raise InputError("--from-log identifies from the record alone: --plant and --sensor are for the "
                          "simulated bench")
     if args.from_log and not (Path(args.from_log) / LOG_FILE).is_file():
+        if (Path(args.from_log) / "log.csv").is_file():
+            raise InputError(f"--from-log: {args.from_log} is a servo run's folder; its log.csv has the commands "
+                             "(psi_cmd) and the tip measured in motion (p_est) but no encoder readings (psi_true "
+                             f"is empty on hardware), which the fit needs: record an excitation with --log "
+                             f"(no {LOG_FILE} in {args.from_log})")
         raise InputError(f"--from-log: no {LOG_FILE} in {args.from_log}")
 
 
@@ -78,13 +95,71 @@ def _load_log(path: Path) -> Any:
                           f["psi_hint"])
 
 
+def _hardware_setup(args: argparse.Namespace) -> Any:
+    """The LoopSetup of the arm on the port (the simulated bench is not imported): world_T_left
+    from --registration, else the calibration's; neither is refused."""
+    import dataclasses
+
+    from wristmark.rig.loop.loop_setup import load_loop_setup
+
+    setup = load_loop_setup(robot=args.robot, marker=args.marker, camera=args.calib, rig=args.rig,
+                            require_world=False)
+    if args.registration:
+        from wristmark.cvs.calibration.registration_file import load_registration
+
+        setup = setup.with_changes(registration=load_registration(args.registration).world_T_left)
+    elif setup.camera.T_world_left is None:
+        raise InputError(f"{args.calib}: no world_T_left; identify needs the camera placed in {{w}}: give "
+                         "--registration REG (wristmark register) or a calibration that carries it")
+    changes = {k: v for k, v in (("image_scale", args.image_scale), ("seed", args.seed)) if v is not None}
+    return setup.with_changes(rig=dataclasses.replace(setup.rig, **changes)) if changes else setup
+
+
+FRAME_WAIT_S = 0.08  # [s] longest wait for a fresh frame at a pose (+ tracking budget: inside the 250 ms watchdog)
+
+
+def excite_on_hardware(setup: Any, port: str, camera: str, poses: int, progress: bool) -> Any:
+    """Open the actuator box and the camera as ``wristmark servo --serial --camera`` does, run the
+    excitation on the wall clock and close (hold, DISABLE) whatever happens."""
+    from tqdm import tqdm
+
+    from wristmark.cvs.tracking.warmup import warm_up
+    from wristmark.rig.loop.excitation import excitation_plan, run_excitation
+    from wristmark.rig.loop.hardware_session import open_hardware_session
+    from wristmark.rig.loop.heap_freeze import freeze_heap
+    from wristmark.rig.loop.servo_session import LinkOptions
+
+    unit = setup.controller.play_max_for(setup.params)
+    plan = excitation_plan(setup.params, unit, poses=poses, seed=setup.rig.seed)
+    plan.duration(setup.rig.control_dt, setup.params)  # the ramps' first (slow) calls before the box is enabled
+    warm_up()
+    with open_hardware_session(setup, LinkOptions(kind="serial", port=port), camera) as session:
+        freeze_heap()  # no full garbage collection of the start-up heap mid-run (as servo: a silent host trips the box)
+        session.start()
+        with tqdm(total=poses, desc="identify: excitation", disable=not progress, leave=False) as bar:
+            data = run_excitation(setup.params, session.link, session.frames, session.sensor, plan,
+                                  setup.rig.control_dt, on_pose=lambda i: bar.update(1), frame_wait=FRAME_WAIT_S)
+    if session.close_error:
+        raise InputError(f"{port}: could not confirm hold/disable after the excitation ({session.close_error})")
+    seen, wanted = int(np.isfinite(data.tips).all(axis=1).sum()), poses * plan.frames
+    if seen < wanted // 4:
+        raise InputError(f"{camera}: the marker was tracked in only {seen} of the {wanted} frames at rest wanted "
+                         "(camera, calibration, --image-scale or registration wrong?)")
+    return data
+
+
 def run(args: argparse.Namespace) -> int:
     import dataclasses
 
-    from wristmark.models.model_file import save_model
+    if args.serial:
+        _check(args)
+        claim_outputs(files=[args.out], dirs=[], force=args.force)
+        setup = _hardware_setup(args)
+        data = excite_on_hardware(setup, args.serial, args.camera, args.poses, not args.no_progress)
+        return _fit_and_write(args, setup, data, f"port {args.serial}, camera {args.camera}")
+
     from wristmark.sim.identify_bench import bench_plan, excite_on_bench
     from wristmark.sim.setup import load_setup
-    from wristmark.solvers.identification import identify
 
     _check(args)
     claim_outputs(files=[args.out], dirs=[], force=args.force)
@@ -98,8 +173,9 @@ def run(args: argparse.Namespace) -> int:
         rig = dataclasses.replace(rig, sensor=args.sensor)
     if args.seed is not None:
         rig = dataclasses.replace(rig, seed=args.seed)
+    if args.image_scale is not None:
+        rig = dataclasses.replace(rig, image_scale=args.image_scale)
     setup = setup.with_changes(rig=rig)
-    unit = setup.controller.play_max_for(setup.params)
     if args.from_log:
         data = _load_log(Path(args.from_log) / LOG_FILE)
         source = f"log {args.from_log}"
@@ -110,6 +186,15 @@ def run(args: argparse.Namespace) -> int:
         with tqdm(total=args.poses, desc="identify: excitation", disable=args.no_progress, leave=False) as bar:
             data = excite_on_bench(setup, plan, on_pose=lambda i: bar.update(1))
         source = f"simulated bench, plant {setup.sources.get('plant')}"
+    return _fit_and_write(args, setup, data, source)
+
+
+def _fit_and_write(args: argparse.Namespace, setup: Any, data: Any, source: str) -> int:
+    """Fit the record, write MODEL.yaml (and --log's record), report."""
+    from wristmark.models.model_file import save_model
+    from wristmark.solvers.identification import identify
+
+    unit = setup.controller.play_max_for(setup.params)
     if args.log:
         Path(args.log).mkdir(parents=True, exist_ok=True)
         np.savez(Path(args.log) / LOG_FILE, **{k: getattr(data, k) for k in DATA_KEYS})

@@ -13,6 +13,7 @@ bench, the virtual lab and hardware alike.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,6 +32,7 @@ from wristmark.rig.targets.trajectories import CUBE_SIZE, workspace_centre
 from wristmark.solvers.identification import ExcitationData
 
 Array = NDArray[np.float64]
+MEASURE_TRIES = 4  # live camera: cycles at rest per frame to measure, at most (frames the tracker gave up on)
 __all__ = ["ExcitationPlan", "excitation_plan", "run_excitation"]
 
 
@@ -103,10 +105,18 @@ def _is_prismatic(params: Arm, n: int) -> NDArray[np.bool_]:
 
 
 def run_excitation(params: Arm, link: ActuatorLink, frames: FrameFeed, sensor: TipSensor, plan: ExcitationPlan,
-                   dt: float, on_pose: object = None) -> ExcitationData:
+                   dt: float, on_pose: object = None, frame_wait: float = 0.0) -> ExcitationData:
     """Move the arm through ``plan`` one target per control cycle of ``dt`` [s], reading the
     encoders every cycle and measuring ``plan.frames`` frames at rest at every pose; the arm is
-    held at the end. ``on_pose(i)`` after each pose (progress)."""
+    held at the end. ``on_pose(i)`` after each pose (progress).
+
+    frame_wait > 0 (a live camera on the wall clock: hardware, the virtual lab): each measured
+    frame is one that arrived after its cycle began, waited for up to ``frame_wait`` [s] (a live
+    feed otherwise hands out the same newest frame once, then nothing); the encoders are read
+    again after the wait, which feeds the box's watchdog before the frame is tracked; a frame
+    not tracked (the tracker's budget ran out: the first frame at a new pose may need a search of
+    the whole image) is not recorded, and the pose is held for up to MEASURE_TRIES x
+    ``plan.frames`` cycles until ``plan.frames`` frames were tracked."""
     times: list[float] = []
     enc: list[Array] = []
     tgt: list[Array] = []
@@ -116,24 +126,31 @@ def run_excitation(params: Arm, link: ActuatorLink, frames: FrameFeed, sensor: T
     psi = psi_from_actuators(params, np.asarray(link.measured_actuators(), float), delta_hint=plan.poses[0])
     t = float(link.time)
 
-    def cycle(command: Array, measure: bool) -> None:
+    def cycle(command: Array, measure: bool) -> bool:
         nonlocal t
         t += dt
         link.advance_to(t)
         times.append(t)
         enc.append(np.asarray(link.measured_actuators(), float).copy())
         if measure:
-            frame = frames.take()
+            if frame_wait > 0:
+                now = time.monotonic()
+                frame = frames.take(fresh_after=now, wait_until=now + frame_wait)
+                link.measured_actuators()  # a GET_STATE: the watchdog fed before the tracking
+            else:
+                frame = frames.take()
             axis = forward_kinematics(params, command).T_world_marker[:3, 2]
             meas = None if frame is None else sensor.measure(frame, axis_hint_world=axis)
             ok = meas is not None and meas.ok and meas.p_world is not None
-            idx.append(len(times) - 1)
-            tips.append(np.asarray(meas.p_world, float) if ok and meas is not None and meas.p_world is not None
-                        else np.full(3, np.nan))
-            hints.append(np.asarray(command, float))
+            if ok or frame_wait <= 0:
+                idx.append(len(times) - 1)
+                tips.append(np.asarray(meas.p_world, float) if ok and meas is not None and meas.p_world is not None
+                            else np.full(3, np.nan))
+                hints.append(np.asarray(command, float))
         a = actuators_from_psi(params, command)
         link.send_target(a)
         tgt.append(a)
+        return measure and ok
 
     try:
         for i, (q, side) in enumerate(zip(plan.poses, plan.sides)):
@@ -145,8 +162,15 @@ def run_excitation(params: Arm, link: ActuatorLink, frames: FrameFeed, sensor: T
                 cycle(approach, False)
             for _ in range(max(1, round(plan.settle / dt))):
                 cycle(q, False)
-            for _ in range(plan.frames):
-                cycle(q, True)
+            if frame_wait > 0:  # a live camera: up to MEASURE_TRIES x the frames until that many are tracked
+                got = 0
+                for _ in range(MEASURE_TRIES * plan.frames):
+                    got += cycle(q, True)
+                    if got >= plan.frames:
+                        break
+            else:
+                for _ in range(plan.frames):
+                    cycle(q, True)
             psi = q
             if callable(on_pose):
                 on_pose(i)

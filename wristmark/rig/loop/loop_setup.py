@@ -90,14 +90,15 @@ def config_paths(**given: str | Path | None) -> dict[str, Path]:
 
 def load_loop_setup(robot: str | Path | None = None, marker: str | Path | None = None,
                     camera: str | Path | None = None, rig: str | Path | None = None,
-                    controller: str | Path | None = None) -> LoopSetup:
+                    controller: str | Path | None = None, require_world: bool = True) -> LoopSetup:
     """Load every configuration (None -> the file in configs/), validated; the calibration must
-    place the camera in {w} (``world_T_left``)."""
+    place the camera in {w} (``world_T_left``) unless ``require_world`` is False (the caller
+    then sets the registration)."""
     from wristmark.cvs.calibration.load import load_calibration
 
     paths = config_paths(robot=robot, marker=marker, camera=camera, rig=rig, controller=controller)
     cam = load_calibration(paths["camera"])
-    if cam.T_world_left is None:
+    if cam.T_world_left is None and require_world:
         raise ConfigError(f"{paths['camera']}: the servo loop needs 'world_T_left' (camera pose in {{w}})")
     the_marker = MarkerModel.load(paths["marker"])
     loop = RigConfig.load(paths["rig"])

@@ -179,8 +179,9 @@ def test_bad_numbers_are_refused_where_parsed(option: tuple[str, argparse.Action
 
 
 # null by design: no reprojection with --sensor truth-noise / not tracked / the reference sleeve
-# carries no code (config.json marker.code) / no --registration given
-NOT_APPLICABLE = {"rms_px", "estimate", "code", "registration_world_T_left"}
+# carries no code (config.json marker.code) nor an arm name (marker.arm: one arm in view) / no
+# --registration given
+NOT_APPLICABLE = {"rms_px", "estimate", "code", "arm", "registration_world_T_left"}
 
 
 def _no_nan(obj: Any, where: str) -> None:

@@ -5,6 +5,7 @@ cycles it walked so. Off (the default) it holds at once."""
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 import pytest
@@ -30,13 +31,12 @@ class Blindfold:
         return self.inner.measure(frame, axis_hint_world)
 
 
-def walk(open_loop_on_lost: float) -> tuple[int, float, float]:
+def blind_walk(**rig_changes: Any) -> tuple[Any, RunLog, float]:
     """A 6 s line walked closed loop (truth-noise sensor, the true plant's errors known to the
-    loop as its model), blind for 0.6 s in its middle: cycles walked open loop, the largest tip
-    error [m] while blind, and the tip's travel while blind [m]."""
+    loop as its model, the rig changed by ``rig_changes``), blind for 0.6 s in its middle: the
+    run's stats, its log and the closed loop's start [s]."""
     setup = load_setup(plant=CONFIG_DIR / "plant_unseen.yaml")
-    # no lost-marker dither: "held" means the arm holds still (the dither: test_lost_dither.py)
-    rig = dataclasses.replace(setup.rig, sensor="truth-noise", open_loop_on_lost=open_loop_on_lost, lost_dither=0.0)
+    rig = dataclasses.replace(setup.rig, sensor="truth-noise", **rig_changes)
     setup = setup.with_changes(rig=rig, model=setup.plant)
     c = workspace_centre(setup.params)
     traj = Trajectory.from_waypoints(np.array([c - [0.015, 0, 0], c + [0.015, 0, 0]]), speed=0.005)
@@ -46,6 +46,14 @@ def walk(open_loop_on_lost: float) -> tuple[int, float, float]:
     loop.sensor = Blindfold(loop.sensor, t_start + 3.0, t_start + 3.6)
     log = RunLog()
     stats = loop.run(traj, "closed_loop", True, log, settle=setup.rig.settle_time)
+    return stats, log, t_start
+
+
+def walk(open_loop_on_lost: float) -> tuple[int, float, float]:
+    """:func:`blind_walk` without the lost-marker dither ("held" means the arm holds still; the
+    dither: test_lost_dither.py): cycles walked open loop, the largest tip error [m] while blind,
+    and the tip's travel while blind [m]."""
+    stats, log, t_start = blind_walk(open_loop_on_lost=open_loop_on_lost, lost_dither=0.0)
     blind = [r for r in log.phase("closed_loop") if t_start + 3.06 <= r.t < t_start + 3.6]
     err = max(float(np.linalg.norm(np.subtract(r.p_true, r.p_des))) for r in blind)
     travel = float(np.linalg.norm(np.subtract(blind[-1].p_true, blind[0].p_true)))
@@ -65,17 +73,7 @@ def test_walks_on_open_loop_for_the_time_set_then_holds() -> None:
 def test_no_dither_while_walking_open_loop() -> None:
     """The lost-marker dither moves an arm that holds; while the loop walks on open loop it
     does not fire (it would pull the command back to where the walk began)."""
-    setup = load_setup(plant=CONFIG_DIR / "plant_unseen.yaml")
-    rig = dataclasses.replace(setup.rig, sensor="truth-noise", open_loop_on_lost=0.3, lost_dither=0.001,
-                              lost_dither_after=1)
-    setup = setup.with_changes(rig=rig, model=setup.plant)
-    c = workspace_centre(setup.params)
-    traj = Trajectory.from_waypoints(np.array([c - [0.015, 0, 0], c + [0.015, 0, 0]]), speed=0.005)
-    loop = make_direct_loop(setup, start_configuration(setup.params, traj.sample(0.0)[0]), closed_loop=True)
-    t_start = loop.t + setup.rig.settle_time
-    assert loop.sensor is not None
-    loop.sensor = Blindfold(loop.sensor, t_start + 3.0, t_start + 3.6)
-    stats = loop.run(traj, "closed_loop", True, RunLog(), settle=setup.rig.settle_time)
+    stats, _, _ = blind_walk(open_loop_on_lost=0.3, lost_dither=0.001, lost_dither_after=1)
     # 0.6 s blind = 10 lost cycles: 5 walked open loop, then the arm holds and dithers (5 cycles)
     assert stats.open_on_lost == 5
     assert 1 <= stats.dithers <= 5

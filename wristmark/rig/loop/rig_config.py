@@ -104,7 +104,7 @@ class RigConfig:
     gate: float = 0.004  # [m]
     model_gate: float = 0.025  # [m]
     max_lost_cycles: int = 25
-    lost_dither: float = 0.0  # [m] lost marker's dither step of the tip (0: off, the arm holds)
+    lost_dither: float = 0.001  # [m] a lost marker's dither: tip move of each step around the held arm (0: off)
     lost_dither_after: int = 3  # lost cycles (a frame without the marker) before the dither starts
     settle_time: float = 1.5  # [s]
     feedforward_preview: float = 0.035  # [s] desired path previewed this far ahead (loop delay)

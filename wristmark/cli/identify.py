@@ -1,5 +1,5 @@
 """``wristmark identify``: move the arm through an excitation, track the marker and fit how the
-real arm differs from its robot file (docs/identification.md; DESIGN.md "Identification").
+real arm differs from its robot file (docs/identification.md; docs/design.md "Identification (know your arm)").
 
 Sources: the simulated bench (default, in process: ``--plant P`` is the true arm, never shown to
 the fit), hardware or the virtual lab (``--serial PORT --camera SPEC --calib CALIB``: the same

@@ -323,17 +323,24 @@ ARC_TRUE_TIP_LEFT = np.array([-0.009549, 0.020991, 0.085899])
 
 
 def test_a_fit_that_hinges_on_a_corner_seen_in_one_view_only_is_refused() -> None:
+    """The arc's fit with the right view's extra corner: without either check a good RMS and a tip
+    ~3 mm off; the single-view check alone refuses it, and the sleeve-facing check alone finds
+    the true minimum (the wrong fit was the arc turned inside out), as the defaults do."""
     from wristmark.cvs.camera import scaled_stereo_camera
     from wristmark.cvs.tracking.settings import TrackerSettings
 
     cam = scaled_stereo_camera(CAM, 0.5)
-    # without the check: a good reprojection RMS and a tip ~3 mm off (the lab's excursion)
-    old = MarkerTracker(cam, MARKER, TrackerSettings(max_single_view_shift_m=np.inf))
+    # without the checks: a good reprojection RMS and a tip ~3 mm off (the lab's excursion)
+    old = MarkerTracker(cam, MARKER, TrackerSettings(max_single_view_shift_m=np.inf, min_corner_facing=-np.inf))
     wrong = old.track_corners(ARC_LEFT, ARC_RIGHT, ARC_POL_LEFT, ARC_POL_RIGHT)
     assert wrong.ok and wrong.rms_px < 0.3
     assert np.linalg.norm(wrong.tip_left - ARC_TRUE_TIP_LEFT) > 2e-3
-    res = MarkerTracker(cam, MARKER).track_corners(ARC_LEFT, ARC_RIGHT, ARC_POL_LEFT, ARC_POL_RIGHT)
+    single_view = MarkerTracker(cam, MARKER, TrackerSettings(min_corner_facing=-np.inf))
+    res = single_view.track_corners(ARC_LEFT, ARC_RIGHT, ARC_POL_LEFT, ARC_POL_RIGHT)
     assert not res.ok and "one view only" in res.reason and res.tip_left is None
+    for settings in (TrackerSettings(max_single_view_shift_m=np.inf), TrackerSettings()):
+        res = MarkerTracker(cam, MARKER, settings).track_corners(ARC_LEFT, ARC_RIGHT, ARC_POL_LEFT, ARC_POL_RIGHT)
+        assert res.ok and np.linalg.norm(res.tip_left - ARC_TRUE_TIP_LEFT) < 5e-4, res.reason
     # the stereo pairs alone fit the truth
     pairs = MarkerTracker(cam, MARKER).track_corners(ARC_LEFT, ARC_RIGHT[1:], ARC_POL_LEFT, ARC_POL_RIGHT[1:])
     assert pairs.ok and np.linalg.norm(pairs.tip_left - ARC_TRUE_TIP_LEFT) < 5e-4

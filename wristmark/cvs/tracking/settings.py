@@ -50,7 +50,11 @@ class TrackerSettings:
     partner) is refused when the tip moves more than this without them, where at least 3 stereo
     pairs fit on their own (2 pairs determine the pose no better than the fit): few corners on one arc
     of the sleeve leave its axis weakly determined, and one such corner off by a pixel at the
-    chain's end tilted the fit 3-5 mm off in the virtual lab (docs/notes/corner-accuracy-on-curved-markers.md)."""
+    chain's end tilted the fit 3-5 mm off in the virtual lab (docs/notes/corner-accuracy-on-curved-markers.md);
+    min_corner_facing [-]: the least cosine between a used corner's outward sleeve normal and its
+    direction to the camera that saw it; a fit below it puts a corner on the far side of the
+    sleeve, which hides it (few corners: the arc turned inside out, 3-9 mm off;
+    cvs.tracking.sleeve_facing, docs/notes/sleeve-facing.md)."""
 
     min_corners: int = 3
     min_pairs: int = 2
@@ -66,6 +70,7 @@ class TrackerSettings:
     prior_max_px: float = 6.0
     strict_direction: bool = False
     max_single_view_shift_m: float = 0.001
+    min_corner_facing: float = 0.0
 
 
 def make_detector(kind: str) -> CornerDetector:

@@ -2,10 +2,12 @@
 
 ``MarkerTracker.track(left_img, right_img)`` runs, per stereo pair: the corner detector in each
 image (ROI tracking from pair to pair, whole frame when lost), rectified-y correspondence with
-relative indices (cvs.tracking.stereo_match), the homography start (eq. 14-15, or triangulation + Kabsch
-when a camera sees fewer than 4 corners or the homography start does not converge), the CasADi
-stereo solve (eq. 16) and the tip (eq. 5). It returns ``ok=False`` with a reason rather than a
-doubtful pose: no marker, too few corners, no stereo pairs, a residual above ``max_rms_px``, or
+relative indices (cvs.tracking.stereo_match), the homography start (eq. 14-15, or triangulation
++ Kabsch when a camera sees fewer than 4 corners or the homography start does not converge),
+the CasADi stereo solve (eq. 16) and the tip (eq. 5). It returns ``ok=False`` with a reason
+rather than a doubtful pose: no marker, too few corners, no stereo pairs, a residual above
+``max_rms_px``, a fit that puts a corner on the far side of the sleeve (few corners: the arc
+turned inside out, cvs.tracking.sleeve_facing; a start in the other minimum is tried first), or
 a fit that hinges on corners seen in one view only (the best fit of the stereo pairs alone puts
 the tip more than ``max_single_view_shift_m`` away). A pair lost for too few corners gets one
 last try with chains that step over a missed corner (a specular highlight over the corner the
@@ -49,6 +51,7 @@ from wristmark.cvs.tracking.homography_init import homography_pose
 from wristmark.cvs.tracking.result import Array, IntArray, TrackResult
 from wristmark.cvs.tracking.rigid_fit import kabsch, roll_about_z
 from wristmark.cvs.tracking.settings import CornerDetector, TrackerSettings, make_detector
+from wristmark.cvs.tracking.sleeve_facing import corner_facing, turned_start
 from wristmark.cvs.tracking.stereo_match import StereoMatch, StereoRectifier, match_corners
 from wristmark.cvs.tracking.stereo_pose import MarkerPose, StereoPoseSolver
 from wristmark.models.errors import InputError
@@ -314,6 +317,19 @@ class MarkerTracker:
         return replace(res, tip_left=pose.tip_left, tip_world=pose.tip_world, T_left_marker=pose.T_left_marker,
                        pose=pose, axis_source=source, axis_score=score)
 
+    def _faces_cameras(self, pose: MarkerPose, idx_l: IntArray, idx_r: IntArray) -> bool:
+        """Every corner the fit uses faces the camera that saw it (cvs.tracking.sleeve_facing;
+        TrackerSettings.min_corner_facing): a fit with a corner on the far side of the sleeve is
+        the arc turned inside out."""
+        lim = self.settings.min_corner_facing
+        T = pose.T_fit
+        centres: tuple[Array, Array] = (np.zeros(3), np.asarray(self._T_left_right[:3, 3], float))
+        for idx, used, centre in ((idx_l, pose.inliers_left, centres[0]), (idx_r, pose.inliers_right, centres[1])):
+            P = self.solver.marker_points(np.asarray(idx)[np.asarray(used, bool)])
+            if P.size and float(corner_facing(T, P, centre).min()) < lim:
+                return False
+        return True
+
     def _consistent_prior(self, pose: MarkerPose) -> Array | None:
         """The previous pair's z_wm direction in {ll} if it may serve as a prior for this fit:
         the chains were found in the previous ROIs, the previous direction was decided, and this
@@ -432,6 +448,7 @@ class MarkerTracker:
         idx_l, ul, idx_r, ur = m.index_left[kl], cl[kl], m.index_right[kr], cr[kr]
         starts = self._start_poses(idx_l, ul, idx_r, ur, m)
         best: MarkerPose | None = None
+        best_facing = False
         t_init = t_solve = 0.0
         while True:  # tracking: stop at a good fit from the previous pose; else the best of all starts
             t2 = time.perf_counter()
@@ -442,10 +459,19 @@ class MarkerTracker:
                 break
             pose = self.solver.solve(idx_l, ul, idx_r, ur, T0)
             t_solve += time.perf_counter() - t3
-            if np.isfinite(pose.rms_px) and (best is None or pose.rms_px < best.rms_px):
-                best = pose
-            if self._continuous and best is not None and best.rms_px <= s.good_rms_px:
+            if np.isfinite(pose.rms_px):
+                facing = self._faces_cameras(pose, idx_l, idx_r)
+                if best is None or (facing, -pose.rms_px) > (best_facing, -best.rms_px):  # facing fits first
+                    best, best_facing = pose, facing
+            if self._continuous and best is not None and best_facing and best.rms_px <= s.good_rms_px:
                 break
+        if best is not None and not best_facing:  # turned inside out: a start in the other minimum
+            t3 = time.perf_counter()
+            T0 = turned_start(best.T_fit, self.solver.marker_points(np.union1d(idx_l, idx_r)))
+            pose = self.solver.solve(idx_l, ul, idx_r, ur, T0)
+            t_solve += time.perf_counter() - t3
+            if np.isfinite(pose.rms_px) and self._faces_cameras(pose, idx_l, idx_r):
+                best, best_facing = pose, True
         timings["init"], timings["solve"] = 1e3 * t_init, 1e3 * t_solve
         if best is None:
             return self._fail(
@@ -454,6 +480,8 @@ class MarkerTracker:
         doubt = ""
         if not best.rms_px <= s.max_rms_px or best.T_left_marker[2, 3] <= 0:
             doubt = f"reprojection RMS {best.rms_px:.2f} px above {s.max_rms_px} px: corners do not fit the marker"
+        elif not best_facing:
+            doubt = "the fit puts marker corners on the far side of the sleeve (too few corners to tell its tilt)"
         elif (shift := self._single_view_shift(best, idx_l, ul, idx_r, ur, m)) > s.max_single_view_shift_m:
             doubt = f"the fit hinges on corners seen in one view only (the tip moves {1e3 * shift:.1f} mm without them)"
         if doubt:

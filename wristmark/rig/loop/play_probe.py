@@ -15,7 +15,10 @@ inversion then starts from the fitted play, on a known side and place in the ban
 first-order lag is fitted too, from the targets sent and the encoders read alone (both stamped
 on the loop's clock; no pose needed), for the inversion's reversal burst (``backlash_motor_burst``).
 
-Assumes a 6-DoF pose: without one (the reference marker, or a coded marker whose roll code was
+An arm whose pose does not give its actuators (fewer than 6 joints, or more actuators than
+joints: tendons) is probed the same way, each actuator's output read from the tip alone along
+the tip's motion it causes (:class:`TipProjection`; any marker). Otherwise the probe assumes a
+6-DoF pose: without one (the reference marker, or a coded marker whose roll code was
 not read at the end of the settle) nothing moves, the loop's ``play_probe_note`` says so (the
 experiments put it in result.json; not on stderr, where a run prints only its one-line stop), and
 the inversion learns the play online at the reversals as without a probe. The probe's cycles are logged as
@@ -35,7 +38,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
-from wristmark.models.arm_spec import arm_size
+from wristmark.models.arm_spec import Arm, arm_size
+from wristmark.models.kinematics import forward_kinematics
 from wristmark.models.limits import clamp_psi, clamp_velocity
 from wristmark.models.pose_ik import solve_pose_ik
 from wristmark.models.units import on_micro_grid
@@ -45,10 +49,7 @@ from wristmark.solvers.play_probe_fit import PlayFit, fit_motor_lag, fit_play
 
 Array = NDArray[np.float64]
 RESTORE_CYCLES = 3  # cycles the probe waits after its last command (the motor's lag is ~0.07 s)
-FEW_JOINTS = ("play probe skipped: the arm has fewer than 6 joints, so a measured pose does not give its actuators "
-              "(the play is learnt online)")
-MORE_ACTUATORS = ("play probe skipped: the arm has more actuators than joints (tendons or pairs), so a measured pose "
-                  "does not give each actuator's output (the play is learnt online)")
+NO_TIP = "play probe skipped: no tip measured at the end of the settle; the play is learnt online at the reversals"
 NO_POSE = "play probe skipped: the tracker gives no 6-DoF pose (position-only marker or roll code not read); " \
           "the play is learnt online at the reversals"
 
@@ -69,6 +70,33 @@ class ProbeSamples:
     arm: list[Array] = dataclasses.field(default_factory=list)
 
 
+class TipProjection:
+    """The arm side of one actuator from the measured tip alone, for an arm whose pose does not
+    give its actuators (fewer than 6 joints, or more actuators than joints): with the others held,
+    actuator j's output moves the tip along v_j = d tip / d a_j at the probe's start (nominal model,
+    models/actuation.py's inverse map); its output is read as a0_j + v_j . (p - tip0) / |v_j|^2
+    [rad or m] (an affine proxy is all solvers/play_probe_fit.py needs)."""
+
+    def __init__(self, params: Arm, psi0: Array, step: float = 1e-5) -> None:
+        self.a0 = actuators_from_psi(params, psi0)
+        self.tip0 = forward_kinematics(params, psi0).tip
+        rows = []
+        for j in range(self.a0.size):
+            e = np.zeros(self.a0.size)
+            e[j] = step
+            tips = [forward_kinematics(params, psi_from_actuators(params, self.a0 + s * e, delta_hint=psi0)).tip
+                    for s in (1.0, -1.0)]
+            rows.append((tips[0] - tips[1]) / (2.0 * step))
+        self.v = np.array(rows)  # (actuators, 3) [m per rad or m]
+
+    def output(self, j: int, p_world: Array) -> float:
+        """Actuator j's output read from the measured tip ``p_world`` in {w} [m] (NaN where the
+        tip does not move with it)."""
+        v = self.v[j]
+        nv = float(v @ v)
+        return float(self.a0[j] + v @ (np.asarray(p_world, float) - self.tip0) / nv) if nv > 1e-12 else float("nan")
+
+
 def probe_report(fits: list[PlayFit] | None, note: str) -> list[dict[str, Any]] | str | None:
     """What a result file says of the probe: the fits per actuator (SI units), why it was
     skipped, or None when it was not asked for."""
@@ -83,17 +111,16 @@ def run_play_probe(loop: ProbeLoop, template: CycleTarget) -> list[PlayFit] | No
     ctrl = loop.controller
     meas0 = loop.last_measurement
     n, m = arm_size(loop.params)
-    if n < 6 or m > n:
-        loop.skip(FEW_JOINTS if n < 6 else MORE_ACTUATORS)
-        ctrl.start_play(None)
-        return None
-    if meas0 is None or meas0.R_world is None or not meas0.roll_known:
-        loop.skip(NO_POSE)
-        ctrl.start_play(None)
-        return None
     cfg, params, dt = ctrl.config, loop.params, loop.rig.control_dt
     base = loop.psi_cmd.copy()
     a0 = actuators_from_psi(params, base)
+    # a 6-DoF pose gives every actuator of an arm with 6 or more joints and no more actuators than
+    # joints; any other arm: each probed actuator's output along the tip's motion it causes
+    projection = TipProjection(params, base) if (n < 6 or m > n) else None
+    if meas0 is None or (projection is None and (meas0.R_world is None or not meas0.roll_known)):
+        loop.skip(NO_POSE if projection is None else NO_TIP)
+        ctrl.start_play(None)
+        return None
     play_max = np.asarray(ctrl.play_max, float)
     n = max(4, int(round(cfg.play_probe_time / dt)))
     samples = ProbeSamples()
@@ -110,7 +137,7 @@ def run_play_probe(loop: ProbeLoop, template: CycleTarget) -> list[PlayFit] | No
         offsets = triangle(n, cfg.play_probe_amplitude * float(play_max[j]))
         for i in range(n + 1):
             target = dataclasses.replace(template, k=len(samples.probed), t=loop.next_cycle(), settling=False)
-            hint, ok = _sample(loop, target, j, samples, reads, hint)
+            hint, ok = _sample(loop, target, j, samples, reads, hint, projection)
             lost = 0 if ok else lost + 1
             if lost > loop.rig.max_lost_cycles:  # as in the loop: a lost marker holds the arm
                 loop.lost_marker(f"marker lost for {lost} cycles during the play probe", target.t)
@@ -137,25 +164,31 @@ def run_play_probe(loop: ProbeLoop, template: CycleTarget) -> list[PlayFit] | No
     loop.command(base if out is None else out)
     for _ in range(RESTORE_CYCLES):  # the motors reach it before the feedback resumes
         target = dataclasses.replace(template, k=len(samples.probed), t=loop.next_cycle(), settling=False)
-        _sample(loop, target, a0.size - 1, samples, reads, hint)
+        _sample(loop, target, a0.size - 1, samples, reads, hint, projection)
     return fits
 
 
 def _sample(loop: ProbeLoop, target: CycleTarget, j: int, samples: ProbeSamples, reads: list[tuple[float, Array]],
-            hint: Array) -> tuple[Array, bool]:
+            hint: Array, projection: TipProjection | None = None) -> tuple[Array, bool]:
     """One probe cycle's frame, encoders and pose, logged as actuator ``j``'s sample; returns the
-    pose IK's solution (the next start) and whether a pose was measured."""
+    pose IK's solution (the next start) and whether a pose (with ``projection``: a tip) was
+    measured."""
     params = loop.params
     t_wall = time.monotonic()
     reading = loop.sense(target)
     reads.append((reading.t_read, on_micro_grid(reading.encoders)))
     meas = reading.meas
     y = np.full(reading.encoders.size, np.nan)
-    ok = meas is not None and meas.ok and meas.p_world is not None and meas.R_world is not None
-    if ok and meas is not None:
-        sol = solve_pose_ik(params, meas.p_world, meas.R_world, hint)
-        hint = sol.psi
-        y = actuators_from_psi(params, sol.psi)
+    if projection is not None:
+        ok = meas is not None and meas.ok and meas.p_world is not None and bool(np.all(np.isfinite(meas.p_world)))
+        if ok and meas is not None and meas.p_world is not None:
+            y[j] = projection.output(j, meas.p_world)
+    else:
+        ok = meas is not None and meas.ok and meas.p_world is not None and meas.R_world is not None
+        if ok and meas is not None:
+            sol = solve_pose_ik(params, meas.p_world, meas.R_world, hint)
+            hint = sol.psi
+            y = actuators_from_psi(params, sol.psi)
     samples.probed.append(j)
     samples.motor.append(_encoders_at(reads, meas.t_capture if meas is not None else reads[-1][0]))
     samples.arm.append(y)

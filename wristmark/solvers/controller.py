@@ -84,7 +84,11 @@ class ControllerConfig:
     each actuator's play (rig/loop/play_probe.py: a triangle of play_probe_amplitude x its bound over
     play_probe_time [s] per actuator, then play_probe_settle [s] of closed-loop settle) and the
     inversion starts from the fitted play (solvers/play_probe_fit.py), learning it on from there
-    (play_probe_learning) or keeping the probe's.
+    (play_probe_learning) or keeping the probe's. play_probe_from_tip: an arm whose pose does not
+    give its actuators (fewer than 6 joints, or more actuators than joints) is probed too, each
+    actuator's output read from the tip alone (rig/loop/play_probe.TipProjection); off by default:
+    it helped in process (bench/any_arm.py) but not in the virtual lab at 0.35 x (noisier fits;
+    docs/your-arm.md "Dead-band inversion per actuator").
     """
 
     kind: str = "qp"
@@ -129,6 +133,7 @@ class ControllerConfig:
     play_probe_time: float = 0.6
     play_probe_settle: float = 0.6
     play_probe_learning: bool = False
+    play_probe_from_tip: bool = False
 
     def validate(self) -> None:
         """Raise ConfigError naming the offending key."""
@@ -214,7 +219,8 @@ CONTROLLER_SECTIONS: dict[str, tuple[str, tuple[str, ...]]] = {
                   "backlash_lead", "backlash_method", "backlash_margin", "backlash_freeze", "backlash_motor_burst",
                   "backlash_kinds", "backlash_actuator_space")),
     "probe": ("the play probe before the first closed-loop walk",
-              ("play_probe", "play_probe_amplitude", "play_probe_time", "play_probe_settle", "play_probe_learning")),
+              ("play_probe", "play_probe_amplitude", "play_probe_time", "play_probe_settle", "play_probe_learning",
+               "play_probe_from_tip")),
 }
 CONTROLLER_LAYOUT: dict[str, str] = {k: name for name, (_, keys) in CONTROLLER_SECTIONS.items() for k in keys}
 

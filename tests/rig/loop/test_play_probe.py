@@ -177,6 +177,7 @@ def _probe_point(robot: str) -> tuple[list, np.ndarray, list]:
     from wristmark.sim.setup import make_direct_loop
 
     setup = load_setup(robot=CONFIG_DIR / "robots" / f"{robot}.yaml")
+    setup = setup.with_changes(controller=dataclasses.replace(setup.controller, play_probe_from_tip=True))
     traj = PointHold(np.array([workspace_centre(setup.params)]), 1.0, hold=0.6)
     loop = make_direct_loop(setup, start_configuration(setup.params, traj.sample(0.0)[0]), closed_loop=True, seed=0)
     log = RunLog()
@@ -185,11 +186,32 @@ def _probe_point(robot: str) -> tuple[list, np.ndarray, list]:
     return loop.play_fits, np.asarray(setup.plant.backlash, float), [r for r in log.records if r.phase == "point:probe"]
 
 
+def test_by_default_an_arm_whose_pose_does_not_give_its_actuators_is_not_probed() -> None:
+    """single_tendon with the default controller (play_probe_from_tip off): skipped with a note
+    that names the key, nothing probed."""
+    from wristmark.models.config_files import CONFIG_DIR
+    from wristmark.rig.loop.play_probe import FEW_JOINTS
+    from wristmark.rig.loop.servo_session import PointHold
+    from wristmark.rig.recording.run_log import RunLog
+    from wristmark.rig.targets.orientation_path import start_configuration
+    from wristmark.rig.targets.trajectories import workspace_centre
+    from wristmark.sim.setup import make_direct_loop
+
+    setup = load_setup(robot=CONFIG_DIR / "robots" / "single_tendon.yaml")
+    setup = setup.with_changes(rig=dataclasses.replace(setup.rig, sensor="truth-noise"))
+    traj = PointHold(np.array([workspace_centre(setup.params)]), 1.0, hold=0.6)
+    loop = make_direct_loop(setup, start_configuration(setup.params, traj.sample(0.0)[0]), closed_loop=True, seed=0)
+    log = RunLog()
+    loop.run(traj, "point", True, log, settle=0.6)
+    assert loop.play_fits is None and loop.play_probe_note == FEW_JOINTS and "play_probe_from_tip" in FEW_JOINTS
+    assert not [r for r in log.records if r.phase == "point:probe"]
+
+
 def test_an_arm_with_fewer_joints_than_a_pose_is_probed_from_the_tip() -> None:
-    """single_tendon (4 joints, 6 actuators: stem roll, feed, 4 tendons), the reference marker:
-    each actuator's output read from the tip's motion alone (play_probe.TipProjection). Measured
-    2026-12-03: feed 99.4 um of 100, tendons 49.2-50.4 um of 50, stem roll 6.49 of 8 mrad (its
-    triangle spans less of its band)."""
+    """single_tendon (4 joints, 6 actuators: stem roll, feed, 4 tendons), the reference marker,
+    ``play_probe_from_tip``: each actuator's output read from the tip's motion alone
+    (play_probe.TipProjection). Measured 2026-12-03: feed 99.4 um of 100, tendons 49.2-50.4 um
+    of 50, stem roll 6.49 of 8 mrad (its triangle spans less of its band)."""
     fits, true, probe_cycles = _probe_point("single_tendon")
     got = np.array([f.play for f in fits])
     assert len(fits) == true.size == 6 and all(f.ok for f in fits) and probe_cycles

@@ -16,8 +16,9 @@ first-order lag is fitted too, from the targets sent and the encoders read alone
 on the loop's clock; no pose needed), for the inversion's reversal burst (``backlash_motor_burst``).
 
 An arm whose pose does not give its actuators (fewer than 6 joints, or more actuators than
-joints: tendons) is probed the same way, each actuator's output read from the tip alone along
-the tip's motion it causes (:class:`TipProjection`; any marker). Otherwise the probe assumes a
+joints: tendons) is probed the same way with the controller's ``play_probe_from_tip`` (off by
+default: skipped with a note), each actuator's output read from the tip alone along the tip's
+motion it causes (:class:`TipProjection`; any marker). Otherwise the probe assumes a
 6-DoF pose: without one (the reference marker, or a coded marker whose roll code was
 not read at the end of the settle) nothing moves, the loop's ``play_probe_note`` says so (the
 experiments put it in result.json; not on stderr, where a run prints only its one-line stop), and
@@ -49,6 +50,11 @@ from wristmark.solvers.play_probe_fit import PlayFit, fit_motor_lag, fit_play
 
 Array = NDArray[np.float64]
 RESTORE_CYCLES = 3  # cycles the probe waits after its last command (the motor's lag is ~0.07 s)
+FEW_JOINTS = ("play probe skipped: the arm has fewer than 6 joints, so a measured pose does not give its actuators "
+              "(the play is learnt online; play_probe_from_tip: true reads each from the tip)")
+MORE_ACTUATORS = ("play probe skipped: the arm has more actuators than joints (tendons or pairs), so a measured pose "
+                  "does not give each actuator's output (the play is learnt online; play_probe_from_tip: true reads "
+                  "each from the tip)")
 NO_TIP = "play probe skipped: no tip measured at the end of the settle; the play is learnt online at the reversals"
 NO_POSE = "play probe skipped: the tracker gives no 6-DoF pose (position-only marker or roll code not read); " \
           "the play is learnt online at the reversals"
@@ -116,6 +122,10 @@ def run_play_probe(loop: ProbeLoop, template: CycleTarget) -> list[PlayFit] | No
     a0 = actuators_from_psi(params, base)
     # a 6-DoF pose gives every actuator of an arm with 6 or more joints and no more actuators than
     # joints; any other arm: each probed actuator's output along the tip's motion it causes
+    if (n < 6 or m > n) and not cfg.play_probe_from_tip:
+        loop.skip(FEW_JOINTS if n < 6 else MORE_ACTUATORS)
+        ctrl.start_play(None)
+        return None
     projection = TipProjection(params, base) if (n < 6 or m > n) else None
     if meas0 is None or (projection is None and (meas0.R_world is None or not meas0.roll_known)):
         loop.skip(NO_POSE if projection is None else NO_TIP)

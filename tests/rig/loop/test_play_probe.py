@@ -6,6 +6,7 @@ import csv
 import dataclasses
 import tempfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -166,9 +167,9 @@ def test_without_a_six_dof_pose_the_probe_is_skipped_and_says_so(capsys: pytest.
     assert not [r for r in log.records if r.phase == "point:probe"] and log.phase("point")
 
 
-def _probe_point(robot: str) -> tuple[list, np.ndarray, list]:
-    """A point held on a shipped arm with its plant file (vision in the loop, the reference
-    marker): the probe's fits, the plant's plays and the log's probe cycles."""
+def _hold_point(robot: str, from_tip: bool, sensor: str = "vision") -> tuple[Any, SimSetup, list]:
+    """A point held on a shipped arm with its plant file and the reference marker (the controller's
+    ``play_probe_from_tip`` as given): the loop, its setup and the log's probe cycles."""
     from wristmark.models.config_files import CONFIG_DIR
     from wristmark.rig.loop.servo_session import PointHold
     from wristmark.rig.recording.run_log import RunLog
@@ -177,34 +178,31 @@ def _probe_point(robot: str) -> tuple[list, np.ndarray, list]:
     from wristmark.sim.setup import make_direct_loop
 
     setup = load_setup(robot=CONFIG_DIR / "robots" / f"{robot}.yaml")
-    setup = setup.with_changes(controller=dataclasses.replace(setup.controller, play_probe_from_tip=True))
+    setup = setup.with_changes(controller=dataclasses.replace(setup.controller, play_probe_from_tip=from_tip),
+                               rig=dataclasses.replace(setup.rig, sensor=sensor))
     traj = PointHold(np.array([workspace_centre(setup.params)]), 1.0, hold=0.6)
     loop = make_direct_loop(setup, start_configuration(setup.params, traj.sample(0.0)[0]), closed_loop=True, seed=0)
     log = RunLog()
     loop.run(traj, "point", True, log, settle=0.6)
+    return loop, setup, [r for r in log.records if r.phase == "point:probe"]
+
+
+def _probe_point(robot: str) -> tuple[list, np.ndarray, list]:
+    """The probe from the tip on a held point (vision in the loop): its fits, the plant's plays
+    and the log's probe cycles."""
+    loop, setup, probe_cycles = _hold_point(robot, from_tip=True)
     assert loop.play_fits is not None and loop.play_probe_note == "", loop.play_probe_note
-    return loop.play_fits, np.asarray(setup.plant.backlash, float), [r for r in log.records if r.phase == "point:probe"]
+    return loop.play_fits, np.asarray(setup.plant.backlash, float), probe_cycles
 
 
 def test_by_default_an_arm_whose_pose_does_not_give_its_actuators_is_not_probed() -> None:
     """single_tendon with the default controller (play_probe_from_tip off): skipped with a note
     that names the key, nothing probed."""
-    from wristmark.models.config_files import CONFIG_DIR
     from wristmark.rig.loop.play_probe import FEW_JOINTS
-    from wristmark.rig.loop.servo_session import PointHold
-    from wristmark.rig.recording.run_log import RunLog
-    from wristmark.rig.targets.orientation_path import start_configuration
-    from wristmark.rig.targets.trajectories import workspace_centre
-    from wristmark.sim.setup import make_direct_loop
 
-    setup = load_setup(robot=CONFIG_DIR / "robots" / "single_tendon.yaml")
-    setup = setup.with_changes(rig=dataclasses.replace(setup.rig, sensor="truth-noise"))
-    traj = PointHold(np.array([workspace_centre(setup.params)]), 1.0, hold=0.6)
-    loop = make_direct_loop(setup, start_configuration(setup.params, traj.sample(0.0)[0]), closed_loop=True, seed=0)
-    log = RunLog()
-    loop.run(traj, "point", True, log, settle=0.6)
+    loop, _, probe_cycles = _hold_point("single_tendon", from_tip=False, sensor="truth-noise")
     assert loop.play_fits is None and loop.play_probe_note == FEW_JOINTS and "play_probe_from_tip" in FEW_JOINTS
-    assert not [r for r in log.records if r.phase == "point:probe"]
+    assert not probe_cycles
 
 
 def test_an_arm_with_fewer_joints_than_a_pose_is_probed_from_the_tip() -> None:

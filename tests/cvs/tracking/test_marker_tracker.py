@@ -7,7 +7,7 @@ import pytest
 
 from wristmark.cvs.calibration.load import load_calibration
 from wristmark.cvs.tracking.stereo_match import match_corners
-from wristmark.cvs.tracking.tracker import MarkerTracker, kabsch
+from wristmark.cvs.tracking.tracker import MarkerTracker, TrackerSettings, kabsch
 from wristmark.models.arm_shape import arm_shape
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.errors import InputError
@@ -145,8 +145,6 @@ class _Blind:
 
 @pytest.mark.parametrize(("kind", "recovers"), [("auto", True), ("paper", False)])
 def test_auto_gives_the_second_detector_one_try(frames: list[RenderedPair], kind: str, recovers: bool) -> None:
-    from wristmark.cvs.tracking.tracker import TrackerSettings
-
     trk = MarkerTracker(CAM, MARKER, TrackerSettings(detector=kind))
     trk.detector_left = trk.detector_right = _Blind()  # type: ignore[assignment]
     f = frames[0]
@@ -260,9 +258,9 @@ def _count_searches(monkeypatch: pytest.MonkeyPatch) -> list[tuple[str, bool]]:
         real = cls.detect
 
         def spy(self: object, gray: object, roi: object = None, _real: object = real,
-                _name: str = cls.__name__) -> object:
+                _name: str = cls.__name__, **kw: object) -> object:
             calls.append((_name, roi is None))
-            return _real(self, gray, roi)  # type: ignore[operator]
+            return _real(self, gray, roi, **kw)  # type: ignore[operator]
 
         monkeypatch.setattr(cls, "detect", spy)
     return calls
@@ -327,7 +325,6 @@ def test_a_fit_that_hinges_on_a_corner_seen_in_one_view_only_is_refused() -> Non
     ~3 mm off; the single-view check alone refuses it, and the sleeve-facing check alone finds
     the true minimum (the wrong fit was the arc turned inside out), as the defaults do."""
     from wristmark.cvs.camera import scaled_stereo_camera
-    from wristmark.cvs.tracking.settings import TrackerSettings
 
     cam = scaled_stereo_camera(CAM, 0.5)
     # without the checks: a good reprojection RMS and a tip ~3 mm off (the lab's excursion)
@@ -350,8 +347,10 @@ def test_a_fit_that_hinges_on_a_corner_seen_in_one_view_only_is_refused() -> Non
 def test_a_corner_beside_the_chain_end_does_not_lose_the_pair() -> None:
     """planar's cube (vision in the loop, 2026-12-03, t = 2.18 s; merge of the backlash
     inversion): the arm nearly end-on, 3 + 3 true corners in view and, in the right image, one
-    more X-like corner at a chain end (the sleeve's silhouette): no pose fits them all (the paper
-    chain's 0 right corners, the saddle's 4 at 5 px). Leaving one chain end out fits the true three."""
+    more X-like corner at a chain end (the sleeve's silhouette): no pose fits them all (the
+    saddle detector's 4 at 5 px). Leaving one chain end out fits the true three. The paper
+    chain then found 0 right corners (its polarity flipped along the steep ring); along the
+    chain it now finds 4 + 4 and fits them at once (docs/notes/steep-views.md)."""
     from pathlib import Path
 
     from wristmark.sim.render.settings import noise_preset
@@ -360,9 +359,14 @@ def test_a_corner_beside_the_chain_end_does_not_lose_the_pair() -> None:
     setup = load_setup(robot=Path(CONFIG_DIR) / "robots" / "planar.yaml")
     shape = make_plant(setup, np.array([-0.24754993, 0.02842169, 0.23921744, 0.27380712])).true_shape()
     pair = StereoRenderer(setup.render_camera, setup.marker, noise_preset(setup.rig.render_noise), seed=0).render(shape)
-    before = MarkerTracker(setup.tracking_camera, setup.marker)
+    saddle = TrackerSettings(detector="saddle")
+    before = MarkerTracker(setup.tracking_camera, setup.marker, saddle)
     before._retry_without_chain_ends = lambda res, t0: res  # type: ignore[method-assign]
-    assert not before.track(pair.left, pair.right).ok  # the pair the loop lost
-    res = MarkerTracker(setup.tracking_camera, setup.marker).track(pair.left, pair.right)
+    lost = before.track(pair.left, pair.right)
+    assert not lost.ok and lost.reason.startswith("reprojection RMS")  # the pair the loop lost
+    res = MarkerTracker(setup.tracking_camera, setup.marker, saddle).track(pair.left, pair.right)
     assert res.ok and res.rms_px < 0.1 and "chain_end" in res.timings, res.reason
     assert res.tip_left is not None and np.linalg.norm(res.tip_left - pair.tip_left) < 2e-4
+    now = MarkerTracker(setup.tracking_camera, setup.marker).track(pair.left, pair.right)
+    assert now.ok and "chain_end" not in now.timings and now.corners_right.shape[0] >= 4, now.reason
+    assert now.tip_left is not None and np.linalg.norm(now.tip_left - pair.tip_left) < 1e-4

@@ -5,7 +5,9 @@ chain of ``min_corners``: the second corner is the nearest found by moving the w
 four edge directions; then the chain grows outward both ways along the local edge direction
 closest to the last step (turned by half the change of that edge since the previous corner: the
 corner circle's image is curved) until the searched distance exceeds ``stop_ratio`` times the
-last spacing. Consecutive corners alternate in polarity. ``find_chain(..., gaps=k)``: a
+last spacing. Consecutive corners alternate in polarity, taken relative to the chain's direction
+(``along_polarity``: the detector's own flips where a steeply seen sleeve's edges both lean ~45
+deg). ``find_chain(..., gaps=k)``: a
 chain that stops may step, up to k times, over one missed corner: the next corner of the *same*
 polarity between 1.5 and ``gap_ratio`` times the last spacing along the same direction (a
 specular highlight washing out the corner the camera sees best, docs/notes/highlight-stripe.md);
@@ -32,14 +34,15 @@ import numpy as np
 
 from wristmark.cvs.corners.likelihood import CornerCandidates
 from wristmark.cvs.corners.xcorner_test import NBINS, classify_candidate
-from wristmark.cvs.corners.xcorners import DetectorSettings, IntArray
+from wristmark.cvs.corners.xcorners import Array, DetectorSettings, IntArray
 
 _MAX_CHAIN = 64  # corners per chain, at most
 # The compiled functions pass three tuples:
 #   c   = (xs, ys, normalised CL, grey range, tested, ok, |CC|, polarity, edges) of the candidates
 #   im  = (grey, I_x, I_y, histogram scratch)
 #   prm = (half_window, template_scale, cc_min, contrast_ratio, cos(edge_tol), max_step_px,
-#          stop_ratio, min_corners, max_seeds, seed_candidates, max_gaps, gap_ratio)
+#          stop_ratio, min_corners, max_seeds, seed_candidates, max_gaps, gap_ratio, cos(cross_edge_tol),
+#          chain_polarity == "along")
 
 
 @numba.njit(cache=True, nogil=True)
@@ -47,6 +50,40 @@ def _xtest(c: Any, im: Any, prm: Any, k: int) -> None:  # pragma: no cover
     """The X-corner test of candidate k (cvs.corners.xcorner_test), once; im = (grey, I_x, I_y, scratch)."""
     xs, ys, _, _, tested, ok, cc, pol, edges = c
     classify_candidate(im[0], im[1], im[2], xs, ys, k, prm[0], prm[1], prm[2], tested, ok, cc, pol, edges, im[3])
+
+
+@numba.njit(cache=True, nogil=True)
+def _along_polarity(pol: Any, edges: Any, k: int, dx: float, dy: float, along: bool) -> int:  # pragma: no cover
+    """Candidate k's polarity relative to the line (dx, dy) it lies on (along_polarity; not
+    ``along``: the X-corner test's own)."""
+    if not along:
+        return int(pol[k])
+    ca, sa, cb, sb = math.cos(edges[k, 0]), math.sin(edges[k, 0]), math.cos(edges[k, 1]), math.sin(edges[k, 1])
+    cross = 1 if ca * sb - sa * cb >= 0.0 else -1
+    a_along = abs(ca * dx + sa * dy) >= abs(cb * dx + sb * dy)
+    return int(-pol[k] * cross if a_along else pol[k] * cross)
+
+
+def along_polarity(polarity: IntArray, edges: Array, directions: Array) -> IntArray:
+    """Polarities (N,) +-1 relative to each corner's chain direction ``directions`` (N, 2) (either
+    sense). The detector's polarity orders a corner's two edges by which is closer to vertical
+    (cvs.corners.xcorner_test); where both lean ~45 deg (a sleeve seen steeply) that order flips
+    from one corner to the next and so does the polarity. Here the edge along the chain comes
+    first and the other one is turned to its right (image y down): the same value wherever the
+    chain's edge is the more vertical one, and alternating along any chain. A sign of the sector
+    between two edges flips with each edge's sense, so the chain's sense drops out."""
+    ca, sa, cb, sb = np.cos(edges[:, 0]), np.sin(edges[:, 0]), np.cos(edges[:, 1]), np.sin(edges[:, 1])
+    cross = np.where(ca * sb - sa * cb >= 0.0, 1, -1)
+    dx, dy = directions[:, 0], directions[:, 1]
+    a_along = np.abs(ca * dx + sa * dy) >= np.abs(cb * dx + sb * dy)
+    return np.asarray(np.where(a_along, -polarity * cross, polarity * cross), int)
+
+
+@numba.njit(cache=True, nogil=True)
+def _cross_edge(edges: Any, k: int, dx: float, dy: float) -> float:  # pragma: no cover
+    """Candidate k's edge across the line (dx, dy): the one of its two less parallel to it [rad]."""
+    ca, sa, cb, sb = math.cos(edges[k, 0]), math.sin(edges[k, 0]), math.cos(edges[k, 1]), math.sin(edges[k, 1])
+    return float(edges[k, 1] if abs(ca * dx + sa * dy) >= abs(cb * dx + sb * dy) else edges[k, 0])
 
 
 @numba.njit(cache=True, nogil=True)
@@ -62,7 +99,10 @@ def _search(
     min_rng = np.float32(prm[3] * np.float64(rng[cur]))
     cos_tol = prm[4]
     px, py = np.float64(xs[cur]), np.float64(ys[cur])
-    want = pol[cur] if skip else -pol[cur]
+    here = _along_polarity(pol, edges, cur, dx, dy, prm[13])
+    want = here if skip else -here
+    across = _cross_edge(edges, cur, dx, dy)
+    cos_cross = prm[12]
     n = xs.size
     band = np.empty(n, np.int64)
     al = np.empty(n)
@@ -96,7 +136,7 @@ def _search(
         if used[k]:
             continue
         _xtest(c, im, prm, k)  # lazily: only window maxima need the X-corner test
-        if not ok[k] or pol[k] != want or rng[k] < min_rng:
+        if not ok[k] or _along_polarity(pol, edges, k, dx, dy, prm[13]) != want or rng[k] < min_rng:
             continue
         sx, sy = xs[k] - px, ys[k] - py
         dist = math.hypot(sx, sy)
@@ -107,6 +147,8 @@ def _search(
         along_b = abs(math.cos(edges[k, 1]) * ux + math.sin(edges[k, 1]) * uy)
         if max(along_a, along_b) < cos_tol:
             continue
+        if abs(math.cos(_cross_edge(edges, k, dx, dy) - across)) < cos_cross:
+            continue  # the squares' edges across the chain are (nearly) parallel, not texture's
         return k
     return -1
 
@@ -207,6 +249,7 @@ def find_chain(cands: CornerCandidates, s: DetectorSettings, gaps: int = 0) -> I
         int(s.half_window), float(s.template_scale), float(s.cc_min), float(s.contrast_ratio),
         math.cos(math.radians(s.edge_tol_deg)), float(s.max_step_px), float(s.stop_ratio), int(s.min_corners),
         int(s.max_seeds), int(s.seed_candidates), max(int(gaps), 0), float(s.gap_ratio),
+        math.cos(math.radians(s.cross_edge_tol_deg)), s.chain_polarity == "along",
     )
     chain: IntArray = _chain_kernel(arrays, (c.gray, c.ix, c.iy, np.empty((2, NBINS))), prm)
     return chain

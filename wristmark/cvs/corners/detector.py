@@ -23,7 +23,11 @@ Pipeline per image (or region of interest), one module per step:
    an X-corner; the second corner is the nearest found by moving the window along the four edge
    directions; then the chain grows outward both ways along the local edge direction closest to
    the last step until the searched distance exceeds twice the last spacing. Consecutive corners
-   alternate in polarity. Output order: along the chain, first corner = the end with the smaller y.
+   alternate in polarity taken along the chain (cvs.corners.chain.along_polarity: the convention
+   above flips where a steeply seen sleeve's edges both lean ~45 deg) and their edges across the
+   chain agree within ``cross_edge_tol_deg``; the chain's polarities are given so
+   (docs/notes/steep-views.md). Output order: along the chain, first corner = the end with the
+   smaller y.
 6. Sub-pixel position (cvs.corners.subpixel): the quadric S = ax^2 + by^2 + cx + dy + exy + f
    fitted by least squares to the 7x7 CL patch and its extremum (eq. 9-10), kept in
    ``corners_quadric``. Beyond the paper (``refine``, default on): a Gauss-Newton fit of the HTM
@@ -55,13 +59,14 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from wristmark.cvs.corners.chain import find_chain
+from wristmark.cvs.corners.chain import along_polarity, find_chain
 from wristmark.cvs.corners.likelihood import CornerCandidates, Image, Workspace, corner_likelihood, find_candidates
 from wristmark.cvs.corners.planar_board import assemble_grid
 from wristmark.cvs.corners.subpixel import htm_refine, quadric_subpixel, subpixel
 from wristmark.cvs.corners.xcorner_test import check_xcorners
 from wristmark.cvs.corners.xcorners import Array, CornerChain, DetectorSettings, Roi, XCorners, scaled_settings
 from wristmark.cvs.gray_image import check_image, gray_crop, to_gray
+from wristmark.models.errors import InputError
 
 __all__ = [
     "BOARD_SETTINGS",
@@ -133,14 +138,16 @@ class MarkerCornerDetector:
         self._last: Array | None = None
         self._ws = Workspace()
         # the last search's candidates, settings and image origin (for retry_with_gaps)
-        self._searched: tuple[CornerCandidates, DetectorSettings, int, int] | None = None
+        self._searched: tuple[CornerCandidates, DetectorSettings, int, int, float] | None = None
 
     def _chain_in(
-        self, img: NDArray[np.uint8], roi: Roi | None, s: DetectorSettings, times: dict[str, float]
+        self, img: NDArray[np.uint8], roi: Roi | None, s: DetectorSettings, times: dict[str, float],
+        magnify: float = 1.0,
     ) -> XCorners:
         """Chain in the whole image or in roi (x, y, w, h), full-image pixels. Only roi plus the
         filters' margin is converted to grey, so that filters inside roi equal the whole-frame
-        ones. Adds the stages' wall times [ms] to ``times``."""
+        ones; with ``magnify`` > 1 (roi only) that crop is enlarged so many times (bicubic) before
+        the search. Adds the stages' wall times [ms] to ``times``."""
         t0 = time.perf_counter()
         x0 = y0 = 0
         inner = None
@@ -148,11 +155,15 @@ class MarkerCornerDetector:
             g = to_gray(img)
         else:
             h, w = img.shape[:2]
-            pad = int(math.ceil(3 * s.smooth_sigma)) + s.half_window + s.quad_size + 2
+            pad = int(math.ceil((math.ceil(3 * s.smooth_sigma) + s.half_window + s.quad_size + 2) / magnify)) + 1
             x, y, rw, rh = roi
             x0, y0 = max(x - pad, 0), max(y - pad, 0)
             g = gray_crop(img, (x0, y0, min(x + rw + pad, w), min(y + rh + pad, h)))
             inner = (x - x0, y - y0, rw, rh)
+            if magnify > 1.0:
+                g = np.asarray(cv2.resize(g, None, fx=magnify, fy=magnify, interpolation=cv2.INTER_CUBIC), np.uint8)
+                lo = [int(math.floor((v + 0.5) * magnify - 0.5)) for v in inner[:2]]
+                inner = (lo[0], lo[1], int(math.ceil(rw * magnify)), int(math.ceil(rh * magnify)))
         t1 = time.perf_counter()
         cands = find_candidates(g, s, inner, self._ws)
         t2 = time.perf_counter()
@@ -160,13 +171,14 @@ class MarkerCornerDetector:
         t3 = time.perf_counter()
         for key, dt in (("gray_ms", t1 - t0), ("candidates_ms", t2 - t1), ("chain_ms", t3 - t2)):
             times[key] = times.get(key, 0.0) + 1e3 * dt
-        self._searched = (cands, s, x0, y0)
-        return self._corners(cands, chain, s, x0, y0, times)
+        self._searched = (cands, s, x0, y0, magnify)
+        return self._corners(cands, chain, s, x0, y0, times, magnify)
 
     def _corners(self, cands: CornerCandidates, chain: Any, s: DetectorSettings, x0: int, y0: int,
-                 times: dict[str, float]) -> XCorners:
+                 times: dict[str, float], magnify: float = 1.0) -> XCorners:
         """The chain's sub-pixel corners in full-image pixels (the searched image's origin at
-        (x0, y0)), first corner the end with the smaller y; empty for a chain under min_corners."""
+        (x0, y0), enlarged ``magnify`` times), first corner the end with the smaller y; empty for a
+        chain under min_corners."""
         t3 = time.perf_counter()
         if chain.size < s.min_corners:
             return XCorners.empty()
@@ -176,7 +188,12 @@ class MarkerCornerDetector:
         ref, q, e = subpixel(cands, chain, s, spacing)
         times["subpixel_ms"] = times.get("subpixel_ms", 0.0) + 1e3 * (time.perf_counter() - t3)
         off = np.array([x0, y0], float)
-        xc = XCorners(ref + off, q + off, cands.pol[chain].copy(), cands.cc[chain].copy(), cands.cln[chain].copy(), e)
+        ref, q = (ref + 0.5) / magnify - 0.5 + off, (q + 0.5) / magnify - 0.5 + off
+        pts = cands.points(chain)
+        step = np.gradient(pts, axis=0)  # the chain's direction at each corner (ends: their step)
+        pol = along_polarity(cands.pol[chain], cands.edges[chain], step) if s.chain_polarity == "along" else (
+            cands.pol[chain].copy())
+        xc = XCorners(ref, q, pol, cands.cc[chain].copy(), cands.cln[chain].copy(), e)
         return xc if xc.corners[0, 1] <= xc.corners[-1, 1] else xc.take(np.arange(chain.size)[::-1])
 
     def retry_with_gaps(self) -> CornerChain:
@@ -188,20 +205,24 @@ class MarkerCornerDetector:
         extras: dict[str, float] = {}
         if self._searched is None or self.settings.max_gaps <= 0:
             return self._result(XCorners.empty(), None, t0, extras)
-        cands, s, x0, y0 = self._searched
+        cands, s, x0, y0, magnify = self._searched
         chain = find_chain(cands, s, s.max_gaps)
         extras["chain_ms"] = 1e3 * (time.perf_counter() - t0)
-        return self._result(self._corners(cands, chain, s, x0, y0, extras), None, t0, extras)
+        return self._result(self._corners(cands, chain, s, x0, y0, extras, magnify), None, t0, extras)
 
-    def detect(self, gray: Any, roi: Roi | None = None) -> CornerChain:
+    def detect(self, gray: Any, roi: Roi | None = None, magnify: float = 1.0) -> CornerChain:
         """The marker chain in the whole image or in ``roi`` = (x, y, w, h) [px]; uint8 grey or
-        BGR (InputError, a ValueError, otherwise)."""
+        BGR (InputError, a ValueError, otherwise). ``magnify`` >= 1 (with a roi): the box is
+        searched enlarged so many times (a small or steeply seen marker whose squares are a few
+        pixels wide); corners are returned in the image's own pixels."""
         t0 = time.perf_counter()
         img = check_image(gray)
         s = self.settings
         extras: dict[str, float] = {}
+        if not magnify >= 1.0:
+            raise InputError(f"magnify must be >= 1, got {magnify}")
         if roi is not None:
-            return self._result(self._chain_in(img, roi, s, extras), roi, t0, extras)
+            return self._result(self._chain_in(img, roi, s, extras, magnify), roi, t0, extras)
         g = to_gray(img)
         extras["gray_ms"] = 1e3 * (time.perf_counter() - t0)
         if s.coarse_scale > 1 and g.shape[1] >= s.coarse_min_width:

@@ -12,6 +12,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
+from wristmark.models.errors import InputError
+
 Array = NDArray[np.float64]
 IntArray = NDArray[np.int_]
 Roi = tuple[int, int, int, int]
@@ -29,8 +31,14 @@ class DetectorSettings:
     refine: HTM least-squares refinement after eq. 10; refine_radius: its window half-size [px];
     max_step_px: search distance for the second marker corner [px]; stop_ratio: chain search
     limit in units of the last spacing [-]; edge_tol_deg: angle between a step and the found
-    corner's edge [deg]; contrast_ratio: least grey range of the next chain corner relative to
-    the current one [-]; min_corners: shortest chain [-]; max_seeds: first corners tried [-];
+    corner's edge [deg]; cross_edge_tol_deg: angle between consecutive chain corners' edges across
+    the chain (the column boundaries of the marker, nearly parallel; texture's X-like crossings
+    along a line are not) [deg]; chain_polarity: how the chain's corners alternate, "along" (each
+    corner's polarity relative to the chain's direction, cvs.corners.chain.along_polarity) or
+    "image" (the X-corner test's own, which flips where a steeply seen sleeve's edges both lean
+    ~45 deg: bench/tracker_walks.py --compare chain_polarity); contrast_ratio: least grey range
+    of the next chain corner relative to the current one [-]; min_corners: shortest chain [-];
+    max_seeds: first corners tried [-];
     seed_candidates: strongest candidates that may be a first corner (on rendered frames the
     marker's first corner ranks below 40) [-]; max_candidates: candidates kept [-];
     roi_margin_px: ROI margin around the previous corners, plus their largest spacing [px];
@@ -56,6 +64,8 @@ class DetectorSettings:
     max_step_px: float = 120.0
     stop_ratio: float = 2.0
     edge_tol_deg: float = 20.0
+    cross_edge_tol_deg: float = 30.0
+    chain_polarity: str = "along"
     contrast_ratio: float = 0.4
     min_corners: int = 3
     max_seeds: int = 40
@@ -66,6 +76,10 @@ class DetectorSettings:
     coarse_min_width: int = 1000
     max_gaps: int = 1
     gap_ratio: float = 3.6
+
+    def __post_init__(self) -> None:
+        if self.chain_polarity not in ("along", "image"):
+            raise InputError(f"chain_polarity must be 'along' or 'image', got '{self.chain_polarity}'")
 
 
 def scaled_settings(s: DetectorSettings, k: int) -> DetectorSettings:

@@ -171,7 +171,8 @@ def make_measurement(setup: SimSetup, arm: ActuatedArm, clock: Callable[[], floa
     source = RenderedStereoSource(arm, setup.render_camera, setup.marker, clock, noise=setup.rig.render_noise,
                                   seed=seed, age=setup.rig.frame_age,
                                   gloss=(setup.rig.sleeve_specular, setup.rig.sleeve_roughness))
-    return SynchronousFeed(source), VisionTipSensor(setup.tracking_camera, setup.marker)
+    return SynchronousFeed(source), VisionTipSensor(setup.tracking_camera, setup.marker,
+                                                    magnify=setup.rig.tracker_magnify)
 
 
 def make_truth(setup: SimSetup, arm: ActuatedArm, seed: int) -> SimulatedTruth:

@@ -36,6 +36,8 @@ def test_default_file_loads_and_matches_paper_cycle() -> None:
         ("delay_compensation_learn_window: -1\n", ["delay_compensation_learn_window", ">= 0"]),
         ("delay_compensation_learn_window: 1000\n", ["delay_compensation_learn_window", "at most 600 s"]),
         ("delay_compensation_learn_window: .nan\n", ["delay_compensation_learn_window", "finite"]),
+        ("tracker_magnify: 0.5\n", ["tracker_magnify", "1..4"]),
+        ("tracker_magnify: 9\n", ["tracker_magnify", "1..4"]),
     ],
 )
 def test_validation_errors_name_key_and_file(tmp_path: Path, text: str, words: list[str]) -> None:
@@ -116,3 +118,16 @@ def test_a_sweeps_rig_key_may_name_its_section(tmp_path: Path) -> None:
 def _named(path: Path, text: str) -> Path:
     path.write_text(text)
     return path
+
+
+def test_tracker_magnify_reaches_the_loops_tracker(tmp_path: Path) -> None:
+    """rig loop ``tracker_magnify`` is the vision sensor's tracker's ``magnify`` (sim.setup)."""
+    from wristmark.models.arm_spec import home_psi
+    from wristmark.sim.setup import load_setup, make_measurement, make_plant
+
+    f = tmp_path / "rig.yaml"
+    f.write_text("loop:\n  tracker_magnify: 2\n")
+    for rig, want in ((None, 1.0), (f, 2.0)):
+        setup = load_setup(rig=rig)
+        _, sensor = make_measurement(setup, make_plant(setup, home_psi(setup.params)), lambda: 0.0, 0)
+        assert sensor.tracker.settings.magnify == want  # type: ignore[attr-defined]

@@ -7,6 +7,7 @@ import importlib
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+from wristmark.cvs.corners.xcorners import DetectorSettings
 from wristmark.cvs.marker.decode import CodeReadSettings
 from wristmark.cvs.tracking.axis import AxisEvidenceSettings
 from wristmark.cvs.tracking.stereo_pose import PoseSettings
@@ -54,7 +55,16 @@ class TrackerSettings:
     min_corner_facing [-]: the least cosine between a used corner's outward sleeve normal and its
     direction to the camera that saw it; a fit below it puts a corner on the far side of the
     sleeve, which hides it (few corners: the arc turned inside out, 3-9 mm off;
-    cvs.tracking.sleeve_facing, docs/notes/sleeve-facing.md)."""
+    cvs.tracking.sleeve_facing, docs/notes/sleeve-facing.md); magnify [-]: a pair lost for too few
+    corners is searched once more in each view's box around its last good corners, enlarged so
+    many times (1, the default, disables: at 0.35 x a third of the pairs it recovered in steep
+    views were more than 1.5 mm off); the next pair's ROI search stays enlarged while the marker's corners
+    are less than magnify_below_px [px] apart (docs/notes/steep-views.md); paper_detector: the
+    paper detector's settings (cvs.corners.xcorners.DetectorSettings); corner_sigma_px [px],
+    max_tip_sigma_m [m]: a fit whose tip has a standard deviation above max_tip_sigma_m at
+    corner_sigma_px of noise on each corner coordinate is refused (three corners of one ring per
+    view, small or steeply seen, fix the tilt poorly and can put the tip 2-9 mm off while
+    reprojecting to 0.05 px; cvs.tracking.tip_uncertainty, docs/notes/steep-views.md)."""
 
     min_corners: int = 3
     min_pairs: int = 2
@@ -71,16 +81,22 @@ class TrackerSettings:
     strict_direction: bool = False
     max_single_view_shift_m: float = 0.001
     min_corner_facing: float = 0.0
+    magnify: float = 1.0
+    corner_sigma_px: float = 0.1
+    max_tip_sigma_m: float = 0.001
+    paper_detector: DetectorSettings = field(default_factory=DetectorSettings)
+    magnify_below_px: float = 20.0
 
 
-def make_detector(kind: str) -> CornerDetector:
-    """A corner detector of ``kind`` ('auto', 'paper', 'saddle'; InputError for another)."""
+def make_detector(kind: str, settings: DetectorSettings | None = None) -> CornerDetector:
+    """A corner detector of ``kind`` ('auto', 'paper', 'saddle'; InputError for another);
+    ``settings``: the paper detector's (default DetectorSettings())."""
     if kind not in ("auto", "paper", "saddle"):
         raise InputError(f"unknown detector '{kind}' (valid: auto, paper, saddle)")
     if kind in ("auto", "paper"):
         try:
             mod = importlib.import_module("wristmark.cvs.corners.detector")
-            det: CornerDetector = mod.MarkerCornerDetector()
+            det: CornerDetector = mod.MarkerCornerDetector(settings)
             return det
         except ImportError as e:
             if kind == "paper":

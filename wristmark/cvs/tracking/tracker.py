@@ -6,14 +6,19 @@ relative indices (cvs.tracking.stereo_match), the homography start (eq. 14-15, o
 + Kabsch when a camera sees fewer than 4 corners or the homography start does not converge),
 the CasADi stereo solve (eq. 16) and the tip (eq. 5). It returns ``ok=False`` with a reason
 rather than a doubtful pose: no marker, too few corners, no stereo pairs, a residual above
-``max_rms_px``, a fit that puts a corner on the far side of the sleeve (few corners: the arc
+``max_rms_px``, a tip the corners barely determine (its standard deviation at
+``corner_sigma_px`` of corner noise above ``max_tip_sigma_m``: cvs.tracking.tip_uncertainty), a
+fit that puts a corner on the far side of the sleeve (few corners: the arc
 turned inside out, cvs.tracking.sleeve_facing; a start in the other minimum is tried first), or
 a fit that hinges on corners seen in one view only (the best fit of the stereo pairs alone puts
 the tip more than ``max_single_view_shift_m`` away). A pair lost for too few corners gets one
 last try with chains that step over a missed corner (a specular highlight over the corner the
 camera sees best: cvs.corners.detector ``retry_with_gaps``, docs/notes/highlight-stripe.md). A
 pair whose corners fit no pose (RMS above ``max_rms_px``) gets one more with one end corner of
-a view's chain left out (an X-like corner at the sleeve's silhouette that extends a chain).
+a view's chain left out (an X-like corner at the sleeve's silhouette that extends a chain). A
+pair still lost for too few corners, where both views saw the marker before, has each view's
+box around its last good corners searched enlarged (``TrackerSettings.magnify``: a small or
+steeply seen sleeve's squares a few pixels wide; docs/notes/steep-views.md).
 ``track_corners`` takes corners directly (controller loops, baselines, tests).
 
 The sleeve looks the same after a half turn about x_wm, so which way z_wm (distal) points is
@@ -34,6 +39,7 @@ decided.
 
 from __future__ import annotations
 
+import inspect
 import time
 from collections.abc import Iterator, Sequence
 from dataclasses import replace
@@ -54,11 +60,31 @@ from wristmark.cvs.tracking.settings import CornerDetector, TrackerSettings, mak
 from wristmark.cvs.tracking.sleeve_facing import corner_facing, turned_start
 from wristmark.cvs.tracking.stereo_match import StereoMatch, StereoRectifier, match_corners
 from wristmark.cvs.tracking.stereo_pose import MarkerPose, StereoPoseSolver
+from wristmark.cvs.tracking.tip_uncertainty import tip_sigma
 from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
 
 # failures for too few corners (track_corners' words): a chain broken by a highlight
 _CORNER_REASONS = ("no marker found", "too few marker corners", "only ")
+# ... and those of a fit on few corners: more corners from an enlarged search may settle them
+_FEW_CORNER_REASONS = (*_CORNER_REASONS, "the fit puts marker corners", "the fit hinges", "the tip is uncertain")
+
+
+def _median_spacing(*chains: Array) -> float:
+    """The median distance [px] between consecutive corners of the chains (inf without any)."""
+    gaps = [np.hypot(*np.diff(c, axis=0).T) for c in chains if c.shape[0] > 1]
+    return float(np.median(np.concatenate(gaps))) if gaps else float("inf")
+
+
+def _box_around(corners: Array, shape: tuple[int, ...]) -> tuple[int, int, int, int]:
+    """The box (x, y, w, h) [px] around a view's corners with room for two more corners at each
+    end and the marker's rows beside them (margin: twice the largest spacing, at least 8 px)."""
+    gaps = np.hypot(*np.diff(corners, axis=0).T) if corners.shape[0] > 1 else np.zeros(1)
+    margin = max(2.0 * float(gaps.max()), 8.0)
+    h, w = int(shape[0]), int(shape[1])
+    lo = np.maximum(np.floor(corners.min(axis=0) - margin), 0).astype(int)
+    hi = np.minimum(np.ceil(corners.max(axis=0) + margin), [w - 1, h - 1]).astype(int)
+    return int(lo[0]), int(lo[1]), int(hi[0] - lo[0] + 1), int(hi[1] - lo[1] + 1)
 
 __all__ = ["CornerDetector", "MarkerTracker", "TrackResult", "TrackerSettings", "kabsch"]
 
@@ -77,8 +103,8 @@ class MarkerTracker:
         self.camera, self.marker = camera, marker
         self.rectifier = StereoRectifier(camera)
         self.solver = StereoPoseSolver(camera, marker, self.settings.pose)
-        self.detector_left = make_detector(self.settings.detector)
-        self.detector_right = make_detector(self.settings.detector)
+        self.detector_left = make_detector(self.settings.detector, self.settings.paper_detector)
+        self.detector_right = make_detector(self.settings.detector, self.settings.paper_detector)
         T_rl = np.eye(4)
         T_rl[:3, :3], T_rl[:3, 3] = camera.R, camera.T
         self._T_left_right = np.linalg.inv(T_rl)
@@ -93,6 +119,11 @@ class MarkerTracker:
         self._misfits: list[tuple[Array, Array, Array | None, Array | None]] = []  # this pair's
         self._use_second = self.settings.detector == "auto" and type(self.detector_left).__name__ != (
             "SaddleCornerDetector")
+        # each view's corners of the last good pair [px] (a lost pair's enlarged search looks there)
+        self._seen: tuple[Array | None, Array | None] = (None, None)
+        self._roi_magnify = 1.0  # the ROI search's enlargement (the last pair was found enlarged)
+        self._magnifies = all("magnify" in inspect.signature(d.detect).parameters
+                              for d in (self.detector_left, self.detector_right))
 
     def _fail(self, reason: str, cl: Array, cr: Array, t0: float, timings: dict[str, float], **kw: Any) -> TrackResult:
         return TrackResult(
@@ -136,7 +167,14 @@ class MarkerTracker:
             res = self._retry_with_gaps(res, t0)
         if not res.ok and self._misfits:
             res = self._retry_without_chain_ends(res, t0)
+        magnified = False
+        if not res.ok and res.reason.startswith(_FEW_CORNER_REASONS):
+            res, magnified = self._retry_magnified(res, il, ir, t0)
         found = res.ok
+        if found:
+            self._seen = (res.corners_left.copy(), res.corners_right.copy())
+            spacing = _median_spacing(res.corners_left, res.corners_right)
+            self._roi_magnify = self.settings.magnify if magnified and spacing < self.settings.magnify_below_px else 1.0
         if res.ok:
             t3 = time.perf_counter()
             res = self._orient(res, (il, ir), axis_hint_left)
@@ -199,6 +237,26 @@ class MarkerTracker:
                     follow(c)
         return out
 
+    def _retry_magnified(self, res: TrackResult, il: Any, ir: Any, t0: float) -> tuple[TrackResult, bool]:
+        """A pair lost for too few corners (or a fit on too few to trust) where both views saw the
+        marker in an earlier pair: each view's box around its last good corners searched once more
+        enlarged ``settings.magnify`` times (bicubic): a small or steeply seen sleeve's squares, a
+        few pixels wide, can fail the X-corner test at the image's own scale and pass it enlarged
+        (docs/notes/steep-views.md). The same pose gates; ``res`` unchanged when that fails.
+        Returns the result and whether it is the enlarged search's."""
+        k = self.settings.magnify
+        seen_l, seen_r = self._seen
+        if k <= 1.0 or not self._magnifies or seen_l is None or seen_r is None:
+            return res, False
+        t1 = time.perf_counter()
+        chains = [d.detect(img, _box_around(c, img.shape), magnify=k)  # type: ignore[call-arg]
+                  for d, img, c in zip((self.detector_left, self.detector_right), (il, ir), (seen_l, seen_r))]
+        res2 = self.track_corners(chains[0].corners, chains[1].corners, chains[0].polarity, chains[1].polarity,
+                                  _t0=t0)
+        out = res2 if res2.ok else res
+        out.timings["magnified"] = 1e3 * (time.perf_counter() - t1)
+        return out, res2.ok
+
     def _second_detectors(self) -> tuple[CornerDetector, CornerDetector]:
         """The saddle detector of each view ('auto': the second try), made on first use."""
         if self._second is None:
@@ -218,7 +276,8 @@ class MarkerTracker:
         if boxes[0] is None and boxes[1] is None:
             return None, (None, None)
         dets = (self.detector_left, self.detector_right)
-        chains: list[Any] = [None if b is None else d.detect(img, b) for d, img, b in zip(dets, (il, ir), boxes)]
+        mag = {"magnify": self._roi_magnify} if self._roi_magnify > 1.0 and self._magnifies else {}
+        chains: list[Any] = [None if b is None else d.detect(img, b, **mag) for d, img, b in zip(dets, (il, ir), boxes)]
         missed = [c is None or len(c.corners) < n for c in chains]
         self._continuous = not any(missed)  # the previous pose is a start and a prior only then
         if any(missed) and self._use_second and boxes[0] is not None and boxes[1] is not None:
@@ -330,6 +389,17 @@ class MarkerTracker:
                 return False
         return True
 
+    def _tip_sigma(self, pose: MarkerPose, idx_l: IntArray, idx_r: IntArray) -> float:
+        """The fit's tip standard deviation [m] at ``settings.corner_sigma_px`` of corner noise
+        (cvs.tracking.tip_uncertainty), the larger of the sleeve's two ends (the direction of
+        z_wm is decided later)."""
+        P = self.solver.marker_points
+        used_l = np.asarray(idx_l)[np.asarray(pose.inliers_left, bool)]
+        used_r = np.asarray(idx_r)[np.asarray(pose.inliers_right, bool)]
+        tip = np.asarray(self.marker.tip(), float)
+        return tip_sigma(self.camera, pose.T_fit, P(used_l), P(used_r), np.stack([tip, -tip]),
+                         self.settings.corner_sigma_px)
+
     def _consistent_prior(self, pose: MarkerPose) -> Array | None:
         """The previous pair's z_wm direction in {ll} if it may serve as a prior for this fit:
         the chains were found in the previous ROIs, the previous direction was decided, and this
@@ -352,6 +422,7 @@ class MarkerTracker:
         """Forget the ROI state: the next pair is searched in the whole frames."""
         self._tracking = self._continuous = self._last_oriented = False
         self._last_pose = None
+        self._seen, self._roi_magnify = (None, None), 1.0
 
     def _start_poses(
         self, idx_l: IntArray, ul: Array, idx_r: IntArray, ur: Array, m: StereoMatch
@@ -482,6 +553,9 @@ class MarkerTracker:
             doubt = f"reprojection RMS {best.rms_px:.2f} px above {s.max_rms_px} px: corners do not fit the marker"
         elif not best_facing:
             doubt = "the fit puts marker corners on the far side of the sleeve (too few corners to tell its tilt)"
+        elif (sigma := self._tip_sigma(best, idx_l, idx_r)) > s.max_tip_sigma_m:
+            doubt = (f"the tip is uncertain by {1e3 * sigma:.1f} mm at {s.corner_sigma_px} px of corner noise "
+                     "(too few corners, or seen too steeply, to fix the marker's tilt)")
         elif (shift := self._single_view_shift(best, idx_l, ul, idx_r, ur, m)) > s.max_single_view_shift_m:
             doubt = f"the fit hinges on corners seen in one view only (the tip moves {1e3 * shift:.1f} mm without them)"
         if doubt:

@@ -54,7 +54,7 @@ def open_hardware_session(setup: LoopSetup, options: LinkOptions, camera: str, c
         link.close()
         raise
     feed = LatestFrameFeed(source)
-    vision = VisionTipSensor(cam, setup.marker)
+    vision = VisionTipSensor(cam, setup.marker, magnify=setup.rig.tracker_magnify)
     sensor = DeadlineTipSensor(vision, setup.rig.tracking_budget)  # no cycle outlasts the box's watchdog
     session = ServoSession(link, options, feed, sensor, port=getattr(link, "port", options.port), camera=camera,
                            wall_clock=True)

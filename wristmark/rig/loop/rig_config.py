@@ -88,7 +88,11 @@ class RigConfig:
     command is then ``frame_age + vision_latency`` (vision sensor only; at most 1 s).
     sleeve_specular, sleeve_roughness: the simulated bench renders the sleeve under a glossy
     laminate of this Fresnel F0 (0: matte, as always before) and GGX roughness
-    (sim.render.settings.RenderSettings; configs/rig_glossy.yaml).
+    (sim.render.settings.RenderSettings; configs/rig_glossy.yaml). tracker_magnify: the
+    tracker's ``magnify`` (cvs.tracking.settings.TrackerSettings; 1, the default: off): a pair
+    lost for too few corners is searched once more enlarged this many times around the last
+    good corners, which keeps a small marker (image scale 0.35) in view more often at the cost
+    of more wrong tips in steep views (docs/notes/steep-views.md); 1 to 4.
     vision_latency, frame_age, plant_dt, sensor, truth_noise_rms, render_noise, tracker_rms, seed,
     realtime and the sleeve's gloss concern the simulated bench only (:data:`BENCH_KEYS`, rig.yaml's ``bench:``).
     """
@@ -125,6 +129,7 @@ class RigConfig:
     sleeve_specular: float = 0.0  # simulated bench: the sleeve's glossy laminate, Fresnel F0 (0: matte)
     sleeve_roughness: float = 0.1  # simulated bench: the laminate's GGX roughness alpha
     open_loop_on_lost: float = 0.0  # [s] marker lost: walk on open loop this long, then hold (0: hold at once)
+    tracker_magnify: float = 1.0  # a lost pair searched again enlarged this many times (1: off)
 
     def validate(self) -> None:
         """Raise ConfigError naming the offending key."""
@@ -177,6 +182,8 @@ class RigConfig:
             raise ConfigError(f"'sleeve_roughness' must be in [0.01, 1], got {self.sleeve_roughness}")
         if not 0 <= self.lost_dither <= 0.005:
             raise ConfigError(f"'lost_dither' must be in [0, 0.005] m, got {self.lost_dither}")
+        if not 1.0 <= self.tracker_magnify <= 4.0:
+            raise ConfigError(f"'tracker_magnify' must be in 1..4, got {self.tracker_magnify}")
         if self.lost_dither_after < 1:
             raise ConfigError(f"'lost_dither_after' must be >= 1, got {self.lost_dither_after}")
         if self.max_lost_cycles < 1:

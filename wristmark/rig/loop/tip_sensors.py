@@ -64,13 +64,15 @@ class VisionTipSensor:
     """Track the marker in a stereo frame's pixels; the tip in {w} through the calibration's
     ``world_T_left`` (or a separate registration, ``T_world_left``)."""
 
-    def __init__(self, camera: StereoCamera, marker: MarkerModel, T_world_left: Array | None = None) -> None:
-        from wristmark.cvs.tracking.tracker import MarkerTracker
+    def __init__(self, camera: StereoCamera, marker: MarkerModel, T_world_left: Array | None = None,
+                 magnify: float = 1.0) -> None:
+        """``magnify``: the tracker's enlarged search of a lost pair (TrackerSettings.magnify)."""
+        from wristmark.cvs.tracking.tracker import MarkerTracker, TrackerSettings
 
         self.camera = camera
         W = T_world_left if T_world_left is not None else camera.T_world_left
         self.T_world_left = None if W is None else np.asarray(W, float)
-        self.tracker = MarkerTracker(camera, marker)
+        self.tracker = MarkerTracker(camera, marker, TrackerSettings(magnify=magnify))
         self.last_frame: StereoFrame | None = None
 
     def measure(self, frame: StereoFrame, axis_hint_world: Array | None = None) -> TipMeasurement:

@@ -1,15 +1,26 @@
-"""The tracker with few corners: the arc turned inside out (cvs.tracking.sleeve_facing).
+"""The tracker on rendered walks of an arm, two or more tracker settings side by side.
 
-Usage: python bench/sleeve_facing.py [--robot tendon3] [--image-scale 0.25] [--walks 20]
-                                     [--frames 40] [--spread 0.02] [--wrong-mm 1.5]
+Usage: python bench/tracker_walks.py --compare {facing,chain_polarity} [--robot tendon3]
+           [--image-scale 0.25] [--walks 20] [--first-walk 0] [--frames 40] [--spread 0.02]
+           [--wide] [--wrong-mm 1.5]
 Prints JSON. Each walk starts at the arm's home plus a seeded offset of ``--spread`` [rad or m]
-per joint and drifts from there (a tenth of the spread per frame, as a slow servo walk), with
+per joint (``--wide``: anywhere within the joint limits where both cameras see the marker: steep
+and small views too) and drifts from there (a tenth of the spread per frame, as a slow servo walk), with
 the endoscope framed for the arm (sim.setup) at ``--image-scale``; every pair is rendered, JPEG
 coded (quality 90, as the virtual endoscope sends it) and tracked in sequence with the model's
-marker axis as the hint (as the servo loop does; ROI tracking from pair to pair), once by a
-tracker without the sleeve-facing check (``min_corner_facing`` -inf) and once by the default
-one, in the same loop: tracked rate, wrong (tip more than ``--wrong-mm`` off the truth), tip
-error mean and max [mm], median time per pair [ms] (noisy: compare the ratio).
+marker axis as the hint (as the servo loop does; ROI tracking from pair to pair) by one tracker
+per variant, in the same loop: tracked rate, wrong (tip more than ``--wrong-mm`` off the truth),
+tip error mean and max [mm], median time per pair [ms] (noisy: compare the ratio).
+
+Comparisons:
+  facing          without the sleeve-facing check (``min_corner_facing`` -inf) and the default
+                  (cvs.tracking.sleeve_facing, docs/notes/sleeve-facing.md);
+  chain_polarity  the chain's corners alternating in the X-corner test's own polarity (the
+                  paper's; ``chain_polarity: image``, no cross-edge test) against the polarity
+                  along the chain (the default), and that with the enlarged search of a lost
+                  pair (``magnify`` 2; docs/notes/steep-views.md);
+  tip_sigma       without the gate on the tip's standard deviation (``max_tip_sigma_m`` inf)
+                  and the default (cvs.tracking.tip_uncertainty).
 """
 
 from __future__ import annotations
@@ -22,24 +33,41 @@ import cv2
 import numpy as np
 
 from wristmark.cvs.camera import scaled_stereo_camera
+from wristmark.cvs.corners.xcorners import DetectorSettings
 from wristmark.cvs.tracking.tracker import MarkerTracker, TrackerSettings
 from wristmark.cvs.tracking.warmup import warm_up
 from wristmark.models.arm_spec import home_psi
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.kinematics import forward_kinematics
+from wristmark.models.limits import clamp_psi, psi_bounds
 from wristmark.sim.render.settings import noise_preset
 from wristmark.sim.render.stereo_renderer import StereoRenderer
 from wristmark.sim.setup import load_setup, make_plant
+from wristmark.sim.visibility import random_visible_psi
+
+COMPARISONS: dict[str, dict[str, TrackerSettings]] = {
+    "facing": {"without_facing_check": TrackerSettings(min_corner_facing=-np.inf), "default": TrackerSettings()},
+    "chain_polarity": {
+        "image_polarity": TrackerSettings(
+            paper_detector=DetectorSettings(chain_polarity="image", cross_edge_tol_deg=90.0), magnify=1.0),
+        "default": TrackerSettings(),
+        "magnified": TrackerSettings(magnify=2.0),
+    },
+    "tip_sigma": {"without_tip_sigma_gate": TrackerSettings(max_tip_sigma_m=np.inf), "default": TrackerSettings()},
+}
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--compare", choices=sorted(COMPARISONS), required=True)
     ap.add_argument("--robot", default="tendon3", help="a shipped arm (configs/robots/NAME.yaml)")
     ap.add_argument("--image-scale", type=float, default=0.25)
     ap.add_argument("--walks", type=int, default=20)
+    ap.add_argument("--first-walk", type=int, default=0, help="the first walk's seed (walks are seeded in turn)")
     ap.add_argument("--frames", type=int, default=40)
     ap.add_argument("--spread", type=float, default=0.02)
     ap.add_argument("--wrong-mm", type=float, default=1.5)
+    ap.add_argument("--wide", action="store_true", help="walks start anywhere within the joint limits (marker in view)")
     args = ap.parse_args()
     warm_up()
     setup = load_setup(robot=CONFIG_DIR / "robots" / f"{args.robot}.yaml")
@@ -47,17 +75,21 @@ def main() -> int:
     cam = scaled_stereo_camera(setup.tracking_camera, args.image_scale)
     W = cam.T_world_left
     assert W is not None
-    variants = {"without_facing_check": TrackerSettings(min_corner_facing=-np.inf), "default": TrackerSettings()}
+    variants = COMPARISONS[args.compare]
     stats: dict[str, dict[str, list[float]]] = {k: {"err": [], "ms": []} for k in variants}
     pairs = 0
     h = home_psi(setup.params)
-    for walk in range(args.walks):
+    for walk in range(args.first_walk, args.first_walk + args.walks):
         rng = np.random.default_rng(walk)
-        psi = h + rng.normal(0.0, args.spread, h.size)
+        if args.wide:
+            lo, hi = psi_bounds(setup.params)
+            psi = random_visible_psi(setup.params, cam, setup.marker, rng, tuple(np.minimum(0.5 * (hi - lo), np.pi)))
+        else:
+            psi = h + rng.normal(0.0, args.spread, h.size)
         renderer = StereoRenderer(render_cam, setup.marker, noise_preset("default"), seed=walk)
         trackers = {k: MarkerTracker(cam, setup.marker, s) for k, s in variants.items()}
         for _ in range(args.frames):
-            psi = psi + rng.normal(0.0, 0.1 * args.spread, h.size)
+            psi = clamp_psi(setup.params, psi + rng.normal(0.0, 0.1 * args.spread, h.size))
             shape = make_plant(setup, psi).true_shape()
             pair = renderer.render(shape)
             left, right = (cv2.imdecode(cv2.imencode(".jpg", im, [cv2.IMWRITE_JPEG_QUALITY, 90])[1],
@@ -70,8 +102,10 @@ def main() -> int:
                 stats[k]["ms"].append(1e3 * (time.perf_counter() - t0))
                 if res.ok and res.tip_left is not None:
                     stats[k]["err"].append(1e3 * float(np.linalg.norm(W[:3, :3] @ res.tip_left + W[:3, 3] - shape.tip)))
-    out: dict[str, object] = {"robot": args.robot, "image_scale": args.image_scale, "pairs": pairs,
-                              "walks": args.walks, "spread": args.spread, "wrong_mm": args.wrong_mm}
+    out: dict[str, object] = {"compare": args.compare, "robot": args.robot, "image_scale": args.image_scale,
+                              "pairs": pairs, "walks": args.walks, "first_walk": args.first_walk,
+                              "spread": args.spread, "wide": args.wide,
+                              "wrong_mm": args.wrong_mm}
     for k, s in stats.items():
         e = np.array(s["err"])
         out[k] = {"tracked_pct": round(100.0 * e.size / pairs, 1), "wrong": int((e > args.wrong_mm).sum()),

@@ -45,6 +45,7 @@ transport does (docs/notes/virtual-lab-timing.md).
 Usage: .venv/bin/python bench/virtual_lab.py [--duration S] [--scales 1 0.5] [--skip-video] [--camera-matched]
        [--phase-lock none]
        [--plant configs/plant_unseen.yaml --marker configs/marker_coded.yaml --orientation hold]
+       [--model MODEL.yaml]
 """
 
 from __future__ import annotations
@@ -117,13 +118,15 @@ def _read_lines(proc: subprocess.Popen[bytes], n: int, timeout: float) -> list[s
 @dataclass(frozen=True)
 class Scenario:
     """What both loops run: plant and marker files (None: the shipped ones), the controller file
-    (None: configs/controller.yaml) and the trajectory's orientation mode (none | hold | follow)."""
+    (None: configs/controller.yaml), the trajectory's orientation mode (none | hold | follow) and
+    the identified arm the loops command (``--model``, None: the robot file's)."""
 
     plant: str | None = None
     marker: str | None = None
     controller: str | None = None
     orientation: str = "none"
     robot: str | None = None
+    model: str | None = None
 
     def lab_args(self) -> list[str]:
         """The emulator's options for it (its true arm and its marker)."""
@@ -134,7 +137,8 @@ class Scenario:
         """The hardware path's options for it (no plant: the host never knows the true arm)."""
         return [*(["--marker", self.marker] if self.marker else []), *(["--robot", self.robot] if self.robot else []),
                 *(["--controller-config", self.controller] if self.controller else []),
-                *(["--orientation", self.orientation] if self.orientation != "none" else [])]
+                *(["--orientation", self.orientation] if self.orientation != "none" else []),
+                *(["--model", self.model] if self.model else [])]
 
 
 def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_render: bool,
@@ -228,6 +232,10 @@ def _setup_and_cube(scale: float, duration: float, rig: str | None, dt: float | 
     base = RigConfig.load(rig) if rig else setup.rig
     every: dict[str, Any] = {"image_scale": scale, **({"control_dt": dt} if dt else {}), **(changes or {})}
     setup = setup.with_changes(rig=dataclasses.replace(base, **every))
+    if scenario.model:
+        from wristmark.models.model_file import load_model
+
+        setup = setup.with_changes(model=load_model(scenario.model))
     traj = S.build_trajectory(setup, "cube", None, duration)
     if scenario.orientation != "none":
         traj = traj.with_orientation(scenario.orientation, setup.params)
@@ -323,6 +331,8 @@ def main() -> int:
                                                                 "(default configs/controller.yaml)")
     ap.add_argument("--orientation", choices=("none", "hold", "follow"), default="none",
                     help="the cube's orientation mode (default none: position only)")
+    ap.add_argument("--model", metavar="MODEL.yaml",
+                    help="identified arm both loops command (wristmark identify; default the robot file's)")
     ap.add_argument("--reference-seeds", type=int_in(0, 2**31 - 1), nargs="+", metavar="S",
                     help="also run the in-process reference with these seeds (the rig's noise) and report "
                          "the lab against their mean (the target's ratio stays against the rig file's seed)")
@@ -332,7 +342,7 @@ def main() -> int:
                          "emulator's home, ramped to the start by the loop, in the lab and in process alike")
     a = ap.parse_args()
     warm_up()  # OpenCV threads and the tracker's kernels, explicitly (building a tracker changes nothing)
-    scenario = Scenario(a.plant, a.marker, a.controller_config, a.orientation, a.robot)
+    scenario = Scenario(a.plant, a.marker, a.controller_config, a.orientation, a.robot, a.model)
     rt = realtime_priority_allowed(20)
     out: dict[str, Any] = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
                                        "load_avg_1min_at_start": os.getloadavg()[0]},

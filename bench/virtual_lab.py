@@ -196,6 +196,7 @@ def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_r
         "link_overruns": res["link"]["overruns"],
         "phase_lock": res["timing"].get("phase_lock"),
         "true_tip_mm": {"mean": err.mean_mm, "max": err.max_mm, "cycles": err.n},
+        "stopped": res["stopped"],  # why the loop stopped early ("" when it walked the whole cube)
         "true_tip_mm_variants": {  # the same run's error evaluated the earlier ways (decomposition)
             "interpolated_between_frames": {"mean": err_frames.mean_mm, "max": err_frames.max_mm},
             "between_frames_at_t_wall": {"mean": err_wall.mean_mm, "max": err_wall.max_mm}},
@@ -273,9 +274,11 @@ def in_process_run(scale: float, duration: float, rig: str | None = None, dt: fl
     session = open_sim_session(setup, psi0, S.LinkOptions(kind="emulator"), seed=setup.rig.seed,
                                rest=home_psi(setup.params) if from_home else None)
     out = S.run_servo(setup, traj, session, psi0, settle=setup.rig.settle_time)
-    c = summarize(setup, traj, session, out)["closed_loop"]
+    summary = summarize(setup, traj, session, out)
+    c = summary["closed_loop"]
     return {"true_tip_mm": {"mean": c["noise_free"]["mean_mm"], "max": c["noise_free"]["max_mm"],
                             "cycles": c["cycles"]},
+            "stopped": summary["stopped"],
             **({"orientation_deg": {"mean": c["orientation_mean_deg"], "max": c["orientation_max_deg"]}}
                if "orientation_mean_deg" in c else {}),
             "latency_ms_modelled": round(1000 * (setup.rig.frame_age + setup.rig.vision_latency), 2),

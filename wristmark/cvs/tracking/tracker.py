@@ -171,7 +171,7 @@ class MarkerTracker:
         if not res.ok and res.reason.startswith(_FEW_CORNER_REASONS):
             res, magnified = self._retry_magnified(res, il, ir, t0)
         found = res.ok
-        if found:
+        if found and self.settings.magnify > 1.0:  # only the enlarged search uses them
             self._seen = (res.corners_left.copy(), res.corners_right.copy())
             spacing = _median_spacing(res.corners_left, res.corners_right)
             self._roi_magnify = self.settings.magnify if magnified and spacing < self.settings.magnify_below_px else 1.0

@@ -91,3 +91,38 @@ def test_too_few_tips_is_refused_naming_the_cause() -> None:
     few = dataclasses.replace(data, tips=np.where(np.arange(12)[:, None] < 5, data.tips, np.nan))
     with pytest.raises(InputError, match="5 measured tips"):
         identify(ARM, few, UNIT)
+
+
+def test_with_the_camera_fits_where_it_is_and_the_arm_from_one_excitation() -> None:
+    from scipy.spatial.transform import Rotation
+
+    truth = dataclasses.replace(TRUTH, plane_offset=(0.0, 0.08))  # o1 is a turn about z_w: the camera's
+    data = synthetic(noise=2e-5)
+    data = dataclasses.replace(data, tips=predicted_tips(ARM, truth, data)
+                               + np.random.default_rng(5).normal(0, 2e-5, data.tips.shape))
+    # the camera not where the calibration says: the tips come out moved by the inverse of C
+    C = np.eye(4)
+    C[:3, :3] = Rotation.from_rotvec([0.02, -0.03, 0.025]).as_matrix()
+    C[:3, 3] = [0.004, -0.003, 0.002]
+    Ci = np.linalg.inv(C)
+    seen = dataclasses.replace(data, tips=data.tips @ Ci[:3, :3].T + Ci[:3, 3])
+
+    plain = identify(ARM, seen, UNIT)
+    fit = identify(ARM, seen, UNIT, camera=True)
+    assert fit.world_correction is not None and plain.world_correction is None
+    # 20 um of noise on tips ~0.1 m from the origin: the turn to ~0.3 mrad, the shift to ~0.1 mm
+    assert fit.world_correction[:3, :3] == pytest.approx(C[:3, :3], abs=5e-4)
+    assert fit.world_correction[:3, 3] == pytest.approx(C[:3, 3], abs=2e-4)
+    assert fit.plant.bend_gain == pytest.approx(truth.bend_gain, abs=0.005)
+    assert fit.plant.plane_offset == pytest.approx(truth.plane_offset, abs=0.005)
+    assert fit.rms_m < 5e-5 < plain.rms_m  # the arm alone cannot explain a moved camera
+    assert "camera_rot[2]" in fit.std_errors and "plane_offset[0]" not in fit.values
+    assert any("camera's turn about z_w" in note for note in fit.not_separable)
+
+
+def test_the_excitation_ramps_some_poses_slowly() -> None:
+    plan = excitation_plan(ARM, UNIT, poses=12, seed=1)
+    speeds = [plan.speed(i) for i in range(12)]
+    assert speeds.count(plan.slow_speed) == 3 and speeds.count(1.0) == 9
+    fast = dataclasses.replace(plan, slow_every=0)
+    assert plan.duration(0.06, ARM) > fast.duration(0.06, ARM)

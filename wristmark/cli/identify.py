@@ -4,7 +4,8 @@ real arm differs from its robot file (docs/identification.md; docs/design.md "Id
 Sources: the simulated bench (default, in process: ``--plant P`` is the true arm, never shown to
 the fit), hardware or the virtual lab (``--serial PORT --camera SPEC --calib CALIB``: the same
 serial link and threaded frame feed as ``wristmark servo``, rig/loop/hardware_session.py), or
-``--from-log DIR`` (an excitation recorded with ``--log DIR``: DIR/excitation.npz).
+``--from-log DIR`` (an excitation recorded with ``--log DIR``: DIR/excitation.npz; or a servo
+run's folder, ``servo``/``experiment --out RUN``: RUN/log.csv, rig/recording/run_excitation.py).
 Writes MODEL.yaml (``--out``: the plant-file keys with the fitted values, ``rms_m``, ``poses``
 and the fit's report), a summary on stderr and ``--json`` on stdout.
 """
@@ -46,14 +47,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--camera", metavar="SPEC", help="hardware / virtual lab: the stereo frame source")
     p.add_argument("--image-scale", type=float_in(MIN_IMAGE_SCALE, MAX_IMAGE_SCALE), metavar="F",
                    help="images at F x the calibrated size (simulated bench: rendered so; a camera: delivers so)")
-    p.add_argument("--from-log", metavar="DIR", help=f"identify offline from DIR/{LOG_FILE} (written by --log; "
-                   "a servo run's folder is refused: its log has no encoder readings)")
+    p.add_argument("--from-log", metavar="DIR", help=f"identify offline from DIR/{LOG_FILE} (written by --log) or "
+                   "from a servo run's folder (servo/experiment --out DIR: its log.csv)")
     p.add_argument("--log", metavar="DIR", help=f"write the excitation's record to DIR/{LOG_FILE}")
+    p.add_argument("--register-out", metavar="REG.yaml",
+                   help="also fit where the camera is, from the same excitation, and write it as a registration "
+                        "file (world_T_left; the model is then fitted in that frame: use both with --registration "
+                        "REG --model MODEL)")
     add_json_flag(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     set_example(p, "wristmark identify --plant configs/plant_unseen.yaml --out model.yaml",
                 "wristmark identify --plant configs/plant_unseen.yaml --log idlog --out model.yaml --force",
                 "wristmark identify --from-log idlog --out model2.yaml",
+                "wristmark identify --from-log runs/latest --out model3.yaml",
+                "wristmark identify --plant configs/plant_misplaced_camera.yaml --out model.yaml "
+                "--register-out reg.yaml",
                 "wristmark identify --serial /dev/pts/3 --camera http://127.0.0.1:41234/stream.mjpg --calib calib.yaml "
                 "--registration reg.yaml --image-scale 0.35 --out model.yaml")
 
@@ -70,13 +78,14 @@ def _check(args: argparse.Namespace) -> None:
     if args.from_log and (args.plant or args.sensor):
         raise InputError("--from-log identifies from the record alone: --plant and --sensor are for the "
                          "simulated bench")
-    if args.from_log and not (Path(args.from_log) / LOG_FILE).is_file():
-        if (Path(args.from_log) / "log.csv").is_file():
-            raise InputError(f"--from-log: {args.from_log} is a servo run's folder; its log.csv has the commands "
-                             "(psi_cmd) and the tip measured in motion (p_est) but no encoder readings (psi_true "
-                             f"is empty on hardware), which the fit needs: record an excitation with --log "
-                             f"(no {LOG_FILE} in {args.from_log})")
-        raise InputError(f"--from-log: no {LOG_FILE} in {args.from_log}")
+    if args.from_log and not any((Path(args.from_log) / f).is_file() for f in (LOG_FILE, "log.csv")):
+        raise InputError(f"--from-log: neither {LOG_FILE} (identify --log) nor log.csv (a servo run) in "
+                         f"{args.from_log}")
+
+
+def _outputs(args: argparse.Namespace) -> list[str]:
+    """The files this run writes (refused together when one exists without --force)."""
+    return [args.out] + ([args.register_out] if args.register_out else [])
 
 
 def _load_log(path: Path) -> Any:
@@ -153,7 +162,7 @@ def run(args: argparse.Namespace) -> int:
 
     if args.serial:
         _check(args)
-        claim_outputs(files=[args.out], dirs=[], force=args.force)
+        claim_outputs(files=_outputs(args), dirs=[], force=args.force)
         setup = _hardware_setup(args)
         data = excite_on_hardware(setup, args.serial, args.camera, args.poses, not args.no_progress)
         return _fit_and_write(args, setup, data, f"port {args.serial}, camera {args.camera}")
@@ -162,7 +171,7 @@ def run(args: argparse.Namespace) -> int:
     from wristmark.sim.setup import load_setup
 
     _check(args)
-    claim_outputs(files=[args.out], dirs=[], force=args.force)
+    claim_outputs(files=_outputs(args), dirs=[], force=args.force)
     setup = load_setup(robot=args.robot, marker=args.marker, camera=args.calib, plant=args.plant, rig=args.rig)
     if args.registration:
         from wristmark.cvs.calibration.registration_file import load_registration
@@ -176,9 +185,14 @@ def run(args: argparse.Namespace) -> int:
     if args.image_scale is not None:
         rig = dataclasses.replace(rig, image_scale=args.image_scale)
     setup = setup.with_changes(rig=rig)
-    if args.from_log:
+    if args.from_log and (Path(args.from_log) / LOG_FILE).is_file():
         data = _load_log(Path(args.from_log) / LOG_FILE)
         source = f"log {args.from_log}"
+    elif args.from_log:
+        from wristmark.rig.recording.run_excitation import excitation_from_run
+
+        data = excitation_from_run(args.from_log, setup.params)
+        source = f"servo run {args.from_log}"
     else:
         plan = bench_plan(setup, args.poses)
         from tqdm import tqdm
@@ -198,14 +212,17 @@ def _fit_and_write(args: argparse.Namespace, setup: Any, data: Any, source: str)
     if args.log:
         Path(args.log).mkdir(parents=True, exist_ok=True)
         np.savez(Path(args.log) / LOG_FILE, **{k: getattr(data, k) for k in DATA_KEYS})
-    ident = identify(setup.params, data, unit)
+    ident = identify(setup.params, data, unit, camera=bool(args.register_out))
     motion = float(data.times[-1] - data.times[0]) if data.times.size else 0.0
     report: dict[str, Any] = {"rms_m": ident.rms_m, "poses": ident.poses, "excitation_s": motion,
                               "std_errors": ident.std_errors, "not_separable": ident.not_separable,
                               "lag_per_actuator": ident.lag_per_actuator}
+    if args.register_out:
+        report["registration"] = _write_registration(args.register_out, setup, ident)
     save_model(args.out, ident.plant, report)
     print(f"identify ({source}): {ident.poses} tips over {motion:.1f} s of motion, fit rms "
-          f"{1000 * ident.rms_m:.3f} mm -> {args.out}", file=sys.stderr)
+          f"{1000 * ident.rms_m:.3f} mm -> {args.out}" + (f", {args.register_out}" if args.register_out else ""),
+          file=sys.stderr)
     for k, v in ident.values.items():
         print(f"  {k:16s} {v: .6g} +- {ident.std_errors.get(k, float('nan')):.2g}", file=sys.stderr)
     for note in ident.not_separable:
@@ -213,3 +230,15 @@ def _fit_and_write(args: argparse.Namespace, setup: Any, data: Any, source: str)
     if args.json:
         print(json.dumps({"model": str(args.out), "values": ident.values, **report}, indent=1))
     return 0
+
+
+def _write_registration(path: str, setup: Any, ident: Any) -> str:
+    """Write the camera the fit found (world_T_left = its correction @ the one the tips were
+    measured with) as a registration file; returns the path."""
+    from wristmark.cvs.calibration.registration_file import Registration, save_registration
+
+    W = setup.camera.T_world_left
+    if W is None or ident.world_correction is None:
+        raise InputError("--register-out: no world_T_left to correct (give --calib with one, or --registration)")
+    save_registration(path, Registration(ident.world_correction @ np.asarray(W, float), ident.rms_m, ident.poses))
+    return str(path)

@@ -1,7 +1,8 @@
 """The identified-arm file (``wristmark identify --out MODEL.yaml``, read by ``--model``): the
 plant file's keys with the fitted values, plus ``rms_m`` (the fit's tip residual [m]), ``poses``
 (the measured tips it used) and the fit's report (``std_errors`` per parameter, ``not_separable``,
-``excitation_s``), which :func:`load_model` reads past (docs/identification.md)."""
+``excitation_s``, and with ``--register-out`` the ``registration`` file the model is fitted in),
+which :func:`load_model` reads past (docs/identification.md)."""
 
 from __future__ import annotations
 
@@ -14,7 +15,8 @@ from wristmark.models.plant_params import PlantParams
 
 __all__ = ["REPORT_KEYS", "load_model", "save_model"]
 
-REPORT_KEYS = ("rms_m", "poses", "std_errors", "not_separable", "excitation_s", "lag_per_actuator")
+REPORT_KEYS = ("rms_m", "poses", "std_errors", "not_separable", "excitation_s", "lag_per_actuator",
+               "registration")
 
 
 def save_model(path: str | Path, plant: PlantParams, report: dict[str, Any]) -> None:

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from wristmark.models.arm_spec import as_spec, home_psi, log_psi_names
+from wristmark.models.arm_spec import as_spec, home_psi
 from wristmark.models.ik import solve_tip_ik
 from wristmark.models.kinematics import forward_kinematics
 from wristmark.rig.loop.metrics import error_stats
@@ -82,7 +82,7 @@ def run_open_closed(setup: SimSetup, traj: Trajectory, experiment: str, out_dir:
     out_dir.mkdir(parents=True, exist_ok=True)
     write_json(out_dir / "config.json", {"experiment": experiment, **setup.describe()})
     centre = workspace_centre(setup.params)
-    log = RunLog(psi_names=log_psi_names(setup.params))
+    log = RunLog.for_arm(setup.params)
     walks = {phase: walk_trajectory(setup, traj, phase == "closed_loop", log, phase, seed=seed, progress=progress,
                                     on_cycle=on_cycle, on_frame=on_frame) for phase in ("open_loop", "closed_loop")}
     stats = {phase: w.stats for phase, w in walks.items()}

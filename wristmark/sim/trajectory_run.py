@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from wristmark.models.arm_spec import home_psi, log_psi_names
+from wristmark.models.arm_spec import home_psi
 from wristmark.models.errors import ConfigError
 from wristmark.models.ik import solve_tip_ik
 from wristmark.rig.loop.metrics import (
@@ -117,7 +117,7 @@ def run_trajectory(setup: SimSetup, trajectory: Trajectory, closed_loop: bool = 
     A safe stop (marker lost, camera stalled) is reported in ``stopped``, not raised; a waypoint
     out of reach is a ConfigError before anything runs. Writes nothing to disk."""
     check_reach(setup, trajectory.waypoints)
-    log = RunLog(psi_names=log_psi_names(setup.params))
+    log = RunLog.for_arm(setup.params)
     return walk_trajectory(setup, trajectory, closed_loop, log, seed=seed, progress=progress,
                            on_cycle=on_cycle, on_frame=on_frame)
 

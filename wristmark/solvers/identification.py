@@ -48,6 +48,15 @@ ALWAYS_NOT_SEPARABLE = (
     "tip_force ~ segment_stiffness (without a known load only the load's bend is seen: the stiffness is kept at "
     "the file's and the force fitted)",
 )
+WITH_CAMERA_NOT_SEPARABLE = (
+    "plane_offset[0] ~ the camera's turn about z_w ~ the stem-rotation encoder's zero (all three turn the arm "
+    "about z_w alike: plane_offset[0] is held at the start's value and the turn is in world_T_left, as "
+    "registration does)",
+    ALWAYS_NOT_SEPARABLE[1],
+)
+CAMERA_NAMES = ("camera_rot[0]", "camera_rot[1]", "camera_rot[2]", "camera_shift[0]", "camera_shift[1]",
+                "camera_shift[2]")
+SHIFT_SCALE = 1e-3  # [m] the fit's unit of the camera's shift
 
 
 @dataclass(frozen=True)
@@ -56,7 +65,8 @@ class ExcitationData:
     ``encoders[k]`` [rad, m, ...] read then and the targets ``targets[k]`` sent just after
     (actuator units); ``sample_index[i]`` the cycle at which the tip ``tips[i]`` in {w} [m] was
     measured (NaN rows: not measured), ``psi_hint[i]`` the configuration commanded then (for the
-    bending planes at theta ~ 0)."""
+    bending planes at theta ~ 0); ``restarts`` the cycles at which a fresh arm started (its plays'
+    outputs then on their motors, as at the first cycle: e.g. each phase of an ``experiment`` run)."""
 
     times: Array
     encoders: Array
@@ -65,6 +75,7 @@ class ExcitationData:
     tips: Array
     psi_hint: Array
     meta: dict[str, object] = field(default_factory=dict)
+    restarts: tuple[int, ...] = ()
 
     def check(self, arm: Arm) -> None:
         """InputError naming what does not fit ``arm`` or each other."""
@@ -95,6 +106,7 @@ class Identification:
     std_errors: dict[str, float]
     not_separable: list[str]
     lag_per_actuator: list[float]
+    world_correction: Array | None = None  # with the camera fitted: {w} -> {w} (4x4) applied to world_T_left
 
 
 def parameter_names(arm: Arm) -> list[str]:
@@ -137,14 +149,18 @@ def unpack(arm: Arm, x: Array, play_unit: Array, base: PlantParams) -> PlantPara
                                tip_force=(float(f[0]), float(f[1]), float(f[2])))
 
 
-def play_outputs(encoders: Array, plays: Array) -> Array:
+def play_outputs(encoders: Array, plays: Array, restarts: tuple[int, ...] = ()) -> Array:
     """The play operators' outputs (K, m) of widths ``plays`` (m,) driven by the encoder rows
-    ``encoders`` (K, m), each output starting on its motor."""
+    ``encoders`` (K, m), each output starting on its motor (at the first row and at the rows
+    ``restarts``)."""
     enc = np.asarray(encoders, float)
     half = 0.5 * np.maximum(np.asarray(plays, float), 0.0)
     out = np.empty_like(enc)
     o = enc[0].copy()
+    fresh = set(restarts)
     for k in range(enc.shape[0]):
+        if k in fresh:
+            o = enc[k].copy()
         o = np.clip(o, enc[k] - half, enc[k] + half)
         out[k] = o
     return out
@@ -152,19 +168,24 @@ def play_outputs(encoders: Array, plays: Array) -> Array:
 
 def predicted_tips(arm: Arm, plant: PlantParams, data: ExcitationData) -> Array:
     """The tips in {w} [m] (N, 3) the arm with ``plant``'s errors reaches at the data's samples."""
-    outs = play_outputs(data.encoders, np.asarray(plant.backlash, float))[data.sample_index]
+    outs = play_outputs(data.encoders, np.asarray(plant.backlash, float), data.restarts)[data.sample_index]
     arm_t = true_arm(arm, plant)
     return np.array([plant_tip(arm_t, plant, psi_from_actuators(arm, a, delta_hint=h))
                      for a, h in zip(outs, data.psi_hint)])
 
 
 def identify(arm: Arm, data: ExcitationData, play_unit: Array, start: PlantParams | None = None,
-             loss_scale: float = 1e-4) -> Identification:
+             loss_scale: float = 1e-4, camera: bool = False) -> Identification:
     """Fit the plant-file parameters of ``arm`` to the excitation ``data`` (module docstring).
 
     play_unit: per actuator the play's order of magnitude [rad, m, ...] (e.g. the controller's
     backlash_play_max; the fit's scale and a bound of 3x it); start: the first guess (default the
-    ideal arm); loss_scale: the soft-L1 loss's knee [m] (residuals well above it count less)."""
+    ideal arm); loss_scale: the soft-L1 loss's knee [m] (residuals well above it count less).
+    camera: fit where the camera is as well (identification and registration from one
+    excitation): a rigid correction C of {w} with the measured tips taken as C applied to them
+    (so the registered world_T_left is C @ the one they were measured with), started from the
+    centres' closed-form alignment (Kabsch) to the start's model; plane_offset[0] is then held
+    at the start's value (its turn about z_w is the camera's)."""
     data.check(arm)
     s, m = _segments(arm), arm_size(arm)[1]
     unit = np.asarray(play_unit, float)
@@ -178,34 +199,84 @@ def identify(arm: Arm, data: ExcitationData, play_unit: Array, start: PlantParam
     lo = np.concatenate([np.full(s, 0.5), np.full(s, -0.5), [0.0], np.zeros(m), np.full(3, -10.0)])
     hi = np.concatenate([np.full(s, 1.5), np.full(s, 0.5), [1.0], np.full(m, 3.0), np.full(3, 10.0)])
     x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
+    names = parameter_names(arm)
+    scale = np.concatenate([np.ones(2 * s + 1), unit, np.full(3, FORCE_SCALE)])
+    free = np.ones(x0.size, bool)
+    if camera:
+        free[s] = False  # plane_offset[0]: the camera's turn about z_w
+        c0 = _camera_start(predicted_tips(arm, base, sub), sub.tips)
+        x0, lo, hi = np.r_[x0, c0], np.r_[lo, np.full(3, -0.5), np.full(3, -100.0)], np.r_[hi, np.full(3, 0.5),
+                                                                                          np.full(3, 100.0)]
+        x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
+        names += list(CAMERA_NAMES)
+        scale = np.r_[scale, np.ones(3), np.full(3, SHIFT_SCALE)]
+        free = np.r_[free, np.ones(6, bool)]
+    n_plant = x0.size - (6 if camera else 0)
 
-    def residual(x: Array) -> Array:
-        return (predicted_tips(arm, unpack(arm, x, unit, base), sub) - sub.tips).ravel()
+    def full(xf: Array) -> Array:
+        x = x0.copy()
+        x[free] = xf
+        return x
 
-    sol = least_squares(residual, x0, bounds=(lo, hi), loss="soft_l1", f_scale=loss_scale, x_scale=1.0,
-                        diff_step=1e-4)
-    plant = unpack(arm, sol.x, unit, base)
+    def residual(xf: Array) -> Array:
+        x = full(xf)
+        tips = _corrected(x[n_plant:], sub.tips) if camera else sub.tips
+        return (predicted_tips(arm, unpack(arm, x[:n_plant], unit, base), sub) - tips).ravel()
+
+    sol = least_squares(residual, x0[free], bounds=(lo[free], hi[free]), loss="soft_l1", f_scale=loss_scale,
+                        x_scale=1.0, diff_step=1e-4)
+    x = full(sol.x)
+    plant = unpack(arm, x[:n_plant], unit, base)
     r = residual(sol.x)
     J = np.asarray(sol.jac, float)
     n_res, n_par = r.size, sol.x.size
     sigma2 = float(r @ r) / max(1, n_res - n_par)
-    names = parameter_names(arm)
-    scale = np.concatenate([np.ones(2 * s + 1), unit, np.full(3, FORCE_SCALE)])
     cov = sigma2 * np.linalg.pinv(J.T @ J)
-    se = np.sqrt(np.maximum(np.diag(cov), 0.0)) * scale
-    notes = list(ALWAYS_NOT_SEPARABLE)
-    notes += _not_separated(J, cov, names)
+    se = np.full(x.size, np.nan)
+    se[free] = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    se *= scale
+    notes = list(WITH_CAMERA_NOT_SEPARABLE if camera else ALWAYS_NOT_SEPARABLE)
+    notes += _not_separated(J, cov, [n for n, f in zip(names, free) if f])
     lags = _lags(data)
     finite = [t for t in lags if math.isfinite(t)]
     if finite:
         plant = dataclasses.replace(plant, actuator_tau=float(np.median(finite)))
-    values = dict(zip(names, (sol.x * scale).tolist()))
+    values = {n: v for n, v, f in zip(names, (x * scale).tolist(), free) if f}
     values["actuator_tau"] = plant.actuator_tau
-    std = dict(zip(names, se.tolist()))
+    std = {n: v for n, v, f in zip(names, se.tolist(), free) if f}
     if len(finite) > 1:
         std["actuator_tau"] = float(np.std(finite, ddof=1) / math.sqrt(len(finite)))
     return Identification(plant=plant, rms_m=float(np.sqrt(np.mean(r ** 2) * 3)), poses=int(ok.sum()),
-                          values=values, std_errors=std, not_separable=notes, lag_per_actuator=lags)
+                          values=values, std_errors=std, not_separable=notes, lag_per_actuator=lags,
+                          world_correction=_correction(x[n_plant:]) if camera else None)
+
+
+def _correction(c: Array) -> Array:
+    """The rigid correction of {w} (4x4) of the fit's camera parameters (rotation vector [rad],
+    shift in SHIFT_SCALE)."""
+    from scipy.spatial.transform import Rotation
+
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_rotvec(np.asarray(c[:3], float)).as_matrix()
+    T[:3, 3] = np.asarray(c[3:6], float) * SHIFT_SCALE
+    return T
+
+
+def _corrected(c: Array, tips: Array) -> Array:
+    """The tips [m] (N, 3) in {w} moved by the correction of the camera parameters ``c``."""
+    T = _correction(c)
+    return tips @ T[:3, :3].T + T[:3, 3]
+
+
+def _camera_start(model: Array, tips: Array) -> Array:
+    """The camera parameters of the closed-form rigid alignment of the measured ``tips`` onto the
+    ``model``'s (Kabsch on the centred points, scipy's align_vectors)."""
+    from scipy.spatial.transform import Rotation
+
+    cm, ct = model.mean(axis=0), tips.mean(axis=0)
+    rot, _ = Rotation.align_vectors(model - cm, tips - ct)
+    shift = cm - rot.apply(ct)
+    return np.r_[rot.as_rotvec(), shift / SHIFT_SCALE]
 
 
 def _not_separated(J: Array, cov: Array, names: list[str]) -> list[str]:

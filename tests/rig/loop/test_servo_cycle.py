@@ -24,6 +24,15 @@ def test_ramp_steps_stay_within_the_velocity_limits_and_reach_the_target() -> No
     assert np.all(steps <= np.asarray(PARAMS.max_velocity) * DT + 1e-12)
 
 
+def test_a_slow_ramp_stays_within_its_fraction_of_the_limits() -> None:
+    start = np.asarray(HOME_PSI, float)
+    target = start + np.array([0.3, 0.01, 0.4, 0.5, 0.2, 0.6])
+    fast, slow = ramp_to(PARAMS, start, target, DT), ramp_to(PARAMS, start, target, DT, speed=0.3)
+    steps = np.abs(np.diff(np.array([start, *slow, target]), axis=0))
+    assert np.all(steps <= 0.3 * np.asarray(PARAMS.max_velocity) * DT + 1e-12)
+    assert len(slow) + 1 >= len(fast) / 0.3  # steps: ceil(x / 0.3) against ceil(x)
+
+
 def test_ramp_turns_the_bending_planes_the_short_way() -> None:
     start = np.asarray(HOME_PSI, float).copy()
     start[3] = 3.0

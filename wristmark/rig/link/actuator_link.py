@@ -48,6 +48,7 @@ class DirectLink:
 
     def __init__(self, arm: ActuatedArm) -> None:
         self.arm = arm
+        self.last_target: Array | None = None
 
     @property
     def time(self) -> float:
@@ -62,7 +63,8 @@ class DirectLink:
 
     def send_target(self, actuators: Array) -> None:
         """Set the plant's actuator targets."""
-        self.arm.command(np.asarray(actuators, float))
+        self.last_target = np.array(actuators, float)
+        self.arm.command(self.last_target)
 
     def hold(self) -> None:
         """Hold the plant."""
@@ -75,3 +77,18 @@ class DirectLink:
     def close(self) -> None:
         """Hold the plant."""
         self.arm.hold()
+
+
+def box_actuators(link: object) -> tuple[Array | None, Array | None]:
+    """What the actuator box behind ``link`` last saw, without any I/O: the target last sent to it
+    and its latest encoder readings [rad or m each] (through any wrapping link, e.g. ``--model``'s
+    rig.link.model_link.ModelLink, to the innermost one); None where the link does not say."""
+    while (inner := getattr(link, "wrapped", None)) is not None:
+        link = inner
+    target = getattr(link, "last_target", None)
+    if isinstance(link, DirectLink):
+        reading: Array | None = np.asarray(link.arm.measured_actuators(), float).copy()
+    else:
+        state = getattr(link, "state", None)
+        reading = np.asarray(state.positions, float).copy() if state is not None else None
+    return (None if target is None else np.asarray(target, float).copy()), reading

@@ -52,6 +52,11 @@ class ModelLink:
         self._turn: Array | None = None  # per actuator the extreme since its last reversal
 
     @property
+    def wrapped(self) -> ActuatorLink:
+        """The link it commands through (rig.link.actuator_link.box_actuators)."""
+        return self.link
+
+    @property
     def time(self) -> float:
         """The inner link's time [s]."""
         return self.link.time

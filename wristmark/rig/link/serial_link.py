@@ -90,6 +90,7 @@ class SerialLink:
         self.pace = bool(pace)
         self.params: Arm = driver.params
         self.state: DeviceState | None = None
+        self.last_target: Array | None = None  # the last SET_TARGET's actuators [rad or m each]
         self.stats = LinkStats()
         self.t = clock() if clock is not None else 0.0
         self.close_error = ""  # why close() could not hold / disable ("" when it could)
@@ -174,6 +175,7 @@ class SerialLink:
         silent = time.monotonic() - self._last_io
         try:
             self.state = self.driver.set_target(np.asarray(actuators, float))
+            self.last_target = np.array(actuators, float)
         except ActuatorNotEnabled as e:
             raise self._why_disabled(silent_s=silent) or e from None
         self._last_io = time.monotonic()
@@ -187,6 +189,7 @@ class SerialLink:
             lo, hi = actuator_bounds(self.params)
             target = np.clip(st.positions, lo + _HOLD_MARGIN, hi - _HOLD_MARGIN)
             self.state = self.driver.set_target(target)
+            self.last_target = target
 
     def measured_actuators(self) -> Array:
         """Encoder readings from a fresh GET_STATE [rad or m each]."""

@@ -1,7 +1,8 @@
 """The identification's excitation: the arm moved through poses, each approached from a chosen
 side of every actuator's play, and its tip measured at rest (docs/identification.md).
 
-Per pose: a ramp within the velocity limits (fast: the motors' lag shows) to the approach point,
+Per pose: a ramp to the approach point, at the velocity limits (fast: the motors' lag shows) or,
+at every ``slow_every``-th pose, at ``slow_speed`` x them (the same lag seen at another speed),
 each actuator ``approach`` x its play unit past the pose on its side (random per pose and
 actuator, so that every play is seen from both sides in many combinations), a short hold, the
 step to the pose, ``settle`` [s] at rest, then ``frames`` measured frames. Every cycle the
@@ -40,7 +41,8 @@ __all__ = ["ExcitationPlan", "excitation_plan", "run_excitation"]
 class ExcitationPlan:
     """The poses (N, n) [rad, m, ...], per pose and actuator the side (+-1) it is approached from,
     the approach distance per actuator (actuator units), the hold at the approach point and the
-    settle at the pose [s], and the frames measured per pose."""
+    settle at the pose [s], the frames measured per pose, and every ``slow_every``-th pose's ramp
+    at ``slow_speed`` x the velocity limits (0: all at full speed)."""
 
     poses: Array
     sides: Array
@@ -48,13 +50,20 @@ class ExcitationPlan:
     hold: float = 0.12
     settle: float = 0.42
     frames: int = 2
+    slow_every: int = 4
+    slow_speed: float = 0.3
+
+    def speed(self, i: int) -> float:
+        """The ramp's speed into pose ``i``'s approach point, x the velocity limits."""
+        return self.slow_speed if self.slow_every > 0 and i % self.slow_every == self.slow_every - 1 else 1.0
 
     def duration(self, dt: float, params: Arm) -> float:
         """Seconds of arm motion the plan takes at control cycle ``dt`` (ramps included)."""
         total, psi = 0.0, self.poses[0]
-        for q, side in zip(self.poses, self.sides):
+        for i, (q, side) in enumerate(zip(self.poses, self.sides)):
             a = psi_from_actuators(params, actuators_from_psi(params, q) + side * self.approach, delta_hint=q)
-            total += (len(ramp_to(params, psi, a, dt)) + 1) * dt + self.hold + self.settle + self.frames * dt
+            ramp = ramp_to(params, psi, a, dt, self.speed(i))
+            total += (len(ramp) + 1) * dt + self.hold + self.settle + self.frames * dt
             psi = q
         return total
 
@@ -156,7 +165,7 @@ def run_excitation(params: Arm, link: ActuatorLink, frames: FrameFeed, sensor: T
         for i, (q, side) in enumerate(zip(plan.poses, plan.sides)):
             a_q = actuators_from_psi(params, q) + side * plan.approach
             approach = clamp_psi(params, psi_from_actuators(params, a_q, delta_hint=q))
-            for step in ramp_to(params, psi, approach, dt) + [approach]:
+            for step in ramp_to(params, psi, approach, dt, plan.speed(i)) + [approach]:
                 cycle(step, False)
             for _ in range(max(1, round(plan.hold / dt))):
                 cycle(approach, False)

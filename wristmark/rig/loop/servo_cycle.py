@@ -24,13 +24,14 @@ from wristmark.rig.targets.trajectories import Trajectory, feedforward_velocity
 Array = NDArray[np.float64]
 
 
-def ramp_to(params: Arm, start: Array, target: Array, dt: float) -> list[Array]:
+def ramp_to(params: Arm, start: Array, target: Array, dt: float, speed: float = 1.0) -> list[Array]:
     """Intermediate configurations from ``start`` to ``target`` (both excluded), one per cycle of
-    ``dt`` [s], each step within the joint velocity limits; bending-plane angles take the short way."""
+    ``dt`` [s], each step within ``speed`` (0..1] x the joint velocity limits; bending-plane angles
+    take the short way."""
     diff = np.asarray(target, float) - np.asarray(start, float)
     for i in delta_indices(params):  # delta1, delta2 [rad]: the short way (phi is not wrapped: the stem has end stops)
         diff[i] = wrap_angle(float(diff[i]))
-    steps = int(np.ceil(np.max(np.abs(diff) / (velocity_limits(params) * dt)) - 1e-9))
+    steps = int(np.ceil(np.max(np.abs(diff) / (velocity_limits(params) * speed * dt)) - 1e-9))
     return [clamp_psi(params, np.asarray(start, float) + diff * (k / steps)) for k in range(1, steps)]
 
 

@@ -46,7 +46,7 @@ from wristmark.models.ik import solve_tip_ik
 from wristmark.models.kinematics import forward_kinematics
 from wristmark.models.limits import clamp_psi
 from wristmark.models.pose_ik import nominal_ik
-from wristmark.rig.link.actuator_link import ActuatorLink
+from wristmark.rig.link.actuator_link import ActuatorLink, box_actuators
 from wristmark.rig.loop.delay_compensation import DelayCompensator
 from wristmark.rig.loop.frame_feed import FrameFeed
 from wristmark.rig.loop.frame_phase_lock import FramePhaseLock
@@ -487,10 +487,14 @@ class ServoLoop:
     # -- the log --------------------------------------------------------------------------
     def record(self, target: CycleTarget, t_wall: float, phase: str, outcome: CycleOutcome,
                 latency_s: float) -> CycleRecord:
-        """The cycle's log record (rig.loop.servo_cycle.cycle_record) with this loop's command and feed."""
+        """The cycle's log record (rig.loop.servo_cycle.cycle_record) with this loop's command and
+        feed, and what the actuator box last saw (its target and encoders, now)."""
         assert self.psi_cmd is not None
         arrival = self.frames.last_arrival if self.frames is not None and self.wall_clock else None
-        return cycle_record(self.params, self.psi_cmd, target, t_wall, phase, outcome, latency_s, arrival)
+        rec = cycle_record(self.params, self.psi_cmd, target, t_wall, phase, outcome, latency_s, arrival)
+        rec.t_act = self.now()
+        rec.act_cmd, rec.act_meas = box_actuators(self.link)
+        return rec
 
 
 class _ProbeView:

@@ -19,7 +19,6 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from wristmark.models.arm_spec import log_psi_names
 from wristmark.models.errors import WristmarkError
 from wristmark.rig.link.actuator_link import ActuatorLink
 from wristmark.rig.loop.frame_feed import FrameFeed
@@ -182,7 +181,7 @@ def run_servo(setup: LoopSetup, traj: Trajectory, session: ServoSession, psi0: A
 
     opts = session.options
     rig = dataclasses.replace(setup.rig, realtime=(opts.realtime or opts.pace) and opts.kind == "direct")
-    out = ServoOutcome(RunLog(psi_names=log_psi_names(setup.params)))
+    out = ServoOutcome(RunLog.for_arm(setup.params))
     wall0 = time.perf_counter()
     loop: ServoLoop | None = None
     t_start = 0.0

@@ -14,7 +14,11 @@ the host could act; empty when unknown); then the tip frame's orientations in {w
 vectors [rad]: rot_des_{x,y,z} (desired; empty when the trajectory asks for none), rot_est_{x,y,z}
 (measured by vision; empty when not measured), rot_true_{x,y,z}, rot_trk_{x,y,z} (6-DoF optical
 tracker), and orientation_error (angle between the tracker's and the desired orientation [rad];
-empty when either is missing).
+empty when either is missing); then the actuators as the box saw them: t_act (when the encoders
+were read, on the frames' clock, as t_capture [s]), act_cmd_<name> (the target last sent to the
+box, after any ``--model`` link) and act_meas_<name> (its encoder readings) per actuator
+(models.arm_spec.actuator_names: phi, d, s1a, s1b, s2a, s2b for the reference arm) [rad or m]:
+what ``wristmark identify --from-log RUN`` fits.
 ``config.json`` holds every configuration used; ``result.json`` the metrics.
 """
 
@@ -35,9 +39,13 @@ from wristmark.models.so3 import angle_between, rotvec
 Array = NDArray[np.float64]
 
 _XYZ = ("x", "y", "z")
-def log_columns(psi_names: tuple[str, ...] | None = None) -> tuple[str, ...]:
+REFERENCE_ACTUATORS = ("phi", "d", "s1a", "s1b", "s2a", "s2b")
+
+
+def log_columns(psi_names: tuple[str, ...] | None = None,
+                act_names: tuple[str, ...] = REFERENCE_ACTUATORS) -> tuple[str, ...]:
     """log.csv's columns; ``psi_names``: the arm's names of psi's entries (None: the reference
-    arm's columns psi_cmd_0..5, psi_true_0..5)."""
+    arm's columns psi_cmd_0..5, psi_true_0..5); ``act_names``: its actuators' names."""
     tags = tuple(str(i) for i in range(6)) if psi_names is None else psi_names
     return (
         ("t", "t_wall", "phase")
@@ -47,7 +55,8 @@ def log_columns(psi_names: tuple[str, ...] | None = None) -> tuple[str, ...]:
         + ("meas_ok", "rejected", "vision_ms", "ctrl_us", "t_capture", "latency_ms",
            "transport_ms")
         + tuple(f"rot_{k}_{a}" for k in ("des", "est", "true", "trk") for a in _XYZ)
-        + ("orientation_error",)
+        + ("orientation_error", "t_act")
+        + tuple(f"act_{k}_{a}" for k in ("cmd", "meas") for a in act_names)
     )
 
 
@@ -81,6 +90,9 @@ class CycleRecord:
     R_true: Array | None = None
     R_trk: Array | None = None
     T_marker_est: Array | None = None  # the measured marker pose {wm} in {w} (4x4), when p_est is; not in log.csv
+    t_act: float = math.nan
+    act_cmd: Array | None = None  # the box's last target [rad or m each] (None: unknown)
+    act_meas: Array | None = None  # its encoder readings at t_act
 
     def orientation_error(self, which: str = "R_trk") -> float:
         """Angle [rad] between the orientation ``which`` (R_trk, R_true or R_est) and the
@@ -90,8 +102,8 @@ class CycleRecord:
             return math.nan
         return angle_between(self.R_des, R)
 
-    def row(self) -> list[Any]:
-        """CSV row in COLUMNS order."""
+    def row(self, actuators: int = 6) -> list[Any]:
+        """CSV row in COLUMNS order (``actuators``: the arm's count, for the act_ columns)."""
         est = self.p_est if self.p_est is not None else [math.nan] * 3
         vals: list[Any] = [f"{self.t:.6f}", _num(self.t_wall, "{:.6f}"), self.phase]
         for v in (self.p_des, self.p_cmd, est, self.p_true, self.p_trk, self.psi_cmd, self.psi_true):
@@ -102,6 +114,9 @@ class CycleRecord:
             ok = R is not None and bool(np.all(np.isfinite(R)))
             vals += [f"{x:.9g}" for x in rotvec(R)] if ok and R is not None else ["", "", ""]
         vals.append(_num(self.orientation_error(), "{:.9g}"))
+        vals.append(_num(self.t_act, "{:.6f}"))
+        for a in (self.act_cmd, self.act_meas):
+            vals += [_num(float(x), "{:.9g}") for x in np.asarray(a, float)] if a is not None else [""] * actuators
         return vals
 
 
@@ -116,6 +131,14 @@ class RunLog:
 
     records: list[CycleRecord] = field(default_factory=list)
     psi_names: tuple[str, ...] | None = None  # the arm's psi names (None: the reference arm, psi_cmd_0..5)
+    act_names: tuple[str, ...] = REFERENCE_ACTUATORS  # the arm's actuator names (act_cmd_<name>, act_meas_<name>)
+
+    @classmethod
+    def for_arm(cls, arm: Any) -> RunLog:
+        """An empty log named for ``arm`` (models.arm_spec.Arm): its psi and actuator names."""
+        from wristmark.models.arm_spec import actuator_names, log_psi_names
+
+        return cls(psi_names=log_psi_names(arm), act_names=actuator_names(arm))
 
     def add(self, rec: CycleRecord) -> None:
         """Append a cycle."""
@@ -129,9 +152,9 @@ class RunLog:
         """Write log.csv."""
         with open(path, "w", newline="") as f:
             w = csv.writer(f)
-            w.writerow(log_columns(self.psi_names))
+            w.writerow(log_columns(self.psi_names, self.act_names))
             for r in self.records:
-                w.writerow(r.row())
+                w.writerow(r.row(len(self.act_names)))
 
 
 def read_log_csv(path: str | Path) -> dict[str, Array | list[str]]:

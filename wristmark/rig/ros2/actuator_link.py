@@ -189,6 +189,11 @@ class Ros2ActuatorLink:
         """The host's monotonic clock [s]."""
         return time.monotonic()
 
+    @property
+    def last_target(self) -> Array | None:
+        """The target last sent [rad or m each] (None before the first)."""
+        return self._last_target
+
     def probe(self, wait_s: float = FIRST_STATE_TIMEOUT_S) -> Array:
         """Wait for the arm's first measured_js (before any motion); ActuatorError when none comes."""
         if not self._got_state.wait(wait_s):

@@ -24,24 +24,30 @@ def wristmark(*args: str, timeout: float = 240) -> subprocess.CompletedProcess[s
                           timeout=timeout)
 
 
-@pytest.mark.slow
-def test_identify_on_the_bench_then_offline_from_its_record(tmp_path: Path) -> None:
-    r = wristmark("identify", "--plant", UNSEEN, "--poses", "12", "--out", str(tmp_path / "m.yaml"),
+def identify_on_the_bench_and_offline(tmp_path: Path, *options: str) -> tuple[dict, dict]:
+    """(the model identify writes on the bench with ``options`` and --log, the one refitted
+    offline from that record)."""
+    r = wristmark("identify", "--plant", UNSEEN, *options, "--out", str(tmp_path / "m.yaml"),
                   "--log", str(tmp_path / "log"), "--no-progress")
     assert r.returncode == 0, r.stderr
-    model = yaml.safe_load((tmp_path / "m.yaml").read_text())
+    off = wristmark("identify", "--from-log", str(tmp_path / "log"), "--out", str(tmp_path / "m2.yaml"))
+    assert off.returncode == 0, off.stderr
+    return yaml.safe_load((tmp_path / "m.yaml").read_text()), yaml.safe_load((tmp_path / "m2.yaml").read_text())
+
+
+@pytest.mark.slow
+def test_identify_on_the_bench_then_offline_from_its_record(tmp_path: Path) -> None:
+    model, again = identify_on_the_bench_and_offline(tmp_path, "--poses", "12")
     assert model["poses"] >= 12 and model["rms_m"] < 3e-4
     assert model["bend_gain"] == pytest.approx([1.06, 0.88], abs=0.02)  # the unseen plant's truth
     assert any("stem-rotation" in note for note in model["not_separable"])
-    off = wristmark("identify", "--from-log", str(tmp_path / "log"), "--out", str(tmp_path / "m2.yaml"))
-    assert off.returncode == 0, off.stderr
-    again = yaml.safe_load((tmp_path / "m2.yaml").read_text())
     assert again["bend_gain"] == pytest.approx(model["bend_gain"], abs=1e-9)
 
 
 @pytest.mark.parametrize("args, cause", [
     (("--serial", "/dev/null", "--camera", "0"), "--serial/--camera"),
     (("--from-log", "nowhere"), "--from-log: neither excitation.npz"),
+    (("--from-log", "nowhere", "--load", "0.1"), "--load are for the simulated bench"),
     (("--plant", "missing.yaml"), "missing.yaml"),
     (("--serial", "/dev/null"), "needs both --serial PORT and --camera SPEC"),
     (("--serial", "/dev/null", "--camera", "0"), "need --calib CALIB"),
@@ -80,6 +86,17 @@ def test_identify_offline_from_a_servo_run_of_the_unseen_arm(tmp_path: Path) -> 
     assert model["bend_gain"] == pytest.approx([1.06, 0.88], abs=0.02)  # the unseen plant's truth
     assert model["plane_offset"] == pytest.approx([-0.06, 0.08], abs=0.03)
     assert model["actuator_tau"] == pytest.approx(0.07, abs=0.01)
+
+
+@pytest.mark.slow
+def test_a_known_load_on_the_bench_gives_the_stiffness_and_the_arms_own_load(tmp_path: Path) -> None:
+    model, again = identify_on_the_bench_and_offline(tmp_path, "--load", "0.15")
+    # the unseen plant's truth: stiffness [0.35, 0.12] N m/rad, its own load [0.03, 0.05, -0.08] N;
+    # measured: 0.349 / 0.123 and 0.030 / 0.049 / -0.079
+    assert model["segment_stiffness"] == pytest.approx([0.35, 0.12], rel=0.1)
+    assert model["tip_force"] == pytest.approx([0.03, 0.05, -0.08], abs=0.01)
+    assert not any(note.startswith("tip_force ~ segment_stiffness") for note in model["not_separable"])
+    assert again["segment_stiffness"] == pytest.approx(model["segment_stiffness"], abs=1e-9)
 
 
 @pytest.mark.slow

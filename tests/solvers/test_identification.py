@@ -126,3 +126,20 @@ def test_the_excitation_ramps_some_poses_slowly() -> None:
     assert speeds.count(plan.slow_speed) == 3 and speeds.count(1.0) == 9
     fast = dataclasses.replace(plan, slow_every=0)
     assert plan.duration(0.06, ARM) > fast.duration(0.06, ARM)
+
+
+def test_a_known_load_on_some_poses_separates_the_stiffness_from_the_arms_own_load() -> None:
+    truth = dataclasses.replace(TRUTH, segment_stiffness=(0.35, 0.12))
+    data = synthetic(noise=0.0)
+    n = data.sample_index.size
+    loads = np.array([[0.0, 0.0, -0.15] if i % 2 else [0.0, 0.0, 0.0] for i in range(n)])
+    data = dataclasses.replace(data, loads=loads)
+    data = dataclasses.replace(data, tips=predicted_tips(ARM, truth, data)
+                               + np.random.default_rng(7).normal(0, 2e-5, (n, 3)))
+    fit = identify(ARM, data, UNIT)
+    assert fit.plant.segment_stiffness == pytest.approx(truth.segment_stiffness, rel=0.1)
+    assert fit.plant.tip_force == pytest.approx(truth.tip_force, abs=0.01)
+    assert "segment_stiffness[1]" in fit.std_errors
+    assert not any(note.startswith("tip_force ~ segment_stiffness") for note in fit.not_separable)
+    unloaded = identify(ARM, dataclasses.replace(data, loads=None), UNIT)  # the same tips, the load not known
+    assert "segment_stiffness[0]" not in unloaded.values and unloaded.rms_m > 2 * fit.rms_m

@@ -27,6 +27,7 @@ from wristmark.rig.recording.output_dir import claim_outputs
 
 LOG_FILE = "excitation.npz"
 DATA_KEYS = ("times", "encoders", "targets", "sample_index", "tips", "psi_hint")
+OPTIONAL_KEYS = ("loads",)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -42,6 +43,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--rig", metavar="YAML", help="rig/loop file (default configs/rig.yaml)")
     p.add_argument("--sensor", choices=("vision", "truth-noise"),
                    help="simulated bench: rendered images + tracker (default) or truth+noise (fast)")
+    p.add_argument("--load", type=float_in(0.0, 1.0), default=0.0, metavar="N",
+                   help="simulated bench: hang a known N newton weight (along -z_w) on the tip at every other "
+                        "pose, so that the segments' stiffness is fitted too (default 0: none)")
     p.add_argument("--seed", type=seed_int(), help="pose choice and render noise seed (default the rig's)")
     p.add_argument("--serial", metavar="PORT", help="hardware / virtual lab: the actuator box's serial port")
     p.add_argument("--camera", metavar="SPEC", help="hardware / virtual lab: the stereo frame source")
@@ -70,13 +74,13 @@ def _check(args: argparse.Namespace) -> None:
     if args.serial or args.camera:
         if not (args.serial and args.camera):
             raise InputError("hardware / the virtual lab needs both --serial PORT and --camera SPEC")
-        if args.from_log or args.plant or args.sensor:
-            raise InputError("--serial/--camera identify the arm on the port: --from-log, --plant and --sensor "
-                             "are for other sources")
+        if args.from_log or args.plant or args.sensor or args.load:
+            raise InputError("--serial/--camera identify the arm on the port: --from-log, --plant, --sensor and "
+                             "--load are for other sources")
         if not args.calib:
             raise InputError("--serial/--camera need --calib CALIB (the stereo calibration of that camera)")
-    if args.from_log and (args.plant or args.sensor):
-        raise InputError("--from-log identifies from the record alone: --plant and --sensor are for the "
+    if args.from_log and (args.plant or args.sensor or args.load):
+        raise InputError("--from-log identifies from the record alone: --plant, --sensor and --load are for the "
                          "simulated bench")
     if args.from_log and not any((Path(args.from_log) / f).is_file() for f in (LOG_FILE, "log.csv")):
         raise InputError(f"--from-log: neither {LOG_FILE} (identify --log) nor log.csv (a servo run) in "
@@ -96,12 +100,13 @@ def _load_log(path: Path) -> Any:
             missing = [k for k in DATA_KEYS if k not in z]
             if missing:
                 raise InputError(f"{path}: missing {', '.join(missing)}")
-            arrays = {k: np.asarray(z[k]) for k in DATA_KEYS}
+            arrays = {k: np.asarray(z[k]) for k in DATA_KEYS + OPTIONAL_KEYS if k in z}
     except (OSError, ValueError) as e:
         raise InputError(f"{path}: not an excitation record ({e})") from None
     f = {k: arrays[k].astype(float) for k in ("times", "encoders", "targets", "tips", "psi_hint")}
+    loads = arrays["loads"].astype(float) if "loads" in arrays else None
     return ExcitationData(f["times"], f["encoders"], f["targets"], arrays["sample_index"].astype(int), f["tips"],
-                          f["psi_hint"])
+                          f["psi_hint"], loads=loads)
 
 
 def _hardware_setup(args: argparse.Namespace) -> Any:
@@ -194,7 +199,7 @@ def run(args: argparse.Namespace) -> int:
         data = excitation_from_run(args.from_log, setup.params)
         source = f"servo run {args.from_log}"
     else:
-        plan = bench_plan(setup, args.poses)
+        plan = bench_plan(setup, args.poses, load=args.load)
         from tqdm import tqdm
 
         with tqdm(total=args.poses, desc="identify: excitation", disable=args.no_progress, leave=False) as bar:
@@ -211,7 +216,8 @@ def _fit_and_write(args: argparse.Namespace, setup: Any, data: Any, source: str)
     unit = setup.controller.play_max_for(setup.params)
     if args.log:
         Path(args.log).mkdir(parents=True, exist_ok=True)
-        np.savez(Path(args.log) / LOG_FILE, **{k: getattr(data, k) for k in DATA_KEYS})
+        extra = {"loads": data.loads} if data.loads is not None else {}
+        np.savez(Path(args.log) / LOG_FILE, **{k: getattr(data, k) for k in DATA_KEYS}, **extra)
     ident = identify(setup.params, data, unit, camera=bool(args.register_out))
     motion = float(data.times[-1] - data.times[0]) if data.times.size else 0.0
     report: dict[str, Any] = {"rms_m": ident.rms_m, "poses": ident.poses, "excitation_s": motion,

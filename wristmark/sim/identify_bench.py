@@ -4,7 +4,10 @@ moved through an excitation plan (rig/loop/excitation.py) and fitted (solvers/id
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
+
+import numpy as np
 
 from wristmark.rig.link.actuator_link import DirectLink
 from wristmark.rig.loop.excitation import ExcitationPlan, excitation_plan, run_excitation
@@ -15,11 +18,16 @@ from wristmark.solvers.identification import ExcitationData
 __all__ = ["bench_plan", "excite_on_bench"]
 
 
-def bench_plan(setup: SimSetup, poses: int = 30, seed: int | None = None) -> ExcitationPlan:
+def bench_plan(setup: SimSetup, poses: int = 30, seed: int | None = None, load: float = 0.0) -> ExcitationPlan:
     """The default excitation for the setup's arm: plays in units of the controller's
-    backlash_play_max (sized to the arm)."""
+    backlash_play_max (sized to the arm); ``load`` > 0 [N]: a known weight (along -z_w) hung on
+    the tip at every other pose (the segments' stiffness is then seen)."""
     unit = ControllerConfig.play_max_for(setup.controller, setup.params)
-    return excitation_plan(setup.params, unit, poses=poses, seed=setup.rig.seed if seed is None else seed)
+    plan = excitation_plan(setup.params, unit, poses=poses, seed=setup.rig.seed if seed is None else seed)
+    if load <= 0:
+        return plan
+    loads = np.array([[0.0, 0.0, -load] if i % 2 else [0.0, 0.0, 0.0] for i in range(poses)])
+    return dataclasses.replace(plan, loads=loads)
 
 
 def excite_on_bench(setup: SimSetup, plan: ExcitationPlan, seed: int | None = None,
@@ -30,4 +38,11 @@ def excite_on_bench(setup: SimSetup, plan: ExcitationPlan, seed: int | None = No
     plant = make_plant(setup, plan.poses[0])
     link = DirectLink(plant)
     frames, sensor = make_measurement(setup, plant, lambda: link.time, seed)
-    return run_excitation(setup.params, link, frames, sensor, plan, setup.rig.control_dt, on_pose=on_pose)
+    own = plant.plant
+
+    def hang(force: np.ndarray) -> None:  # the known load on top of the arm's own
+        f = np.asarray(own.tip_force, float) + np.asarray(force, float)
+        plant.plant = dataclasses.replace(own, tip_force=(float(f[0]), float(f[1]), float(f[2])))
+
+    return run_excitation(setup.params, link, frames, sensor, plan, setup.rig.control_dt, on_pose=on_pose,
+                          apply_load=hang if plan.loads is not None else None)

@@ -15,7 +15,8 @@ that the data cannot tell apart are found from the correlations and the smallest
 values of the column-normalised Jacobian, and listed with the ones that cannot be separated by
 construction (the first plane offset against the stem-rotation encoder's zero; the tip force
 against the segments' stiffness without a known load: the stiffness is kept at the file's and
-the force fitted as the load that bends the arm so).
+the force fitted as the load that bends the arm so). With a known load on some samples
+(``ExcitationData.loads``) the segments' stiffness is fitted too.
 """
 
 from __future__ import annotations
@@ -76,6 +77,11 @@ class ExcitationData:
     psi_hint: Array
     meta: dict[str, object] = field(default_factory=dict)
     restarts: tuple[int, ...] = ()
+    loads: Array | None = None  # per sample a known tip force added to the arm's own [N] in {w} (None: none)
+
+    def loaded(self) -> bool:
+        """Whether some samples carry a known load and others another (the stiffness is then seen)."""
+        return self.loads is not None and bool(np.ptp(np.asarray(self.loads, float), axis=0).max() > 0)
 
     def check(self, arm: Arm) -> None:
         """InputError naming what does not fit ``arm`` or each other."""
@@ -170,8 +176,15 @@ def predicted_tips(arm: Arm, plant: PlantParams, data: ExcitationData) -> Array:
     """The tips in {w} [m] (N, 3) the arm with ``plant``'s errors reaches at the data's samples."""
     outs = play_outputs(data.encoders, np.asarray(plant.backlash, float), data.restarts)[data.sample_index]
     arm_t = true_arm(arm, plant)
-    return np.array([plant_tip(arm_t, plant, psi_from_actuators(arm, a, delta_hint=h))
-                     for a, h in zip(outs, data.psi_hint)])
+    if data.loads is None:
+        return np.array([plant_tip(arm_t, plant, psi_from_actuators(arm, a, delta_hint=h))
+                         for a, h in zip(outs, data.psi_hint)])
+    own = np.asarray(plant.tip_force, float)
+    loaded = {tuple(f): dataclasses.replace(plant, tip_force=(float(own[0] + f[0]), float(own[1] + f[1]),
+                                                              float(own[2] + f[2])))
+              for f in np.asarray(data.loads, float)}
+    return np.array([plant_tip(arm_t, loaded[tuple(f)], psi_from_actuators(arm, a, delta_hint=h))
+                     for a, h, f in zip(outs, data.psi_hint, np.asarray(data.loads, float))])
 
 
 def identify(arm: Arm, data: ExcitationData, play_unit: Array, start: PlantParams | None = None,
@@ -193,7 +206,9 @@ def identify(arm: Arm, data: ExcitationData, play_unit: Array, start: PlantParam
         raise InputError(f"identification: the play unit must be {m} values > 0, got {unit.tolist()}")
     base = (start or PlantParams()).for_arm(s, m)
     ok = np.isfinite(data.tips).all(axis=1)
-    sub = dataclasses.replace(data, sample_index=data.sample_index[ok], tips=data.tips[ok], psi_hint=data.psi_hint[ok])
+    sub = dataclasses.replace(data, sample_index=data.sample_index[ok], tips=data.tips[ok], psi_hint=data.psi_hint[ok],
+                              loads=None if data.loads is None else np.asarray(data.loads, float)[ok])
+    stiff = sub.loaded()  # a known load on some samples: the stiffness is seen
     x0 = pack(arm, base, unit)
     x0[2 * s + 1:2 * s + 1 + m] = np.clip(x0[2 * s + 1:2 * s + 1 + m], 0.0, 3.0)
     lo = np.concatenate([np.full(s, 0.5), np.full(s, -0.5), [0.0], np.zeros(m), np.full(3, -10.0)])
@@ -202,6 +217,13 @@ def identify(arm: Arm, data: ExcitationData, play_unit: Array, start: PlantParam
     names = parameter_names(arm)
     scale = np.concatenate([np.ones(2 * s + 1), unit, np.full(3, FORCE_SCALE)])
     free = np.ones(x0.size, bool)
+    if stiff:
+        k0 = np.asarray(base.segment_stiffness, float)
+        x0, lo, hi = np.r_[x0, k0], np.r_[lo, np.full(s, 0.02)], np.r_[hi, np.full(s, 5.0)]
+        x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
+        names += [f"segment_stiffness[{t}]" for t in range(s)]
+        scale, free = np.r_[scale, np.ones(s)], np.r_[free, np.ones(s, bool)]
+    n_plant = x0.size
     if camera:
         free[s] = False  # plane_offset[0]: the camera's turn about z_w
         c0 = _camera_start(predicted_tips(arm, base, sub), sub.tips)
@@ -211,7 +233,11 @@ def identify(arm: Arm, data: ExcitationData, play_unit: Array, start: PlantParam
         names += list(CAMERA_NAMES)
         scale = np.r_[scale, np.ones(3), np.full(3, SHIFT_SCALE)]
         free = np.r_[free, np.ones(6, bool)]
-    n_plant = x0.size - (6 if camera else 0)
+    n_core = n_plant - (s if stiff else 0)
+
+    def plant_of(x: Array) -> PlantParams:
+        p = unpack(arm, x[:n_core], unit, base)
+        return dataclasses.replace(p, segment_stiffness=tuple(map(float, x[n_core:n_plant]))) if stiff else p
 
     def full(xf: Array) -> Array:
         x = x0.copy()
@@ -221,12 +247,12 @@ def identify(arm: Arm, data: ExcitationData, play_unit: Array, start: PlantParam
     def residual(xf: Array) -> Array:
         x = full(xf)
         tips = _corrected(x[n_plant:], sub.tips) if camera else sub.tips
-        return (predicted_tips(arm, unpack(arm, x[:n_plant], unit, base), sub) - tips).ravel()
+        return (predicted_tips(arm, plant_of(x), sub) - tips).ravel()
 
     sol = least_squares(residual, x0[free], bounds=(lo[free], hi[free]), loss="soft_l1", f_scale=loss_scale,
                         x_scale=1.0, diff_step=1e-4)
     x = full(sol.x)
-    plant = unpack(arm, x[:n_plant], unit, base)
+    plant = plant_of(x)
     r = residual(sol.x)
     J = np.asarray(sol.jac, float)
     n_res, n_par = r.size, sol.x.size
@@ -236,6 +262,8 @@ def identify(arm: Arm, data: ExcitationData, play_unit: Array, start: PlantParam
     se[free] = np.sqrt(np.maximum(np.diag(cov), 0.0))
     se *= scale
     notes = list(WITH_CAMERA_NOT_SEPARABLE if camera else ALWAYS_NOT_SEPARABLE)
+    if stiff:  # the known load separates the stiffness from the arm's own load
+        notes = [n for n in notes if not n.startswith("tip_force ~ segment_stiffness")]
     notes += _not_separated(J, cov, [n for n, f in zip(names, free) if f])
     lags = _lags(data)
     finite = [t for t in lags if math.isfinite(t)]

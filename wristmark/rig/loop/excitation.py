@@ -15,6 +15,7 @@ bench, the virtual lab and hardware alike.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,7 +43,8 @@ class ExcitationPlan:
     """The poses (N, n) [rad, m, ...], per pose and actuator the side (+-1) it is approached from,
     the approach distance per actuator (actuator units), the hold at the approach point and the
     settle at the pose [s], the frames measured per pose, and every ``slow_every``-th pose's ramp
-    at ``slow_speed`` x the velocity limits (0: all at full speed)."""
+    at ``slow_speed`` x the velocity limits (0: all at full speed); ``loads``: per pose a known
+    tip force [N] in {w} hung on the arm (a bench that can load it: run_excitation's apply_load)."""
 
     poses: Array
     sides: Array
@@ -52,6 +54,7 @@ class ExcitationPlan:
     frames: int = 2
     slow_every: int = 4
     slow_speed: float = 0.3
+    loads: Array | None = None  # per pose a known tip force added to the arm's own [N] in {w} (None: none)
 
     def speed(self, i: int) -> float:
         """The ramp's speed into pose ``i``'s approach point, x the velocity limits."""
@@ -114,7 +117,8 @@ def _is_prismatic(params: Arm, n: int) -> NDArray[np.bool_]:
 
 
 def run_excitation(params: Arm, link: ActuatorLink, frames: FrameFeed, sensor: TipSensor, plan: ExcitationPlan,
-                   dt: float, on_pose: object = None, frame_wait: float = 0.0) -> ExcitationData:
+                   dt: float, on_pose: object = None, frame_wait: float = 0.0,
+                   apply_load: Callable[[Array], None] | None = None) -> ExcitationData:
     """Move the arm through ``plan`` one target per control cycle of ``dt`` [s], reading the
     encoders every cycle and measuring ``plan.frames`` frames at rest at every pose; the arm is
     held at the end. ``on_pose(i)`` after each pose (progress).
@@ -125,13 +129,21 @@ def run_excitation(params: Arm, link: ActuatorLink, frames: FrameFeed, sensor: T
     again after the wait, which feeds the box's watchdog before the frame is tracked; a frame
     not tracked (the tracker's budget ran out: the first frame at a new pose may need a search of
     the whole image) is not recorded, and the pose is held for up to MEASURE_TRIES x
-    ``plan.frames`` cycles until ``plan.frames`` frames were tracked."""
+    ``plan.frames`` cycles until ``plan.frames`` frames were tracked.
+
+    A plan with ``loads`` needs ``apply_load(F)``, which hangs the known tip force F [N] in {w}
+    on the arm (the simulated bench); it is called before each pose's approach, and each
+    measured tip's load is recorded for the fit."""
+    if plan.loads is not None and apply_load is None:
+        raise ValueError("an excitation with known loads needs a bench that applies them (apply_load)")
     times: list[float] = []
     enc: list[Array] = []
     tgt: list[Array] = []
     idx: list[int] = []
     tips: list[Array] = []
     hints: list[Array] = []
+    loads: list[Array] = []
+    load = np.zeros(3)
     psi = psi_from_actuators(params, np.asarray(link.measured_actuators(), float), delta_hint=plan.poses[0])
     t = float(link.time)
 
@@ -156,6 +168,7 @@ def run_excitation(params: Arm, link: ActuatorLink, frames: FrameFeed, sensor: T
                 tips.append(np.asarray(meas.p_world, float) if ok and meas is not None and meas.p_world is not None
                             else np.full(3, np.nan))
                 hints.append(np.asarray(command, float))
+                loads.append(load.copy())
         a = actuators_from_psi(params, command)
         link.send_target(a)
         tgt.append(a)
@@ -163,6 +176,9 @@ def run_excitation(params: Arm, link: ActuatorLink, frames: FrameFeed, sensor: T
 
     try:
         for i, (q, side) in enumerate(zip(plan.poses, plan.sides)):
+            if plan.loads is not None and apply_load is not None:
+                load = np.asarray(plan.loads[i], float)
+                apply_load(load)
             a_q = actuators_from_psi(params, q) + side * plan.approach
             approach = clamp_psi(params, psi_from_actuators(params, a_q, delta_hint=q))
             for step in ramp_to(params, psi, approach, dt, plan.speed(i)) + [approach]:
@@ -187,4 +203,5 @@ def run_excitation(params: Arm, link: ActuatorLink, frames: FrameFeed, sensor: T
         link.hold()
     return ExcitationData(np.array(times), np.array(enc), np.array(tgt), np.array(idx, dtype=int),
                           np.array(tips).reshape(-1, 3), np.array(hints).reshape(len(hints), -1),
-                          {"motion_s": float(times[-1] - times[0]) if times else 0.0, "poses": len(plan.poses)})
+                          {"motion_s": float(times[-1] - times[0]) if times else 0.0, "poses": len(plan.poses)},
+                          loads=None if plan.loads is None else np.array(loads).reshape(-1, 3))

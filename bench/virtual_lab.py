@@ -42,6 +42,9 @@ began there); ``home``: at the emulator's home, from where the loop's start ramp
 and (``open_sim_session(rest=...)``) in process alike. The two differ in where each motor sits in
 its play when the walk begins, which at 1080p's timing changes the error by more than the lab's
 transport does (docs/notes/virtual-lab-timing.md).
+``true_tip_along_path``: the lab's error along the path (a loop that trails its path shows a lag
+[ms]) and across it. ``--keep DIR`` keeps the lab's files (its run folder, truth, calibration,
+the host's stderr).
 Usage: .venv/bin/python bench/virtual_lab.py [--duration S] [--scales 1 0.5] [--skip-video] [--camera-matched]
        [--phase-lock none]
        [--plant configs/plant_unseen.yaml --marker configs/marker_coded.yaml --orientation hold]
@@ -175,6 +178,7 @@ def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_r
     finally:
         emu.send_signal(signal.SIGTERM)
         _, emu_err = emu.communicate(timeout=60)
+    (tmp / f"servo_stderr_{scale}.txt").write_text(r.stderr)
     if r.returncode != 0:
         return {"error": r.stderr.strip()}
     res = json.loads((tmp / f"res_{scale}.json").read_text())
@@ -196,6 +200,7 @@ def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_r
         "link_overruns": res["link"]["overruns"],
         "phase_lock": res["timing"].get("phase_lock"),
         "true_tip_mm": {"mean": err.mean_mm, "max": err.max_mm, "cycles": err.n},
+        "true_tip_along_path": path_lag(run_dir / "log.csv", dense),
         "stopped": res["stopped"],  # why the loop stopped early ("" when it walked the whole cube)
         "true_tip_mm_variants": {  # the same run's error evaluated the earlier ways (decomposition)
             "interpolated_between_frames": {"mean": err_frames.mean_mm, "max": err_frames.max_mm},
@@ -207,6 +212,30 @@ def lab_run(scale: float, fps: float, duration: float, tmp: Path, rt: bool, rt_r
         **({"play_probe": res["closed_loop"]["play_probe"]} if res["closed_loop"].get("play_probe") else {}),
         "emulator": emu_err.decode(errors="replace").strip().splitlines()[-1:],
     }
+
+
+def path_lag(log_csv: Path, truth_csv: Path) -> dict[str, float]:
+    """The true tip's error along the desired path's direction, averaged over the walk's cycles
+    [mm] (negative: behind), and as a lag [ms] at the median speed; the rest, across the path [mm]."""
+    from wristmark.rig.recording.run_log import read_log_csv
+    from wristmark.sim.virtual_lab import read_truth_csv
+
+    log = read_log_csv(log_csv)
+    sel = np.array([p == "servo" for p in log["phase"]], bool)
+    t = np.asarray(log["t"], float)[sel]
+    p_des = np.stack([np.asarray(log[f"p_des_{a}"], float)[sel] for a in "xyz"], axis=1)
+    tt, tip = read_truth_csv(truth_csv)
+    keep = (t >= tt[0]) & (t <= tt[-1])
+    t, p_des = t[keep], p_des[keep]
+    err = np.stack([np.interp(t, tt, tip[:, i]) for i in range(3)], axis=1) - p_des
+    v = np.gradient(p_des, t, axis=0)
+    speed = np.linalg.norm(v, axis=1)
+    moving = speed > 1e-4
+    along = np.sum(err * v, axis=1)[moving] / speed[moving]
+    across = np.linalg.norm(err[moving] - along[:, None] * v[moving] / speed[moving][:, None], axis=1)
+    return {"along_mean_mm": round(1000 * float(np.mean(along)), 4),
+            "lag_ms": round(-1000 * float(np.mean(along)) / float(np.median(speed[moving])), 2),
+            "across_mean_mm": round(1000 * float(np.mean(across)), 4)}
 
 
 def cycle_timing(log_csv: Path) -> dict[str, float]:
@@ -343,6 +372,7 @@ def main() -> int:
                     help="where both arms rest before the run: start (default): at the cube's start configuration, "
                          "as the in-process bench's always did (the lab's emulator gets --psi0); home: at the "
                          "emulator's home, ramped to the start by the loop, in the lab and in process alike")
+    ap.add_argument("--keep", metavar="DIR", help="keep the lab's files (run folders, truth, calibration) in DIR")
     a = ap.parse_args()
     warm_up()  # OpenCV threads and the tracker's kernels, explicitly (building a tracker changes nothing)
     scenario = Scenario(a.plant, a.marker, a.controller_config, a.orientation, a.robot, a.model)
@@ -355,7 +385,9 @@ def main() -> int:
 
         out["video_tracking"] = video_tracking.run()
     out["virtual_lab"] = []
-    with tempfile.TemporaryDirectory(prefix="wristmark-lab-bench-") as tmp:
+    with tempfile.TemporaryDirectory(prefix="wristmark-lab-bench-") as tmp_dir:
+        tmp = a.keep or tmp_dir
+        Path(tmp).mkdir(parents=True, exist_ok=True)
         rig_file = a.rig
         if a.phase_lock != "none":  # the host's rig file with the lock (the in-process run ignores it)
             rig_file = str(Path(tmp) / "rig_phase_locked.yaml")

@@ -7,7 +7,9 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -49,6 +51,9 @@ def test_identify_on_the_bench_then_offline_from_its_record(tmp_path: Path) -> N
     (("--from-log", "nowhere"), "--from-log: neither excitation.npz"),
     (("--from-log", "nowhere", "--load", "0.1"), "--load are for the simulated bench"),
     (("--plant", "missing.yaml"), "missing.yaml"),
+    (("--load", "0.1", "--load-direction", "0", "0", "0"), "direction must be 3 finite numbers"),
+    (("--serial", "/dev/null", "--camera", "0", "--calib", "wristmark/configs/camera.yaml", "--load", "0.1",
+      "--load-direction", "nan", "0", "1"), "--load-direction: 'nan' is not a finite number"),
     (("--serial", "/dev/null"), "needs both --serial PORT and --camera SPEC"),
     (("--serial", "/dev/null", "--camera", "0"), "need --calib CALIB"),
     (("--serial", "/dev/no-such-port", "--camera", "0", "--calib", "wristmark/configs/camera.yaml"),
@@ -146,16 +151,32 @@ LAB_POSES = 12
 GAIN_TOL, OFFSET_TOL = 0.03, 0.04  # [-], [rad] see test_identify_on_the_virtual_lab_finds_the_lab_arm
 
 
+@dataclass
+class Lab:
+    """The virtual lab's process, its actuator box's pty and its camera's URL."""
+
+    proc: subprocess.Popen[bytes]
+    pty: str
+    url: str
+
+    def hang(self, force: str) -> None:
+        """Hang the tip force 'FX FY FZ' [N] in {w} on the lab's arm (its --loads-from-stdin)."""
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(f"load {force}\n".encode())
+        self.proc.stdin.flush()
+
+
 @pytest.fixture(scope="module")
-def lab() -> Iterator[tuple[str, str]]:
-    """The virtual lab with the unseen plant as its true arm, its own process: (pty, camera URL)."""
+def lab() -> Iterator[Lab]:
+    """The virtual lab with the unseen plant as its true arm, its own process."""
     proc = subprocess.Popen([sys.executable, "-m", "wristmark", "emulator", "--pty", "--camera-port", "0",
                              "--fps", "30", "--image-scale", str(LAB_SCALE), "--jpeg-quality", "95",
-                             "--plant", UNSEEN], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                             "--plant", UNSEEN, "--loads-from-stdin"], cwd=ROOT, stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         pty, url = read_lines(proc, 2, timeout=60)
         assert pty.startswith("/dev/") and url.startswith("http://127.0.0.1:")
-        yield pty, url
+        yield Lab(proc, pty, url)
     finally:
         rc, err = stop(proc)
         assert rc == 0, err
@@ -164,8 +185,8 @@ def lab() -> Iterator[tuple[str, str]]:
 @pytest.mark.slow
 @pytest.mark.network
 @pytest.mark.wallclock
-def test_identify_on_the_virtual_lab_finds_the_lab_arm(lab: tuple[str, str], tmp_path: Path) -> None:
-    pty, url = lab
+def test_identify_on_the_virtual_lab_finds_the_lab_arm(lab: Lab, tmp_path: Path) -> None:
+    pty, url = lab.pty, lab.url
     out = tmp_path / "m.yaml"
     r = wristmark("identify", "--serial", pty, "--camera", url, "--calib", "wristmark/configs/camera.yaml",
                   "--image-scale", str(LAB_SCALE), "--poses", str(LAB_POSES), "--out", str(out), "--no-progress")
@@ -187,11 +208,10 @@ def test_identify_on_the_virtual_lab_finds_the_lab_arm(lab: tuple[str, str], tmp
 @pytest.mark.slow
 @pytest.mark.network
 @pytest.mark.wallclock
-def test_a_camera_without_frames_is_one_line_and_leaves_the_box_disabled(lab: tuple[str, str],
-                                                                           tmp_path: Path) -> None:
+def test_a_camera_without_frames_is_one_line_and_leaves_the_box_disabled(lab: Lab, tmp_path: Path) -> None:
     from wristmark.rig.link.actuator_driver import ActuatorDriver
 
-    pty, _ = lab
+    pty = lab.pty
     out = tmp_path / "m.yaml"
     r = wristmark("identify", "--serial", pty, "--camera", "http://127.0.0.1:9/stream.mjpg", "--calib",
                   "wristmark/configs/camera.yaml", "--poses", "8", "--out", str(out), "--no-progress", timeout=90)
@@ -200,3 +220,39 @@ def test_a_camera_without_frames_is_one_line_and_leaves_the_box_disabled(lab: tu
     assert not out.exists()
     with ActuatorDriver(pty, timeout=0.2, retries=3) as box:
         assert not box.get_state().enabled  # never enabled: the arm holds where it was
+
+
+@pytest.mark.slow
+@pytest.mark.network
+@pytest.mark.wallclock
+def test_a_known_load_hung_by_a_person_on_the_virtual_lab_gives_the_stiffness(lab: Lab, tmp_path: Path) -> None:
+    """identify --load on hardware asks for the weight once, halfway, and waits for Enter with the
+    box fed; here the 'person' hangs it on the lab's arm (its stdin) and presses Enter."""
+    out = tmp_path / "m.yaml"
+    proc = subprocess.Popen([sys.executable, "-m", "wristmark", "identify", "--serial", lab.pty, "--camera", lab.url,
+                             "--calib", "wristmark/configs/camera.yaml", "--image-scale", str(LAB_SCALE), "--poses",
+                             "16", "--load", "0.15", "--out", str(out), "--no-progress"],
+                            cwd=ROOT, stdin=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert proc.stdin is not None and proc.stderr is not None
+    asked = []
+    try:
+        for line in proc.stderr:
+            asked.append(line)
+            if "press Enter" in line:
+                lab.hang("0 0 -0.15")
+                time.sleep(0.3)
+                proc.stdin.write("\n")
+                proc.stdin.flush()
+        assert proc.wait(timeout=240) == 0, "".join(asked)
+    finally:
+        lab.hang("0 0 0")
+        if proc.poll() is None:
+            proc.kill()
+    assert sum("press Enter" in line for line in asked) == 1  # one weight, hung once
+    assert any("take the weight off" in line for line in asked)
+    model = yaml.safe_load(out.read_text())
+    # the unseen plant's truth: stiffness [0.35, 0.12] N m/rad, its own load [0.03, 0.05, -0.08] N;
+    # measured with this lab (16 poses, 0.35 scale; /tmp driver, 2026-12-04): 0.342 / 0.132, own
+    # load 0.028 / 0.046 / -0.084 (std errors 0.017 N m/rad, 0.023 N); at 0.5 scale 0.350 / 0.124
+    assert model["segment_stiffness"] == pytest.approx([0.35, 0.12], rel=0.15)
+    assert model["tip_force"] == pytest.approx([0.03, 0.05, -0.08], abs=0.02)

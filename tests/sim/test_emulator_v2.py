@@ -103,6 +103,25 @@ def test_cli_calib_out_without_the_lab_is_refused_in_one_line(tmp_path: Path) ->
     assert r.stderr.strip().count("\n") == 0 and "--calib-out need --camera-port PORT" in r.stderr
 
 
+def test_cli_loads_from_stdin_without_the_lab_is_refused_in_one_line() -> None:
+    r = subprocess.run([str(EXE), "emulator", "--pty", "--loads-from-stdin"], capture_output=True, text=True,
+                       timeout=60)
+    assert r.returncode == 2 and r.stdout == ""
+    assert r.stderr.strip().count("\n") == 0 and "--loads-from-stdin need --camera-port PORT" in r.stderr
+
+
+def test_the_labs_load_lines_hang_forces_and_bad_lines_change_nothing(capsys: pytest.CaptureFixture[str]) -> None:
+    """identify --load's weight on the virtual lab: 'load FX FY FZ' [N] in {w} on the lab's stdin."""
+    from wristmark.cli.emulator import _read_loads
+
+    hung: list[list[float]] = []
+    _read_loads(["load 0 0 -0.15\n", "\n", "lod 1 2 3\n", "load 1 2\n", "load nan 0 0\n", "load 0 0 -20\n",
+                 "load 0 0 0\n"], lambda f: hung.append(f.tolist()))
+    assert hung == [[0.0, 0.0, -0.15], [0.0, 0.0, 0.0]]
+    err = capsys.readouterr().err
+    assert err.count("ignored") == 4 and "a tip load of 0.15 N hangs" in err
+
+
 def test_the_labs_calibration_frames_a_format2_arm_and_is_written_for_the_host(tmp_path: Path) -> None:
     """Without --calib the lab's endoscope stands where the simulated bench frames the arm
     (sim.setup.camera_for_arm), which --calib-out writes; the reference arm keeps configs/camera.yaml."""

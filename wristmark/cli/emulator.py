@@ -17,6 +17,7 @@ import argparse
 import signal
 import sys
 import threading
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from types import FrameType
 
@@ -74,6 +75,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_config_option(cam, "--marker")
     cam.add_argument("--jpeg-quality", type=int_in(1, 100), default=90, metavar="Q", help="JPEG quality (default 90)")
     cam.add_argument("--seed", type=seed_int(), default=0, help="render noise seed (default 0)")
+    cam.add_argument("--loads-from-stdin", action="store_true",
+                     help="read lines 'load FX FY FZ' on stdin: a known tip force [N] in {w} hung on the arm on top "
+                          "of the plant's own ('load 0 0 0' takes it off); the weight of identify --load")
     add_force_argument(p)
     set_example(p, "wristmark emulator --pty", "wristmark emulator --pty --robot configs/robots/tendon3.yaml",
                 "wristmark emulator --pty --camera-port 0 --fps 30 --image-scale 0.35 "
@@ -84,7 +88,7 @@ def _camera_options_without_port(args: argparse.Namespace) -> list[str]:
     given = [("--fps", args.fps != 30.0), ("--truth-out", args.truth_out), ("--truth-dense-out", args.truth_dense_out),
              ("--image-scale", args.image_scale != 1.0),
              ("--calib", args.calib), ("--calib-out", args.calib_out), ("--marker", args.marker),
-             ("--render-normal-priority", args.render_normal_priority)]
+             ("--render-normal-priority", args.render_normal_priority), ("--loads-from-stdin", args.loads_from_stdin)]
     return [name for name, set_ in given if set_]
 
 
@@ -95,9 +99,10 @@ def run(args: argparse.Namespace) -> int:
     from wristmark.sim.setup import arm_plant_file
 
     if args.ros2 is not None:
-        if args.pty or args.camera_port is not None or args.truth_dense_out or args.rt_priority is not None:
+        if args.pty or args.camera_port is not None or args.truth_dense_out or args.rt_priority is not None \
+                or args.loads_from_stdin:
             raise InputError("--ros2 serves the arm and the endoscope over ROS 2: no --pty, --camera-port, "
-                             "--truth-dense-out or --rt-priority")
+                             "--truth-dense-out, --rt-priority or --loads-from-stdin")
     elif not args.pty:
         raise InputError("pass --pty (the actuator box on a pseudo-terminal) or --ros2 [NS] (the lab over ROS 2)")
     if not args.watchdog > 0:
@@ -189,6 +194,9 @@ def _serve_lab(args: argparse.Namespace, params: Arm, plant: object, psi0: np.nd
         freeze_heap()  # a full collection would stop the box and the camera for ~0.1 s (rig.loop.heap_freeze)
         print(path, flush=True)
         print(url, flush=True)
+        if args.loads_from_stdin:
+            threading.Thread(target=_read_loads, args=(sys.stdin, lab.hang), daemon=True,
+                             name="wristmark-lab-loads").start()
         w, h = lab.camera.image_size
         print(f"virtual lab: actuator box (protocol v{lab.emulator.protocol_version}, {lab.emulator.count} "
               f"actuators) on {path}; stereo endoscope {2 * w}x{h} side by side at "
@@ -240,3 +248,24 @@ def _serve_ros2_lab(args: argparse.Namespace, params: Arm, plant: object, psi0: 
     print(f"virtual lab over ROS 2: {lab.frames} frames, {lab.targets} targets, {lab.watchdog_trips} watchdog trips, "
           f"{lab.malformed} malformed messages", file=sys.stderr, flush=True)
     return 0
+
+
+def _read_loads(lines: Iterable[str], hang: Callable[[np.ndarray], None]) -> None:
+    """Hang each ``load FX FY FZ`` line's force [N] in {w} on the lab's arm; a line that is not
+    one is reported on stderr in one line and changes nothing."""
+    for line in lines:
+        words = line.split()
+        if not words:
+            continue
+        try:
+            if words[0] != "load" or len(words) != 4:
+                raise ValueError("want 'load FX FY FZ' (newton, in {w})")
+            force = np.array([float(w) for w in words[1:]])
+            if not np.all(np.isfinite(force)) or np.linalg.norm(force) > 10.0:
+                raise ValueError("a finite force of at most 10 N")
+        except ValueError as e:
+            print(f"wristmark emulator: ignored {line.strip()!r}: {e}", file=sys.stderr, flush=True)
+            continue
+        hang(force)
+        print(f"virtual lab: a tip load of {np.linalg.norm(force):.4g} N hangs on the arm "
+              f"({force[0]:.4g}, {force[1]:.4g}, {force[2]:.4g} in {{w}})", file=sys.stderr, flush=True)

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from wristmark.cli.common_options import add_config_option, add_force_argument, add_json_flag, set_example
-from wristmark.cli.option_types import MAX_IMAGE_SCALE, MIN_IMAGE_SCALE, float_in, int_in, seed_int
+from wristmark.cli.option_types import MAX_IMAGE_SCALE, MIN_IMAGE_SCALE, finite_float, float_in, int_in, seed_int
 from wristmark.models.errors import InputError
 from wristmark.rig.recording.output_dir import claim_outputs
 
@@ -44,8 +44,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sensor", choices=("vision", "truth-noise"),
                    help="simulated bench: rendered images + tracker (default) or truth+noise (fast)")
     p.add_argument("--load", type=float_in(0.0, 1.0), default=0.0, metavar="N",
-                   help="simulated bench: hang a known N newton weight (along -z_w) on the tip at every other "
-                        "pose, so that the segments' stiffness is fitted too (default 0: none)")
+                   help="hang a known N newton weight on the tip, so that the segments' stiffness is fitted too "
+                        "(default 0: none): on the simulated bench at every other pose; on hardware for the "
+                        "second half of the poses, where identify asks you to hang it and waits for Enter")
+    p.add_argument("--load-direction", type=finite_float(), nargs=3, default=(0.0, 0.0, -1.0),
+                   metavar=("DX", "DY", "DZ"),
+                   help="where the weight pulls, in {w} (gravity; default 0 0 -1: -z_w)")
     p.add_argument("--seed", type=seed_int(), help="pose choice and render noise seed (default the rig's)")
     p.add_argument("--serial", metavar="PORT", help="hardware / virtual lab: the actuator box's serial port")
     p.add_argument("--camera", metavar="SPEC", help="hardware / virtual lab: the stereo frame source")
@@ -67,16 +71,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                 "wristmark identify --plant configs/plant_misplaced_camera.yaml --out model.yaml "
                 "--register-out reg.yaml",
                 "wristmark identify --serial /dev/pts/3 --camera http://127.0.0.1:41234/stream.mjpg --calib calib.yaml "
-                "--registration reg.yaml --image-scale 0.35 --out model.yaml")
+                "--registration reg.yaml --image-scale 0.35 --out model.yaml",
+                "wristmark identify --serial /dev/pts/3 --camera http://127.0.0.1:41234/stream.mjpg --calib calib.yaml "
+                "--registration reg.yaml --image-scale 0.35 --load 0.15 --out model_loaded.yaml")
 
 
 def _check(args: argparse.Namespace) -> None:
     if args.serial or args.camera:
         if not (args.serial and args.camera):
             raise InputError("hardware / the virtual lab needs both --serial PORT and --camera SPEC")
-        if args.from_log or args.plant or args.sensor or args.load:
-            raise InputError("--serial/--camera identify the arm on the port: --from-log, --plant, --sensor and "
-                             "--load are for other sources")
+        if args.from_log or args.plant or args.sensor:
+            raise InputError("--serial/--camera identify the arm on the port: --from-log, --plant and --sensor "
+                             "are for other sources")
         if not args.calib:
             raise InputError("--serial/--camera need --calib CALIB (the stereo calibration of that camera)")
     if args.from_log and (args.plant or args.sensor or args.load):
@@ -85,6 +91,14 @@ def _check(args: argparse.Namespace) -> None:
     if args.from_log and not any((Path(args.from_log) / f).is_file() for f in (LOG_FILE, "log.csv")):
         raise InputError(f"--from-log: neither {LOG_FILE} (identify --log) nor log.csv (a servo run) in "
                          f"{args.from_log}")
+
+
+def _load(args: argparse.Namespace) -> Any:
+    """The known weight's force [N] in {w} (None without --load)."""
+    from wristmark.rig.loop.known_load import load_force
+
+    force = load_force(args.load, np.asarray(args.load_direction, float))  # a bad direction: one line, always
+    return force if args.load > 0 else None
 
 
 def _outputs(args: argparse.Namespace) -> list[str]:
@@ -132,27 +146,37 @@ def _hardware_setup(args: argparse.Namespace) -> Any:
 FRAME_WAIT_S = 0.08  # [s] longest wait for a fresh frame at a pose (+ tracking budget: inside the 250 ms watchdog)
 
 
-def excite_on_hardware(setup: Any, port: str, camera: str, poses: int, progress: bool) -> Any:
+def excite_on_hardware(setup: Any, port: str, camera: str, poses: int, progress: bool,
+                       force: Any = None) -> Any:
     """Open the actuator box and the camera as ``wristmark servo --serial --camera`` does, run the
-    excitation on the wall clock and close (hold, DISABLE) whatever happens."""
+    excitation on the wall clock and close (hold, DISABLE) whatever happens. ``force`` [N] in {w}:
+    a known weight for the second half of the poses, hung by the person at the bench when asked
+    (rig/loop/known_load.py)."""
     from tqdm import tqdm
 
     from wristmark.cvs.tracking.warmup import warm_up
     from wristmark.rig.loop.excitation import excitation_plan, run_excitation
     from wristmark.rig.loop.hardware_session import open_hardware_session
     from wristmark.rig.loop.heap_freeze import freeze_heap
+    from wristmark.rig.loop.known_load import KnownLoadPrompt, with_known_load
     from wristmark.rig.loop.servo_session import LinkOptions
 
     unit = setup.controller.play_max_for(setup.params)
     plan = excitation_plan(setup.params, unit, poses=poses, seed=setup.rig.seed)
+    if force is not None:
+        plan = with_known_load(plan, force, block=True)
     plan.duration(setup.rig.control_dt, setup.params)  # the ramps' first (slow) calls before the box is enabled
     warm_up()
     with open_hardware_session(setup, LinkOptions(kind="serial", port=port), camera) as session:
         freeze_heap()  # no full garbage collection of the start-up heap mid-run (as servo: a silent host trips the box)
         session.start()
         with tqdm(total=poses, desc="identify: excitation", disable=not progress, leave=False) as bar:
+            prompt = KnownLoadPrompt(session.link) if force is not None else None
             data = run_excitation(setup.params, session.link, session.frames, session.sensor, plan,
-                                  setup.rig.control_dt, on_pose=lambda i: bar.update(1), frame_wait=FRAME_WAIT_S)
+                                  setup.rig.control_dt, on_pose=lambda i: bar.update(1), frame_wait=FRAME_WAIT_S,
+                                  apply_load=prompt)
+            if prompt is not None:
+                print(prompt.instruction(np.zeros(3)) + " (the excitation is over)", file=sys.stderr, flush=True)
     if session.close_error:
         raise InputError(f"{port}: could not confirm hold/disable after the excitation ({session.close_error})")
     seen, wanted = int(np.isfinite(data.tips).all(axis=1).sum()), poses * plan.frames
@@ -167,15 +191,17 @@ def run(args: argparse.Namespace) -> int:
 
     if args.serial:
         _check(args)
+        force = _load(args)
         claim_outputs(files=_outputs(args), dirs=[], force=args.force)
         setup = _hardware_setup(args)
-        data = excite_on_hardware(setup, args.serial, args.camera, args.poses, not args.no_progress)
+        data = excite_on_hardware(setup, args.serial, args.camera, args.poses, not args.no_progress, force)
         return _fit_and_write(args, setup, data, f"port {args.serial}, camera {args.camera}")
 
     from wristmark.sim.identify_bench import bench_plan, excite_on_bench
     from wristmark.sim.setup import load_setup
 
     _check(args)
+    _load(args)
     claim_outputs(files=_outputs(args), dirs=[], force=args.force)
     setup = load_setup(robot=args.robot, marker=args.marker, camera=args.calib, plant=args.plant, rig=args.rig)
     if args.registration:
@@ -199,7 +225,7 @@ def run(args: argparse.Namespace) -> int:
         data = excitation_from_run(args.from_log, setup.params)
         source = f"servo run {args.from_log}"
     else:
-        plan = bench_plan(setup, args.poses, load=args.load)
+        plan = bench_plan(setup, args.poses, load=args.load, direction=tuple(args.load_direction))
         from tqdm import tqdm
 
         with tqdm(total=args.poses, desc="identify: excitation", disable=args.no_progress, leave=False) as bar:

@@ -11,6 +11,7 @@ import numpy as np
 
 from wristmark.rig.link.actuator_link import DirectLink
 from wristmark.rig.loop.excitation import ExcitationPlan, excitation_plan, run_excitation
+from wristmark.rig.loop.known_load import load_force, with_known_load
 from wristmark.sim.setup import SimSetup, make_measurement, make_plant
 from wristmark.solvers.controller import ControllerConfig
 from wristmark.solvers.identification import ExcitationData
@@ -18,16 +19,17 @@ from wristmark.solvers.identification import ExcitationData
 __all__ = ["bench_plan", "excite_on_bench"]
 
 
-def bench_plan(setup: SimSetup, poses: int = 30, seed: int | None = None, load: float = 0.0) -> ExcitationPlan:
+def bench_plan(setup: SimSetup, poses: int = 30, seed: int | None = None, load: float = 0.0,
+               direction: tuple[float, float, float] = (0.0, 0.0, -1.0)) -> ExcitationPlan:
     """The default excitation for the setup's arm: plays in units of the controller's
-    backlash_play_max (sized to the arm); ``load`` > 0 [N]: a known weight (along -z_w) hung on
-    the tip at every other pose (the segments' stiffness is then seen)."""
+    backlash_play_max (sized to the arm); ``load`` > 0 [N]: a known weight (pulling along
+    ``direction`` in {w}, default -z_w) hung on the tip at every other pose (the segments'
+    stiffness is then seen)."""
     unit = ControllerConfig.play_max_for(setup.controller, setup.params)
     plan = excitation_plan(setup.params, unit, poses=poses, seed=setup.rig.seed if seed is None else seed)
     if load <= 0:
         return plan
-    loads = np.array([[0.0, 0.0, -load] if i % 2 else [0.0, 0.0, 0.0] for i in range(poses)])
-    return dataclasses.replace(plan, loads=loads)
+    return with_known_load(plan, load_force(load, np.asarray(direction, float)))
 
 
 def excite_on_bench(setup: SimSetup, plan: ExcitationPlan, seed: int | None = None,

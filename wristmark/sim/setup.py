@@ -199,7 +199,7 @@ def make_direct_loop(setup: SimSetup, psi0: Array, closed_loop: bool, seed: int 
         from wristmark.rig.loop.model_loop import model_rig, use_model
 
         link = use_model(link, setup.params, setup.model, controller, setup.rig.control_dt)
-        rig = model_rig(rig)
+        rig = model_rig(rig, setup.model)
     loop = ServoLoop(setup.params, rig, link, frames=frames, sensor=sensor, truth=make_truth(setup, plant, seed),
                      controller=controller)
     loop.start_at(psi0)

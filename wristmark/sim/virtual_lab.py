@@ -123,7 +123,9 @@ class VirtualLab:
         cam = calibration if self.options.image_scale == 1.0 else scaled_stereo_camera(calibration,
                                                                                      self.options.image_scale)
         start = np.asarray(psi0, float) if psi0 is not None else home_psi(params)
-        self.arm = LockedArm(TruePlant(params, plant, psi0=start))
+        self._plant = TruePlant(params, plant, psi0=start)
+        self._own_tip_force = np.asarray(self._plant.plant.tip_force, float)
+        self.arm = self._locked = LockedArm(self._plant)
         self.dense_truth = DenseTruthArm(self.arm) if truth_dense_out else None
         if self.dense_truth is not None:
             self.arm = self.dense_truth  # the emulator advances it: the true tip logged every few ms
@@ -154,6 +156,14 @@ class VirtualLab:
     def url(self) -> str:
         """The stream's URL (after :meth:`start`)."""
         return self.server.url if self.server is not None else ""
+
+    def hang(self, force: np.ndarray) -> None:
+        """Hang a known tip force ``force`` [N] in {w} on the arm, on top of the plant's own
+        (zeros: take it off); the way ``wristmark identify --load`` is served on the virtual lab."""
+        f = self._own_tip_force + np.asarray(force, float)
+        with self._locked.lock:
+            own = self._plant.plant
+            self._plant.plant = dataclasses.replace(own, tip_force=(float(f[0]), float(f[1]), float(f[2])))
 
     def start(self) -> tuple[str, str]:
         """Open the pty and the stream, start the camera; returns (pty path, stream URL). The

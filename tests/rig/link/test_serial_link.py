@@ -131,6 +131,22 @@ def test_watchdog_still_runs_in_simulated_time(bench: Bench) -> None:
 
 
 @pytest.mark.wallclock
+def test_real_time_link_time_is_the_wall_clock_now_not_where_the_loop_last_waited() -> None:
+    """A command sent late in a cycle is sent at its own time (the --model link holds its
+    lag-inverting target for one cycle from there, rig/link/model_link.py)."""
+    b = open_bench(simulated=False)
+    try:
+        b.link.advance_to(0.1)
+        t_then = b.link.time
+        assert t_then >= 0.1
+        time.sleep(0.05)  # the host tracks a frame: the loop does not advance the link
+        assert b.link.time - t_then >= 0.045
+    finally:
+        b.link.close()
+        b.emulator.stop()
+
+
+@pytest.mark.wallclock
 def test_real_time_paces_with_keepalives_and_trips_when_the_host_goes_silent() -> None:
     b = open_bench(simulated=False)
     try:

@@ -88,6 +88,33 @@ def test_prediction_with_a_lag_follows_the_first_order_response_of_every_actuato
     assert np.linalg.norm(dc.predicted_motion(0.05, 0.13)) < np.linalg.norm(instant.predicted_motion(0.05, 0.13))
 
 
+@pytest.mark.parametrize("tau", [0.0, 0.07])
+def test_prediction_with_a_reach_arrives_at_each_command_one_reach_after_its_send(tau: float) -> None:
+    """The --model link inverts the motors' lag: each target is reached a cycle after it went out,
+    along the lag's curve (linear without a lag); a frame captured after its cycle's start is then
+    moved back by the motion the arm made in between, not by none (the instant model's)."""
+    reach = 0.06
+    dc = DelayCompensator(P, tau=tau, reach=reach)
+    dc.record(0.00, PSI_A)
+    dc.record(0.045, PSI_B)
+    a_a, a_b = actuators_from_psi(P, PSI_A), actuators_from_psi(P, PSI_B)
+    tip = lambda q: tip_position(P, q)  # noqa: E731
+    np.testing.assert_allclose(dc.predicted_motion(0.04, 0.045 + reach), tip(PSI_B) - tip(PSI_A), atol=1e-12)
+    gap = 0.03
+    share = gap / reach if tau == 0 else (1 - math.exp(-gap / tau)) / (1 - math.exp(-reach / tau))
+    half = psi_from_actuators(P, a_a + share * (a_b - a_a), delta_hint=PSI_B)
+    np.testing.assert_allclose(dc.predicted_motion(0.04, 0.045 + gap), tip(half) - tip(PSI_A), atol=1e-12)
+    # a frame captured 16 ms after the next cycle's start (0.06) is moved back to that start
+    instant = DelayCompensator(P, tau=0.0)
+    instant.record(0.00, PSI_A)
+    instant.record(0.045, PSI_B)
+    back = dc.predicted_motion(0.076, 0.06)
+    assert np.linalg.norm(back) > 0.1 * np.linalg.norm(tip(PSI_B) - tip(PSI_A))
+    assert np.all(instant.predicted_motion(0.076, 0.06) == 0.0)
+    with pytest.raises(ValueError, match="reach"):
+        DelayCompensator(P, reach=-0.01)
+
+
 def test_history_refuses_time_going_back_and_forgets_beyond_its_horizon() -> None:
     dc = DelayCompensator(P, tau=0.0, horizon=0.5)
     for k in range(40):

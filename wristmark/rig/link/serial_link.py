@@ -102,9 +102,12 @@ class SerialLink:
 
     @property
     def time(self) -> float:
-        """The link's time [s]: the shared simulated clock's, or in real time the ``t_now`` given
-        to :meth:`connect` plus the wall-clock seconds since (as far as :meth:`advance_to` went)."""
-        return self.t
+        """The link's time now [s]: the shared simulated clock's, or in real time the ``t_now``
+        given to :meth:`connect` plus the wall-clock seconds since (never before the instant
+        :meth:`advance_to` last reached: a command sent late in a cycle is sent at its own time)."""
+        if self.clock is not None or not self._connected:
+            return self.t
+        return max(self.t, self._t_origin + (time.monotonic() - self._wall0))
 
     @property
     def simulated(self) -> bool:

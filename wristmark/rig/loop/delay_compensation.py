@@ -10,7 +10,9 @@ with the times they were sent and adds the nominal model's predicted tip motion 
 
 where ``model(t)`` is the configuration the arm is expected to have at ``t``: the last command
 sent at or before ``t`` (``tau = 0``: commands take effect at once), or the commands passed
-through a first-order lag of time constant ``tau`` [s] per actuator (the actuators' own lag).
+through a first-order lag of time constant ``tau`` [s] per actuator (the actuators' own lag), or
+each command reached ``reach`` [s] after its send (the ``--model`` link inverts the lag so that
+each target is reached a cycle after it went out; rig ``delay_compensation_reach``).
 Only the difference of the model between the two instants is used, so the model's own error
 (calibration, backlash, load) cancels to first order. The servo loop records the configuration the
 arm is expected to follow for each command (``Controller.output_model``): with a dead-band
@@ -53,16 +55,20 @@ class DelayCompensator:
     """History of sent commands and the predicted tip motion between two instants.
 
     tau: first-order lag [s] of every actuator assumed by the model (0: a command takes effect
-    at once); horizon: how far back [s] the history reaches (older captures are predicted from
-    its oldest entry); correction: the learnt map of the model's motion to the arm's (None: the
-    model as it is)."""
+    at once); reach: each command is reached this long [s] after its send, along the lag's curve
+    (a link that inverts the lag, rig/link/model_link.py; 0: by the lag alone); horizon: how far
+    back [s] the history reaches (older captures are predicted from its oldest entry);
+    correction: the learnt map of the model's motion to the arm's (None: the model as it is)."""
 
     def __init__(self, params: Arm, tau: float = 0.0, horizon: float = 1.0,
-                 correction: MotionCorrection | None = None) -> None:
+                 correction: MotionCorrection | None = None, reach: float = 0.0) -> None:
         if not (math.isfinite(tau) and tau >= 0):
             raise ValueError(f"tau must be >= 0 s, got {tau}")
+        if not (math.isfinite(reach) and reach >= 0):
+            raise ValueError(f"reach must be >= 0 s, got {reach}")
         self.params = params
         self.tau = float(tau)
+        self.reach = float(reach)
         self.horizon = float(horizon)
         self.correction = correction
         self._sent: deque[_Sent] = deque()
@@ -106,9 +112,15 @@ class DelayCompensator:
     def _actuators_at(self, t: float) -> Array:
         e = self._entry_at(t)
         assert e is not None
+        gap = max(0.0, t - e.t)
+        if self.reach > 0.0:  # reached ``reach`` after the send, along the lag's curve (a link inverting it)
+            if gap >= self.reach:
+                return e.a_cmd
+            share = gap / self.reach if self.tau == 0.0 else \
+                -math.expm1(-gap / self.tau) / -math.expm1(-self.reach / self.tau)
+            return e.a_model + (e.a_cmd - e.a_model) * share
         if self.tau == 0.0:
             return e.a_cmd
-        gap = max(0.0, t - e.t)
         return e.a_cmd + (e.a_model - e.a_cmd) * math.exp(-gap / self.tau)
 
     def model_psi(self, t: float) -> Array | None:
@@ -116,7 +128,7 @@ class DelayCompensator:
         e = self._entry_at(t)
         if e is None:
             return None
-        if self.tau == 0.0:
+        if self.tau == 0.0 and self.reach == 0.0:
             return e.psi
         return psi_from_actuators(self.params, self._actuators_at(t), delta_hint=e.psi)
 

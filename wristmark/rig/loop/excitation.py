@@ -132,8 +132,9 @@ def run_excitation(params: Arm, link: ActuatorLink, frames: FrameFeed, sensor: T
     ``plan.frames`` cycles until ``plan.frames`` frames were tracked.
 
     A plan with ``loads`` needs ``apply_load(F)``, which hangs the known tip force F [N] in {w}
-    on the arm (the simulated bench); it is called before each pose's approach, and each
-    measured tip's load is recorded for the fit."""
+    on the arm (the simulated bench; on hardware a person, rig/loop/known_load.py); it is called
+    before each pose's approach (the excitation's clock then goes on from the link's time, however
+    long it took), and each measured tip's load is recorded for the fit."""
     if plan.loads is not None and apply_load is None:
         raise ValueError("an excitation with known loads needs a bench that applies them (apply_load)")
     times: list[float] = []
@@ -179,6 +180,7 @@ def run_excitation(params: Arm, link: ActuatorLink, frames: FrameFeed, sensor: T
             if plan.loads is not None and apply_load is not None:
                 load = np.asarray(plan.loads[i], float)
                 apply_load(load)
+                t = max(t, float(link.time))  # a person hung the weight meanwhile: the ramps go on from now
             a_q = actuators_from_psi(params, q) + side * plan.approach
             approach = clamp_psi(params, psi_from_actuators(params, a_q, delta_hint=q))
             for step in ramp_to(params, psi, approach, dt, plan.speed(i)) + [approach]:

@@ -30,9 +30,13 @@ def use_model(link: ActuatorLink, params: Arm, model: PlantParams, controller: C
     return ModelLink(link, params, model, cycle, plays=True)
 
 
-def model_rig(rig: RigConfig) -> RigConfig:
-    """The rig's loop settings for the link through the identified arm, which removes the motors'
-    lag (each target reached at the cycle's end): no feed-forward lead for that lag
-    (``feedforward_lead`` 0) and a delay compensation whose commands take effect at once
-    (``delay_compensation_tau`` 0)."""
-    return dataclasses.replace(rig, feedforward_lead=0.0, delay_compensation_tau=0.0)
+def model_rig(rig: RigConfig, model: PlantParams) -> RigConfig:
+    """The rig's loop settings for the link through the identified arm ``model``, which removes
+    the motors' lag (each target reached at the end of the cycle it was sent in): no feed-forward
+    lead for that lag (``feedforward_lead`` 0) and a delay compensation whose model reaches each
+    command one cycle after its send along the identified lag (``delay_compensation_tau`` the
+    identified ``actuator_tau``, ``delay_compensation_reach`` the cycle). A frame captured after
+    its cycle's start (the wall clock's phase-locked camera) is then moved back by the motion the
+    arm really made, not by none."""
+    return dataclasses.replace(rig, feedforward_lead=0.0, delay_compensation_tau=max(0.0, model.actuator_tau),
+                               delay_compensation_reach=rig.control_dt)

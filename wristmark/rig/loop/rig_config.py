@@ -59,7 +59,9 @@ class RigConfig:
     is scaled to match). delay_compensation: the controller gets the measured tip moved on by
     the nominal model's predicted motion from the frame's capture to the command
     (rig.loop.delay_compensation; the model: the commands sent, through a first-order lag of
-    ``delay_compensation_tau`` [s] per actuator, 0 = at once; the model's motion mapped by a
+    ``delay_compensation_tau`` [s] per actuator, 0 = at once, or each command reached
+    ``delay_compensation_reach`` [s] after its send along that lag, 0 = by the lag alone, as the
+    ``--model`` link makes it; the model's motion mapped by a
     3x3 matrix fitted to the measured motion between consecutive frames, forgetting with the
     time constant ``delay_compensation_learn_window`` [s], 0 = the model as it is:
     rig.loop.motion_correction). tracking_budget: on the wall
@@ -118,6 +120,7 @@ class RigConfig:
     frame_wait: float = 0.04  # [s] wall clock: longest wait of a cycle for a fresh frame
     delay_compensation: bool = True
     delay_compensation_tau: float = 0.04  # [s] actuator lag assumed by the compensation's model
+    delay_compensation_reach: float = 0.0  # [s] each command reached this long after its send (0: by the lag)
     delay_compensation_learn_window: float = 5.0  # [s] memory of the compensation's learnt motion map (0: off)
     tracking_budget: float = 0.15  # [s] wall clock: longest wait of a cycle for its frame's tracking
     command_phase: float = 0.0  # [s] wall clock: a cycle's command goes out this long after its start
@@ -137,7 +140,8 @@ class RigConfig:
             if getattr(self, k) <= 0:
                 raise ConfigError(f"'{k}' must be > 0, got {getattr(self, k)}")
         for k in ("vision_latency", "truth_noise_rms", "tracker_rms", "settle_time", "feedforward_preview",
-                  "feedforward_lead", "frame_wait", "delay_compensation_tau", "delay_compensation_learn_window",
+                  "feedforward_lead", "frame_wait", "delay_compensation_tau", "delay_compensation_reach",
+                  "delay_compensation_learn_window",
                   "command_phase", "reuse_measurement_age", "frame_age", "open_loop_on_lost"):
             if getattr(self, k) < 0:
                 raise ConfigError(f"'{k}' must be >= 0, got {getattr(self, k)}")

@@ -126,7 +126,8 @@ class ServoLoop:
         self.ready_after_arrival_ms: list[float] = []  # wall clock: frame arrival -> command computed
         window = rig.delay_compensation_learn_window
         learn = MotionCorrection(window) if window > 0 else None
-        self.delay = DelayCompensator(params, rig.delay_compensation_tau, correction=learn) \
+        self.delay = DelayCompensator(params, rig.delay_compensation_tau, correction=learn,
+                                       reach=rig.delay_compensation_reach) \
             if rig.delay_compensation else None
         self.play_fits: list[PlayFit] | None = None  # the play probe's fits per actuator (rig/loop/play_probe.py)
         self.play_probe_note = ""  # why the play probe was skipped ("" when it ran or was not asked for)

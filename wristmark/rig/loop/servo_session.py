@@ -200,7 +200,8 @@ def run_servo(setup: LoopSetup, traj: Trajectory, session: ServoSession, psi0: A
         if setup.model is not None:  # --model: command the identified arm (docs/identification.md)
             from wristmark.rig.loop.model_loop import model_rig, use_model
 
-            link, rig = use_model(link, setup.params, setup.model, controller, rig.control_dt), model_rig(rig)
+            link = use_model(link, setup.params, setup.model, controller, rig.control_dt)
+            rig = model_rig(rig, setup.model)
         loop = ServoLoop(setup.params, rig, link, frames=session.frames,
                          sensor=sensor if sensor is not None else session.sensor, controller=controller,
                          truth=session.truth, wall_clock=session.wall_clock, frame_wait=rig.frame_wait,

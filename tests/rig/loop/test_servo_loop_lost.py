@@ -5,6 +5,7 @@ cycles it walked so. Off (the default) it holds at once."""
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -77,3 +78,20 @@ def test_no_dither_while_walking_open_loop() -> None:
     # 0.6 s blind = 10 lost cycles: 5 walked open loop, then the arm holds and dithers (5 cycles)
     assert stats.open_on_lost == 5
     assert 1 <= stats.dithers <= 5
+
+
+@pytest.mark.slow
+def test_the_log_says_which_cycles_walked_open_loop(tmp_path: Path) -> None:
+    """log.csv's ``open_on_lost``: 1 on exactly the cycles that walked on blind, the first five
+    lost ones, 0 on every other."""
+    from wristmark.rig.recording.run_log import read_log_csv
+
+    stats, log, _ = blind_walk(open_loop_on_lost=0.3, lost_dither=0.0)
+    log.write_csv(tmp_path / "log.csv")
+    table = read_log_csv(tmp_path / "log.csv")
+    flags = np.asarray(table["open_on_lost"], float)
+    lost = np.asarray(table["meas_ok"], float) == 0
+    assert flags.sum() == stats.open_on_lost == 5
+    assert np.all(lost[flags == 1])
+    first_lost = int(np.argmax(lost & (np.asarray(table["phase"]) == "closed_loop")))
+    assert np.all(flags[first_lost:first_lost + 5] == 1)

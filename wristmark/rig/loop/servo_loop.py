@@ -286,6 +286,7 @@ class ServoLoop:
         frame = self.take_frame(target, phase, memory, stats)
         truth = self.observe()
         outcome = self._measure_and_control(frame, truth, target, memory)
+        walking = False
         if outcome.accepted:
             memory.lost_run = 0
             memory.reused_run = 0
@@ -309,7 +310,9 @@ class ServoLoop:
         assert self.psi_cmd is not None
         self.send(self.psi_cmd)
         latency = self.now() - outcome.meas.t_capture if outcome.accepted and outcome.meas else float("nan")
-        return self.record(target, t_wall, phase, outcome, latency)
+        rec = self.record(target, t_wall, phase, outcome, latency)
+        rec.open_on_lost = walking
+        return rec
 
     def _grid_shift(self) -> float:
         """Wall clock with ``rig.frame_phase_lock``: how far [s] the cycle grid has moved to meet

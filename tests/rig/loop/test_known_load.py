@@ -56,3 +56,33 @@ def test_the_prompt_holds_the_arm_with_the_box_fed_until_enter() -> None:
         ask.close()
         b.link.close()
         b.emulator.stop()
+
+
+def test_the_excitation_goes_on_from_when_the_weight_hangs() -> None:
+    """However long the person took (here 5 s of the arm's time), the cycles after the pause go
+    on from then, one control cycle apart: no ramp is rushed through to catch up."""
+    import dataclasses
+
+    from wristmark.rig.link.actuator_link import DirectLink
+    from wristmark.rig.loop.excitation import run_excitation
+    from wristmark.sim.identify_bench import bench_plan
+    from wristmark.sim.setup import load_setup, make_measurement, make_plant
+
+    setup = load_setup()
+    setup = setup.with_changes(rig=dataclasses.replace(setup.rig, sensor="truth-noise"))
+    plan = with_known_load(bench_plan(setup, 8), F, block=True)
+    plant = make_plant(setup, plan.poses[0])
+    link = DirectLink(plant)
+    frames, sensor = make_measurement(setup, plant, lambda: link.time, 0)
+    pauses: list[float] = []
+
+    def person(force: np.ndarray) -> None:
+        if np.any(force) and not pauses:
+            pauses.append(link.time)
+            link.advance_to(link.time + 5.0)
+
+    data = run_excitation(setup.params, link, frames, sensor, plan, setup.rig.control_dt, apply_load=person)
+    dt = np.diff(data.times)
+    assert len(pauses) == 1 and np.sum(dt > 4.9) == 1  # one gap: the pause
+    np.testing.assert_allclose(dt[dt < 4.9], setup.rig.control_dt, rtol=1e-9)
+    assert data.loads is not None and np.count_nonzero(data.loads[:, 2]) > 0

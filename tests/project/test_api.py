@@ -50,9 +50,9 @@ API = {
         "warm_up",
     ],
     "wristmark.solvers": [
-        "ControlStep", "Controller", "ControllerConfig", "PaperController",
-        "QpController", "RegistrationPose", "RegistrationResult", "make_controller",
-        "solve_registration", "transform_error",
+        "Capsules", "ControlStep", "Controller", "ControllerConfig", "PaperController",
+        "QpController", "RegistrationPose", "RegistrationResult", "body_capsules", "clearance_rows",
+        "make_controller", "min_distance", "solve_registration", "transform_error", "transformed",
     ],
     "wristmark.rig": [
         "ActuatorDriver", "ActuatorError", "ActuatorLink", "CameraStalledError", "CycleRecord", "DirectLink",

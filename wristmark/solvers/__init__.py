@@ -1,5 +1,6 @@
-"""The controllers (``paper``, ``qp``) and the registration solve (the stereo pose solve is the
-tracker's last stage, in :mod:`wristmark.cvs`).
+"""The controllers (``paper``, ``qp``), the clearance between arms (their bodies as capsules, the
+qp's constraint) and the registration solve (the stereo pose solve is the tracker's last stage,
+in :mod:`wristmark.cvs`).
 
 Frames: the controllers work in {w} (the robot base);
 units SI ([m], [rad], [s]).
@@ -11,6 +12,7 @@ does not import CasADi.
 TYPE_CHECKING = False  # typing.TYPE_CHECKING without importing typing (mypy reads it as True)
 
 if TYPE_CHECKING:
+    from wristmark.solvers.clearance import Capsules, body_capsules, clearance_rows, min_distance, transformed
     from wristmark.solvers.controller import Controller, ControllerConfig, ControlStep
     from wristmark.solvers.controller_registry import make_controller
     from wristmark.solvers.paper_controller import PaperController

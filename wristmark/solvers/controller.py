@@ -13,7 +13,7 @@ import abc
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -26,6 +26,9 @@ from wristmark.models.kinematics import check_psi, tip_jacobian
 from wristmark.models.limits import clamp_psi, clamp_velocity, psi_bounds
 from wristmark.solvers.backlash_compensation import ActuatorCompensator, BacklashInverse, CommandCompensator
 from wristmark.solvers.play_probe_fit import PlayFit
+
+if TYPE_CHECKING:
+    from wristmark.solvers.clearance import Capsules
 
 Array = NDArray[np.float64]
 
@@ -56,6 +59,8 @@ class ControllerConfig:
     gain on the tip error [1/s^2] (0 = none), its velocity capped at integral_speed_limit [m/s]
     (solvers/tip_integral.py); integral_mode: "plain" (ki sum(e dt)) or "path" (ki G v_des, the
     mismatch learnt as a linear map of the desired velocity: it turns with the path at a corner).
+    clearance_m: the least surface distance [m] the qp keeps between its arm's body and the
+    obstacles set by ``Controller.set_obstacles`` (other arms' capsules, solvers/clearance.py).
     Both kinds: backlash_compensation turns on the dead-band inversion
     of solvers/backlash_compensation.py: backlash_play_max [rad, m, m, m, m, m] (actuators phi,
     d, s1a, s1b, s2a, s2b) bounds the play it may assume, the estimate starts at backlash_start
@@ -113,6 +118,7 @@ class ControllerConfig:
     ki: float = 4.0
     integral_speed_limit: float = 0.003
     integral_mode: str = "path"
+    clearance_m: float = 0.002
     backlash_compensation: bool = True
     backlash_play_max: tuple[float, ...] = (0.012, 0.0002, 0.00016, 0.00016, 0.00016, 0.00016)
     backlash_start: float = 0.15
@@ -142,7 +148,7 @@ class ControllerConfig:
             if getattr(self, k) <= 0:
                 raise ConfigError(f"'{k}' must be > 0, got {getattr(self, k)}")
         for k in ("kp", "orientation_weight", "pose_orientation_weight", "kr", "ki", "integral_speed_limit",
-                  "backlash_hysteresis", "backlash_window", "backlash_lead", "backlash_margin",
+                  "clearance_m", "backlash_hysteresis", "backlash_window", "backlash_lead", "backlash_margin",
                   "backlash_freeze"):
             if getattr(self, k) < 0:
                 raise ConfigError(f"'{k}' must be >= 0, got {getattr(self, k)}")
@@ -212,7 +218,7 @@ CONTROLLER_SECTIONS: dict[str, tuple[str, tuple[str, ...]]] = {
            ("kp", "max_correction_speed", "feed_forward", "feed_forward_undamped", "damping", "lever",
             "orientation_weight", "position_weight",
             "pose_orientation_weight", "kr", "max_angular_speed", "qp_solver", "ki", "integral_speed_limit",
-            "integral_mode")),
+            "integral_mode", "clearance_m")),
     "backlash": ("the dead-band inversion, either kind",
                  ("backlash_compensation", "backlash_play_max", "backlash_start", "backlash_fraction",
                   "backlash_hysteresis", "backlash_learning", "backlash_window", "backlash_learning_rate",
@@ -270,6 +276,7 @@ class Controller(abc.ABC):
     ``supports_orientation``: the kind also takes an OrientationTask (rotations in {w})."""
 
     supports_orientation = False
+    supports_obstacles = False
 
     def __init__(self, params: Arm, config: ControllerConfig) -> None:
         self.params = params
@@ -358,6 +365,16 @@ class Controller(abc.ABC):
         if self.compensator is None:
             return np.asarray(psi_cmd, float).copy()
         return self.compensator.nominal_of(psi_cmd)
+
+    def set_obstacles(self, caps: Capsules | None, clearance_m: float | None = None) -> None:
+        """Keep the arm's body ``clearance_m`` [m] (None: the config's ``clearance_m``) from the
+        capsules ``caps`` (other arms' bodies, in this arm's {w}: solvers/clearance.py) in the next
+        steps; None clears them. Only a kind with a constraint slot (``supports_obstacles``: the
+        qp) takes them: the paper's eq. 17-21 has none, and refuses (ConfigError); None is
+        accepted by every kind."""
+        if caps is not None:
+            raise ConfigError(f"the {self.config.kind!r} controller has no constraint slot for a clearance "
+                              "between arms; it needs the qp controller")
 
     def reset(self) -> None:
         """Forget the internal state (integral, backlash directions) before a new run."""

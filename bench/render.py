@@ -1,6 +1,9 @@
 """Benchmark of the stereo renderer at 1080p: prints JSON with the median time per pair.
 
-Usage: .venv/bin/python bench/render.py [--pairs N] [--noise default] [--scale 1.0]
+Usage: .venv/bin/python bench/render.py [--pairs N] [--noise default] [--scale 1.0] [--arms 1]
+
+``--arms 2`` (or 3) draws several arms in every pair (StereoRenderer.render_arms): each pair's
+arm, and copies of it moved by ARM_SHIFT [m] up / down in the left camera's frame {ll}.
 
 A warm-up pair is timed on its own (it loads the compiled numba kernels from their cache);
 the median is over the N pairs that follow. Stages are CPU time per pair summed over both camera
@@ -25,7 +28,7 @@ from wristmark.cli.render import PSI_SPREAD
 from wristmark.cvs.calibration.load import load_calibration
 from wristmark.cvs.camera import scaled_stereo_camera
 from wristmark.cvs.tracking.warmup import warm_up  # noqa: E402
-from wristmark.models.arm_shape import arm_shape
+from wristmark.models.arm_shape import ArmShape, arm_shape, transformed
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import RobotParams
@@ -34,6 +37,18 @@ from wristmark.sim.render.stereo_renderer import StereoRenderer
 from wristmark.sim.visibility import random_visible_psi
 
 STAGES = ("plan_arm", "render_arm", "optics_signal_box", "optics_signal", "sensor_image")
+ARM_SHIFT = 0.018  # [m] between the arms of a scene, along y of {ll}
+
+
+def scene(shape: ArmShape, arms: int, T_world_left: np.ndarray) -> list[ArmShape]:
+    """The arm and arms - 1 copies moved by +-ARM_SHIFT, +-2 ARM_SHIFT, ... along y of {ll}."""
+    W = np.asarray(T_world_left, float)
+    out = [shape]
+    for i in range(1, arms):
+        T = np.eye(4)
+        T[1, 3] = ARM_SHIFT * ((i + 1) // 2) * (1 if i % 2 else -1)
+        out.append(transformed(shape, W @ T @ np.linalg.inv(W)))
+    return out
 
 
 def main() -> None:
@@ -41,6 +56,7 @@ def main() -> None:
     ap.add_argument("--pairs", type=int, default=5)
     ap.add_argument("--noise", default="default")
     ap.add_argument("--scale", type=float, default=1.0)
+    ap.add_argument("--arms", type=int, default=1, help="arms per pair (several: render_arms)")
     a = ap.parse_args()
     warm_up(jit=False)  # OpenCV threads, explicitly (building a renderer changes nothing)
     cam = load_calibration(CONFIG_DIR / "camera.yaml")
@@ -48,10 +64,17 @@ def main() -> None:
         cam = scaled_stereo_camera(cam, a.scale)
     params, marker = RobotParams(), MarkerModel()
     t0 = time.perf_counter()
-    r = StereoRenderer(cam, marker, noise_preset(a.noise), seed=0)
+    r = StereoRenderer(cam, marker if a.arms == 1 else [marker] * a.arms, noise_preset(a.noise), seed=0)
     init = time.perf_counter() - t0
     rng = np.random.default_rng(0)
     shapes = [arm_shape(params, random_visible_psi(params, cam, marker, rng, PSI_SPREAD)) for _ in range(a.pairs)]
+    scenes = [scene(s, a.arms, cam.T_world_left) for s in shapes]
+
+    def render(i: int) -> None:
+        if a.arms == 1:
+            r.render(shapes[i])
+        else:
+            r.render_arms(scenes[i])
     stages: dict[str, list[float]] = {k: [] for k in STAGES}
     rays: list[int] = []
 
@@ -67,20 +90,20 @@ def main() -> None:
         return wrapper
 
     t = time.perf_counter()
-    r.render(shapes[0])  # warm-up
+    render(0)  # warm-up
     first = time.perf_counter() - t
     times = []
-    for s in shapes:
+    for i in range(a.pairs):
         t = time.perf_counter()
-        r.render(s)
+        render(i)
         times.append(time.perf_counter() - t)
     # where the time goes (same shapes again, stage timings of both threads summed)
     originals = {k: getattr(render_module, k) for k in STAGES}
     for k in STAGES:
         setattr(render_module, k, timed(k, originals[k]))
     try:
-        for s in shapes:
-            r.render(s)
+        for i in range(a.pairs):
+            render(i)
     finally:
         for k, fn in originals.items():
             setattr(render_module, k, fn)
@@ -98,6 +121,7 @@ def main() -> None:
             {
                 "image_size": list(cam.image_size),
                 "noise": a.noise,
+                "arms": a.arms,
                 "pairs": a.pairs,
                 "init_s": round(init, 3),
                 "first_pair_ms": round(1000 * first, 1),

@@ -2,10 +2,13 @@
 
 Produced from the nominal model (:func:`arm_shape`) or by the simulated true plant (which may
 bend the stem and the segments differently); consumed by the image synthesis and the 3D view.
+:func:`transformed` moves a shape rigidly in {w} (several arms in one scene, each from its own
+base pose).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -14,6 +17,7 @@ from numpy.typing import NDArray
 from wristmark.models.arm_kinematics import bend_angles
 from wristmark.models.arm_spec import Arm, ArmSpec
 from wristmark.models.constant_curvature import segment_point
+from wristmark.models.errors import InputError
 from wristmark.models.kinematics import ArmFrames, check_psi, forward_kinematics
 
 Array = NDArray[np.float64]
@@ -81,3 +85,18 @@ def shape_from_frames(
 def arm_shape(params: Arm, psi: object, samples_per_segment: int = 24) -> ArmShape:
     """Nominal (model) shape of the arm in {w} [m] at configuration psi [rad, m, rad, rad, rad, rad]."""
     return shape_from_frames(params, psi, forward_kinematics(params, psi), None, samples_per_segment)
+
+
+def transformed(shape: ArmShape, T: Array) -> ArmShape:
+    """The shape moved rigidly in {w}: every point p [m] becomes ``T p`` and every pose F of a
+    frame in {w} becomes ``T F`` (centreline, marker, tip, rings), for ``T`` a 4x4 rigid
+    transform [m] (e.g. the base pose of a second arm relative to the first one's)."""
+    T = np.asarray(T, float)
+    R = T[:3, :3] if T.shape == (4, 4) else np.zeros((3, 3))
+    if T.shape != (4, 4) or not np.allclose(R.T @ R, np.eye(3), atol=1e-9) or np.linalg.det(R) < 0 \
+            or not np.allclose(T[3], [0.0, 0.0, 0.0, 1.0]):
+        raise InputError("transformed() needs a 4x4 rigid transform (rotation, translation [m])")
+    moved = {f.name: (T @ v if isinstance(v, np.ndarray) else v)
+             for f in dataclasses.fields(shape.frames) if (v := getattr(shape.frames, f.name)) is not None}
+    frames = dataclasses.replace(shape.frames, **moved)
+    return dataclasses.replace(shape, centreline=shape.centreline @ R.T + T[:3, 3], frames=frames)

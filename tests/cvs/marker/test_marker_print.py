@@ -16,7 +16,7 @@ from wristmark.cli.main import main
 from wristmark.cvs.marker.print_sheet import page_size
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.marker import MarkerModel
-from wristmark.sim.render.arm import Sleeve, pack_sleeve
+from wristmark.sim.render.arm import Sleeve, pack_sleeves
 from wristmark.sim.render.raycast import sleeve_dark
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -48,15 +48,15 @@ def test_printed_svg_wrapped_back_matches_the_renderers_sleeve(marker_file: Path
     assert marker_file.name in out.read_text() and 'class="scalebar"' in out.read_text()
     bar = re.search(r'class="scalebar" [^>]*width="([0-9.]+)"', out.read_text())
     assert bar is not None and float(bar.group(1)) == pytest.approx(10.0)
-    row = pack_sleeve(Sleeve(np.eye(4), marker))
-    pat = marker.patch_array()
+    rows, pat = pack_sleeves([Sleeve(np.eye(4), marker)])
     z_lo, z_hi = marker.z_extent
     rng = np.random.default_rng(0)
     eps = 0.05e-3  # points this close to a colour boundary (in angle or z) are not compared
     compared = 0
     for a, z in zip(rng.uniform(0, 2 * math.pi, 4000), rng.uniform(z_lo, z_hi, 4000)):
         da = eps / marker.radius
-        near = {sleeve_dark(row, pat, (a + sa) % (2 * math.pi), z + sz) for sa in (-da, 0, da) for sz in (-eps, 0, eps)}
+        near = {sleeve_dark(rows, 0, pat, (a + sa) % (2 * math.pi), z + sz)
+                for sa in (-da, 0, da) for sz in (-eps, 0, eps)}
         if len(near) > 1:
             continue
         x_mm = 5.0 + 1e3 * marker.radius * a  # the page margin, then the unrolled arc

@@ -1,11 +1,16 @@
-"""Ray casting of the distal arm (tube, rigid link, marker sleeve, gripper) in one camera.
+"""Ray casting of the distal arms (tube, rigid link, marker sleeve, gripper) in one camera.
+
+One arm or several at once (each with its own marker sleeve): the capsules of all arms and
+their k sleeves go into one plan, and every ray keeps its nearest hit among all of them, so
+the arms hide one another where they cross.
 
 Rays leave the camera centre through raw (distorted) pixel positions: a per-camera map of
 normalized image coordinates, computed once with the camera's exact inverse distortion, is
 interpolated at the supersample positions, so the checker corners appear where
 ``Camera.project`` puts them. Primitives live in the camera frame [m]: capsules (tube pieces,
 link, gripper) and the marker sleeve (a finite cylinder over the marker's z extent with the
-exact pattern of :meth:`MarkerModel.is_black`: checker rows and any coded marker's patches).
+exact pattern of :meth:`MarkerModel.is_black`: checker rows and any coded marker's patches),
+one per arm.
 Shading: coaxial light (light at the camera), Lambert plus a specular lobe, inverse-square
 falloff. The per-ray work runs in the numba kernels of
 :mod:`sim.render.culling` and :mod:`sim.render.raycast`; this module builds the primitives,
@@ -14,6 +19,7 @@ the ray map and the tile plan.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,7 +29,7 @@ from wristmark.cvs.camera import Camera
 from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
 from wristmark.sim.render.culling import NEAR, cull_tiles
-from wristmark.sim.render.raycast import CAPSULE_COLS, SLEEVE_COLS, TILE, ray_directions, raycast_tiles
+from wristmark.sim.render.raycast import CAPSULE_COLS, SLEEVE_COLS, TILE, ray_directions, raycast_tiles, trace
 
 Array = NDArray[np.float64]
 Box = tuple[int, int, int, int]  # pixel rectangle (u0, v0, u1, v1), u1 and v1 exclusive
@@ -117,13 +123,26 @@ def pack_capsules(capsules: list[Capsule]) -> Array:
     return out
 
 
-def pack_sleeve(s: Sleeve) -> Array:
+def pack_sleeve(s: Sleeve, patch_offset: int = 0) -> Array:
     """The sleeve as the kernels' float64 row (SLEEVE_COLS,): R, camera centre in {wm}, sizes,
-    z extent."""
+    z extent, then its patches' rows [patch_offset, patch_offset + n_patches) in the kernels'
+    patch array (see :func:`pack_sleeves`)."""
     R, p = s.T_cam_marker[:3, :3], s.T_cam_marker[:3, 3]
     m = s.marker
-    row = [*R.ravel(), *(-(R.T @ p)), m.radius, m.row_height, m.columns, m.beta, *m.z_extent]
+    row = [*R.ravel(), *(-(R.T @ p)), m.radius, m.row_height, m.columns, m.beta, *m.z_extent,
+           patch_offset, patch_offset + len(m.patches)]
     return np.array(row, np.float64).reshape(SLEEVE_COLS)
+
+
+def pack_sleeves(sleeves: Sequence[Sleeve]) -> tuple[Array, Array]:
+    """The sleeves as the kernels' rows (k, SLEEVE_COLS) and all their patches concatenated
+    (n, 4) [a0, a1, z0, z1] (rad, m), each row pointing at its own."""
+    rows, pats, off = [], [], 0
+    for s in sleeves:
+        rows.append(pack_sleeve(s, off))
+        pats.append(s.marker.patch_array())
+        off += len(pats[-1])
+    return np.ascontiguousarray(np.array(rows).reshape(-1, SLEEVE_COLS)), np.ascontiguousarray(np.vstack(pats))
 
 
 def _sleeve_bounds(s: Sleeve) -> tuple[Array, Array] | None:
@@ -147,37 +166,49 @@ def sleeve_box(ray_map: RayMap, sleeve: Sleeve) -> Box | None:
 @dataclass(frozen=True)
 class ArmPlan:
     """What one camera ray-casts: tiles (tile row, tile column, supersampling), each tile's
-    primitives ``prim[ptr[t]:ptr[t + 1]]`` (capsule rows, then n_caps = the sleeve), the packed
-    primitives, the sleeve's patches (n, 4) and ``box``, the pixel rectangle (u0, v0, u1, v1) of
-    the tiles within the image."""
+    primitives ``prim[ptr[t]:ptr[t + 1]]`` (capsule rows, then n_caps + j = sleeve j), the
+    packed capsules and sleeves (k, SLEEVE_COLS), the sleeves' patches (n, 4) and ``box``, the
+    pixel rectangle (u0, v0, u1, v1) of the tiles within the image."""
 
     tiles: NDArray[np.int64]
     ptr: NDArray[np.int64]
     prim: NDArray[np.int64]
     caps: Array
-    sleeve: Array
+    sleeves: Array
     patches: Array
     box: Box
 
 
-def plan_arm(ray_map: RayMap, capsules: list[Capsule], sleeve: Sleeve, ss: int, arm_ss: int) -> ArmPlan | None:
-    """Cull the primitives (camera frame) per tile; tiles of the sleeve's box get ``ss`` samples
-    per pixel axis, the rest of the arm ``arm_ss``. None if nothing is in view."""
+def plan_arm(
+    ray_map: RayMap, capsules: list[Capsule], sleeve: Sleeve | Sequence[Sleeve], ss: int, arm_ss: int
+) -> ArmPlan | None:
+    """Cull the primitives (camera frame) per tile: the capsules of one or several arms and
+    their sleeves (one, or a sequence: sleeve j is primitive n_caps + j). Tiles of any sleeve's
+    box get ``ss`` samples per pixel axis, the rest of the arms ``arm_ss``. None if nothing is
+    in view."""
+    sleeves = [sleeve] if isinstance(sleeve, Sleeve) else list(sleeve)
+    if not sleeves:
+        raise InputError("plan_arm needs at least one sleeve")
     caps = pack_capsules(capsules)
-    sb = _sleeve_bounds(sleeve)
-    lo, hi = (np.zeros(2), np.zeros(2)) if sb is None else sb
-    mask = cull_tiles(ray_map.tile_c, ray_map.tile_r, ray_map.tile_lo, ray_map.tile_hi, caps, lo, hi, sb is not None)
+    bounds = [_sleeve_bounds(s) for s in sleeves]
+    lo = np.array([np.zeros(2) if b is None else b[0] for b in bounds])
+    hi = np.array([np.zeros(2) if b is None else b[1] for b in bounds])
+    seen = np.array([b is not None for b in bounds])
+    mask = cull_tiles(ray_map.tile_c, ray_map.tile_r, ray_map.tile_lo, ray_map.tile_hi, caps, lo, hi, seen)
     used = mask.any(axis=2)
     if not used.any():
         return None
     js, is_ = np.nonzero(used)
     tss = np.full(len(js), arm_ss, np.int64)
-    mbox = ray_map.tiles_box(*sb) if (sb is not None and ss != arm_ss) else None
-    if mbox is not None:  # the marker and what surrounds it at full supersampling
-        inside = (is_ >= mbox[0] // TILE) & (is_ < mbox[2] // TILE) & (js >= mbox[1] // TILE) & (js < mbox[3] // TILE)
-        tss[inside] = ss
-    elif ss == arm_ss:
+    if ss == arm_ss:
         tss[:] = ss
+    else:  # each marker and what surrounds it at full supersampling
+        for b in bounds:
+            mbox = None if b is None else ray_map.tiles_box(*b)
+            if mbox is not None:
+                inside = ((is_ >= mbox[0] // TILE) & (is_ < mbox[2] // TILE) & (js >= mbox[1] // TILE)
+                          & (js < mbox[3] // TILE))
+                tss[inside] = ss
     sub = mask[js, is_]
     ptr = np.concatenate([[0], np.cumsum(sub.sum(axis=1))]).astype(np.int64)
     prim = np.nonzero(sub)[1].astype(np.int64)
@@ -185,7 +216,28 @@ def plan_arm(ray_map: RayMap, capsules: list[Capsule], sleeve: Sleeve, ss: int, 
     u1, v1 = min(w, (int(is_.max()) + 1) * TILE), min(h, (int(js.max()) + 1) * TILE)
     box = (int(is_.min()) * TILE, int(js.min()) * TILE, u1, v1)
     tiles = np.column_stack([js, is_, tss]).astype(np.int64)
-    return ArmPlan(tiles, ptr, prim, caps, pack_sleeve(sleeve), sleeve.marker.patch_array(), box)
+    rows, patches = pack_sleeves(sleeves)
+    return ArmPlan(tiles, ptr, prim, caps, rows, patches, box)
+
+
+def hidden_points(points: Array, capsules: list[Capsule], sleeves: Sequence[Sleeve]) -> NDArray[np.bool_]:
+    """For points (n, 3) [m] in a camera frame, whether the segment from the camera centre to
+    each one hits one of the primitives (capsules, sleeves; same frame) nearer than the point:
+    what the ray casting draws there instead (the exact intersections of the kernels)."""
+    P = np.asarray(points, float).reshape(-1, 3)
+    n = len(P)
+    hidden = np.zeros(n, np.bool_)
+    if n == 0 or (not capsules and not sleeves):
+        return hidden
+    dist = np.linalg.norm(P, axis=1)
+    d = np.ascontiguousarray((P / dist[:, None]).T)
+    caps = pack_capsules(capsules)
+    rows, _ = pack_sleeves(sleeves) if sleeves else (np.zeros((0, SLEEVE_COLS)), None)
+    prim = np.arange(len(caps) + len(rows), dtype=np.int64)
+    best, who, surf = np.empty(n), np.empty(n, np.int64), np.empty(n, np.int64)
+    trace(prim, 0, len(prim), caps, rows, d[0], d[1], d[2], n, best, who, surf)
+    hidden[:] = best < dist
+    return hidden
 
 
 def render_arm(
@@ -198,7 +250,7 @@ def render_arm(
     adaptive: bool = True,
     mats: Array | None = None,
 ) -> int:
-    """Ray-cast ``plan`` and blend the arm over the background radiance already in ``out``
+    """Ray-cast ``plan`` and blend the arms over the background radiance already in ``out``
     (float32 BGR [grey levels]; ``out[0, 0]`` is pixel ``origin`` = (u, v)). Each pixel becomes
     the mean of its samples (background where a sample misses). ``gain``: grey levels for unit
     radiance; ``flat``: albedo only, no lighting; ``adaptive``: supersample only pixels whose
@@ -209,7 +261,7 @@ def render_arm(
         raise InputError(f"out must be a float32 (h, w, 3) image, got {out.dtype} {out.shape}")
     return int(
         raycast_tiles(
-            ray_map.xy, ray_map.dirs, plan.tiles, plan.ptr, plan.prim, plan.caps, plan.sleeve, plan.patches,
+            ray_map.xy, ray_map.dirs, plan.tiles, plan.ptr, plan.prim, plan.caps, plan.sleeves, plan.patches,
             _MATS if mats is None else mats, float(gain), bool(flat), bool(adaptive), out, int(origin[0]),
             int(origin[1]),
         )

@@ -1,8 +1,9 @@
-"""Numba kernel of per-tile culling of the arm's primitives (which tiles each may cover).
+"""Numba kernel of per-tile culling of the arms' primitives (which tiles each may cover).
 
 Tiles are squares of raw pixels described in normalized image coordinates (x/z, y/z): a disc
 (centre, radius) and a box holding the rays of their pixels. Capsules are the packed rows of
-:mod:`sim.render.raycast`; the sleeve comes as a normalized-plane box. The kernel uses only
+:mod:`sim.render.raycast` (of all the arms drawn); each arm's sleeve comes as a normalized-plane
+box. The kernel uses only
 names of this file (numba's on-disk cache does not notice changes in other files).
 """
 
@@ -42,15 +43,18 @@ def _capsule_margin(c: F64) -> tuple[bool, float, float, float, float, float]:
 
 @jit
 def cull_tiles(
-    tile_c: F64, tile_r: F64, tile_lo: F64, tile_hi: F64, caps: F64, sleeve_lo: F64, sleeve_hi: F64, sleeve_seen: bool
+    tile_c: F64, tile_r: F64, tile_lo: F64, tile_hi: F64, caps: F64, sleeve_lo: F64, sleeve_hi: F64,
+    sleeve_seen: NDArray[np.bool_],
 ) -> NDArray[np.bool_]:
-    """(ty, tx, n_caps + 1) mask of the primitives (capsules, then the sleeve) whose image may
-    overlap each tile: capsules by distance of the tile's ray disc (centre ``tile_c``, radius
-    ``tile_r`` in normalized coordinates) to their projected segment, the sleeve by overlap of
-    its normalized-plane box [sleeve_lo, sleeve_hi] with the tile's [tile_lo, tile_hi]."""
+    """(ty, tx, n_caps + k) mask of the primitives (capsules, then the k sleeves) whose image
+    may overlap each tile: capsules by distance of the tile's ray disc (centre ``tile_c``,
+    radius ``tile_r`` in normalized coordinates) to their projected segment, sleeve j (if
+    ``sleeve_seen[j]``) by overlap of its normalized-plane box [sleeve_lo[j], sleeve_hi[j]]
+    (rows of (k, 2) arrays) with the tile's [tile_lo, tile_hi]."""
     ty, tx = tile_r.shape
     nc = caps.shape[0]
-    mask = np.zeros((ty, tx, nc + 1), np.bool_)
+    ns = sleeve_seen.shape[0]
+    mask = np.zeros((ty, tx, nc + ns), np.bool_)
     for p in range(nc):
         seen, x0, y0, x1, y1, m = _capsule_margin(caps[p])
         if not seen:
@@ -65,13 +69,15 @@ def cull_tiles(
                     k = min(max(((cx - x0) * ex + (cy - y0) * ey) / L2, 0.0), 1.0)
                 gx, gy = cx - (x0 + k * ex), cy - (y0 + k * ey)
                 mask[j, i, p] = math.sqrt(gx * gx + gy * gy) <= tile_r[j, i] + m
-    if sleeve_seen:
+    for s in range(ns):
+        if not sleeve_seen[s]:
+            continue
         for j in range(ty):
             for i in range(tx):
-                mask[j, i, nc] = (
-                    tile_hi[j, i, 0] >= sleeve_lo[0]
-                    and tile_hi[j, i, 1] >= sleeve_lo[1]
-                    and tile_lo[j, i, 0] <= sleeve_hi[0]
-                    and tile_lo[j, i, 1] <= sleeve_hi[1]
+                mask[j, i, nc + s] = (
+                    tile_hi[j, i, 0] >= sleeve_lo[s, 0]
+                    and tile_hi[j, i, 1] >= sleeve_lo[s, 1]
+                    and tile_lo[j, i, 0] <= sleeve_hi[s, 0]
+                    and tile_lo[j, i, 1] <= sleeve_hi[s, 1]
                 )
     return mask

@@ -13,10 +13,16 @@ Packed primitives (float64 rows, built by :mod:`sim.render.arm`):
 - capsule (CAPSULE_COLS): ``a(3) b(3) r cap_a cap_b material ba(3) |ba|^2 -ba.a a.a``, the
   cylinder from a to b of radius r with spherical ends where cap_a / cap_b are non-zero;
 - sleeve (SLEEVE_COLS): ``R(9, row-major: {wm} in the camera) o(3) (camera centre in {wm})
-  radius row_height columns beta z_lo z_hi``: the side z_lo < z < z_hi of the cylinder of
-  ``radius`` around z_wm with the colours of :meth:`models.marker.MarkerModel.is_black` (the
-  checker rows |z| < row_height, then the dark ``patches`` rows ``a0 a1 z0 z1`` [rad, m], white
+  radius row_height columns beta z_lo z_hi pat_lo pat_hi``: the side z_lo < z < z_hi of the
+  cylinder of ``radius`` around z_wm with the colours of
+  :meth:`models.marker.MarkerModel.is_black` (the checker rows |z| < row_height, then its dark
+  patches, rows ``pat_lo <= k < pat_hi`` of ``pat`` (``a0 a1 z0 z1`` [rad, m]), white
   elsewhere), and its two flat end rings (black), facing outwards.
+
+Several arms are drawn at once: ``sleeves`` holds one row per arm's sleeve (k, SLEEVE_COLS)
+and ``pat`` the patches of all of them, concatenated. Primitive index q < n_caps is capsule
+row q (of any arm), q >= n_caps is sleeve q - n_caps; the nearest hit over all of them wins,
+which gives the arms' mutual occlusion.
 
 Materials (rows of ``mats``): albedo B, G, R in [0, 1], specular strength, shininess; ids 0
 tube, 1 metal, 2 marker black, 3 marker white. Shading: coaxial light at the camera, ambient
@@ -47,7 +53,7 @@ from numpy.typing import NDArray
 
 TILE = 32  # tile size of the culling grid [px]
 CAPSULE_COLS = 16
-SLEEVE_COLS = 18
+SLEEVE_COLS = 20
 SIDE, RING_TOP, RING_BOTTOM = 0, 2, 3  # sleeve surfaces hit (the side's colour comes later)
 
 D0 = 0.08  # distance at which the light gives unit irradiance [m]
@@ -105,9 +111,12 @@ def hit_capsule(caps: F64, q: int, dx: F64, dy: F64, dz: F64, n: int, best: F64,
 
 
 @jit
-def hit_sleeve(s: F64, q: int, dx: F64, dy: F64, dz: F64, n: int, best: F64, who: I64, surf: I64) -> None:
-    """Rays 0..n-1 against the sleeve (index q): where it is hit nearer than ``best`` [m], set
-    ``best``, ``who`` = q and ``surf`` (SIDE, RING_TOP at z = z_hi or RING_BOTTOM at z = z_lo)."""
+def hit_sleeve(sleeves: F64, j: int, q: int, dx: F64, dy: F64, dz: F64, n: int, best: F64, who: I64,
+               surf: I64) -> None:
+    """Rays 0..n-1 against sleeve row j (primitive index q): where it is hit nearer than
+    ``best`` [m], set ``best``, ``who`` = q and ``surf`` (SIDE, RING_TOP at z = z_hi or
+    RING_BOTTOM at z = z_lo)."""
+    s = sleeves[j]  # one view per batch (not per ray)
     o0, o1, o2, rad, zlo, zhi = s[9], s[10], s[11], s[12], s[16], s[17]
     qc = o0 * o0 + o1 * o1 - rad * rad
     for i in range(n):
@@ -144,11 +153,12 @@ def hit_sleeve(s: F64, q: int, dx: F64, dy: F64, dz: F64, n: int, best: F64, who
 
 @jit
 def trace(
-    prim: I64, p0: int, p1: int, caps: F64, sleeve: F64, dx: F64, dy: F64, dz: F64, n: int,
+    prim: I64, p0: int, p1: int, caps: F64, sleeves: F64, dx: F64, dy: F64, dz: F64, n: int,
     best: F64, who: I64, surf: I64,
 ) -> None:
-    """Nearest hit of rays 0..n-1 among primitives ``prim[p0:p1]`` (capsule rows; n_caps = the
-    sleeve): distance ``best`` [m] (inf: none), primitive ``who`` (-1: none), sleeve ``surf``."""
+    """Nearest hit of rays 0..n-1 among primitives ``prim[p0:p1]`` (capsule rows; n_caps + j:
+    sleeve row j): distance ``best`` [m] (inf: none), primitive ``who`` (-1: none), sleeve
+    ``surf``."""
     nc = caps.shape[0]
     for i in range(n):
         best[i] = math.inf
@@ -159,7 +169,7 @@ def trace(
         if q < nc:
             hit_capsule(caps, q, dx, dy, dz, n, best, who)
         else:
-            hit_sleeve(sleeve, q, dx, dy, dz, n, best, who, surf)
+            hit_sleeve(sleeves, q - nc, q, dx, dy, dz, n, best, who, surf)
 
 
 @jit_inline
@@ -177,14 +187,14 @@ def _ray(xy: F64, fu: float, fv: float) -> tuple[float, float, float]:
 
 
 @jit_inline
-def sleeve_dark(s: F64, pat: F64, ang: float, z: float) -> bool:
-    """Is the sleeve dark at angle ``ang`` in [0, 2 pi) [rad] and height z [m]: a checker patch
-    (|z| < row_height) or one of the patches ``pat`` (rows a0 a1 z0 z1)."""
-    if abs(z) < s[13]:
-        col = int(math.floor(ang / s[15])) % int(s[14])
+def sleeve_dark(sleeves: F64, j: int, pat: F64, ang: float, z: float) -> bool:
+    """Is sleeve row j dark at angle ``ang`` in [0, 2 pi) [rad] and height z [m]: a checker
+    patch (|z| < row_height) or one of its patches (rows pat_lo..pat_hi-1 of ``pat``: a0 a1 z0 z1)."""
+    if abs(z) < sleeves[j, 13]:
+        col = int(math.floor(ang / sleeves[j, 15])) % int(sleeves[j, 14])
         if ((col % 2) == 0) == (z > 0.0):
             return True
-    for k in range(pat.shape[0]):
+    for k in range(int(sleeves[j, 18]), int(sleeves[j, 19])):
         if pat[k, 2] <= z < pat[k, 3] and (ang - pat[k, 0]) % (2.0 * math.pi) < pat[k, 1] - pat[k, 0]:
             return True
     return False
@@ -220,12 +230,12 @@ def _laminate(px: float, py: float, pz: float, nx: float, ny: float, nz: float, 
 
 @jit_inline
 def _shade(
-    dx: float, dy: float, dz: float, t: float, q: int, code: int, caps: F64, s: F64, pat: F64, mats: F64, gain: float,
-    flat: bool,
+    dx: float, dy: float, dz: float, t: float, q: int, code: int, caps: F64, sleeves: F64, pat: F64, mats: F64,
+    gain: float, flat: bool,
 ) -> tuple[int, float, float, float]:
     """Surface key and B, G, R radiance [grey levels] of a ray (unit direction) hitting
-    primitive q at distance t [m] (sleeve surface ``code``). Keys: 4 q for capsule q, 4 n_caps
-    + (0 white patch, 1 black patch, 2 / 3 end ring) for the sleeve."""
+    primitive q at distance t [m] (sleeve surface ``code``). Keys: 4 q for capsule q, 4 q +
+    (0 white patch, 1 black patch, 2 / 3 end ring) for sleeve q - n_caps."""
     nc = caps.shape[0]
     if q < nc:  # capsule: normal from the nearest axis point
         px, py, pz = dx * t - caps[q, 0], dy * t - caps[q, 1], dz * t - caps[q, 2]
@@ -233,21 +243,22 @@ def _shade(
         r = caps[q, 6]
         nx, ny, nz = (px - k * caps[q, 10]) / r, (py - k * caps[q, 11]) / r, (pz - k * caps[q, 12]) / r
         mat, key = int(caps[q, 9]), 4 * q
-    else:  # sleeve: hit point in {wm}, checker colour on the side
-        d0 = s[0] * dx + s[3] * dy + s[6] * dz
-        d1 = s[1] * dx + s[4] * dy + s[7] * dz
-        d2 = s[2] * dx + s[5] * dy + s[8] * dz
+    else:  # sleeve row j: hit point in {wm}, checker colour on the side
+        j = q - nc
+        d0 = sleeves[j, 0] * dx + sleeves[j, 3] * dy + sleeves[j, 6] * dz
+        d1 = sleeves[j, 1] * dx + sleeves[j, 4] * dy + sleeves[j, 7] * dz
+        d2 = sleeves[j, 2] * dx + sleeves[j, 5] * dy + sleeves[j, 8] * dz
         m0, m1, m2 = 0.0, 0.0, (1.0 if code == RING_TOP else -1.0)
         surf = code
         if code == SIDE:
-            q0, q1, z = s[9] + t * d0, s[10] + t * d1, s[11] + t * d2
-            m0, m1, m2 = q0 / s[12], q1 / s[12], 0.0
+            q0, q1, z = sleeves[j, 9] + t * d0, sleeves[j, 10] + t * d1, sleeves[j, 11] + t * d2
+            m0, m1, m2 = q0 / sleeves[j, 12], q1 / sleeves[j, 12], 0.0
             a = math.atan2(q1, q0)  # in [-pi, pi]: the same as a % (2 pi), without its fmod
-            surf = 1 if sleeve_dark(s, pat, a if a >= 0.0 else a + 2.0 * math.pi, z) else 0
-        nx = s[0] * m0 + s[1] * m1 + s[2] * m2  # normal to the camera frame: R m
-        ny = s[3] * m0 + s[4] * m1 + s[5] * m2
-        nz = s[6] * m0 + s[7] * m1 + s[8] * m2
-        mat, key = (MAT_WHITE if surf == 0 else MAT_BLACK), 4 * nc + surf
+            surf = 1 if sleeve_dark(sleeves, j, pat, a if a >= 0.0 else a + 2.0 * math.pi, z) else 0
+        nx = sleeves[j, 0] * m0 + sleeves[j, 1] * m1 + sleeves[j, 2] * m2  # normal to the camera frame: R m
+        ny = sleeves[j, 3] * m0 + sleeves[j, 4] * m1 + sleeves[j, 5] * m2
+        nz = sleeves[j, 6] * m0 + sleeves[j, 7] * m1 + sleeves[j, 8] * m2
+        mat, key = (MAT_WHITE if surf == 0 else MAT_BLACK), 4 * q + surf
     if flat:
         return key, gain * mats[mat, 0], gain * mats[mat, 1], gain * mats[mat, 2]
     ndv = min(max(-(nx * dx + ny * dy + nz * dz), 0.0), 1.0)
@@ -262,14 +273,14 @@ def _shade(
 
 @jit
 def _flush(
-    n: int, rays: F64, pix: I64, prim: I64, p0: int, p1: int, caps: F64, sleeve: F64, pat: F64, mats: F64,
+    n: int, rays: F64, pix: I64, prim: I64, p0: int, p1: int, caps: F64, sleeves: F64, pat: F64, mats: F64,
     gain: float, flat: bool, best: F64, who: I64, surf: I64, acc: F64, cnt: I64,
 ) -> None:
     """Trace and shade the batch ``rays[:, :n]``; add radiance and hit counts to the pixels ``pix``."""
-    trace(prim, p0, p1, caps, sleeve, rays[0], rays[1], rays[2], n, best, who, surf)
+    trace(prim, p0, p1, caps, sleeves, rays[0], rays[1], rays[2], n, best, who, surf)
     for i in range(n):
         if who[i] >= 0:
-            _, r0, r1, r2 = _shade(rays[0, i], rays[1, i], rays[2, i], best[i], who[i], surf[i], caps, sleeve, pat,
+            _, r0, r1, r2 = _shade(rays[0, i], rays[1, i], rays[2, i], best[i], who[i], surf[i], caps, sleeves, pat,
                                    mats, gain, flat)
             p = pix[i]
             acc[p, 0] += r0
@@ -279,7 +290,7 @@ def _flush(
 
 
 @jit
-def _centre_rays(xy: F64, prim: I64, p0: int, p1: int, caps: F64, sleeve: F64, pat: F64, mats: F64, gain: float,
+def _centre_rays(xy: F64, prim: I64, p0: int, p1: int, caps: F64, sleeves: F64, pat: F64, mats: F64, gain: float,
                  flat: bool, tu: int, tv: int, rays: F64, best: F64, who: I64, surf: I64, keys: I64,
                  crad: F64) -> int:
     """Adaptive supersampling's first pass: one ray through the centre of every pixel of the tile
@@ -291,13 +302,13 @@ def _centre_rays(xy: F64, prim: I64, p0: int, p1: int, caps: F64, sleeve: F64, p
         for i in range(n):
             a, b = (c0 + i) // RING, (c0 + i) % RING
             rays[0, i], rays[1, i], rays[2, i] = _ray(xy, tu + b - 1.0, tv + a - 1.0)
-        trace(prim, p0, p1, caps, sleeve, rays[0], rays[1], rays[2], n, best, who, surf)
+        trace(prim, p0, p1, caps, sleeves, rays[0], rays[1], rays[2], n, best, who, surf)
         for i in range(n):
             a, b = (c0 + i) // RING, (c0 + i) % RING
             keys[a, b] = -1
             if who[i] >= 0:
                 keys[a, b], crad[a, b, 0], crad[a, b, 1], crad[a, b, 2] = _shade(
-                    rays[0, i], rays[1, i], rays[2, i], best[i], who[i], surf[i], caps, sleeve, pat, mats,
+                    rays[0, i], rays[1, i], rays[2, i], best[i], who[i], surf[i], caps, sleeves, pat, mats,
                     gain, flat)
         count += n
     return count
@@ -331,7 +342,7 @@ def _keep_smooth_centres(need: NDArray[np.bool_], keys: I64, crad: F64, out: NDA
 
 
 @jit
-def _supersample(xy: F64, prim: I64, p0: int, p1: int, caps: F64, sleeve: F64, pat: F64, mats: F64, gain: float,
+def _supersample(xy: F64, prim: I64, p0: int, p1: int, caps: F64, sleeves: F64, pat: F64, mats: F64, gain: float,
                  flat: bool, tu: int, tv: int, ss: int, need: NDArray[np.bool_], out: NDArray[np.float32], u0: int,
                  v0: int, rays: F64, pix: I64, best: F64, who: I64, surf: I64, acc: F64, cnt: I64) -> int:
     """Full ss x ss supersampling of the tile's pixels that ``need`` it, blended over ``out`` (a
@@ -352,11 +363,11 @@ def _supersample(xy: F64, prim: I64, p0: int, p1: int, caps: F64, sleeve: F64, p
                 pix[n] = p
                 n += 1
                 if n == BATCH:
-                    _flush(n, rays, pix, prim, p0, p1, caps, sleeve, pat, mats, gain, flat, best, who, surf, acc,
+                    _flush(n, rays, pix, prim, p0, p1, caps, sleeves, pat, mats, gain, flat, best, who, surf, acc,
                            cnt)
                     count += n
                     n = 0
-    _flush(n, rays, pix, prim, p0, p1, caps, sleeve, pat, mats, gain, flat, best, who, surf, acc, cnt)
+    _flush(n, rays, pix, prim, p0, p1, caps, sleeves, pat, mats, gain, flat, best, who, surf, acc, cnt)
     count += n
     nss = ss * ss
     for p in range(TILE * TILE):
@@ -383,17 +394,17 @@ def ray_directions(xy: F64, ty: int, tx: int) -> F64:
 
 
 @jit
-def _single_sample(dirs: F64, prim: I64, p0: int, p1: int, caps: F64, sleeve: F64, pat: F64, mats: F64, gain: float,
+def _single_sample(dirs: F64, prim: I64, p0: int, p1: int, caps: F64, sleeves: F64, pat: F64, mats: F64, gain: float,
                    flat: bool, tu: int, tv: int, need: NDArray[np.bool_], out: NDArray[np.float32], u0: int, v0: int,
                    best: F64, who: I64, surf: I64) -> int:
     """One sample per pixel: the tile's centre rays (``dirs`` (3, TILE^2), precomputed) traced in
     one batch; a pixel that ``need`` s it and is hit takes the hit's radiance (what the mean of
     one sample over the background gives), the others keep the background. Returns the rays cast."""
     n = TILE * TILE
-    trace(prim, p0, p1, caps, sleeve, dirs[0], dirs[1], dirs[2], n, best, who, surf)
+    trace(prim, p0, p1, caps, sleeves, dirs[0], dirs[1], dirs[2], n, best, who, surf)
     for p in range(n):
         if need[p] and who[p] >= 0:
-            _, r0, r1, r2 = _shade(dirs[0, p], dirs[1, p], dirs[2, p], best[p], who[p], surf[p], caps, sleeve, pat,
+            _, r0, r1, r2 = _shade(dirs[0, p], dirs[1, p], dirs[2, p], best[p], who[p], surf[p], caps, sleeves, pat,
                                    mats, gain, flat)
             a, b = tv + p // TILE - v0, tu + p % TILE - u0  # (no view per pixel: its reference count costs)
             out[a, b, 0], out[a, b, 1], out[a, b, 2] = r0, r1, r2
@@ -402,11 +413,11 @@ def _single_sample(dirs: F64, prim: I64, p0: int, p1: int, caps: F64, sleeve: F6
 
 @jit
 def raycast_tiles(
-    xy: F64, dirs: F64, tiles: I64, ptr: I64, prim: I64, caps: F64, sleeve: F64, pat: F64, mats: F64, gain: float,
+    xy: F64, dirs: F64, tiles: I64, ptr: I64, prim: I64, caps: F64, sleeves: F64, pat: F64, mats: F64, gain: float,
     flat: bool, adaptive: bool, out: NDArray[np.float32], u0: int, v0: int,
 ) -> int:
     """Ray-cast tiles (rows ``tile_row, tile_col, ss``) against their primitives ``prim[ptr[t]:
-    ptr[t + 1]]`` (capsule rows, index n_caps = sleeve) and blend into ``out`` (BGR radiance
+    ptr[t + 1]]`` (capsule rows; n_caps + j: sleeve row j) and blend into ``out`` (BGR radiance
     [grey levels], pixel (u, v) at ``out[v - v0, u - u0]``): each pixel becomes the mean of its
     ss x ss samples, the background value where a sample misses.
 
@@ -433,13 +444,13 @@ def raycast_tiles(
             v, u = tv + p // TILE, tu + p % TILE
             need[p] = 0 <= v - v0 < h and 0 <= u - u0 < w
         if ss == 1:  # the centre rays, precomputed (``dirs``, from :func:`ray_directions`)
-            count += _single_sample(dirs[tiles[t, 0], tiles[t, 1]], prim, p0, p1, caps, sleeve, pat, mats, gain, flat,
+            count += _single_sample(dirs[tiles[t, 0], tiles[t, 1]], prim, p0, p1, caps, sleeves, pat, mats, gain, flat,
                                     tu, tv, need, out, u0, v0, best, who, surf)
             continue
         if adaptive and ss > 1:
-            count += _centre_rays(xy, prim, p0, p1, caps, sleeve, pat, mats, gain, flat, tu, tv, rays, best, who,
+            count += _centre_rays(xy, prim, p0, p1, caps, sleeves, pat, mats, gain, flat, tu, tv, rays, best, who,
                                   surf, keys, crad)
             _keep_smooth_centres(need, keys, crad, out, tu, tv, u0, v0)
-        count += _supersample(xy, prim, p0, p1, caps, sleeve, pat, mats, gain, flat, tu, tv, ss, need, out, u0, v0,
+        count += _supersample(xy, prim, p0, p1, caps, sleeves, pat, mats, gain, flat, tu, tv, ss, need, out, u0, v0,
                               rays, pix, best, who, surf, acc, cnt)
     return count

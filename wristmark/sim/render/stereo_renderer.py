@@ -1,4 +1,5 @@
-"""Stereo image synthesis of the marked arm: :class:`StereoRenderer` -> :class:`RenderedPair`.
+"""Stereo image synthesis of the marked arm: :class:`StereoRenderer` -> :class:`RenderedPair`,
+or of several arms at once -> :class:`RenderedScene`.
 
 Each camera sees the same world: the distal arm (tube along the true centreline, rigid link,
 checkered marker sleeve, gripper) ray-cast through the camera's exact distortion at
@@ -7,9 +8,14 @@ optics of :mod:`sim.render.optics` and the sensor of :mod:`sim.render.sensor`. G
 (pose of {wm} in {ll}, tip in {ll}, raw pixel corners with their cos_view per camera) follows
 docs/design.md's truth.json.
 
+Several arms (a renderer built with one marker per arm, :meth:`StereoRenderer.render_arms`)
+are ray-cast together, each with its own sleeve: every ray keeps its nearest hit, so the arms
+hide one another where they cross, and each corner's truth says whether another arm's body
+hides it in that camera (``CornerTruth.occluded``).
+
 Only what changes is rendered: the optics of the background are computed once per renderer;
-each frame ray-casts the arm's tiles into a radiance buffer holding the background, blurs only
-the arm's tile rows (each row's span of tiles grown by the blur's reach) into a signal buffer
+each frame ray-casts the arms' tiles into a radiance buffer holding the background, blurs only
+the arms' tile rows (each row's span of tiles grown by the blur's reach) into a signal buffer
 holding the background's optics, draws fresh sensor noise over the whole frame straight into
 the output image (one side-by-side buffer for :meth:`StereoRenderer.render_side_by_side`), then
 puts the background back where the arm was. With motion blur (a new direction every frame) the
@@ -18,6 +24,7 @@ optics run over the whole frame instead.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
@@ -38,6 +45,7 @@ from wristmark.sim.render.arm import (
     RayMap,
     Sleeve,
     glossy_materials,
+    hidden_points,
     plan_arm,
     render_arm,
 )
@@ -55,11 +63,13 @@ JAW_RADIUS = 0.0006  # [m]
 
 @dataclass(frozen=True)
 class CornerTruth:
-    """One marker corner in one camera: raw pixel uv [px] and cos_view (<= 0: facing away)."""
+    """One marker corner in one camera: raw pixel uv [px] and cos_view (<= 0: facing away);
+    ``occluded``: another arm of the scene is in front of it (always False with one arm)."""
 
     index: int
     uv: tuple[float, float]
     cos_view: float
+    occluded: bool = False
 
 
 @dataclass(frozen=True)
@@ -78,14 +88,44 @@ class RenderedPair:
     corners_right: tuple[CornerTruth, ...]
 
 
-def corner_truth(camera: Camera, marker: MarkerModel, T_cam_marker: Array) -> tuple[CornerTruth, ...]:
-    """Raw pixels and cos_view of every marker corner for a camera seeing {wm} at T_cam_marker."""
+@dataclass(frozen=True)
+class ArmTruth:
+    """Ground truth of one arm of a scene (left camera frame {ll}, metres): pose of its {wm} in
+    {ll}, its tip in {ll} [m] and its corners in each camera."""
+
+    T_left_marker: Array
+    tip_left: Array
+    corners_left: tuple[CornerTruth, ...]
+    corners_right: tuple[CornerTruth, ...]
+
+
+@dataclass(frozen=True)
+class RenderedScene:
+    """A rendered stereo pair of several arms: images as in :class:`RenderedPair`, and ``arms``,
+    one :class:`ArmTruth` per arm in the order of the renderer's markers."""
+
+    left: NDArray[np.uint8]
+    right: NDArray[np.uint8]
+    arms: tuple[ArmTruth, ...]
+
+
+def corner_truth(
+    camera: Camera,
+    marker: MarkerModel,
+    T_cam_marker: Array,
+    occluders: tuple[list[Capsule], list[Sleeve]] | None = None,
+) -> tuple[CornerTruth, ...]:
+    """Raw pixels and cos_view of every marker corner for a camera seeing {wm} at T_cam_marker;
+    ``occluders``: other arms' capsules and sleeves in that camera's frame, which set
+    ``occluded`` on the corners they hide (None: none)."""
     R, t = T_cam_marker[:3, :3], T_cam_marker[:3, 3]
     P = marker.corners() @ R.T + t
     N = marker.corner_normals() @ R.T
     uv = camera.project(P)
     cos = -(N * P).sum(axis=1) / np.linalg.norm(P, axis=1)
-    return tuple(CornerTruth(i, (float(uv[i, 0]), float(uv[i, 1])), float(cos[i])) for i in range(marker.columns))
+    hid = np.zeros(len(P), bool) if occluders is None else hidden_points(P, *occluders)
+    return tuple(CornerTruth(i, (float(uv[i, 0]), float(uv[i, 1])), float(cos[i]), bool(hid[i]))
+                 for i in range(marker.columns))
 
 
 def arm_primitives(shape: ArmShape, marker: MarkerModel, T_cam_world: Array) -> tuple[list[Capsule], Sleeve]:
@@ -112,19 +152,30 @@ def arm_primitives(shape: ArmShape, marker: MarkerModel, T_cam_world: Array) -> 
 
 
 class StereoRenderer:
-    """Renders the arm in a calibrated stereo endoscope (needs ``camera.T_world_left``).
+    """Renders the arm in a calibrated stereo endoscope (needs ``camera.T_world_left``), or
+    several arms: ``marker`` is one marker model, or a sequence of them, one per arm (the
+    shapes given to :meth:`render_arms` come in the same order).
 
     Deterministic per ``seed``: the background is drawn once; the k-th call of :meth:`render`
-    uses noise stream (seed, k).
+    (or :meth:`render_arms`) uses noise stream (seed, k).
     """
 
-    def __init__(self, camera: StereoCamera, marker: MarkerModel, settings: RenderSettings, seed: int = 0) -> None:
+    def __init__(
+        self, camera: StereoCamera, marker: MarkerModel | Sequence[MarkerModel], settings: RenderSettings,
+        seed: int = 0,
+    ) -> None:
+        markers = (marker,) if isinstance(marker, MarkerModel) else tuple(marker)
+        if not markers:
+            raise InputError("the renderer needs at least one marker (one per arm)")
         camera.validate()
-        marker.validate()
+        for m in markers:
+            m.validate()
         settings.validate()
         if camera.T_world_left is None:
             raise InputError("the calibration has no 'world_T_left': add it to render the arm in {w}")
-        self.camera, self.marker, self.settings, self.seed = camera, marker, settings, int(seed)
+        self.camera, self.settings, self.seed = camera, settings, int(seed)
+        self.markers: tuple[MarkerModel, ...] = markers
+        self.marker = markers[0]
         self._count = 0
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="render-right")
         right_map = self._pool.submit(RayMap, camera.right, camera.image_size)  # OpenCV releases the GIL
@@ -178,16 +229,28 @@ class StereoRenderer:
                           min(h, (int(j) + 1) * TILE)))
         return boxes
 
-    def _arm_signal(self, cam: int, shape: ArmShape, angle: float, incremental: bool) -> tuple[
+    def _shapes(self, shapes: ArmShape | Sequence[ArmShape]) -> tuple[ArmShape, ...]:
+        """The arm shapes as a tuple, one per marker (else InputError)."""
+        out = (shapes,) if isinstance(shapes, ArmShape) else tuple(shapes)
+        if len(out) != len(self.markers):
+            raise InputError(f"{len(out)} arm shape(s) for {len(self.markers)} marker(s): give one shape per marker")
+        return out
+
+    def _primitives(self, shapes: tuple[ArmShape, ...], T_cam_world: Array) -> list[tuple[list[Capsule], Sleeve]]:
+        """Each arm's capsules and sleeve in the camera frame given the pose of {w} in it."""
+        return [arm_primitives(shape, m, T_cam_world) for shape, m in zip(shapes, self.markers)]
+
+    def _arm_signal(self, cam: int, shapes: tuple[ArmShape, ...], angle: float, incremental: bool) -> tuple[
             NDArray[np.float32], list[Box]]:
         """Sensor signal of one camera (0 left, 1 right) before noise [grey levels] and the boxes
         to restore afterwards with :meth:`_restore`: incrementally, the camera's signal buffer
-        (the cached background's optics with those of the arm's tile rows written in); else (or
+        (the cached background's optics with those of the arms' tile rows written in); else (or
         with motion blur) a new whole-frame signal and no boxes."""
         T_cw = (self.T_left_world, self.T_right_world)[cam]
         rmap, st = self._maps[cam], self.settings
-        caps, sleeve = arm_primitives(shape, self.marker, T_cw)
-        plan = plan_arm(rmap, caps, sleeve, st.supersampling, st.arm_supersampling)
+        prims = self._primitives(shapes, T_cw)
+        caps = [c for cs, _ in prims for c in cs]
+        plan = plan_arm(rmap, caps, [s for _, s in prims], st.supersampling, st.arm_supersampling)
         flat = st.shading == "flat"
         if incremental and self._bg_signal is not None:
             sig = self._sig[cam]
@@ -219,65 +282,101 @@ class StereoRenderer:
             for u0, v0, u1, v1 in boxes:
                 sig[v0:v1, u0:u1] = bg[v0:v1, u0:u1]
 
-    def signal(self, shape: ArmShape, cam: int = 0, incremental: bool = True) -> NDArray[np.float32]:
+    def signal(
+        self, shape: ArmShape | Sequence[ArmShape], cam: int = 0, incremental: bool = True
+    ) -> NDArray[np.float32]:
         """Noise-free sensor signal [grey levels] (h, w, 3), or (h, w) in grayscale, of camera
-        ``cam`` (0 left, 1 right) for an arm shape in {w}; ``incremental=False`` runs the optics
-        over the whole frame (the reference the incremental path must equal). Motion blur, if
-        set, is along the image x axis here."""
+        ``cam`` (0 left, 1 right) for an arm shape in {w} (or one shape per marker);
+        ``incremental=False`` runs the optics over the whole frame (the reference the
+        incremental path must equal). Motion blur, if set, is along the image x axis here."""
         if cam not in (0, 1):
             raise InputError(f"cam must be 0 (left) or 1 (right), got {cam}")
-        sig, boxes = self._arm_signal(cam, shape, 0.0, incremental)
+        sig, boxes = self._arm_signal(cam, self._shapes(shape), 0.0, incremental)
         out = sig.copy()
         self._restore(cam, boxes)
         return out
 
-    def _render_camera(self, cam: int, shape: ArmShape, count: int, out: NDArray[np.uint8]) -> None:
+    def _render_camera(self, cam: int, shapes: tuple[ArmShape, ...], count: int, out: NDArray[np.uint8]) -> None:
         """One camera's image (cam 0 = left, 1 = right) of render call number ``count`` into ``out``."""
         rng = np.random.default_rng([self.seed, 1, count, cam])
         angle = float(rng.uniform(0, np.pi)) if self.settings.motion_blur > 0 else 0.0
         key = int(rng.integers(0, 2**63, dtype=np.uint64))
-        sig, boxes = self._arm_signal(cam, shape, angle, incremental=True)
+        sig, boxes = self._arm_signal(cam, shapes, angle, incremental=True)
         try:
             sensor_image(sig, self.settings, key, out=out)
         finally:
             self._restore(cam, boxes)
 
-    def _render_into(self, shape: ArmShape, left: NDArray[np.uint8], right: NDArray[np.uint8]) -> RenderedPair:
+    def _truth(self, shapes: tuple[ArmShape, ...]) -> tuple[ArmTruth, ...]:
+        """Each arm's ground truth; with several arms, the corners the others hide are marked."""
+        cams = ((self.camera.left, self.T_left_world), (self.camera.right, self.T_right_world))
+        prims = [self._primitives(shapes, T_cw) for _, T_cw in cams] if len(shapes) > 1 else None
+        out = []
+        for i, (shape, marker) in enumerate(zip(shapes, self.markers)):
+            corners = []
+            for c, (camera, T_cw) in enumerate(cams):
+                occ = None
+                if prims is not None:
+                    others = [p for k, p in enumerate(prims[c]) if k != i]
+                    occ = ([cap for cs, _ in others for cap in cs], [s for _, s in others])
+                corners.append(corner_truth(camera, marker, T_cw @ shape.T_world_marker, occ))
+            tip = shape.tip @ self.T_left_world[:3, :3].T + self.T_left_world[:3, 3]
+            out.append(ArmTruth(self.T_left_world @ shape.T_world_marker, tip, corners[0], corners[1]))
+        return tuple(out)
+
+    def _render_into(
+        self, shapes: tuple[ArmShape, ...], left: NDArray[np.uint8], right: NDArray[np.uint8]
+    ) -> tuple[ArmTruth, ...]:
         """Render both cameras into ``left`` and ``right`` (the right one in the renderer's second
-        thread: the numba kernels and OpenCV release the GIL) and add the ground truth."""
+        thread: the numba kernels and OpenCV release the GIL); returns the ground truth."""
         count = self._count
         self._count += 1
-        job = self._pool.submit(self._render_camera, 1, shape, count, right)
+        job = self._pool.submit(self._render_camera, 1, shapes, count, right)
         try:
-            self._render_camera(0, shape, count, left)
+            self._render_camera(0, shapes, count, left)
         finally:
             job.result()
-        T_lm = self.T_left_world @ shape.T_world_marker
-        T_rm = self.T_right_world @ shape.T_world_marker
-        tip = shape.tip @ self.T_left_world[:3, :3].T + self.T_left_world[:3, 3]
-        return RenderedPair(
-            left,
-            right,
-            T_lm,
-            tip,
-            corner_truth(self.camera.left, self.marker, T_lm),
-            corner_truth(self.camera.right, self.marker, T_rm),
-        )
+        return self._truth(shapes)
 
     def _image_shape(self, width: int) -> tuple[int, ...]:
         h = self.camera.image_size[1]
         return (h, width, 3) if self.settings.colour else (h, width)
 
+    @staticmethod
+    def _pair(left: NDArray[np.uint8], right: NDArray[np.uint8], t: ArmTruth) -> RenderedPair:
+        return RenderedPair(left, right, t.T_left_marker, t.tip_left, t.corners_left, t.corners_right)
+
     def render(self, shape: ArmShape) -> RenderedPair:
-        """Render both cameras for an arm shape in {w}; returns images and ground truth.
+        """Render both cameras for an arm shape in {w}; returns images and ground truth (a
+        renderer of several markers needs :meth:`render_arms`).
 
         Not thread-safe (one call at a time: the renderer reuses its buffers)."""
+        shapes = self._shapes(shape)
         size = self._image_shape(self.camera.image_size[0])
-        return self._render_into(shape, np.empty(size, np.uint8), np.empty(size, np.uint8))
+        left, right = np.empty(size, np.uint8), np.empty(size, np.uint8)
+        return self._pair(left, right, self._render_into(shapes, left, right)[0])
 
     def render_side_by_side(self, shape: ArmShape) -> tuple[NDArray[np.uint8], RenderedPair]:
         """Like :meth:`render`, the two images rendered into one side-by-side image (left | right,
         (h, 2 w, 3) or (h, 2 w)), returned with the pair, whose images are its two halves (views)."""
+        shapes = self._shapes(shape)
         w = self.camera.image_size[0]
         both = np.empty(self._image_shape(2 * w), np.uint8)
-        return both, self._render_into(shape, both[:, :w], both[:, w:])
+        return both, self._pair(both[:, :w], both[:, w:], self._render_into(shapes, both[:, :w], both[:, w:])[0])
+
+    def render_arms(self, shapes: Sequence[ArmShape]) -> RenderedScene:
+        """Render both cameras for several arms at once, one shape in {w} per marker (same order):
+        the arms hide one another where they cross. Returns the images and each arm's truth.
+        Not thread-safe (as :meth:`render`, whose noise stream it shares)."""
+        arms = self._shapes(shapes)
+        size = self._image_shape(self.camera.image_size[0])
+        left, right = np.empty(size, np.uint8), np.empty(size, np.uint8)
+        return RenderedScene(left, right, self._render_into(arms, left, right))
+
+    def render_arms_side_by_side(self, shapes: Sequence[ArmShape]) -> tuple[NDArray[np.uint8], RenderedScene]:
+        """Like :meth:`render_arms`, into one side-by-side image (left | right) returned with the
+        scene, whose images are its two halves (views)."""
+        arms = self._shapes(shapes)
+        w = self.camera.image_size[0]
+        both = np.empty(self._image_shape(2 * w), np.uint8)
+        return both, RenderedScene(both[:, :w], both[:, w:], self._render_into(arms, both[:, :w], both[:, w:]))

@@ -43,7 +43,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="output folder: the run folder, empty unless --force (default: a new runs/<name>-<time>, "
                         "linked as runs/latest)")
     set_example(p, "wristmark experiment cube --json runs/tour/cube.json",
-                "wristmark experiment cube --plant configs/plant_misplaced_camera.yaml --registration reg.yaml")
+                "wristmark experiment cube --plant configs/plant_misplaced_camera.yaml --registration reg.yaml",
+                "wristmark experiment cube --scene configs/scenes/two_arms.yaml --duration 10")
     add_force_argument(p)
     add_setup_arguments(p)
     add_registration_argument(p)
@@ -59,6 +60,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--orientation", choices=ORIENTATION_MODES, default="none",
                    help="cube/point/load: the tip frame's orientation: none (position only, as the paper), hold "
                         "(the start's), follow (the nominal model's along the path); needs --controller qp")
+    p.add_argument("--scene", metavar="SCENE.yaml",
+                   help="cube: several arms in one view, each walking its own cube in its own loop on one camera "
+                        "(a scene file: docs/formats.md; e.g. configs/scenes/two_arms.yaml)")
+    p.add_argument("--hold", metavar="ARM", action="append",
+                   help="with --scene: this arm holds its workspace centre while the others walk (repeatable)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.add_argument("--view", action="store_true",
                    help="live 3D view in the browser (Meshcat; prints the URL to open)")
@@ -82,7 +88,61 @@ def check_args(args: argparse.Namespace) -> SimSetup:
     return setup
 
 
+def check_scene_args(args: argparse.Namespace) -> Any:
+    """``--scene``: the options it allows, and the scene's setup (ConfigError / InputError naming the cause)."""
+    from wristmark.cli.setup_args import scene_setup_from_args
+
+    if args.name != "cube":
+        raise ConfigError("--scene needs the cube experiment")
+    if args.orientation != "none":
+        raise ConfigError("--orientation: not with --scene (each arm's cube is position only)")
+    if args.view:
+        raise ConfigError("--view: not with --scene; replay the run folder with wristmark view")
+    if args.duration is not None and not args.duration > 0:
+        raise ConfigError(f"--duration must be > 0 s, got {args.duration}")
+    setup = scene_setup_from_args(args)
+    from wristmark.sim.scene_experiments import scene_trajectories
+
+    scene_trajectories(setup, args.duration, tuple(args.hold or ()))  # --hold names arms of the scene
+    return setup
+
+
+def run_scene(args: argparse.Namespace) -> int:
+    """``experiment cube --scene``: every arm's loop on one camera; exit 3 if any arm stopped."""
+    from wristmark.sim.scene_experiments import run_scene_cube
+
+    setup = check_scene_args(args)
+    out = Path(args.out) if args.out else new_run_dir("runs", "scene-cube")
+    claim_outputs(dirs=[out], files=[args.json], force=args.force)
+    warm_up()
+    t0 = time.perf_counter()
+    res = run_scene_cube(setup, out, duration=args.duration, hold=tuple(args.hold or ()))
+    print((out / "results.md").read_text())
+    stopped = [f"arm {n}: {a['closed_loop']['stopped']}" for n, a in res["arms"].items() if a["closed_loop"]["stopped"]]
+    return _finish(args, out, res, time.perf_counter() - t0, stopped)
+
+
+def _finish(args: argparse.Namespace, out: Path, res: dict[str, Any], wall_s: float, stopped: list[str]) -> int:
+    """Write ``--json``, name the run folder (linked as runs/latest without ``--out``) and the
+    first safe stop; the exit code (3 after a safe stop)."""
+    res["wall_time_s"] = wall_s
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        write_json(args.json, res)
+    print(f"run folder: {out}")
+    if not args.out:
+        link_latest(out)
+    if stopped:
+        print(f"wristmark experiment: error: closed loop stopped safely: {stopped[0]}", file=sys.stderr)
+        return 3
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.scene is not None:
+        return run_scene(args)
+    if args.hold:
+        raise ConfigError("--hold needs --scene")
     setup = check_args(args)
     out = Path(args.out) if args.out else new_run_dir("runs", args.name)
     claim_outputs(dirs=[out], files=[args.json], force=args.force)
@@ -105,18 +165,7 @@ def run(args: argparse.Namespace) -> int:
             view.close()
             print(f"replay in the browser: wristmark view {out}", file=sys.stderr)
             print(f"(the live view at {view.url} has closed with the run)", file=sys.stderr)
-    res["wall_time_s"] = time.perf_counter() - t0
-    if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        write_json(args.json, res)
-    print(f"run folder: {out}")
-    if not args.out:
-        link_latest(out)
-    stopped = [r for r in _phases(res) if r.get("stopped")]
-    if stopped:
-        print(f"wristmark experiment: error: closed loop stopped safely: {stopped[0]['stopped']}", file=sys.stderr)
-        return 3
-    return 0
+    return _finish(args, out, res, time.perf_counter() - t0, [r["stopped"] for r in _phases(res) if r.get("stopped")])
 
 
 def _run(args: argparse.Namespace, setup: SimSetup, out: Path, progress: bool,

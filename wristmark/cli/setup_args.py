@@ -71,7 +71,6 @@ def setup_from_args(args: argparse.Namespace, simulated: bool = True, **rig_over
 
     simulated: a SimSetup (the simulated bench, with its plant file); False: a LoopSetup for the
     hardware path (the simulated bench is not imported; its options are refused)."""
-    from wristmark.solvers.controller_registry import make_controller
 
     if getattr(args, "open_loop_on_lost", None) and not getattr(args, "model", None):
         raise ConfigError("--open-loop-on-lost needs --model (an identified arm to trust without the marker)")
@@ -99,6 +98,33 @@ def setup_from_args(args: argparse.Namespace, simulated: bool = True, **rig_over
         from wristmark.cvs.calibration.registration_file import load_registration
 
         setup = setup.with_changes(registration=load_registration(args.registration).world_T_left)
+    return apply_overrides(setup, args, **rig_overrides)
+
+
+SCENE_FILES = ("robot", "marker", "plant", "calib", "model", "registration", "open_loop_on_lost")
+
+
+def scene_setup_from_args(args: argparse.Namespace) -> Any:
+    """``--scene FILE``: the scene's setup (sim.scene_setup) with the command line's loop and
+    controller overrides applied to every arm. The arms' own files come from the scene file:
+    ``--robot``, ``--marker``, ``--plant``, ``--calib``, ``--model``, ``--registration`` are refused."""
+    from wristmark.sim.scene_setup import load_scene_setup
+
+    given = [f"--{k.replace('_', '-')}" for k in SCENE_FILES if getattr(args, k, None) is not None]
+    if given:
+        raise InputError(f"{', '.join(given)}: not with --scene (each arm's files are named in the scene file)")
+    scene = load_scene_setup(args.scene, rig=args.rig, controller=args.controller_config)
+    for name in scene.names:
+        scene.arms[name] = apply_overrides(scene.arms[name], args)
+    return scene
+
+
+def apply_overrides(setup: Any, args: argparse.Namespace, **rig_overrides: Any) -> Any:
+    """The command line's loop and controller overrides (``--dt``, ``--latency``, ``--sensor``,
+    ``--image-scale``, ``--seed``, ``--controller``, plus ``rig_overrides``) applied to ``setup``,
+    validated."""
+    from wristmark.solvers.controller_registry import make_controller
+
     changes: dict[str, Any] = {}
     if args.dt is not None:
         changes["control_dt"] = args.dt

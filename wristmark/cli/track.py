@@ -268,41 +268,34 @@ def run(args: argparse.Namespace) -> int:
             print(publisher.line(), file=sys.stderr, flush=True)
 
 
-def arm_objects(res: Any, arms: list[str], fields: Any) -> list[dict[str, Any]]:
-    """One object per arm for one pair tracked with a marker set: the arm the code decided gets
-    the pose fields; every other arm ``"ok": false`` with the reason (not in view, or the sleeve
-    in view could not be identified: a pose with an undecided identity is no arm's)."""
-    arm = res.code.arm if res.ok and res.roll_known and res.code is not None else None
-    if arm is None and res.ok:
-        why = res.code.reason if res.code is not None else "no code"
-        reason = f"sleeve in view not identified ({why})"
-    elif arm is None:
-        reason = res.reason
-    else:
-        reason = f"not in view (the sleeve in view is arm '{arm}')"
-    return [{"arm": a} | (fields(res) if a == arm else {"ok": False, "reason": reason}) for a in arms]
+def arm_objects(results: dict[str, Any], fields: Any) -> list[dict[str, Any]]:
+    """One object per arm for one pair tracked with a marker set (cvs.tracking.arm_set): the pose
+    fields where the arm's own code identified its sleeve, else ``"ok": false`` with the reason
+    (not in view, or a sleeve in view could not be identified: a pose with an undecided identity
+    is no arm's)."""
+    return [{"arm": a} | (fields(res) if res.ok else {"ok": False, "reason": res.reason}) for a, res in results.items()]
 
 
 def _track_arms(args: argparse.Namespace, camera: Any, markers: list[Any], hint: Any, fields: Any,
                 source: Any) -> int:
-    """Image pairs with a marker set (one sleeve in view at a time): per pair one line per arm."""
-    from wristmark.cvs.tracking.tracker import MarkerTracker
+    """Image pairs with a marker set: every sleeve in each pair, one line per arm and pair."""
+    from wristmark.cvs.tracking.arm_set import ArmSetTracker
     from wristmark.cvs.tracking.warmup import warm_up
 
     warm_up()
-    tracker = MarkerTracker(camera, markers[0], _settings(args), family=markers)
-    arms = [m.arm for m in markers]
+    tracker = ArmSetTracker(camera, markers, _settings(args), names=[str(f) for f in args.marker])
+    hints = {m.arm: hint for m in markers} if hint is not None else None
     for frame in iter(source.read, None):
         try:
-            res = tracker.track(frame.left, frame.right, axis_hint_left=hint)
+            results = tracker.track(frame.left, frame.right, axis_hints_left=hints)
         except InputError as e:
             raise InputError(f"{frame.name_left} / {frame.name_right}: {e}") from e
-        for obj in arm_objects(res, arms, fields):
+        for obj in arm_objects(results, fields):
             out = {"left": frame.name_left, "right": frame.name_right} | obj
             if args.json:
                 print(json.dumps(out), flush=True)
             elif obj["ok"]:
-                print(f"{obj['arm']}: {_text_line(frame, res)}", flush=True)
+                print(f"{obj['arm']}: {_text_line(frame, results[obj['arm']])}", flush=True)
             else:
                 print(f"{obj['arm']}: no pose ({obj['reason']})", flush=True)
     return 0

@@ -148,16 +148,24 @@ def _image_fill(camera: StereoCamera, P: Array, T_world_left: Array) -> float:
 
 
 def _cube_markers(arm: Arm) -> Array:
-    """Marker centres in {w} [m] with the tip at the cube's 8 corners around the workspace
-    centre (``workspace_centre``: inside the arm's reach; nominal IK from home)."""
+    """Marker centres in {w} [m] with the tip at the paper cube's 8 corners (:func:`cube_markers`)."""
+    from wristmark.rig.targets.trajectories import CUBE_SIZE
+
+    return cube_markers(arm, CUBE_SIZE)
+
+
+def cube_markers(arm: Arm, size: tuple[float, float, float]) -> Array:
+    """Marker centres in the arm's {w} [m] with the tip at the 8 corners of a cube of edges
+    ``size`` [m] around the arm's workspace centre (``workspace_centre``: inside the arm's reach;
+    nominal IK from home)."""
     from wristmark.models.ik import solve_tip_ik
-    from wristmark.rig.targets.trajectories import CUBE_SIZE, workspace_centre
+    from wristmark.rig.targets.trajectories import workspace_centre
 
     q0 = home_psi(arm)
-    centre = workspace_centre(arm)
+    centre = workspace_centre(arm, size)
     out = []
     for corner in itertools.product((-0.5, 0.5), repeat=3):
-        q = solve_tip_ik(arm, centre + np.multiply(corner, CUBE_SIZE), q0).psi
+        q = solve_tip_ik(arm, centre + np.multiply(corner, size), q0).psi
         out.append(forward_kinematics(arm, q).T_world_marker[:3, 3])
     return np.array(out)
 

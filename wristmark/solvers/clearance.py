@@ -48,6 +48,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.models.arm_kinematics import arm_frames, bend_angles, f_g_array
+from wristmark.models.arm_shape import ArmShape
 from wristmark.models.arm_spec import Arm, ArmSpec, as_spec
 from wristmark.models.errors import InputError
 from wristmark.models.kinematics import check_psi
@@ -223,6 +224,23 @@ def body_capsules(params: Arm, psi: object, per_segment: int = PER_SEGMENT, slee
     spec, q, lay = _prepare(params, psi, per_segment, sleeve_radius, sleeve_half_length, tip_radius)
     a, b, r = _capsules_batch(spec, q[None], lay, per_segment, sleeve_half_length)
     return Capsules(a[0], b[0], r[0])
+
+
+def shape_capsules(shape: ArmShape, sleeve_radius: float = SLEEVE_RADIUS,
+                   sleeve_half_length: float = SLEEVE_HALF_LENGTH) -> Capsules:
+    """A body already computed (an :class:`models.arm_shape.ArmShape`, e.g. a simulated true
+    arm's, which no psi describes) as capsules in its frame [m]: one per step of its centreline
+    (arm radius), the rigid link from the last end ring to the sleeve, the sleeve (as
+    :func:`body_capsules`) and the gripper to the tip (arm radius)."""
+    C = np.asarray(shape.centreline, float)
+    z, o = shape.T_world_marker[:3, 2], shape.T_world_marker[:3, 3]
+    lo, hi = o - sleeve_half_length * z, o + sleeve_half_length * z
+    end = np.asarray(shape.frames.T_world_2e[:3, 3], float)
+    start = np.vstack([C[:-1], end, lo, hi])
+    stop = np.vstack([C[1:], lo, hi, np.asarray(shape.tip, float)])
+    r = np.full(len(start), float(shape.radius))
+    r[-2] = sleeve_radius
+    return Capsules(start, stop, r)
 
 
 def segment_closest(p1: Array, q1: Array, p2: Array, q2: Array) -> tuple[Array, Array, Array, Array]:

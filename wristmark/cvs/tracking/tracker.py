@@ -418,6 +418,23 @@ class MarkerTracker:
             return None
         return np.asarray(prev.T_left_marker[:3, 2], float)
 
+    @property
+    def tracking(self) -> bool:
+        """The next pair is searched first in the boxes around this pair's corners (ROI tracking)."""
+        return self._tracking
+
+    def adopt(self, res: TrackResult) -> None:
+        """Go on tracking from a good result another tracker of the same marker layout found (its
+        corners' boxes, its pose as the next pair's prior): cvs.tracking.arm_set hands a sleeve
+        found in a search for another arm to its own arm's tracker."""
+        if not res.ok or res.pose is None:
+            raise InputError("only a good result can be adopted")
+        self.detector_left.follow(res.corners_left)
+        self.detector_right.follow(res.corners_right)
+        self._tracking = self._last_oriented = True
+        self._last_pose = res.pose
+        self._seen, self._roi_magnify = (res.corners_left.copy(), res.corners_right.copy()), 1.0
+
     def reset(self) -> None:
         """Forget the ROI state: the next pair is searched in the whole frames."""
         self._tracking = self._continuous = self._last_oriented = False

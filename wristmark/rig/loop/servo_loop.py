@@ -212,16 +212,26 @@ class ServoLoop:
         n_after = int(round(ctrl.config.play_probe_settle / dt)) if ctrl and ctrl.wants_play_probe else 0
         bar = PhaseProgress(phase, n_settle, n_traj, progress)  # the probe and its settle not on it
         if ctrl is not None and ctrl.wants_play_probe:  # settle, probe, settle again, walk
-            from wristmark.rig.loop.play_probe import run_play_probe
-
-            lead_in = n_settle + 10**6  # the first settle sees no preview of the walk's start
-            self._cycles(traj, phase, closed_loop, log, stats, memory, bar, n_settle, lead_in)
-            start = cycle_target(traj, self.rig, 0, self.t, lead_in)
-            self.play_fits = run_play_probe(_ProbeView(self, phase, log, memory, stats), start)
-            memory.last_ok, n_settle = None, n_after  # the probe moved the tip: no jump gate just after it
+            n_settle = self.probe_play(traj, phase, log, stats, memory, n_settle, bar)
         self._cycles(traj, phase, closed_loop, log, stats, memory, bar, n_settle + n_traj, n_settle, n_after)
         bar.close()
         return stats
+
+    def probe_play(self, traj: Trajectory, phase: str, log: RunLog, stats: PhaseStats, memory: TrackingMemory,
+                   n_settle: int, bar: PhaseProgress | None = None) -> int:
+        """Closed loop, for a controller that asks for it: ``n_settle`` cycles holding the
+        trajectory's start, the play probe (rig/loop/play_probe.py, logged as ``phase + ':probe'``),
+        and return how many settle cycles are still due before the walk (``play_probe_settle``)."""
+        from wristmark.rig.loop.play_probe import run_play_probe
+
+        assert self.controller is not None
+        bar = bar if bar is not None else PhaseProgress(phase, n_settle, 0, False)
+        lead_in = n_settle + 10**6  # the first settle sees no preview of the walk's start
+        self._cycles(traj, phase, True, log, stats, memory, bar, n_settle, lead_in)
+        start = cycle_target(traj, self.rig, 0, self.t, lead_in)
+        self.play_fits = run_play_probe(_ProbeView(self, phase, log, memory, stats), start)
+        memory.last_ok = None  # the probe moved the tip: no jump gate just after it
+        return int(round(self.controller.config.play_probe_settle / self.rig.control_dt))
 
     def _cycles(self, traj: Trajectory, phase: str, closed_loop: bool, log: RunLog, stats: PhaseStats,
                 memory: TrackingMemory, bar: PhaseProgress, n: int, n_settle: int, unbarred: int = 0) -> None:
@@ -262,6 +272,18 @@ class ServoLoop:
             k += 1
             if k > unbarred:
                 bar.step()
+
+    def step(self, target: CycleTarget, phase: str, closed_loop: bool, memory: TrackingMemory,
+             stats: PhaseStats) -> CycleRecord:
+        """One cycle at ``target`` (the loop's time already advanced to ``target.t``), open or
+        closed loop, counted in ``stats``: what :meth:`run` does per cycle, for a caller that
+        steps several loops in lockstep (sim.several_arms). Raises MarkerLostError as :meth:`run`."""
+        if closed_loop:
+            rec = self._closed_cycle(target, time.monotonic(), phase, memory, stats)
+        else:
+            rec = self._open_cycle(target, time.monotonic(), phase)
+        stats.cycles += 1
+        return rec
 
     def observe(self) -> TruthSample:
         """The ground-truth observer's sample now (NO_TRUTH without one: hardware)."""

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,6 +20,9 @@ from numpy.typing import NDArray
 from wristmark.cvs.camera import StereoCamera
 from wristmark.cvs.sources.frames import StereoFrame
 from wristmark.models.marker import MarkerModel
+
+if TYPE_CHECKING:
+    from wristmark.cvs.tracking.result import TrackResult
 
 Array = NDArray[np.float64]
 
@@ -84,18 +87,23 @@ class VisionTipSensor:
             hint = self.T_world_left[:3, :3].T @ np.asarray(axis_hint_world, float)
         t0 = time.perf_counter()
         res = self.tracker.track(frame.left, frame.right, axis_hint_left=hint)
-        ms = 1000.0 * (time.perf_counter() - t0)
-        corners = np.asarray(res.corners_left, float).reshape(-1, 2)
-        if not res.ok or res.tip_left is None or self.T_world_left is None:
-            reason = res.reason or ("marker not found" if res.tip_left is None else "no world_T_left")
-            return TipMeasurement(False, None, reason, ms, t_capture=frame.t_capture,
-                                  frame_index=frame.index, corners_left=corners)
-        W = self.T_world_left
-        p = (np.asarray(res.tip_left, float).reshape(1, 3) @ W[:3, :3].T + W[:3, 3])[0]
-        T = None if res.T_left_marker is None else np.asarray(res.T_left_marker, float)
-        return TipMeasurement(True, p, "", ms, float(res.rms_px), frame.t_capture, frame.index, corners, T,
-                              np.asarray(res.tip_left, float), None if T is None else W[:3, :3] @ T[:3, :3],
-                              bool(res.roll_known), None if T is None else W @ T)
+        return tip_measurement(res, frame, 1000.0 * (time.perf_counter() - t0), self.T_world_left)
+
+
+def tip_measurement(res: TrackResult, frame: StereoFrame, ms: float, T_world_left: Array | None) -> TipMeasurement:
+    """A tracking result in {ll} as the loop's measurement in {w} through ``T_world_left`` (pose of
+    {ll} in {w}, 4x4 [m]; None: no measurement); ``ms``: the tracking time [ms]."""
+    corners = np.asarray(res.corners_left, float).reshape(-1, 2)
+    if not res.ok or res.tip_left is None or T_world_left is None:
+        reason = res.reason or ("marker not found" if res.tip_left is None else "no world_T_left")
+        return TipMeasurement(False, None, reason, ms, t_capture=frame.t_capture,
+                              frame_index=frame.index, corners_left=corners)
+    W = T_world_left
+    p = (np.asarray(res.tip_left, float).reshape(1, 3) @ W[:3, :3].T + W[:3, 3])[0]
+    T = None if res.T_left_marker is None else np.asarray(res.T_left_marker, float)
+    return TipMeasurement(True, p, "", ms, float(res.rms_px), frame.t_capture, frame.index, corners, T,
+                          np.asarray(res.tip_left, float), None if T is None else W[:3, :3] @ T[:3, :3],
+                          bool(res.roll_known), None if T is None else W @ T)
 
 
 class DeadlineTipSensor:

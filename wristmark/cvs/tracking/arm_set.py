@@ -1,0 +1,187 @@
+"""Several coded sleeves of one family in one stereo pair, each its own arm: :class:`ArmSetTracker`.
+
+Each arm has its own :class:`MarkerTracker` (ROI tracking per arm). Per pair, first every arm
+that was tracked is searched in its own boxes (the tracker falls back to whole frames when they
+lose it); then the arms still missing are searched in whole frames in which the sleeves already
+found in this pair are painted out (the search finds one chain, the longest: a second sleeve is
+found only once the first is gone). A pose counts for an arm only when the sleeve's code says
+it is that arm (``res.code.arm``): a chain that an arm's boxes caught on another arm's sleeve
+(crossing, touching), or a sleeve whose code cannot be decided (too few code cells seen), is
+no arm's. So identities never swap: a sleeve is reported as an arm only on its own code, and
+the code's single-error margin holds across the family (cvs.marker.family).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from wristmark.cvs.camera import StereoCamera
+from wristmark.cvs.gray_image import check_view
+from wristmark.cvs.tracking.result import Array, TrackResult
+from wristmark.cvs.tracking.settings import TrackerSettings
+from wristmark.cvs.tracking.tracker import MarkerTracker
+from wristmark.models.errors import InputError
+from wristmark.models.marker import MarkerModel, check_marker_set
+
+Box = tuple[int, int, int, int]  # (u0, v0, u1, v1) [px], end exclusive
+
+__all__ = ["ArmSetTracker", "identity", "sleeve_boxes"]
+
+
+def identity(res: TrackResult) -> str | None:
+    """The arm a result's sleeve is, by its code (None: no pose, or the code did not decide it)."""
+    if res.ok and res.roll_known and res.code is not None and res.code.ok:
+        return res.code.arm
+    return None
+
+
+def sleeve_boxes(camera: StereoCamera, marker: MarkerModel, T_left_marker: Array, margin_px: float = 6.0
+                 ) -> tuple[Box | None, Box | None]:
+    """Pixel boxes (u0, v0, u1, v1) of the whole sleeve (every side, code bands included) in the
+    left and right images for a pose of {wm} in {ll} [m]; None where it is behind a camera."""
+    ang = np.linspace(0.0, 2.0 * np.pi, 25)
+    z_lo, z_hi = marker.z_extent
+    ring = np.column_stack([np.cos(ang), np.sin(ang), np.zeros_like(ang)]) * marker.radius
+    pts = np.vstack([ring + [0.0, 0.0, z] for z in np.linspace(z_lo, z_hi, 3)])
+    P_left = pts @ T_left_marker[:3, :3].T + T_left_marker[:3, 3]
+    P_right = P_left @ np.asarray(camera.R, float).T + np.asarray(camera.T, float).reshape(3)
+    w, h = camera.image_size
+    out: list[Box | None] = []
+    for cam, P in ((camera.left, P_left), (camera.right, P_right)):
+        if np.any(P[:, 2] <= 1e-3):
+            out.append(None)
+            continue
+        uv = cam.project(P)
+        lo, hi = uv.min(axis=0) - margin_px, uv.max(axis=0) + margin_px
+        box = (max(0, int(np.floor(lo[0]))), max(0, int(np.floor(lo[1]))),
+               min(w, int(np.ceil(hi[0])) + 1), min(h, int(np.ceil(hi[1])) + 1))
+        out.append(box if box[0] < box[2] and box[1] < box[3] else None)
+    return out[0], out[1]
+
+
+def _paint_out(img: NDArray[np.uint8], box: Box | None) -> None:
+    """Fill ``box`` of ``img`` (in place) with the mean of its border: no edge crosses it."""
+    if box is None:
+        return
+    u0, v0, u1, v1 = box
+    patch = img[v0:v1, u0:u1]
+    border = np.concatenate([patch[0].reshape(-1, *img.shape[2:]), patch[-1].reshape(-1, *img.shape[2:]),
+                             patch[:, 0].reshape(-1, *img.shape[2:]), patch[:, -1].reshape(-1, *img.shape[2:])])
+    patch[...] = np.asarray(border.mean(axis=0), np.float64).round().astype(np.uint8)
+
+
+class ArmSetTracker:
+    """Stereo tracker of a set of coded sleeves (one marker file per arm, each naming its arm,
+    codes of one family: models.marker.check_marker_set). Poses in {ll} [m] per arm."""
+
+    def __init__(self, camera: StereoCamera, markers: Sequence[MarkerModel],
+                 settings: TrackerSettings | None = None, names: Sequence[str] | None = None) -> None:
+        """``names``: the marker files' names for the messages (default the arms')."""
+        markers = list(markers)
+        if not markers:
+            raise InputError("an arm set needs at least one marker")
+        if len(markers) == 1 and markers[0].arm is None:
+            raise InputError("an arm set's marker must name its arm ('arm: NAME' in the marker file)")
+        check_marker_set(markers, list(names) if names is not None else [str(m.arm) for m in markers])
+        self.camera = camera
+        self.markers = {str(m.arm): m for m in markers}
+        self.arms = list(self.markers)
+        self.trackers = {a: MarkerTracker(camera, m, settings, family=markers) for a, m in self.markers.items()}
+
+    def reset(self) -> None:
+        """Forget every arm's ROI state."""
+        for t in self.trackers.values():
+            t.reset()
+
+    def track(self, left_img: Any, right_img: Any,
+              axis_hints_left: Mapping[str, Array] | None = None) -> dict[str, TrackResult]:
+        """Track every arm's sleeve in one stereo pair (uint8 grey or BGR of the calibrated size):
+        one result per arm, in the order of the markers. An arm whose sleeve is not found, or is
+        found but not decided by its code, is ``ok=False`` with the reason. ``axis_hints_left``:
+        per arm, the expected direction of its z_wm in {ll} (used only before the code decides)."""
+        il = check_view(left_img, self.camera.image_size, "left")
+        ir = check_view(right_img, self.camera.image_size, "right")
+        hints = dict(axis_hints_left or {})
+        results: dict[str, TrackResult] = {}
+        found: list[TrackResult] = []
+        for arm in self.arms:  # each arm that was tracked, in its own boxes first
+            trk = self.trackers[arm]
+            if not trk.tracking:
+                continue
+            res = trk.track(il, ir, axis_hint_left=hints.get(arm))
+            who = identity(res)
+            if who == arm:
+                results[arm] = res
+                found.append(res)
+            else:  # lost, or its boxes caught another sleeve: searched again below
+                trk.reset()
+        pending = [a for a in self.arms if a not in results]
+        masked: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None
+        failures: list[str] = []
+        for _ in range(2 * len(self.arms)):  # each search finds one sleeve (or none: done)
+            if not pending:
+                break
+            if masked is None:
+                masked = (il.copy(), ir.copy())
+                for r in found:
+                    self._paint(masked, r)
+            searcher = self.trackers[pending[0]]
+            searcher.reset()
+            res = searcher.track(masked[0], masked[1], axis_hint_left=hints.get(pending[0]))
+            if not self._paint(masked, res):
+                break  # nothing more in view
+            who = identity(res)
+            if who in pending:
+                if self.trackers[who] is not searcher:
+                    searcher.reset()
+                    self.trackers[who].adopt(res)
+                results[who] = res
+                pending.remove(who)
+                continue
+            searcher.reset()
+            if res.ok and who is None:
+                why = res.code.reason if res.code is not None else "no code"
+                failures.append(f"a sleeve in view not identified ({why})")
+            elif res.ok:
+                failures.append(f"a second sleeve read as arm '{who}'")
+            else:
+                failures.append(f"a sleeve in view not tracked ({res.reason})")
+        for arm in pending:
+            results[arm] = self._missing("not found; " + "; ".join(failures) if failures else "not in view")
+        return {a: self._own(a, results[a]) for a in self.arms}
+
+    def _own(self, arm: str, res: TrackResult) -> TrackResult:
+        """``res`` as arm ``arm``'s result: a pose only when its code says it is that arm."""
+        if res.ok and identity(res) != arm:
+            return replace(res, ok=False, reason="sleeve in view not identified as this arm")
+        if not res.ok and not res.reason:
+            return replace(res, reason="not in view")
+        return res
+
+    def _missing(self, reason: str) -> TrackResult:
+        empty = np.zeros((0, 2))
+        return TrackResult(False, reason, None, None, None, empty, empty, float("nan"), 0.0, {})
+
+    def _paint(self, images: tuple[NDArray[np.uint8], NDArray[np.uint8]], res: TrackResult) -> bool:
+        """Paint a result's sleeve out of both (copied) images: the whole sleeve where a pose was
+        fitted, else the box of its corners grown by two spacings; False when it has neither."""
+        if res.T_left_marker is not None:
+            marker = next(iter(self.markers.values()))
+            for img, box in zip(images, sleeve_boxes(self.camera, marker, res.T_left_marker)):
+                _paint_out(img, box)
+            return True
+        painted = False
+        for img, c in zip(images, (res.corners_left, res.corners_right)):
+            if c is None or len(c) < 2:
+                continue
+            gap = float(np.median(np.hypot(*np.diff(c, axis=0).T)))
+            lo, hi = c.min(axis=0) - 2.0 * gap, c.max(axis=0) + 2.0 * gap
+            h, w = img.shape[:2]
+            _paint_out(img, (max(0, int(lo[0])), max(0, int(lo[1])), min(w, int(hi[0]) + 1), min(h, int(hi[1]) + 1)))
+            painted = True
+        return painted

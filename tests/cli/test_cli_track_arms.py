@@ -27,7 +27,38 @@ def test_one_sleeve_in_view_is_reported_under_its_arm_only(tmp_path: Path, capsy
     assert all(not x["ok"] for x in lines if x["arm"] == "arm0")  # never read as the other arm's
     mine = [x for x in lines if x["arm"] == "arm1" and x["ok"]]
     assert len(mine) >= 2 and all(x["roll_known"] and x["axis_source"] == "code" for x in mine)
-    assert any("the sleeve in view is arm 'arm1'" in x["reason"] for x in lines if x["arm"] == "arm0")
+    assert all(x["reason"] == "not in view" for x in lines if x["arm"] == "arm0")
+
+
+def test_two_sleeves_in_each_pair_are_both_reported_each_under_its_own_arm(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``render --scene`` (both arms in every pair, truth per arm) then ``track`` with both marker
+    files: every pair gives each arm its own pose, at its own truth."""
+    out = tmp_path / "two"
+    assert main(["render", "--scene", "configs/scenes/two_arms.yaml", "--out", str(out), "--pairs", "3",
+                 "--image-scale", "0.75", "--seed", "4"]) == 0
+    truth = json.loads((out / "truth.json").read_text())
+    assert [sorted(e["arms"]) for e in truth] == [["a", "b"]] * 3
+    capsys.readouterr()
+    pairs = [str(out / f"pair_{i:02d}_{s}.png") for i in range(3) for s in ("left", "right")]
+    assert main(["track", "--calib", str(out / "calib.yaml"), "--marker", str(out / "marker_a.yaml"),
+                 "--marker", str(out / "marker_b.yaml"), *pairs, "--json"]) == 0
+    lines = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
+    assert [x["arm"] for x in lines] == ["a", "b"] * 3
+    for k, x in enumerate(lines):
+        assert x["ok"], x
+        tip = truth[k // 2]["arms"][x["arm"]]["tip"]
+        other = truth[k // 2]["arms"]["b" if x["arm"] == "a" else "a"]["tip"]
+        assert sum((p - q) ** 2 for p, q in zip(x["tip"], tip)) ** 0.5 < 3e-4
+        assert sum((p - q) ** 2 for p, q in zip(x["tip"], other)) ** 0.5 > 5e-3
+
+
+def test_render_scene_refuses_the_one_arm_options(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rc = main(["render", "--scene", "configs/scenes/two_arms.yaml", "--out", str(tmp_path / "x"),
+               "--marker", "configs/marker_coded.yaml"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and "--marker: not with --scene" in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "x").exists()
 
 
 @pytest.mark.parametrize("second, cause", [("same", "the same arm name 'arm0'"),

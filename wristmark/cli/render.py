@@ -50,6 +50,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="render this configuration: the arm's n values of psi in its order (the reference arm: phi d "
              "theta1 delta1 theta2 delta2 [rad, m, rad, rad, rad, rad]; a format-2 --robot: its names); repeatable",
     )
+    p.add_argument("--scene", metavar="SCENE.yaml",
+                   help="every arm of a scene file in each pair (docs/formats.md; e.g. configs/scenes/two_arms.yaml), "
+                        "random configurations; truth.json per pair and arm")
     p.add_argument("--psi-file", help="text file with one configuration (the arm's n numbers) per line")
     p.add_argument("--noise", choices=("none", "default", "strong"), default="default", help="noise preset")
     p.add_argument("--settings", help="render settings YAML (overrides --noise)")
@@ -75,7 +78,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--image-scale", "--scale", dest="scale", type=float_in(MIN_IMAGE_SCALE, MAX_IMAGE_SCALE),
                    default=1.0, metavar="F", help="render at F x the calibrated size (default 1; --scale: old name)")
     add_json_flag(p, "a summary")
-    set_example(p, "wristmark render --out runs/tour/demo --pairs 5 --seed 1")
+    set_example(p, "wristmark render --out runs/tour/demo --pairs 5 --seed 1",
+                "wristmark render --scene configs/scenes/two_arms.yaml --out runs/tour/two --pairs 3")
     add_force_argument(p)
 
 
@@ -126,6 +130,49 @@ def _pbr_renderer(args: argparse.Namespace, camera: Any, marker: Any, settings: 
     return PbrStereoRenderer(camera, marker, settings, pbr, seed=args.seed)
 
 
+def run_scene(args: argparse.Namespace, settings: Any) -> int:
+    """``render --scene``: every arm of a scene in each pair, at random configurations (each tip in
+    a box 1.5 times the scene's cube around its workspace centre); writes calib.yaml (the scene
+    camera), one marker file per arm (marker_NAME.yaml), the images and truth.json (per pair, per
+    arm: docs/formats.md "Scene dataset")."""
+    from wristmark.cvs.calibration.load import save_calibration
+    from wristmark.cvs.camera import scaled_stereo_camera
+    from wristmark.cvs.marker.family import marker_file_text
+    from wristmark.models.arm_shape import arm_shape, transformed
+    from wristmark.sim.dataset import scene_truth_entry, write_pair_images
+    from wristmark.sim.render.stereo_renderer import StereoRenderer
+    from wristmark.sim.scene_poses import random_tip_psi
+    from wristmark.sim.scene_setup import load_scene_setup
+
+    refused = [f"--{k.replace('_', '-')}" for k in ("robot", "marker", "calib", "psi", "psi_file")
+               if getattr(args, k, None)]
+    if refused or args.engine != "fast":
+        raise InputError(f"{', '.join(refused) or '--engine pbr'}: not with --scene (the scene file names each "
+                         "arm's files; configurations are drawn at random)")
+    setup = load_scene_setup(args.scene)
+    camera = setup.camera if args.scale == 1.0 else scaled_stereo_camera(setup.camera, args.scale)
+    rng = np.random.default_rng(args.seed)
+    n_pairs = args.pairs or 10
+    configs = [{n: random_tip_psi(s.params, setup.scene.cube_size, rng) for n, s in setup.arms.items()}
+               for _ in range(n_pairs)]
+    claim_outputs(dirs=[args.out], force=args.force)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    save_calibration(out / "calib.yaml", camera)
+    for n, s in setup.arms.items():
+        (out / f"marker_{n}.yaml").write_text(marker_file_text(s.marker))
+    renderer = StereoRenderer(camera, setup.markers, settings, seed=args.seed)
+    entries = []
+    for k, q in enumerate(configs):
+        shapes = [transformed(arm_shape(setup.arms[n].params, q[n]), setup.base(n)) for n in setup.names]
+        scene = renderer.render_arms(shapes)
+        write_pair_images(out, k, scene.left, scene.right)
+        entries.append(scene_truth_entry(k, scene, setup.names) | {"psi": {n: q[n].tolist() for n in setup.names}})
+    (out / "truth.json").write_text(json.dumps(entries, indent=1))
+    print(f"wrote {n_pairs} stereo pairs of {len(setup.names)} arms ({', '.join(setup.names)}) to {args.out}")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     from wristmark.cvs.calibration.load import load_calibration
     from wristmark.cvs.camera import scaled_stereo_camera
@@ -163,6 +210,8 @@ def run(args: argparse.Namespace) -> int:
     else:
         settings = noise_preset(args.noise, **overrides)
 
+    if args.scene is not None:
+        return run_scene(args, settings)
     calib = args.calib or str(default_config("camera.yaml"))
     camera = load_calibration(calib)
     if args.scale != 1.0:

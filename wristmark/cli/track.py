@@ -283,7 +283,8 @@ def _track_arms(args: argparse.Namespace, camera: Any, markers: list[Any], hint:
     from wristmark.cvs.tracking.warmup import warm_up
 
     warm_up()
-    tracker = ArmSetTracker(camera, markers, _settings(args), names=[str(f) for f in args.marker])
+    tracker = ArmSetTracker(camera, markers, _settings(args), names=[str(f) for f in args.marker],
+                            search_every=1)  # image pairs: each pair may show any arm anywhere
     hints = {m.arm: hint for m in markers} if hint is not None else None
     for frame in iter(source.read, None):
         try:

@@ -18,7 +18,7 @@ from wristmark.cvs.camera import StereoCamera
 from wristmark.models.config_io import save_yaml, to_mapping
 from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
-from wristmark.sim.render.stereo_renderer import CornerTruth, RenderedPair
+from wristmark.sim.render.stereo_renderer import CornerTruth, RenderedPair, RenderedScene
 
 Array = NDArray[np.float64]
 
@@ -52,8 +52,10 @@ def pair_paths(root: str | Path, n: int) -> tuple[Path, Path]:
     return r / f"pair_{n:02d}_left.png", r / f"pair_{n:02d}_right.png"
 
 
-def _corners_json(cs: tuple[CornerTruth, ...]) -> list[dict[str, Any]]:
-    return [{"index": c.index, "uv": [c.uv[0], c.uv[1]], "cos_view": c.cos_view} for c in cs]
+def _corners_json(cs: tuple[CornerTruth, ...], occluded: bool = False) -> list[dict[str, Any]]:
+    """Corners as truth.json objects (``occluded``: with each corner's flag, for scenes)."""
+    return [{"index": c.index, "uv": [c.uv[0], c.uv[1]], "cos_view": c.cos_view}
+            | ({"occluded": bool(c.occluded)} if occluded else {}) for c in cs]
 
 
 def truth_entry(n: int, frame: RenderedPair) -> dict[str, Any]:
@@ -66,6 +68,26 @@ def truth_entry(n: int, frame: RenderedPair) -> dict[str, Any]:
         "corners_left": _corners_json(frame.corners_left),
         "corners_right": _corners_json(frame.corners_right),
     }
+
+
+def scene_truth_entry(n: int, scene: RenderedScene, names: list[str]) -> dict[str, Any]:
+    """The truth.json object of pair ``n`` of a scene (several arms): per arm, in the order of
+    ``names``, the fields of :func:`truth_entry` and each corner's ``occluded`` (another arm
+    hides it)."""
+    arms = {}
+    for name, a in zip(names, scene.arms):
+        arms[name] = {"R": a.T_left_marker[:3, :3].tolist(), "t": a.T_left_marker[:3, 3].tolist(),
+                      "tip": np.asarray(a.tip_left, float).tolist(),
+                      "corners_left": _corners_json(a.corners_left, True),
+                      "corners_right": _corners_json(a.corners_right, True)}
+    return {"pair": n, "arms": arms}
+
+
+def write_pair_images(root: Path, n: int, left: NDArray[np.uint8], right: NDArray[np.uint8]) -> None:
+    """Write pair ``n``'s two images (InputError naming a path that cannot be written)."""
+    for path, img in zip(pair_paths(root, n), (left, right)):
+        if not cv2.imwrite(str(path), img):
+            raise InputError(f"{path}: could not write the image (check the folder)")
 
 
 class DatasetWriter:
@@ -85,9 +107,7 @@ class DatasetWriter:
     def add(self, frame: RenderedPair) -> int:
         """Write the next pair's images and truth; returns its index NN."""
         n = len(self.entries)
-        for path, img in zip(pair_paths(self.root, n), (frame.left, frame.right)):
-            if not cv2.imwrite(str(path), img):
-                raise InputError(f"{path}: could not write the image (check the folder)")
+        write_pair_images(self.root, n, frame.left, frame.right)
         self.entries.append(truth_entry(n, frame))
         (self.root / "truth.json").write_text(json.dumps(self.entries, indent=1))
         return n

@@ -8,9 +8,9 @@ Per cycle all arms' clocks advance to the cycle's start, then each arm's loop ru
 command. One arm's lost marker holds that arm only (the others walk on).
 
 Clearance: before each cycle every arm's controller gets the other arms' bodies (capsules along
-their commanded configurations, moved into its {w}: solvers.clearance) and keeps its own body
-``scene.clearance`` away from them; the run reports the least distance between the true bodies
-over every cycle.
+their commanded configurations, moved into its {w}, each shifted by what vision says its tip is
+off the model's: solvers.clearance) and keeps its own body ``scene.clearance`` (plus
+``clearance_margin``) away from them; the run reports the least distance between the true bodies over every cycle.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.models.errors import ConfigError
+from wristmark.models.kinematics import forward_kinematics
 from wristmark.rig.link.actuator_link import DirectLink
 from wristmark.rig.loop.arm_set_sensor import ArmSetSensor
 from wristmark.rig.loop.metrics import error_stats, tracking_errors
@@ -81,18 +82,41 @@ def _true_bodies(setup: SceneSetup, plants: Mapping[str, Any]) -> dict[str, Caps
     return {n: moved_capsules(shape_capsules(p.true_shape()), setup.base(n)) for n, p in plants.items()}
 
 
-def _set_obstacles(setup: SceneSetup, loops: Mapping[str, ServoLoop]) -> None:
-    """Each arm's controller gets the other arms' commanded bodies, moved into its own {w}."""
+def _model_offsets(loops: Mapping[str, ServoLoop], offsets: dict[str, Array]) -> None:
+    """Update each arm's offset [m] (its {w}) of the measured tip from its model's tip at the
+    commanded configuration, from its last good measurement (kept while none comes)."""
+    for name, loop in loops.items():
+        m = loop.last_measurement
+        if loop.psi_cmd is None or m is None or not m.ok or m.p_world is None or not np.all(np.isfinite(m.p_world)):
+            continue
+        offsets[name] = np.asarray(m.p_world, float) - forward_kinematics(loop.params, loop.psi_cmd).tip
+
+
+def _set_obstacles(setup: SceneSetup, loops: Mapping[str, ServoLoop], offsets: Mapping[str, Array]) -> None:
+    """Each arm's controller gets the other arms' bodies at their commanded configurations, moved
+    into its own {w}. The model is not the arm: each body is shifted by what vision says its
+    arm's tip is off its model's (the other arm's offset, less this arm's own: the QP moves this
+    arm's model body), so that the clearance holds between the true bodies."""
     world = {}
+    shift = {}
     for name, loop in loops.items():
         assert loop.psi_cmd is not None
-        world[name] = moved_capsules(body_capsules(loop.params, loop.psi_cmd), setup.base(name))
+        B = setup.base(name)
+        world[name] = moved_capsules(body_capsules(loop.params, loop.psi_cmd), B)
+        shift[name] = B[:3, :3] @ offsets.get(name, np.zeros(3))  # in the scene's {w}
     for name, loop in loops.items():
         if loop.controller is None:
             continue
         into = np.asarray(np.linalg.inv(setup.base(name)), float)  # the scene's {w} in this arm's
-        others = [moved_capsules(c, into) for n, c in world.items() if n != name]
-        loop.controller.set_obstacles(Capsules.concat(others) if others else None, setup.scene.clearance)
+        others = []
+        for n, c in world.items():
+            if n == name:
+                continue
+            T = np.eye(4)
+            T[:3, 3] = shift[n] - shift[name]
+            others.append(moved_capsules(c, into @ T))
+        loop.controller.set_obstacles(Capsules.concat(others) if others else None,
+                                      setup.scene.clearance + setup.scene.clearance_margin)
 
 
 def _clock_of(link: DirectLink) -> Callable[[], float]:
@@ -156,6 +180,7 @@ def walk_scene(setup: SceneSetup, trajectories: Mapping[str, Trajectory], closed
     n_cycles = max(settle[n] + int(np.floor(trajectories[n].duration / dt)) + 1 for n in names)
     t0 = max(loop.t for loop in loops.values())  # one clock again: the arms that did not probe held
     walk = SceneWalk({})
+    offsets: dict[str, Array] = {}
     active = list(names)
     for k in range(n_cycles):
         if not active:
@@ -164,7 +189,8 @@ def walk_scene(setup: SceneSetup, trajectories: Mapping[str, Trajectory], closed
         for n in active:
             loops[n].advance_to(targets[n].t)
         if closed_loop and setup.scene.clearance > 0:
-            _set_obstacles(setup, {n: loops[n] for n in names})
+            _model_offsets(loops, offsets)
+            _set_obstacles(setup, loops, offsets)
         gap = least_distance(_true_bodies(setup, plants))
         if gap < walk.least_distance_m:
             walk.least_distance_m, walk.least_at_s = gap, loops[names[0]].elapsed(t0 + k * dt)

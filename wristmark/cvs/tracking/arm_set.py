@@ -1,19 +1,22 @@
 """Several coded sleeves of one family in one stereo pair, each its own arm: :class:`ArmSetTracker`.
 
 Each arm has its own :class:`MarkerTracker` (ROI tracking per arm). Per pair, first every arm
-that was tracked is searched in its own boxes (the tracker falls back to whole frames when they
-lose it); then the arms still missing are searched in whole frames in which the sleeves already
-found in this pair are painted out (the search finds one chain, the longest: a second sleeve is
-found only once the first is gone). A pose counts for an arm only when the sleeve's code says
-it is that arm (``res.code.arm``): a chain that an arm's boxes caught on another arm's sleeve
-(crossing, touching), or a sleeve whose code cannot be decided (too few code cells seen), is
-no arm's. So identities never swap: a sleeve is reported as an arm only on its own code, and
-the code's single-error margin holds across the family (cvs.marker.family).
+that was tracked is searched in its own boxes only (``roi_only``; the arms side by side in
+worker threads); then the arms still missing are searched in whole frames in which the sleeves
+already found in this pair are painted out (the search finds one chain, the longest: a second
+sleeve is found only once the first is gone); an arm missing from pair to pair is searched for
+so in every ``search_every``-th pair only (a whole-frame search costs several ROI searches). A
+pose counts for an arm only when the sleeve's code says it is that arm (``res.code.arm``): a
+chain that an arm's boxes caught on another arm's sleeve (crossing, touching), or a sleeve
+whose code cannot be decided (too few code cells seen), is no arm's. So identities never swap:
+a sleeve is reported as an arm only on its own code, and the code's single-error margin holds
+across the family (cvs.marker.family).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from typing import Any
 
@@ -80,8 +83,14 @@ class ArmSetTracker:
     codes of one family: models.marker.check_marker_set). Poses in {ll} [m] per arm."""
 
     def __init__(self, camera: StereoCamera, markers: Sequence[MarkerModel],
-                 settings: TrackerSettings | None = None, names: Sequence[str] | None = None) -> None:
-        """``names``: the marker files' names for the messages (default the arms')."""
+                 settings: TrackerSettings | None = None, names: Sequence[str] | None = None,
+                 threads: bool = True, search_every: int = 3) -> None:
+        """``names``: the marker files' names for the messages (default the arms'); ``threads``:
+        the arms' ROI searches run side by side in worker threads (results are the same);
+        ``search_every``: an arm missing from pair to pair is searched for in the whole frames in
+        every so many pairs (1: every pair)."""
+        if int(search_every) < 1:
+            raise InputError(f"search_every must be >= 1, got {search_every}")
         markers = list(markers)
         if not markers:
             raise InputError("an arm set needs at least one marker")
@@ -92,11 +101,18 @@ class ArmSetTracker:
         self.markers = {str(m.arm): m for m in markers}
         self.arms = list(self.markers)
         self.trackers = {a: MarkerTracker(camera, m, settings, family=markers) for a, m in self.markers.items()}
+        self.search_every = int(search_every)
+        self._missing_last: set[str] = set()
+        self._pairs_missing = 0
+        # the arms' ROI searches side by side (OpenCV, numba and the solver release the GIL)
+        self._pool = ThreadPoolExecutor(max_workers=len(markers) - 1, thread_name_prefix="arm-set") \
+            if threads and len(markers) > 1 else None
 
     def reset(self) -> None:
-        """Forget every arm's ROI state."""
+        """Forget every arm's ROI state (the next pair searches the whole frames for every arm)."""
         for t in self.trackers.values():
             t.reset()
+        self._missing_last, self._pairs_missing = set(), 0
 
     def track(self, left_img: Any, right_img: Any,
               axis_hints_left: Mapping[str, Array] | None = None) -> dict[str, TrackResult]:
@@ -109,11 +125,12 @@ class ArmSetTracker:
         hints = dict(axis_hints_left or {})
         results: dict[str, TrackResult] = {}
         found: list[TrackResult] = []
-        for arm in self.arms:  # each arm that was tracked, in its own boxes first
+        tracked = [a for a in self.arms if self.trackers[a].tracking]
+        jobs = {a: self._pool.submit(self.trackers[a].track, il, ir, hints.get(a), True) for a in tracked[1:]} \
+            if self._pool is not None else {}
+        for arm in tracked:  # each arm that was tracked, in its own boxes only (one per thread)
             trk = self.trackers[arm]
-            if not trk.tracking:
-                continue
-            res = trk.track(il, ir, axis_hint_left=hints.get(arm))
+            res = jobs[arm].result() if arm in jobs else trk.track(il, ir, axis_hint_left=hints.get(arm), roi_only=True)
             who = identity(res)
             if who == arm:
                 results[arm] = res
@@ -121,6 +138,14 @@ class ArmSetTracker:
             else:  # lost, or its boxes caught another sleeve: searched again below
                 trk.reset()
         pending = [a for a in self.arms if a not in results]
+        # arms missing in the last pair too are searched for in every ``search_every``-th pair only
+        # (a whole-frame search per missing sleeve costs several times an ROI search)
+        still = bool(pending) and set(pending) <= self._missing_last
+        self._pairs_missing = self._pairs_missing + 1 if still else 0
+        if still and self._pairs_missing % self.search_every:
+            return {a: self._own(a, results[a]) if a in results else self._missing("not in view (searched for "
+                    f"every {self.search_every} pairs)") for a in self.arms}
+        self._missing_last = set(pending)  # what the whole-frame search below does not find stays missing
         masked: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None
         failures: list[str] = []
         for _ in range(2 * len(self.arms)):  # each search finds one sleeve (or none: done)
@@ -151,6 +176,7 @@ class ArmSetTracker:
                 failures.append(f"a second sleeve read as arm '{who}'")
             else:
                 failures.append(f"a sleeve in view not tracked ({res.reason})")
+        self._missing_last = set(pending)
         for arm in pending:
             results[arm] = self._missing("not found; " + "; ".join(failures) if failures else "not in view")
         return {a: self._own(a, results[a]) for a in self.arms}

@@ -130,18 +130,26 @@ class MarkerTracker:
             False, reason, None, None, None, cl, cr, float("nan"), 1e3 * (time.perf_counter() - t0), timings, **kw
         )
 
-    def track(self, left_img: Any, right_img: Any, axis_hint_left: Array | None = None) -> TrackResult:
+    def track(self, left_img: Any, right_img: Any, axis_hint_left: Array | None = None,
+              roi_only: bool = False) -> TrackResult:
         """Track the marker in one stereo pair (grayscale or BGR uint8 images of the calibrated
         size). In ROI tracking only the boxes around the previous corners are converted to grey
         and searched; whole frames are converted once, when a whole-frame search is needed.
-        ``axis_hint_left``: expected direction of z_wm (distal) in {ll}, if the caller knows it."""
+        ``axis_hint_left``: expected direction of z_wm (distal) in {ll}, if the caller knows it.
+        ``roi_only``: search only the boxes of ROI tracking, never the whole frames (``ok=False``
+        when they lose the marker, or when there are none: cvs.tracking.arm_set searches the whole
+        frames itself, with the other arms' sleeves painted out)."""
         t0 = time.perf_counter()
         self._continuous = False
         self._misfits = []
         il = check_view(left_img, self.camera.image_size, "left")
         ir = check_view(right_img, self.camera.image_size, "right")
-        res, full = self._track_in_rois(il, ir, t0) if self._tracking else (None, (None, None))
-        if res is None or not res.ok:
+        if roi_only and not self._tracking:
+            return self._fail("no ROI to search (roi_only)", np.zeros((0, 2)), np.zeros((0, 2)), t0, {})
+        res, full = self._track_in_rois(il, ir, t0, whole=not roi_only) if self._tracking else (None, (None, None))
+        if roi_only and res is None:
+            return self._fail("no ROI to search (roi_only)", np.zeros((0, 2)), np.zeros((0, 2)), t0, {})
+        if res is None or (not res.ok and not roi_only):
             # cold, or the ROIs lost the marker: the whole frames (a side already searched whole
             # in this pair is not searched again: the search is a function of the image)
             t1 = time.perf_counter()
@@ -152,7 +160,7 @@ class MarkerTracker:
                 dr = full[1] if full[1] is not None else self.detector_right.detect(ir)
                 res = self.track_corners(dl.corners, dr.corners, dl.polarity, dr.polarity, _t0=t0)
             res.timings["detect"] = t_roi + 1e3 * (time.perf_counter() - t1)
-        if not res.ok and self._use_second:
+        if not res.ok and self._use_second and not roi_only:
             # 'auto': one try with the other detector (different failure modes, same pose gates)
             t2 = time.perf_counter()
             il, ir = to_gray(il), to_gray(ir)
@@ -263,7 +271,8 @@ class MarkerTracker:
             self._second = (make_detector("saddle"), make_detector("saddle"))
         return self._second
 
-    def _track_in_rois(self, il: Any, ir: Any, t0: float) -> tuple[TrackResult | None, tuple[Any, Any]]:
+    def _track_in_rois(self, il: Any, ir: Any, t0: float, whole: bool = True) -> tuple[TrackResult | None,
+                                                                                          tuple[Any, Any]]:
         """ROI tracking (paper III.A(1)): each view's detector in the box around its previous
         corners. A view whose box misses the marker is searched whole, after (with 'auto') one try of
         the second detector in both views' boxes: a miss of one detector in one view (the paper's
@@ -295,10 +304,13 @@ class MarkerTracker:
                     return res, (None, None)
         full: list[Any] = [None, None]
         for k in (0, 1):
-            if missed[k]:  # that view whole, as the detector's own ``track`` would
+            if missed[k] and whole:  # that view whole, as the detector's own ``track`` would
                 full[k] = chains[k] = dets[k].detect(to_gray((il, ir)[k]))
         t_det = 1e3 * (time.perf_counter() - t0)
         dl, dr = chains
+        if dl is None or dr is None:  # roi_only, and one view had no box
+            return self._fail("a view has no ROI to search (roi_only)", np.zeros((0, 2)), np.zeros((0, 2)), t0,
+                              {"detect": t_det}), (None, None)
         res = self.track_corners(dl.corners, dr.corners, dl.polarity, dr.polarity, _t0=t0)
         res.timings["detect"] = t_det
         return res, (full[0], full[1])

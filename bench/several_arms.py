@@ -1,0 +1,135 @@
+"""Benchmark: several sleeves tracked in one stereo pair (cvs.tracking.arm_set) against each arm alone.
+
+Usage: .venv/bin/python bench/several_arms.py [--scene configs/scenes/two_arms.yaml] [--sequences 20]
+       [--pairs 10] [--scale 1.0] [--seed 0] [--spread 0.06]
+
+Rendered scenes (sim.render, 1080p at --scale 1) of the scene's arms in random poses: each
+sequence draws, per arm, a random configuration (its tip in a box 1.5 times the scene's cube
+around its workspace centre) and another with the tip up to 8 mm away, and moves from one to
+the other over ``--pairs`` pairs (ROI tracking from pair to pair, as in a loop);
+every arm but the first also has its base moved at random: in half the sequences 50-90 mm
+towards the first arm and 10-22 mm in front of or behind it (the arms cross and hide one
+another's sleeves), else by up to ``--spread`` [m] along x and 0.02 m along y (depth) and z. Per pair the same
+arms are also rendered alone (one arm, one sleeve: the one-arm figure) and tracked by a
+one-arm MarkerTracker each. Prints JSON:
+
+- ``identity_swaps``: poses reported for an arm that lie nearer another arm's truth (must be 0);
+  ``wrong``: reported tips off their own truth by over 0.5 mm;
+- per arm: tracked rate together and alone, tip error mean / max [mm] together and alone (over
+  the pairs both tracked), and the pairs where a sleeve had corners hidden by another arm;
+- ``time_ms``: median tracking time per pair for all sleeves together, the one-arm median per arm
+  alone, and their ratio.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from typing import Any
+
+import numpy as np
+
+from wristmark.cvs.camera import scaled_stereo_camera
+from wristmark.cvs.tracking.arm_set import ArmSetTracker
+from wristmark.cvs.tracking.tracker import MarkerTracker
+from wristmark.cvs.tracking.warmup import warm_up
+from wristmark.models.arm_shape import arm_shape, transformed
+from wristmark.sim.render.settings import RenderSettings
+from wristmark.sim.render.stereo_renderer import StereoRenderer
+from wristmark.sim.scene_poses import random_tip_psi
+from wristmark.sim.scene_setup import load_scene_setup
+
+WRONG_M = 0.0005
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scene", default="configs/scenes/two_arms.yaml")
+    ap.add_argument("--sequences", type=int, default=20)
+    ap.add_argument("--pairs", type=int, default=10)
+    ap.add_argument("--scale", type=float, default=1.0)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--spread", type=float, default=0.06)
+    args = ap.parse_args()
+    warm_up()
+    setup = load_scene_setup(args.scene)
+    names = setup.names
+    cam = scaled_stereo_camera(setup.camera, args.scale) if args.scale != 1.0 else setup.camera
+    markers = setup.markers
+    together_r = StereoRenderer(cam, markers, RenderSettings(), seed=args.seed)
+    alone_r = [StereoRenderer(cam, m, RenderSettings(), seed=args.seed + 1 + i) for i, m in enumerate(markers)]
+    rng = np.random.default_rng(args.seed)
+    stats: dict[str, dict[str, Any]] = {n: {"together": [], "alone": [], "occluded_pairs": 0, "n": 0,
+                                            "tracked_together": 0, "tracked_alone": 0} for n in names}
+    swaps = wrong = 0
+    t_together: list[float] = []
+    t_alone: list[float] = []
+    for _ in range(args.sequences):
+        scene_trk = ArmSetTracker(cam, markers)
+        alone_trk = [MarkerTracker(cam, m, family=markers) for m in markers]
+        bases = []
+        for i, n in enumerate(names):
+            B = setup.base(n).copy()
+            if i > 0 and rng.uniform() < 0.5:  # crossing: towards the first arm, in front of or behind it
+                toward = -np.sign(B[0, 3] - setup.base(names[0])[0, 3]) if i == 1 else rng.choice([-1.0, 1.0])
+                B[:3, 3] += [toward * rng.uniform(0.05, 0.09), rng.choice([-1.0, 1.0]) * rng.uniform(0.01, 0.022),
+                             rng.uniform(-0.012, 0.012)]
+            elif i > 0:
+                B[:3, 3] += [rng.uniform(-args.spread, args.spread), rng.uniform(-0.02, 0.02),
+                             rng.uniform(-0.02, 0.02)]
+            bases.append(B)
+        size = setup.scene.cube_size
+        starts = [random_tip_psi(setup.arms[n].params, size, rng) for n in names]
+        ends = [(q, random_tip_psi(setup.arms[n].params, size, rng, near=q)) for n, q in zip(names, starts)]
+        for k in range(args.pairs):
+            f = k / max(1, args.pairs - 1)
+            shapes = [transformed(arm_shape(setup.arms[n].params, (1 - f) * ends[i][0] + f * ends[i][1]), bases[i])
+                      for i, n in enumerate(names)]
+            scene = together_r.render_arms(shapes)
+            t0 = time.perf_counter()
+            res = scene_trk.track(scene.left, scene.right)
+            t_together.append(1000 * (time.perf_counter() - t0))
+            for i, n in enumerate(names):
+                st = stats[n]
+                st["n"] += 1
+                truth = scene.arms[i]
+                if any(c.occluded for c in truth.corners_left + truth.corners_right):
+                    st["occluded_pairs"] += 1
+                alone = alone_r[i].render(shapes[i])
+                t1 = time.perf_counter()
+                ra = alone_trk[i].track(alone.left, alone.right)
+                t_alone.append(1000 * (time.perf_counter() - t1))
+                ok_alone = ra.ok and ra.code is not None and ra.code.arm == n
+                st["tracked_alone"] += int(ok_alone)
+                r = res[n]
+                if r.ok and r.tip_left is not None:
+                    st["tracked_together"] += 1
+                    e = float(np.linalg.norm(r.tip_left - truth.tip_left))
+                    others = [float(np.linalg.norm(r.tip_left - scene.arms[j].tip_left))
+                              for j in range(len(names)) if j != i]
+                    swaps += int(bool(others) and min(others) < e)
+                    wrong += int(e > WRONG_M)
+                    if ok_alone and ra.tip_left is not None:
+                        st["together"].append(e)
+                        st["alone"].append(float(np.linalg.norm(ra.tip_left - alone.tip_left)))
+    out: dict[str, Any] = {"scene": args.scene, "pairs": args.sequences * args.pairs, "scale": args.scale,
+                           "image_size": list(cam.image_size), "identity_swaps": swaps, "wrong": wrong, "arms": {}}
+    for n, st in stats.items():
+        tg, al = np.array(st["together"]) * 1000, np.array(st["alone"]) * 1000
+        out["arms"][n] = {
+            "tracked_together": st["tracked_together"], "tracked_alone": st["tracked_alone"], "pairs": st["n"],
+            "pairs_with_hidden_corners": st["occluded_pairs"],
+            "tip_mean_mm_together": float(tg.mean()) if tg.size else None,
+            "tip_mean_mm_alone": float(al.mean()) if al.size else None,
+            "tip_max_mm_together": float(tg.max()) if tg.size else None,
+            "tip_max_mm_alone": float(al.max()) if al.size else None,
+            "both_tracked": int(tg.size),
+        }
+    med_t, med_a = float(np.median(t_together)), float(np.median(t_alone))
+    out["time_ms"] = {"together_median": med_t, "one_arm_median": med_a, "ratio": med_t / med_a}
+    print(json.dumps(out, indent=1))
+
+
+if __name__ == "__main__":
+    main()

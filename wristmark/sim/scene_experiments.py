@@ -81,7 +81,8 @@ def run_scene_cube(setup: SceneSetup, out_dir: Path, duration: float | None = No
         "clearance": {
             "required_mm": 1000 * setup.scene.clearance,
             "least_true_mm": {p: 1000 * w.least_distance_m for p, w in walks.items()},
-            "kept": bool(all(w.least_distance_m >= setup.scene.clearance for w in walks.values())),
+            # the constraint acts in the closed loop; the open-loop baseline commands the nominal IK alone
+            "kept": bool(walks["closed_loop"].least_distance_m >= setup.scene.clearance),
         },
         "tracking_ms_median": float(np.median(closed.tracking_ms)) if closed.tracking_ms else float("nan"),
         "run_dir": str(out_dir),
@@ -103,8 +104,8 @@ def scene_table(res: dict[str, Any]) -> str:
         lines.append(f"| {n} | {a['walk']} | {o['mean_mm']:.2f} | {o['max_mm']:.2f} | {c['mean_mm']:.3f} | "
                      f"{c['max_mm']:.3f} | {100 * a['ratio']:.1f} % | {c['lost']} | {c['stopped'] or '-'} |")
     cl = res["clearance"]
-    lines += ["", f"Least distance between the arms' true bodies: {cl['least_true_mm']['open_loop']:.1f} mm open loop, "
-              f"{cl['least_true_mm']['closed_loop']:.1f} mm closed loop (clearance {cl['required_mm']:.1f} mm: "
-              f"{'kept' if cl['kept'] else 'VIOLATED'}). Tracking all sleeves: median "
+    lines += ["", f"Least distance between the arms' true bodies: {cl['least_true_mm']['closed_loop']:.1f} mm closed "
+              f"loop (clearance {cl['required_mm']:.1f} mm: {'kept' if cl['kept'] else 'VIOLATED'}), "
+              f"{cl['least_true_mm']['open_loop']:.1f} mm open loop (no constraint). Tracking all sleeves: median "
               f"{res['tracking_ms_median']:.1f} ms per frame.", ""]
     return "\n".join(lines)

@@ -36,7 +36,7 @@ from wristmark.sim.render.scene_source import SceneFrames
 from wristmark.sim.scene_setup import SceneSetup
 from wristmark.sim.setup import make_plant, make_truth
 from wristmark.sim.trajectory_run import check_reach, phase_summary
-from wristmark.solvers.clearance import Capsules, body_capsules, min_distance, shape_capsules
+from wristmark.solvers.clearance import DAMPER_GAIN, Capsules, body_capsules, min_distance, shape_capsules
 from wristmark.solvers.clearance import transformed as moved_capsules
 from wristmark.solvers.controller_registry import make_controller
 
@@ -96,7 +96,11 @@ def _set_obstacles(setup: SceneSetup, loops: Mapping[str, ServoLoop], offsets: M
     """Each arm's controller gets the other arms' bodies at their commanded configurations, moved
     into its own {w}. The model is not the arm: each body is shifted by what vision says its
     arm's tip is off its model's (the other arm's offset, less this arm's own: the QP moves this
-    arm's model body), so that the clearance holds between the true bodies."""
+    arm's model body), so that the clearance holds between the true bodies. Both arms of a pair
+    move at once, each seeing the other still: each may close only half the damper's share of
+    the gap per cycle (xi / 2), so that together they close no more than one arm alone."""
+    moving = sum(loop.controller is not None for loop in loops.values())
+    xi = DAMPER_GAIN / 2 if moving > 1 else DAMPER_GAIN
     world = {}
     shift = {}
     for name, loop in loops.items():
@@ -116,7 +120,7 @@ def _set_obstacles(setup: SceneSetup, loops: Mapping[str, ServoLoop], offsets: M
             T[:3, 3] = shift[n] - shift[name]
             others.append(moved_capsules(c, into @ T))
         loop.controller.set_obstacles(Capsules.concat(others) if others else None,
-                                      setup.scene.clearance + setup.scene.clearance_margin)
+                                      setup.scene.clearance + setup.scene.clearance_margin, xi=xi)
 
 
 def _clock_of(link: DirectLink) -> Callable[[], float]:

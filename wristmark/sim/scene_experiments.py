@@ -9,6 +9,7 @@ and log_<arm>.csv per arm.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -16,7 +17,7 @@ import numpy as np
 
 from wristmark.models.errors import ConfigError
 from wristmark.rig.loop.servo_session import PointHold
-from wristmark.rig.recording.run_log import RunLog, write_json
+from wristmark.rig.recording.run_log import CycleRecord, RunLog, write_json
 from wristmark.rig.targets.trajectories import CUBE_SPEED, Trajectory, cube_trajectory, workspace_centre
 from wristmark.sim.scene_setup import SceneSetup
 from wristmark.sim.several_arms import walk_scene
@@ -48,13 +49,15 @@ def scene_trajectories(setup: SceneSetup, duration: float | None = None,
 
 
 def run_scene_cube(setup: SceneSetup, out_dir: Path, duration: float | None = None,
-                   hold: tuple[str, ...] = (), seed: int | None = None) -> dict[str, Any]:
-    """Every arm's cube, open loop then closed loop on fresh arms, all at once; writes the run folder."""
+                   hold: tuple[str, ...] = (), seed: int | None = None,
+                   on_cycle: Callable[[str, CycleRecord], None] | None = None) -> dict[str, Any]:
+    """Every arm's cube, open loop then closed loop on fresh arms, all at once; writes the run
+    folder. ``on_cycle(arm, record)`` is called after every cycle of every arm (a live view's)."""
     trajs = scene_trajectories(setup, duration, hold)
     out_dir.mkdir(parents=True, exist_ok=True)
     write_json(out_dir / "config.json", {"experiment": "cube", **setup.describe()})
     logs = {n: RunLog.for_arm(s.params) for n, s in setup.arms.items()}
-    walks = {phase: walk_scene(setup, trajs, phase == "closed_loop", phase, logs=logs, seed=seed)
+    walks = {phase: walk_scene(setup, trajs, phase == "closed_loop", phase, logs=logs, seed=seed, on_cycle=on_cycle)
              for phase in ("open_loop", "closed_loop")}
     rig = next(iter(setup.arms.values())).rig
     arms: dict[str, Any] = {}

@@ -354,14 +354,17 @@ def render_several_arms(r: dict[str, Any]) -> list[str]:
         f"truth: **{r['identity_swaps']}**; wrong (over 0.5 mm off): **{r['wrong']}**.",
         "",
         "| arm | tracked together / alone | pairs with corners hidden by another arm | "
-        "tip mean together / alone [mm] | tip max together / alone [mm] |",
-        "|---|---|---|---|---|",
+        "tip mean together / alone [mm] | tip max together / alone [mm] | "
+        "tip mean together / alone where corners are hidden [mm] |",
+        "|---|---|---|---|---|---|",
     ]
     for n, a in r["arms"].items():
+        h = a.get("with_hidden_corners") or {}
         lines.append(f"| {n} | {a['tracked_together']} / {a['tracked_alone']} of {a['pairs']} | "
                      f"{a['pairs_with_hidden_corners']} | {_f(a['tip_mean_mm_together'], 3)} / "
                      f"{_f(a['tip_mean_mm_alone'], 3)} | {_f(a['tip_max_mm_together'], 3)} / "
-                     f"{_f(a['tip_max_mm_alone'], 3)} |")
+                     f"{_f(a['tip_max_mm_alone'], 3)} | {_f(h.get('tip_mean_mm_together'), 3)} / "
+                     f"{_f(h.get('tip_mean_mm_alone'), 3)} ({h.get('pairs', '-')} pairs) |")
     return [*lines, "", f"Tracking time per pair (medians of this run): all sleeves together "
             f"{_f(t.get('together_median'), 1)} ms, one arm alone {_f(t.get('one_arm_median'), 1)} ms, ratio "
             f"{_f(t.get('ratio'))}."]

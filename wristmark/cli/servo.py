@@ -91,9 +91,10 @@ LIVE_DURATION_S = 60.0  # [s] default run time with live targets
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     link = p.add_mutually_exclusive_group()
-    link.add_argument("--serial", metavar="PORT",
+    link.add_argument("--serial", metavar="PORT", action=SerialPorts,
                       help="hardware path: drive an actuator box in real time (device path or pyserial URL; "
-                           "needs --camera). Default: the simulated bench, its emulator on a new pty")
+                           "needs --camera). Default: the simulated bench, its emulator on a new pty. With --scene: "
+                           "NAME=PORT, once per arm")
     link.add_argument("--direct", action="store_true",
                       help="in-process plant without serial bytes (the reference for the serial path)")
     link.add_argument("--actuator", metavar="ros2:NS",
@@ -102,6 +103,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-operating-state", action="store_true",
                    help="UNSAFE, with --actuator ros2:NS: drive an arm that publishes no NS/operating_state (its "
                         "watchdog or an operator disabling it then goes unnoticed; docs/ros2.md)")
+    p.set_defaults(serials=None)
+    p.add_argument("--scene", metavar="SCENE.yaml",
+                   help="hardware path, several arms in one view (a scene file): one box per arm (--serial NAME=PORT "
+                        "each), one --camera, --calib with world_T_left in the scene's {w}; each arm walks its own "
+                        "cube (or --trajectory point: holds its centre); docs/hardware.md")
+    p.add_argument("--hold", action="append", metavar="NAME",
+                   help="with --scene: this arm holds its workspace centre while the others walk (repeatable)")
     p.add_argument("--camera", metavar="SPEC",
                    help="with --serial: the stereo camera's frame source (/dev/videoN, http://..., a video, "
                         "ros2:LEFT,RIGHT; docs/frame_sources.md); the calibration is --calib")
@@ -163,7 +171,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     set_example(p, "wristmark servo --trajectory cube --duration 10 --out runs/servo",
                 "wristmark servo --serial /dev/pts/3 --camera http://127.0.0.1:41234/stream.mjpg --image-scale 0.35 "
-                "--duration 20 --out runs/lab")
+                "--duration 20 --out runs/lab",
+                "wristmark servo --scene configs/scenes/two_arms.yaml --serial a=/dev/pts/3 --serial b=/dev/pts/4 "
+                "--camera http://127.0.0.1:41234/stream.mjpg --calib lab_calib.yaml --image-scale 0.35 --out runs/two")
+
+
+class SerialPorts(argparse.Action):
+    """``--serial PORT``, repeatable for ``--scene`` (``NAME=PORT``): every value in ``serials``,
+    the first in ``serial``."""
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: Any,
+                 option_string: str | None = None) -> None:
+        namespace.serials = [*(getattr(namespace, "serials", None) or []), values]
+        if getattr(namespace, "serial", None) is None:
+            namespace.serial = values
 
 
 # -- command line ------------------------------------------------------------------------------
@@ -397,6 +418,15 @@ def cycle_hook(view: Any, bridge: Any, session: ServoSession) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.scene is not None:
+        from wristmark.cli.servo_scene import run_scene
+
+        return run_scene(args)
+    if args.hold:
+        raise InputError("--hold needs --scene (several arms in one view)")
+    if args.serials and len(args.serials) > 1:
+        raise InputError(f"--serial given {len(args.serials)} times: several actuator boxes need --scene SCENE "
+                         "(--serial NAME=PORT per arm)")
     check_link_options(args)
     setup = build_setup(args)
     target, port = target_kind(args)

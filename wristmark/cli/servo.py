@@ -21,12 +21,8 @@ trip. Ctrl-C stops the same way (exit 130). Bad options fail before any motion c
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
-from types import FrameType
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -46,6 +42,8 @@ from wristmark.cli.option_types import (
     nonnegative_float,
     positive_float,
 )
+from wristmark.cli.servo_start import sigterm_as_interrupt as _sigterm_as_interrupt
+from wristmark.cli.servo_start import start_configuration
 from wristmark.cli.setup_args import (
     add_model_arguments,
     add_registration_argument,
@@ -225,19 +223,6 @@ def build_trajectory(setup: LoopSetup, kind: str, point: list[float] | None, dur
     return traj.truncated(duration) if duration is not None else traj
 
 
-def start_configuration(setup: LoopSetup, traj: Trajectory) -> Array:
-    """IK of the trajectory's start (raises InputError when it is out of reach)."""
-    from wristmark.models.arm_spec import home_psi
-    from wristmark.models.ik import solve_tip_ik
-
-    p0 = traj.sample(0.0)[0]
-    ik = solve_tip_ik(setup.params, p0, home_psi(setup.params))
-    if not ik.error <= 1e-4:
-        raise InputError(f"the start point {np.round(1000 * p0, 2).tolist()} mm is out of reach of the arm "
-                         f"(IK misses it by {1000 * ik.error:.2f} mm)")
-    return np.asarray(ik.psi, float)
-
-
 def live_view(setup: LoopSetup, host: str | None = None) -> Any:
     """The Meshcat live view (viz.live.start_live_view), or a one-line error when it is missing."""
     try:
@@ -245,27 +230,6 @@ def live_view(setup: LoopSetup, host: str | None = None) -> Any:
     except ImportError as e:
         raise InputError(f"--view needs the Meshcat live view (viz/live.py), which is not available: {e}") from None
     return start_live_view(setup, host=host)
-
-
-@contextmanager
-def _sigterm_as_interrupt() -> Iterator[None]:
-    """SIGTERM and SIGINT stop the run like Ctrl-C (main thread only); SIGINT also when the
-    process was started with it ignored (``nohup``, a background job of a script), so that
-    ``kill -INT`` always holds and disables the arm."""
-
-    def handler(signum: int, frame: FrameType | None) -> None:
-        raise KeyboardInterrupt
-
-    try:
-        previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGTERM, signal.SIGINT)}
-    except ValueError:  # not the main thread
-        yield
-        return
-    try:
-        yield
-    finally:
-        for sig, old in previous.items():
-            signal.signal(sig, old)
 
 
 def hardware(args: argparse.Namespace) -> bool:

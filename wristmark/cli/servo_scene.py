@@ -40,7 +40,7 @@ def check_scene_options(args: argparse.Namespace) -> None:
 
 def run_scene(args: argparse.Namespace) -> int:
     """``servo --scene``: every arm's loop on one camera (see the module docstring)."""
-    from wristmark.cli.servo import _sigterm_as_interrupt, start_configuration
+    from wristmark.cli.servo_start import sigterm_as_interrupt, start_configuration
     from wristmark.cli.setup_args import apply_overrides
     from wristmark.cvs.tracking.warmup import warm_up
     from wristmark.models.errors import ConfigError
@@ -92,7 +92,7 @@ def run_scene(args: argparse.Namespace) -> int:
     freeze_heap()  # no full garbage collection of the start-up heap mid-run (rig.loop.heap_freeze)
     clearance = scene.clearance + scene.clearance_margin if scene.clearance > 0 else 0.0
     settle = next(iter(setups.values())).rig.settle_time
-    with _sigterm_as_interrupt():
+    with sigterm_as_interrupt():
         run = run_arm_set(setups, trajs, session, psi0, bases, clearance, settle)
     res = scene_result(args, scene, setups, trajs, session, run, hold)
     write_scene_outputs(args, scene, setups, ports, run, res)

@@ -60,10 +60,9 @@ def run_scene(args: argparse.Namespace) -> int:
     scene = Scene.load(args.scene)
     ports = parse_serial_specs(args.serials, scene.names)
     setups, scene_camera = load_scene_setups(scene, args.calib, rig=args.rig, controller=args.controller_config)
-    for n, s in setups.items():  # the command line's overrides; one grid for every arm, no play probe (module doc)
+    for n, s in setups.items():  # the command line's overrides; one grid for every arm (rig.loop.arm_set_session)
         s = apply_overrides(s, args, settle_time=args.settle)
-        setups[n] = s.with_changes(rig=dataclasses.replace(s.rig, frame_phase_lock="none"),
-                                   controller=dataclasses.replace(s.controller, play_probe=False))
+        setups[n] = s.with_changes(rig=dataclasses.replace(s.rig, frame_phase_lock="none"))
     hold = tuple(args.hold or ())
     trajs = arm_trajectories({n: s.params for n, s in setups.items()}, scene.cube_size,
                              args.trajectory or "cube", args.duration, hold)
@@ -128,7 +127,6 @@ def scene_result(args: argparse.Namespace, scene: Any, setups: dict[str, Any], t
                       "least_model_mm": 1000 * least if np.isfinite(least) else None},
         "tracking_ms_median": float(np.median(run.tracking_ms)) if run.tracking_ms else None,
         "tracking_late": session.sensor.late,  # frames whose tracking outlasted rig tracking_budget (every arm lost)
-        "play_probe": "not run with several arms (the other boxes would go unfed)",
         "stopped": {n: o.stopped for n, o in run.outcomes.items() if o.stopped},
     }
 

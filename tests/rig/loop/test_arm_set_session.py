@@ -4,6 +4,7 @@ arm's walk, and one camera frame per cycle shared by every arm's loop."""
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 import pytest
@@ -105,3 +106,25 @@ def test_every_arm_of_a_cycle_gets_the_one_frame_of_that_cycle() -> None:
     feed.close()
     feed.close()
     assert inner.closed == 1
+
+
+@pytest.mark.wallclock
+def test_keep_alive_feeds_a_box_that_would_trip_its_watchdog_otherwise() -> None:
+    """While one arm probes its play, the other boxes get GET_STATE from a thread: enabled and
+    silent for 0.6 s a box trips its 250 ms watchdog, kept alive it does not."""
+    from tests.rig.link.test_serial_link import open_bench
+    from wristmark.rig.loop.arm_set_session import KeepAlive
+
+    kept, alone = open_bench(simulated=False), open_bench(simulated=False)
+    try:
+        with KeepAlive([kept.link]) as keep:
+            time.sleep(0.6)
+        assert keep.error is None
+        assert not kept.emulator.watchdog_tripped and kept.emulator.enabled
+        assert kept.emulator.received.count("GetState") >= 4
+        time.sleep(0.6)
+        assert alone.emulator.watchdog_tripped and not alone.emulator.enabled
+    finally:
+        for b in (kept, alone):
+            b.link.close()
+            b.emulator.stop()

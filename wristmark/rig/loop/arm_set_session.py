@@ -13,16 +13,19 @@ the cycle (:class:`SharedFrameFeed`) and the one tracking of every sleeve in it
 
 Stops: an arm whose marker stays lost (rig ``max_lost_cycles``) is held and disabled alone, the
 others walk on; a camera that stalls, a box that stops answering, an emergency stop, a watchdog
-trip or Ctrl-C hold and disable every arm. Differences from the one-arm hardware path: no play
-probe (probing one arm would leave the other boxes unfed for seconds) and no frame phase lock
-(one grid for every arm).
+trip or Ctrl-C hold and disable every arm. A controller that probes its play (rig/loop/play_probe.py)
+probes it one arm at a time after the settle, the other boxes polled meanwhile from a thread
+(:class:`KeepAlive`), as the simulated bench does one arm at a time. No frame phase lock: one
+grid for every arm.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import threading
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -42,6 +45,7 @@ from wristmark.rig.loop.arm_clearance import bodies_at, least_distance, model_bo
 from wristmark.rig.loop.arm_set_sensor import ArmSensorView, ArmSetSensor
 from wristmark.rig.loop.frame_feed import LatestFrameFeed
 from wristmark.rig.loop.loop_setup import LoopSetup, load_loop_setup
+from wristmark.rig.loop.play_probe import probe_report
 from wristmark.rig.loop.scene_file import Scene
 from wristmark.rig.loop.servo_cycle import (
     CameraStalledError,
@@ -153,15 +157,25 @@ class SharedFrameFeed:
         self._taken = -1
         self._frame: StereoFrame | None = None
         self._closed = False
+        self._solo = False
         self.last_arrival = feed.last_arrival  # when the last frame taken arrived (time.monotonic() [s])
 
     def begin_cycle(self) -> None:
         """A new cycle: the next take reads the camera."""
         self._cycle += 1
 
+    @contextmanager
+    def solo(self) -> Iterator[None]:
+        """While one arm's loop runs cycles of its own (its play probe): every take reads the camera."""
+        self._solo = True
+        try:
+            yield
+        finally:
+            self._solo = False
+
     def take(self, fresh_after: float = -np.inf, wait_until: float = -np.inf) -> StereoFrame | None:
         """This cycle's frame (see the class docstring); the camera's error propagates."""
-        if self._taken != self._cycle:
+        if self._taken != self._cycle or self._solo:
             self._frame = self.feed.take(fresh_after=fresh_after, wait_until=wait_until)
             self._taken = self._cycle
             self.last_arrival = self.feed.last_arrival
@@ -248,6 +262,39 @@ class _BudgetedView(ArmSensorView):
             return TipMeasurement(False, None, got, 1000.0 * self.shared.budget, t_capture=frame.t_capture,
                                   frame_index=frame.index)
         return tip_measurement(got[self.arm], frame, self.shared.last_ms, self.T_world_left)
+
+
+class KeepAlive:
+    """Keeps boxes fed from a thread of its own (GET_STATE every ``period`` [s], under their 250 ms
+    watchdog) while the caller drives another arm alone; the first error (a box that stopped
+    answering, an emergency stop) is raised by :meth:`__exit__`. Only this thread may touch those
+    links meanwhile."""
+
+    def __init__(self, links: Sequence[SerialLink], period: float = 0.1) -> None:
+        self.links, self.period = list(links), float(period)
+        self.error: BaseException | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="keep-boxes-fed", daemon=True)
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.period):
+            for link in self.links:
+                try:
+                    link.measured_actuators()
+                except Exception as e:  # noqa: BLE001 - handed to the caller's thread
+                    self.error = self.error or e
+
+    def __enter__(self) -> KeepAlive:
+        if self.links:
+            self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(2.0)
+        if self.error is not None and exc[0] is None:
+            raise self.error
 
 
 # -- the session --------------------------------------------------------------------------------
@@ -427,6 +474,7 @@ def run_arm_set(setups: Mapping[str, LoopSetup], trajs: Mapping[str, Trajectory]
             out.wall_time_s = time.perf_counter() - wall0
             if n in loops:
                 out.ready_after_arrival_ms = list(loops[n].ready_after_arrival_ms)
+                out.play_probe = probe_report(loops[n].play_fits, loops[n].play_probe_note)
     return run
 
 
@@ -437,15 +485,31 @@ def _walk(loops: Mapping[str, ServoLoop], trajs: Mapping[str, Trajectory], sessi
     rig = loops[names[0]].rig
     dt = rig.control_dt
     memory = {n: TrackingMemory() for n in names}
-    n_cycles = max(n_settle + int(np.floor(trajs[n].duration / dt)) + 1 for n in names)
+    active = list(names)
+    settle = {n: n_settle for n in names}
+    for n in names:  # a controller that probes its play: settle and probe, one arm at a time
+        ctrl = loops[n].controller
+        if ctrl is None or not ctrl.wants_play_probe:
+            continue
+        others = [session.links[m] for m in active if m != n]
+        try:
+            with KeepAlive(others), session.feed.solo():
+                loops[n].advance_to(time.monotonic())  # its cycles from now (an arm probed before took seconds)
+                settle[n] = loops[n].probe_play(trajs[n], "servo", run.outcomes[n].log, stats[n], memory[n],
+                                                settle[n])
+        except CameraStalledError:
+            raise
+        except MarkerLostError as e:
+            _stop_arm(session, run, loops, n, e, loops[n].t)
+            active.remove(n)
+    n_cycles = max(settle[n] + int(np.floor(trajs[n].duration / dt)) + 1 for n in names)
     t0 = max(loop.t for loop in loops.values()) + dt
     offsets: dict[str, Array] = {}
-    active = list(names)
     k = 0
     while k < n_cycles and active:
         session.feed.begin_cycle()
         t_k = t0 + k * dt
-        targets = {n: cycle_target(trajs[n], rig, k, t_k, n_settle) for n in active}
+        targets = {n: cycle_target(trajs[n], rig, k, t_k, settle[n]) for n in active}
         for n in active:
             loops[n].advance_to(t_k)
         missed = min(int((time.monotonic() - t_k) // dt), n_cycles - 1 - k)
@@ -466,13 +530,20 @@ def _walk(loops: Mapping[str, ServoLoop], trajs: Mapping[str, Trajectory], sessi
             except CameraStalledError:
                 raise
             except MarkerLostError as e:  # that arm held and disabled; the others walk on
-                if e.record is not None:
-                    out.log.add(e.record)
-                out.stopped, out.cause, out.t_stop = str(e), "marker-lost", loops[n].elapsed(t_k)
-                session.close_arm(n)
+                _stop_arm(session, run, loops, n, e, t_k)
                 active.remove(n)
         run.tracking_ms.append(session.sensor.last_ms)
         k += 1
+
+
+def _stop_arm(session: ArmSetSession, run: ArmSetRun, loops: Mapping[str, ServoLoop], name: str,
+              e: MarkerLostError, t: float) -> None:
+    """Arm ``name``'s marker stayed lost: log its last cycle, hold and disable its box."""
+    out = run.outcomes[name]
+    if e.record is not None:
+        out.log.add(e.record)
+    out.stopped, out.cause, out.t_stop = str(e), "marker-lost", loops[name].elapsed(t)
+    session.close_arm(name)
 
 
 def stop_cause(e: BaseException) -> tuple[str, str]:

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.sim.test_virtual_lab import RT_HOST, RT_LAB, hardware_servo
+from tests.sim.test_virtual_lab import NO_SIM, RT_HOST, RT_LAB, hardware_servo
 from wristmark.cli.main import main
 from wristmark.cvs.calibration.load import load_calibration
 from wristmark.cvs.camera import scaled_stereo_camera
@@ -169,3 +169,39 @@ def test_an_arm_whose_sleeve_is_out_of_view_is_held_and_disabled_alone(tmp_path:
     t, tips = read_scene_truth_csv(truth)
     late = t > t[-1] - 2.0  # while a still walked, b stood still: held, then disabled
     assert np.ptp(tips["b"][late], axis=0).max() < 1e-6 and np.ptp(tips["a"][late], axis=0).max() > 1e-3
+
+
+@pytest.mark.slow
+@pytest.mark.network
+@pytest.mark.wallclock
+def test_an_emergency_stop_on_one_box_stops_every_arm_safely(tmp_path: Path) -> None:
+    """The scene's lab in this process; mid-run b's box is emergency-stopped: the host holds and
+    disables a's box too (not its watchdog) and says so in one line, exit 3."""
+    from wristmark.cvs.calibration.load import save_calibration
+    from wristmark.rig.link import protocol as P
+    from wristmark.sim.scene_lab import SceneLab
+    from wristmark.sim.scene_setup import load_scene_setup
+    from wristmark.sim.virtual_lab import LabCamera
+
+    setup = load_scene_setup(SCENE)
+    calib = tmp_path / "calib.yaml"
+    save_calibration(calib, setup.camera)
+    with SceneLab(setup, LabCamera(fps=FPS, image_scale=SCALE)) as lab:
+        ptys, url = lab.start()
+        host = subprocess.Popen(
+            [sys.executable, "-c", NO_SIM, "servo", "--scene", SCENE, "--serial", f"a={ptys['a']}", "--serial",
+             f"b={ptys['b']}", "--camera", url, "--calib", str(calib), "--image-scale", str(SCALE), "--duration", "20",
+             "--no-progress", *RT_HOST], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        a, b = lab.emulators["a"], lab.emulators["b"]
+        deadline = time.monotonic() + 60
+        while not (a.enabled and b.enabled) and time.monotonic() < deadline and host.poll() is None:
+            time.sleep(0.05)
+        assert a.enabled and b.enabled, host.communicate(timeout=20)[1]
+        time.sleep(3.0)  # the arms ramp to their starts and rest there
+        b.receive(P.encode(P.EStop(seq=0)))  # the operator's button on b's box
+        _, err = host.communicate(timeout=30)
+    assert host.returncode == 3, err
+    line = err.strip()
+    assert "\n" not in line and "emergency stop: arm 'b'" in line and "arm a at" in line and "arm b at" in line
+    assert b.estopped and not b.enabled
+    assert not a.enabled and not a.watchdog_tripped and not a.estopped  # a held and disabled by the host

@@ -117,7 +117,7 @@ def test_keep_alive_feeds_a_box_that_would_trip_its_watchdog_otherwise() -> None
 
     kept, alone = open_bench(simulated=False), open_bench(simulated=False)
     try:
-        with KeepAlive([kept.link]) as keep:
+        with KeepAlive({"a": kept.link}) as keep:
             time.sleep(0.6)
         assert keep.error is None
         assert not kept.emulator.watchdog_tripped and kept.emulator.enabled

@@ -264,23 +264,35 @@ class _BudgetedView(ArmSensorView):
         return tip_measurement(got[self.arm], frame, self.shared.last_ms, self.T_world_left)
 
 
+@contextmanager
+def on_arm(name: str) -> Iterator[None]:
+    """An actuator box's error raised again naming its arm (the same type: the stop's cause)."""
+    from wristmark.rig.link.actuator_driver import ActuatorError
+
+    try:
+        yield
+    except ActuatorError as e:
+        raise type(e)(f"arm '{name}': {e}") from None
+
+
 class KeepAlive:
     """Keeps boxes fed from a thread of its own (GET_STATE every ``period`` [s], under their 250 ms
     watchdog) while the caller drives another arm alone; the first error (a box that stopped
     answering, an emergency stop) is raised by :meth:`__exit__`. Only this thread may touch those
     links meanwhile."""
 
-    def __init__(self, links: Sequence[SerialLink], period: float = 0.1) -> None:
-        self.links, self.period = list(links), float(period)
+    def __init__(self, links: Mapping[str, SerialLink], period: float = 0.1) -> None:
+        self.links, self.period = dict(links), float(period)
         self.error: BaseException | None = None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="keep-boxes-fed", daemon=True)
 
     def _run(self) -> None:
         while not self._stop.wait(self.period):
-            for link in self.links:
+            for name, link in self.links.items():
                 try:
-                    link.measured_actuators()
+                    with on_arm(name):
+                        link.measured_actuators()
                 except Exception as e:  # noqa: BLE001 - handed to the caller's thread
                     self.error = self.error or e
 
@@ -403,7 +415,10 @@ def _lockstep_start(loops: Mapping[str, ServoLoop], psi0: Mapping[str, Array], d
     each, within its velocity limits), then resting there :data:`SETTLE_AT_START_S`; the boxes
     fed every cycle (ServoLoop.start_at, for several arms at once)."""
     targets = {n: clamp_psi(loop.params, psi0[n]) for n, loop in loops.items()}
-    before = {n: np.asarray(loop.link.measured_actuators(), float) for n, loop in loops.items()}
+    before = {}
+    for n, loop in loops.items():
+        with on_arm(n):
+            before[n] = np.asarray(loop.link.measured_actuators(), float)
     ramps = {n: ramp_to(loop.params, psi_from_actuators(loop.params, before[n], delta_hint=targets[n]), targets[n], dt)
              for n, loop in loops.items()}
     steps = max(len(r) for r in ramps.values()) + 1 + int(round(SETTLE_AT_START_S / dt))
@@ -411,13 +426,16 @@ def _lockstep_start(loops: Mapping[str, ServoLoop], psi0: Mapping[str, Array], d
     for i in range(steps):
         for n, loop in loops.items():
             loop.psi_cmd = ramps[n][i] if i < len(ramps[n]) else targets[n]
-            loop.send(loop.psi_cmd)
+            with on_arm(n):
+                loop.send(loop.psi_cmd)
         t += dt
-        for loop in loops.values():
-            loop.advance_to(t)
+        for n, loop in loops.items():
+            with on_arm(n):
+                loop.advance_to(t)
     for n, loop in loops.items():
         if loop.controller is not None and loop.controller.uses_encoders:  # where the ramp left each play
-            loop.controller.note_start_move(before[n], np.asarray(loop.link.measured_actuators(), float))
+            with on_arm(n):
+                loop.controller.note_start_move(before[n], np.asarray(loop.link.measured_actuators(), float))
 
 
 def start_gap(setups: Mapping[str, LoopSetup], psi0: Mapping[str, Array], bases: Mapping[str, Array]) -> float:
@@ -461,10 +479,11 @@ def run_arm_set(setups: Mapping[str, LoopSetup], trajs: Mapping[str, Trajectory]
         _walk(loops, trajs, session, run, stats, bases, clearance, int(round(settle / dt)))
     except (WristmarkError, KeyboardInterrupt) as e:  # every arm held and disabled below
         cause, why = stop_cause(e)
+        t_now = max((loop.t for loop in loops.values()), default=float("nan"))
         for n in names:
             if not outs[n].stopped:
                 outs[n].stopped, outs[n].cause = why, cause
-                outs[n].t_stop = loops[n].elapsed(loops[n].t) if n in loops else float("nan")
+                outs[n].t_stop = loops[n].elapsed(t_now) if n in loops else float("nan")
     finally:
         session.close()
         for n in names:
@@ -491,9 +510,9 @@ def _walk(loops: Mapping[str, ServoLoop], trajs: Mapping[str, Trajectory], sessi
         ctrl = loops[n].controller
         if ctrl is None or not ctrl.wants_play_probe:
             continue
-        others = [session.links[m] for m in active if m != n]
+        others = {m: session.links[m] for m in active if m != n}
         try:
-            with KeepAlive(others), session.feed.solo():
+            with KeepAlive(others), session.feed.solo(), on_arm(n):
                 loops[n].advance_to(time.monotonic())  # its cycles from now (an arm probed before took seconds)
                 settle[n] = loops[n].probe_play(trajs[n], "servo", run.outcomes[n].log, stats[n], memory[n],
                                                 settle[n])
@@ -511,7 +530,8 @@ def _walk(loops: Mapping[str, ServoLoop], trajs: Mapping[str, Trajectory], sessi
         t_k = t0 + k * dt
         targets = {n: cycle_target(trajs[n], rig, k, t_k, settle[n]) for n in active}
         for n in active:
-            loops[n].advance_to(t_k)
+            with on_arm(n):
+                loops[n].advance_to(t_k)
         missed = min(int((time.monotonic() - t_k) // dt), n_cycles - 1 - k)
         if missed > 0:  # a whole cycle late: skip to the current cycle (every box was just polled)
             for n in active:
@@ -526,7 +546,8 @@ def _walk(loops: Mapping[str, ServoLoop], trajs: Mapping[str, Trajectory], sessi
         for n in list(active):
             out = run.outcomes[n]
             try:
-                out.log.add(loops[n].step(targets[n], "servo", True, memory[n], stats[n]))
+                with on_arm(n):
+                    out.log.add(loops[n].step(targets[n], "servo", True, memory[n], stats[n]))
             except CameraStalledError:
                 raise
             except MarkerLostError as e:  # that arm held and disabled; the others walk on

@@ -44,6 +44,7 @@ def refused(capsys: pytest.CaptureFixture[str], *argv: str) -> str:
     (["--serial", "a={A}", "--serial", "b={A}"], "given for both 'a' and 'b'"),
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--robot", "configs/robot.yaml"], "--robot"),
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--target", "stdin"], "--target"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--view-hold", "2"], "--view-hold"),
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--hold", "c"], "--hold c: no such arm"),
 ])
 def test_bad_scene_input_is_refused_in_one_line_and_nothing_reaches_the_box(

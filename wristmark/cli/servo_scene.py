@@ -22,7 +22,8 @@ import numpy as np
 from wristmark.models.errors import InputError
 
 SCENE_REFUSED = ("robot", "marker", "plant", "model", "registration", "open_loop_on_lost", "point", "target",
-                 "view", "record", "ros2", "actuator", "direct", "realtime", "pace", "latency", "sensor")
+                 "view", "record", "record_jpeg", "ros2", "actuator", "no_operating_state", "direct", "realtime",
+                 "pace", "latency", "sensor", "host")
 
 
 def check_scene_options(args: argparse.Namespace) -> None:
@@ -30,6 +31,8 @@ def check_scene_options(args: argparse.Namespace) -> None:
     given = [f"--{k.replace('_', '-')}" for k in SCENE_REFUSED if getattr(args, k, None) not in (None, False)]
     if args.orientation != "none":
         given.append("--orientation")
+    if args.view_hold:
+        given.append("--view-hold")
     if given:
         raise InputError(f"{', '.join(given)}: not with --scene (each arm's files are named in the scene file; "
                          "each arm walks its own cube or holds its centre, position only)")

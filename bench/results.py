@@ -345,6 +345,51 @@ def render_sweep(r: dict[str, Any]) -> list[str]:
     return lines
 
 
+def render_several_arms(r: dict[str, Any]) -> list[str]:
+    t = r.get("time_ms", {})
+    lines = [
+        f"{r['pairs']} rendered {r['image_size'][0]}x{r['image_size'][1]} stereo pairs of {len(r['arms'])} arms "
+        f"({r['scene']}) in random poses, half the sequences crossing; each pair also rendered with each arm "
+        "alone (the one-arm figure). Identity swaps: poses reported for an arm that lie nearer another arm's "
+        f"truth: **{r['identity_swaps']}**; wrong (over 0.5 mm off): **{r['wrong']}**.",
+        "",
+        "| arm | tracked together / alone | pairs with corners hidden by another arm | "
+        "tip mean together / alone [mm] | tip max together / alone [mm] | "
+        "tip mean together / alone where corners are hidden [mm] |",
+        "|---|---|---|---|---|---|",
+    ]
+    for n, a in r["arms"].items():
+        h = a.get("with_hidden_corners") or {}
+        lines.append(f"| {n} | {a['tracked_together']} / {a['tracked_alone']} of {a['pairs']} | "
+                     f"{a['pairs_with_hidden_corners']} | {_f(a['tip_mean_mm_together'], 3)} / "
+                     f"{_f(a['tip_mean_mm_alone'], 3)} | {_f(a['tip_max_mm_together'], 3)} / "
+                     f"{_f(a['tip_max_mm_alone'], 3)} | {_f(h.get('tip_mean_mm_together'), 3)} / "
+                     f"{_f(h.get('tip_mean_mm_alone'), 3)} ({h.get('pairs', '-')} pairs) |")
+    return [*lines, "", f"Tracking time per pair (medians of this run): all sleeves together "
+            f"{_f(t.get('together_median'), 1)} ms, one arm alone {_f(t.get('one_arm_median'), 1)} ms, ratio "
+            f"{_f(t.get('ratio'))}."]
+
+
+def render_scene_cube(r: dict[str, Any]) -> list[str]:
+    lines = [
+        f"Every arm walks its own {' x '.join(f'{1000 * v:.0f}' for v in r['cube_size_m'])} mm cube at once "
+        f"({r['scene']}), open loop then closed loop, one camera, one tracking of all sleeves per frame; "
+        f"controller `{r['controller']}`, {1000 * r['control_dt_s']:.0f} ms cycle, sensor {r['sensor']}.",
+        "",
+        "| arm | open loop mean / max [mm] | closed loop mean / max [mm] | closed / open | lost |",
+        "|---|---|---|---|---|",
+    ]
+    for n, a in r["arms"].items():
+        o, c = a["open_loop"], a["closed_loop"]
+        lines.append(f"| {n} ({a['walk']}) | {_f(o['mean_mm'])} / {_f(o['max_mm'])} | {_f(c['mean_mm'], 3)} / "
+                     f"{_f(c['max_mm'], 3)} | {_f(100 * a['ratio'], 1)} % | {c['lost']} |")
+    cl = r["clearance"]
+    return [*lines, "", f"Least distance between the arms' true bodies: {_f(cl['least_true_mm']['closed_loop'])} mm "
+            f"closed loop (clearance {_f(cl['required_mm'], 1)} mm; open loop, which has no constraint, "
+            f"{_f(cl['least_true_mm']['open_loop'])} mm). Tracking all sleeves in the loop: "
+            f"{_f(r['tracking_ms_median'], 1)} ms per frame (median)."]
+
+
 PY = ".venv/bin/python"
 CODED_UNSEEN = ("--marker", "configs/marker_coded.yaml", "--orientation", "hold",
                 "--plant", "configs/plant_unseen.yaml")
@@ -377,6 +422,20 @@ ENTRIES: tuple[Entry, ...] = (
           600, render_virtual_lab),
     Entry("chessboard", "Calibration corners on real chessboard photographs",
           (PY, "bench/real_chessboard.py"), 300, render_chessboard),
+    Entry("several_arms", "Several sleeves in one pair: two arms",
+          (PY, "bench/several_arms.py", "--sequences", "20", "--pairs", "10", "--seed", "1"), 600,
+          render_several_arms),
+    Entry("several_arms_three", "Several sleeves in one pair: three arms",
+          (PY, "bench/several_arms.py", "--scene", "configs/scenes/three_arms.yaml", "--sequences", "20",
+           "--pairs", "10", "--seed", "1"), 900, render_several_arms),
+    Entry("scene_cube", "Two arms each walking a cube in one view",
+          ("wristmark", "experiment", "cube", "--scene", "configs/scenes/two_arms.yaml", "--no-progress", "--force",
+           "--out", f"{OUT}/scene_cube", "--json", f"{OUT}/scene_cube.json"), 1800, render_scene_cube,
+          json_file=f"{OUT}/scene_cube.json"),
+    Entry("scene_cube_close", "Two arms whose cubes would collide",
+          ("wristmark", "experiment", "cube", "--scene", "configs/scenes/two_arms_close.yaml", "--no-progress",
+           "--force", "--out", f"{OUT}/scene_cube_close", "--json", f"{OUT}/scene_cube_close.json"), 1800,
+          render_scene_cube, json_file=f"{OUT}/scene_cube_close.json"),
     Entry("sweep", "Closed loop against latency and stem backlash (a sweep)",
           ("wristmark", "sweep", "configs/sweeps/latency_backlash.yaml", "--out", f"{OUT}/sweep_latency_backlash",
            "--workers", "1", "--no-progress"), 900, render_sweep,

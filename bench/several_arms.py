@@ -16,7 +16,8 @@ one-arm MarkerTracker each. Prints JSON:
 - ``identity_swaps``: poses reported for an arm that lie nearer another arm's truth (must be 0);
   ``wrong``: reported tips off their own truth by over 0.5 mm;
 - per arm: tracked rate together and alone, tip error mean / max [mm] together and alone (over
-  the pairs both tracked), and the pairs where a sleeve had corners hidden by another arm;
+  the pairs both tracked), and the pairs where a sleeve had corners hidden by another arm (with
+  the tip error means split into the pairs with and without hidden corners);
 - ``time_ms``: median tracking time per pair for all sleeves together, the one-arm median per arm
   alone, and their ratio.
 """
@@ -60,7 +61,7 @@ def main() -> None:
     together_r = StereoRenderer(cam, markers, RenderSettings(), seed=args.seed)
     alone_r = [StereoRenderer(cam, m, RenderSettings(), seed=args.seed + 1 + i) for i, m in enumerate(markers)]
     rng = np.random.default_rng(args.seed)
-    stats: dict[str, dict[str, Any]] = {n: {"together": [], "alone": [], "occluded_pairs": 0, "n": 0,
+    stats: dict[str, dict[str, Any]] = {n: {"together": [], "alone": [], "hidden": [], "occluded_pairs": 0, "n": 0,
                                             "tracked_together": 0, "tracked_alone": 0} for n in names}
     swaps = wrong = 0
     t_together: list[float] = []
@@ -94,8 +95,8 @@ def main() -> None:
                 st = stats[n]
                 st["n"] += 1
                 truth = scene.arms[i]
-                if any(c.occluded for c in truth.corners_left + truth.corners_right):
-                    st["occluded_pairs"] += 1
+                hidden = any(c.occluded for c in truth.corners_left + truth.corners_right)
+                st["occluded_pairs"] += int(hidden)
                 alone = alone_r[i].render(shapes[i])
                 t1 = time.perf_counter()
                 ra = alone_trk[i].track(alone.left, alone.right)
@@ -113,10 +114,12 @@ def main() -> None:
                     if ok_alone and ra.tip_left is not None:
                         st["together"].append(e)
                         st["alone"].append(float(np.linalg.norm(ra.tip_left - alone.tip_left)))
+                        st["hidden"].append(hidden)
     out: dict[str, Any] = {"scene": args.scene, "pairs": args.sequences * args.pairs, "scale": args.scale,
                            "image_size": list(cam.image_size), "identity_swaps": swaps, "wrong": wrong, "arms": {}}
     for n, st in stats.items():
         tg, al = np.array(st["together"]) * 1000, np.array(st["alone"]) * 1000
+        hid = np.array(st["hidden"], bool)
         out["arms"][n] = {
             "tracked_together": st["tracked_together"], "tracked_alone": st["tracked_alone"], "pairs": st["n"],
             "pairs_with_hidden_corners": st["occluded_pairs"],
@@ -125,10 +128,18 @@ def main() -> None:
             "tip_max_mm_together": float(tg.max()) if tg.size else None,
             "tip_max_mm_alone": float(al.max()) if al.size else None,
             "both_tracked": int(tg.size),
+            "with_hidden_corners": _split(tg[hid], al[hid]),
+            "without_hidden_corners": _split(tg[~hid], al[~hid]),
         }
     med_t, med_a = float(np.median(t_together)), float(np.median(t_alone))
     out["time_ms"] = {"together_median": med_t, "one_arm_median": med_a, "ratio": med_t / med_a}
     print(json.dumps(out, indent=1))
+
+
+def _split(together: np.ndarray, alone: np.ndarray) -> dict[str, Any]:
+    """Tip error means [mm] together and alone over a subset of the pairs both tracked."""
+    return {"pairs": int(together.size), "tip_mean_mm_together": float(together.mean()) if together.size else None,
+            "tip_mean_mm_alone": float(alone.mean()) if alone.size else None}
 
 
 if __name__ == "__main__":

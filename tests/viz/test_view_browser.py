@@ -286,3 +286,41 @@ def test_live_page_follows_the_loop(page: Any, tmp_path: Path) -> None:
     finally:
         view.close()
     assert view.stats.error == "" and view.stats.frames >= 1 and view.stats.images >= 1
+
+
+def test_static_scene_replay_shows_every_arm_with_its_tips(page: Any, tmp_path: Path) -> None:
+    """A run of two arms in one view (tests/data/scene_run): both arms' bodies and their desired,
+    estimated and true tips in each arm's colour, where the page's camera projects them in the
+    scene's {w}; the legend names both arms."""
+    from tests.viz.test_scene_replay import SCENE_RUN
+    from wristmark.viz.scene_replay import load_scene_run
+    from wristmark.viz.style import arm_tip_styles
+
+    out = tmp_path / "scene.html"
+    assert main(["view", str(SCENE_RUN), "--snapshot", str(out)]) == 0
+    rep = load_scene_run(SCENE_RUN)
+    open_scene(page, out.resolve().as_uri(), animated=True)
+    k = len(rep.arms["a"].states) - 1  # the last closed-loop cycle: every tip known
+    seek(page, float(rep.arms["a"].times[k]))
+    img = screenshot(page, "view-snapshot-scene", tmp_path)
+    view = page_view(page)
+    legend = page.inner_text("#wm-legend")
+    assert "arm a: desired / estimated / true tip" in legend and "arm b: desired / estimated / true tip" in legend
+    found: dict[str, int] = {}
+    for name, arm in rep.arms.items():
+        B = rep.config.bases[name]
+        part = ArmScene(recording_visualizer()[0], arm.config, view, stage=False, ghost=False)
+        poses = dict(part.node_poses(arm.states[k]))
+        p = B[:3, :3] @ poses[f"{ROOT}/arm/visuals/seg1_link_2_0"][:3, 3] + B[:3, 3]
+        found[f"{name} segment 1"] = count_hue(img, view.project(p[None], WIDTH, HEIGHT)[0], 3.0, SEGMENT1)
+        own = arm_tip_styles(rep.config.color(name))
+        other = arm_tip_styles(rep.config.color("b" if name == "a" else "a"))
+        for kind in ("desired", "estimated"):
+            q = B[:3, :3] @ np.asarray(arm.states[k].tips[kind], float) + B[:3, 3]
+            uv = view.project(q[None], WIDTH, HEIGHT)[0]
+            r = 2.0 + 0.8 * pixel_radius(view, q, own[kind].radius)
+            found[f"{name} {kind} tip"] = count_hue(img, uv, r, own[kind].color, min_sat=0.25)
+            assert count_hue(img, uv, r, other[kind].color, min_sat=0.25) < 3  # in its own arm's colour
+    missing = {key: n for key, n in found.items() if n < 3}
+    assert not missing, f"not drawn where expected: {missing} (all counts: {found})"
+    print(found)

@@ -67,7 +67,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="with --scene: this arm holds its workspace centre while the others walk (repeatable)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.add_argument("--view", action="store_true",
-                   help="live 3D view in the browser (Meshcat; prints the URL to open)")
+                   help="live 3D view in the browser (Meshcat; prints the URL to open); with --scene every arm")
     add_host_argument(p)
 
 
@@ -96,8 +96,6 @@ def check_scene_args(args: argparse.Namespace) -> Any:
         raise ConfigError("--scene needs the cube experiment")
     if args.orientation != "none":
         raise ConfigError("--orientation: not with --scene (each arm's cube is position only)")
-    if args.view:
-        raise ConfigError("--view: not with --scene; replay the run folder with wristmark view")
     if args.duration is not None and not args.duration > 0:
         raise ConfigError(f"--duration must be > 0 s, got {args.duration}")
     setup = scene_setup_from_args(args)
@@ -116,10 +114,29 @@ def run_scene(args: argparse.Namespace) -> int:
     claim_outputs(dirs=[out], files=[args.json], force=args.force)
     warm_up()
     t0 = time.perf_counter()
-    res = run_scene_cube(setup, out, duration=args.duration, hold=tuple(args.hold or ()))
+    view = None
+    if args.view:
+        from wristmark.viz.live import start_scene_live_view
+
+        view = start_scene_live_view(setup, host=args.host, stream=sys.stderr)
+        print(f"the live view closes when the run ends; then replay the run: wristmark view {out}",
+              file=sys.stderr, flush=True)
+    try:
+        res = run_scene_cube(setup, out, duration=args.duration, hold=tuple(args.hold or ()),
+                             on_cycle=None if view is None else view.on_arm_cycle)
+    finally:
+        if view is not None:
+            _close_view(view, out)
     print((out / "results.md").read_text())
     stopped = [f"arm {n}: {a['closed_loop']['stopped']}" for n, a in res["arms"].items() if a["closed_loop"]["stopped"]]
     return _finish(args, out, res, time.perf_counter() - t0, stopped)
+
+
+def _close_view(view: Any, out: Path) -> None:
+    """Close a live view after the run and say how to replay it (its URL is dead now)."""
+    view.close()
+    print(f"replay in the browser: wristmark view {out}", file=sys.stderr)
+    print(f"(the live view at {view.url} has closed with the run)", file=sys.stderr)
 
 
 def _finish(args: argparse.Namespace, out: Path, res: dict[str, Any], wall_s: float, stopped: list[str]) -> int:
@@ -162,9 +179,7 @@ def run(args: argparse.Namespace) -> int:
         res = _run(args, setup, out, progress, on_cycle, on_frame)
     finally:
         if view is not None:
-            view.close()
-            print(f"replay in the browser: wristmark view {out}", file=sys.stderr)
-            print(f"(the live view at {view.url} has closed with the run)", file=sys.stderr)
+            _close_view(view, out)
     return _finish(args, out, res, time.perf_counter() - t0, [r["stopped"] for r in _phases(res) if r.get("stopped")])
 
 

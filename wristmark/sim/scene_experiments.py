@@ -9,13 +9,14 @@ and log_<arm>.csv per arm.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from wristmark.rig.loop.arm_set_session import arm_trajectories
-from wristmark.rig.recording.run_log import RunLog, write_json
+from wristmark.rig.recording.run_log import CycleRecord, RunLog, write_json
 from wristmark.rig.targets.trajectories import Trajectory, workspace_centre
 from wristmark.sim.scene_setup import SceneSetup
 from wristmark.sim.several_arms import walk_scene
@@ -33,13 +34,15 @@ def scene_trajectories(setup: SceneSetup, duration: float | None = None,
 
 
 def run_scene_cube(setup: SceneSetup, out_dir: Path, duration: float | None = None,
-                   hold: tuple[str, ...] = (), seed: int | None = None) -> dict[str, Any]:
-    """Every arm's cube, open loop then closed loop on fresh arms, all at once; writes the run folder."""
+                   hold: tuple[str, ...] = (), seed: int | None = None,
+                   on_cycle: Callable[[str, CycleRecord], None] | None = None) -> dict[str, Any]:
+    """Every arm's cube, open loop then closed loop on fresh arms, all at once; writes the run
+    folder. ``on_cycle(arm, record)`` is called after every cycle of every arm (a live view's)."""
     trajs = scene_trajectories(setup, duration, hold)
     out_dir.mkdir(parents=True, exist_ok=True)
     write_json(out_dir / "config.json", {"experiment": "cube", **setup.describe()})
     logs = {n: RunLog.for_arm(s.params) for n, s in setup.arms.items()}
-    walks = {phase: walk_scene(setup, trajs, phase == "closed_loop", phase, logs=logs, seed=seed)
+    walks = {phase: walk_scene(setup, trajs, phase == "closed_loop", phase, logs=logs, seed=seed, on_cycle=on_cycle)
              for phase in ("open_loop", "closed_loop")}
     rig = next(iter(setup.arms.values())).rig
     arms: dict[str, Any] = {}
@@ -66,7 +69,8 @@ def run_scene_cube(setup: SceneSetup, out_dir: Path, duration: float | None = No
         "clearance": {
             "required_mm": 1000 * setup.scene.clearance,
             "least_true_mm": {p: 1000 * w.least_distance_m for p, w in walks.items()},
-            "kept": bool(all(w.least_distance_m >= setup.scene.clearance for w in walks.values())),
+            # the constraint acts in the closed loop; the open-loop baseline commands the nominal IK alone
+            "kept": bool(walks["closed_loop"].least_distance_m >= setup.scene.clearance),
         },
         "tracking_ms_median": float(np.median(closed.tracking_ms)) if closed.tracking_ms else float("nan"),
         "run_dir": str(out_dir),
@@ -88,8 +92,8 @@ def scene_table(res: dict[str, Any]) -> str:
         lines.append(f"| {n} | {a['walk']} | {o['mean_mm']:.2f} | {o['max_mm']:.2f} | {c['mean_mm']:.3f} | "
                      f"{c['max_mm']:.3f} | {100 * a['ratio']:.1f} % | {c['lost']} | {c['stopped'] or '-'} |")
     cl = res["clearance"]
-    lines += ["", f"Least distance between the arms' true bodies: {cl['least_true_mm']['open_loop']:.1f} mm open loop, "
-              f"{cl['least_true_mm']['closed_loop']:.1f} mm closed loop (clearance {cl['required_mm']:.1f} mm: "
-              f"{'kept' if cl['kept'] else 'VIOLATED'}). Tracking all sleeves: median "
+    lines += ["", f"Least distance between the arms' true bodies: {cl['least_true_mm']['closed_loop']:.1f} mm closed "
+              f"loop (clearance {cl['required_mm']:.1f} mm: {'kept' if cl['kept'] else 'VIOLATED'}), "
+              f"{cl['least_true_mm']['open_loop']:.1f} mm open loop (no constraint). Tracking all sleeves: median "
               f"{res['tracking_ms_median']:.1f} ms per frame.", ""]
     return "\n".join(lines)

@@ -66,6 +66,7 @@ class SceneSetup:
     def describe(self) -> dict[str, Any]:
         """Plain data for config.json: the scene and each arm's setup."""
         return {"scene": self.scene.source, "clearance_m": self.scene.clearance,
+                "clearance_margin_m": self.scene.clearance_margin,
                 "cube_size_m": list(self.scene.cube_size),
                 "arms": {n: {"base": self.base(n).tolist(), **s.describe()} for n, s in self.arms.items()}}
 

@@ -15,6 +15,7 @@ off the model's: rig.loop.arm_clearance, shared with the hardware path) and keep
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -29,7 +30,7 @@ from wristmark.rig.loop.arm_set_sensor import ArmSetSensor
 from wristmark.rig.loop.metrics import error_stats, tracking_errors
 from wristmark.rig.loop.servo_cycle import MarkerLostError, PhaseStats, TrackingMemory, cycle_target
 from wristmark.rig.loop.servo_loop import ServoLoop
-from wristmark.rig.recording.run_log import RunLog
+from wristmark.rig.recording.run_log import CycleRecord, RunLog
 from wristmark.rig.targets.orientation_path import start_configuration
 from wristmark.rig.targets.trajectories import Trajectory
 from wristmark.sim.render.scene_source import SceneFrames
@@ -73,7 +74,9 @@ def _true_bodies(setup: SceneSetup, plants: Mapping[str, Any]) -> dict[str, Caps
 
 
 def _set_obstacles(setup: SceneSetup, loops: Mapping[str, ServoLoop], offsets: Mapping[str, Array]) -> None:
-    """Each arm's controller gets the other arms' bodies (rig.loop.arm_clearance.set_obstacles)."""
+    """Each arm's controller gets the other arms' bodies (rig.loop.arm_clearance.set_obstacles:
+    shifted by their vision-measured tip offsets; two moving arms each close half the damper's
+    share of the gap per cycle)."""
     set_obstacles({n: setup.base(n) for n in loops}, loops, offsets,
                   setup.scene.clearance + setup.scene.clearance_margin)
 
@@ -84,13 +87,15 @@ def _clock_of(link: DirectLink) -> Callable[[], float]:
 
 
 def walk_scene(setup: SceneSetup, trajectories: Mapping[str, Trajectory], closed_loop: bool, phase: str,
-               logs: Mapping[str, RunLog] | None = None, seed: int | None = None) -> SceneWalk:
+               logs: Mapping[str, RunLog] | None = None, seed: int | None = None,
+               on_cycle: Callable[[str, CycleRecord], None] | None = None) -> SceneWalk:
     """Walk each arm's trajectory (in its own {w}, after the rig's settle time at its start) on
     fresh simulated arms, all in lockstep, open loop or closed loop on the one camera; log each
     arm's cycles under ``phase`` into ``logs`` (default new logs). An arm whose marker stays lost
     is held and stops; the others go on. ConfigError before anything runs: a trajectory missing
     for an arm or out of its reach, arms that overlap at their start. A controller that probes its
-    play (rig/loop/play_probe.py) probes it first, one arm at a time, the others holding."""
+    play (rig/loop/play_probe.py) probes it first, one arm at a time, the others holding.
+    ``on_cycle(arm, record)`` is called after every logged cycle (e.g. a live view's)."""
     names = setup.names
     missing = [n for n in names if n not in trajectories]
     if missing:
@@ -124,7 +129,8 @@ def walk_scene(setup: SceneSetup, trajectories: Mapping[str, Trajectory], closed
         loops[n] = ServoLoop(s.params, rig, link,
                              frames=None if frames is None else frames.feed(_clock_of(link)),
                              sensor=None if sensor is None else sensor.view(n, W),
-                             truth=make_truth(s, plants[n], seed + 100 * i), controller=controller)
+                             truth=make_truth(s, plants[n], seed + 100 * i), controller=controller,
+                             on_cycle=None if on_cycle is None else functools.partial(on_cycle, n))
         loops[n].start_at(psi0[n])
     logs = dict(logs) if logs is not None else {n: RunLog.for_arm(setup.arms[n].params) for n in names}
     stats = {n: PhaseStats() for n in names}
@@ -155,12 +161,18 @@ def walk_scene(setup: SceneSetup, trajectories: Mapping[str, Trajectory], closed
             walk.least_distance_m, walk.least_at_s = gap, loops[names[0]].elapsed(t0 + k * dt)
         for n in list(active):
             try:
-                logs[n].add(loops[n].step(targets[n], phase, closed_loop, memory[n], stats[n]))
+                rec = loops[n].step(targets[n], phase, closed_loop, memory[n], stats[n])
             except MarkerLostError as e:  # that arm held; the others walk on
                 if e.record is not None:
                     logs[n].add(e.record)
+                    if on_cycle is not None:
+                        on_cycle(n, e.record)
                 stopped[n] = stats[n].stopped or str(e)
                 active.remove(n)
+                continue
+            logs[n].add(rec)
+            if on_cycle is not None:
+                on_cycle(n, rec)
         if sensor is not None:
             walk.tracking_ms.append(sensor.last_ms)
     for n in names:

@@ -366,12 +366,12 @@ class Controller(abc.ABC):
             return np.asarray(psi_cmd, float).copy()
         return self.compensator.nominal_of(psi_cmd)
 
-    def set_obstacles(self, caps: Capsules | None, clearance_m: float | None = None) -> None:
+    def set_obstacles(self, caps: Capsules | None, clearance_m: float | None = None, xi: float = 0.5) -> None:
         """Keep the arm's body ``clearance_m`` [m] (None: the config's ``clearance_m``) from the
         capsules ``caps`` (other arms' bodies, in this arm's {w}: solvers/clearance.py) in the next
-        steps; None clears them. Only a kind with a constraint slot (``supports_obstacles``: the
-        qp) takes them: the paper's eq. 17-21 has none, and refuses (ConfigError); None is
-        accepted by every kind."""
+        steps, closing at most the share ``xi`` of the gap above it per step; None clears them.
+        Only a kind with a constraint slot (``supports_obstacles``: the qp) takes them: the
+        paper's eq. 17-21 has none, and refuses (ConfigError); None is accepted by every kind."""
         if caps is not None:
             raise ConfigError(f"the {self.config.kind!r} controller has no constraint slot for a clearance "
                               "between arms; it needs the qp controller")

@@ -13,11 +13,15 @@ Use::
     loop.on_frame = view.on_frame              # the left camera image with its corners (2 Hz)
     ...                                        # run the loop
     view.close()                               # or view.hold() first, to keep serving
+
+Several arms in one view: ``start_scene_live_view(scene_setup)`` and its ``on_arm_cycle(name,
+rec)`` as sim.several_arms.walk_scene's ``on_cycle``.
 """
 
 from __future__ import annotations
 
 import fcntl
+import functools
 import json
 import os
 import pickle
@@ -27,13 +31,15 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
 from wristmark.models.arm_spec import arm_size
 from wristmark.models.errors import WristmarkError
-from wristmark.viz.record_wire import MAX_PSI, encode
+from wristmark.viz.arms_scene import ArmsSceneConfig, ArmsSetup
+from wristmark.viz.record_wire import MAX_PSI, encode, encode_arm
 from wristmark.viz.scene import SceneConfig
 from wristmark.viz.viewer_client import MeshcatServer, ViewerError
 
@@ -95,11 +101,15 @@ class LiveView:
 
     def on_cycle(self, rec: CycleRecord) -> None:
         """ServoLoop hook: hand the cycle to the drawing process (never blocks)."""
+        self._send(encode, rec)
+
+    def _send(self, pack: Callable[[CycleRecord], bytes], rec: CycleRecord) -> None:
+        """Write ``pack(rec)`` to the drawing process's pipe; a full pipe drops it."""
         if self._fd is None:
             return
         t0 = time.perf_counter()
         try:
-            os.write(self._fd, encode(rec))
+            os.write(self._fd, pack(rec))
             self.stats.sent += 1
         except BlockingIOError:
             self.stats.dropped += 1
@@ -190,7 +200,23 @@ class LiveView:
         self.close()
 
 
-def _start_worker(server: MeshcatServer, config: SceneConfig, rate_hz: float,
+class SceneLiveView(LiveView):
+    """The live view of several arms in one view (sim.several_arms.walk_scene): pass its
+    :meth:`on_arm_cycle` as the walk's ``on_cycle``."""
+
+    def __init__(self, server: MeshcatServer, worker: subprocess.Popen[bytes], names: list[str]) -> None:
+        super().__init__(server, worker)
+        self.names = list(names)
+        self._packers = {n: functools.partial(encode_arm, i) for i, n in enumerate(self.names)}
+
+    def on_arm_cycle(self, name: str, rec: CycleRecord) -> None:
+        """Hand arm ``name``'s cycle to the drawing process (never blocks; unknown arms: ignored)."""
+        pack = self._packers.get(name)
+        if pack is not None:
+            self._send(pack, rec)
+
+
+def _start_worker(server: MeshcatServer, config: SceneConfig | ArmsSceneConfig, rate_hz: float,
                   trail_seconds: float, image_path: Path | None = None,
                   image_rate_hz: float = DEFAULT_IMAGE_RATE_HZ) -> subprocess.Popen[bytes]:
     env = dict(os.environ)
@@ -249,6 +275,35 @@ def start_live_view(setup: LoopSetup | None = None, *, config: SceneConfig | Non
         server.close()
         raise
     view = LiveView(server, worker, image_path)
+    if stream is not None:
+        print(f"live 3D view: open {view.url}", file=stream, flush=True)
+    return view
+
+
+def start_scene_live_view(setup: ArmsSetup, *, title: str = "wristmark live view: several arms",
+                          rate_hz: float = DEFAULT_RATE_HZ, trail_seconds: float = DEFAULT_TRAIL_SECONDS,
+                          stream: TextIO | None = sys.stderr, host: str | None = None) -> SceneLiveView:
+    """Start the live view of every arm of a scene (sim.scene_setup.SceneSetup): the server (its
+    legend names each arm in its colour) and the drawing process; prints the URL on ``stream``.
+    Loopback only unless ``host`` adds an address (viz.web_hosts)."""
+    from wristmark.viz.style import arms_legend
+
+    if not rate_hz > 0:
+        raise WristmarkError(f"live view rate must be > 0 Hz, got {rate_hz}")
+    if not trail_seconds >= 0:
+        raise WristmarkError(f"trail length must be >= 0 s, got {trail_seconds}")
+    config = ArmsSceneConfig.from_scene_setup(setup)
+    for name, c in config.arms.items():
+        if arm_size(c.params)[0] > MAX_PSI:
+            raise WristmarkError(f"the live view carries arms of up to {MAX_PSI} configuration variables; "
+                                 f"arm {name} has {arm_size(c.params)[0]}")
+    server = MeshcatServer.start(title=title, host=host, stream=stream, legend=arms_legend(config.names))
+    try:
+        worker = _start_worker(server, config, rate_hz, trail_seconds)
+    except BaseException:
+        server.close()
+        raise
+    view = SceneLiveView(server, worker, config.names)
     if stream is not None:
         print(f"live 3D view: open {view.url}", file=stream, flush=True)
     return view

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import errno
+import json
 import os
 import sys
 from typing import Any
@@ -143,10 +144,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-status", action="store_true", help="do not poll the status line")
     ap.add_argument("--parent", type=int, default=os.getppid(), help="exit when this pid is gone")
     ap.add_argument("--host", default=None, help="web server: also listen on this address (default: loopback only)")
+    ap.add_argument("--legend", default=None, help="the legend's rows as JSON: [[label, [[r, g, b], ...]], ...]")
     args = ap.parse_args(argv)
+    legend = None if args.legend is None else [(str(label), tuple(tuple(c) for c in colors))
+                                               for label, colors in json.loads(args.legend)]
     lower_priority()
     try:
-        bridge = WristmarkBridge(served_page(args.title, args.controls, not args.no_status), web_host=args.host,
+        bridge = WristmarkBridge(served_page(args.title, args.controls, not args.no_status, legend), web_host=args.host,
                                  host="127.0.0.1")
     except AddressError as e:
         print(f"error={e}", flush=True)

@@ -9,12 +9,12 @@ from __future__ import annotations
 import base64
 import html
 import json
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import meshcat
 
-from wristmark.viz.style import LEGEND, css_color
+from wristmark.viz.style import LEGEND, LegendRow, css_color
 
 MESHCAT_DIST = Path(meshcat.__file__).resolve().parent / "viewer" / "dist"  # the viewer bundle
 
@@ -45,30 +45,35 @@ try { viewer.gui.open(); viewer.animator.folder.open(); } catch (e) { console.in
 """
 
 
-def legend_html(title: str, status: dict[str, str] | None = None) -> str:
-    """The legend box: title, one coloured swatch per drawn item, and a status block."""
+def legend_html(title: str, status: dict[str, str] | None = None,
+                legend: Sequence[LegendRow] | None = None) -> str:
+    """The legend box: title, one row per drawn item with its coloured swatches (``legend``;
+    default style.LEGEND), and a status block."""
+    rows_in = legend if legend is not None else tuple((label, (rgb,)) for label, rgb in LEGEND)
     rows = "".join(
-        f'<div><span class="wm-sw" style="background:{css_color(rgb)}"></span>{html.escape(label)}</div>'
-        for label, rgb in LEGEND
+        "<div>" + "".join(f'<span class="wm-sw" style="background:{css_color(rgb)}"></span>' for rgb in colors)
+        + f"{html.escape(label)}</div>"
+        for label, colors in rows_in
     )
     text = "\n".join(f"{k}: {v}" for k, v in (status or {}).items())
     return (f'<div id="wm-legend"><div class="wm-title">{html.escape(title)}</div>{rows}'
             f'<div id="wm-status">{html.escape(text)}</div></div>')
 
 
-def served_page(title: str, open_controls: bool = False, poll_status: bool = True) -> str:
+def served_page(title: str, open_controls: bool = False, poll_status: bool = True,
+                legend: Sequence[LegendRow] | None = None) -> str:
     """Page for a Meshcat server: loads the viewer bundle from /static and connects to the
-    server's websocket (same host and port)."""
+    server's websocket (same host and port); ``legend``: its rows (default style.LEGEND)."""
     script = "viewer.connect();\n"
     if open_controls:
         script += _OPEN_CONTROLS
     if poll_status:
         script += _STATUS_POLL
-    return _page(title, '<script type="text/javascript" src="/static/main.min.js"></script>', script, None)
+    return _page(title, '<script type="text/javascript" src="/static/main.min.js"></script>', script, None, legend)
 
 
 def static_page(title: str, commands: Iterable[bytes], status: dict[str, str] | None = None,
-                open_controls: bool = False) -> str:
+                open_controls: bool = False, legend: Sequence[LegendRow] | None = None) -> str:
     """Self-contained page: the viewer bundle and every scene command inlined (base64 msgpack),
     applied synchronously on load, so the file opens from disk without any server."""
     bundle = (MESHCAT_DIST / "main.min.js").read_text(encoding="utf-8")
@@ -84,16 +89,17 @@ def static_page(title: str, commands: Iterable[bytes], status: dict[str, str] | 
     )
     if open_controls:
         script += _OPEN_CONTROLS
-    return _page(title, f"<script>{bundle}</script>", script, status)
+    return _page(title, f"<script>{bundle}</script>", script, status, legend)
 
 
-def _page(title: str, bundle_tag: str, script: str, status: dict[str, str] | None) -> str:
+def _page(title: str, bundle_tag: str, script: str, status: dict[str, str] | None,
+          legend: Sequence[LegendRow] | None = None) -> str:
     return f"""<!DOCTYPE html>
 <html>
 <head><meta charset="utf-8"><title>{html.escape(title)}</title><style>{_STYLE}</style></head>
 <body>
 <div id="meshcat-pane"></div>
-{legend_html(title, status)}
+{legend_html(title, status, legend)}
 {bundle_tag}
 <script>
 var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));

@@ -4,6 +4,7 @@ RECORD_SIZE bytes, below PIPE_BUF, so writes are atomic and never interleave).
 Layout (little-endian): t [s], phase (24 bytes UTF-8, NUL-padded), n (the arm's configuration
 variables, uint64), p_des, p_cmd, p_est (NaN: no estimate), p_true [m, {w}], psi_cmd, psi_true
 [rad, m] (each MAX_PSI entries, the first n used: any arm of models.arm_spec up to MAX_PSI).
+A scene of several arms prefixes each record with the arm's index (uint64, :func:`encode_arm`).
 """
 
 from __future__ import annotations
@@ -68,3 +69,19 @@ def decode(data: bytes) -> WireRecord:
         p_des=a[0:3], p_cmd=a[3:6], p_est=est if np.all(np.isfinite(est)) else None,
         p_true=a[9:12], psi_cmd=a[c:c + n], psi_true=a[r:r + n],
     )
+
+
+# Several arms in one view: each record is preceded by the arm's index in the scene (uint64).
+_ARM = struct.Struct("<Q")
+ARM_RECORD_SIZE = _ARM.size + RECORD_SIZE
+
+
+def encode_arm(index: int, rec: CycleRecord) -> bytes:
+    """ARM_RECORD_SIZE bytes of one cycle of the scene's arm number ``index``."""
+    return _ARM.pack(index) + encode(rec)
+
+
+def decode_arm(data: bytes) -> tuple[int, WireRecord]:
+    """(arm index, record) of ARM_RECORD_SIZE bytes written by :func:`encode_arm`."""
+    (index,) = _ARM.unpack_from(data)
+    return int(index), decode(data[_ARM.size:])

@@ -31,8 +31,8 @@ from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import RobotParams
 from wristmark.rig.recording.run_log import log_columns, read_log_csv
 from wristmark.viz import shapes
-from wristmark.viz.scene import HIDDEN_SCALE, ROOT, ArmScene, SceneConfig, SceneState
-from wristmark.viz.style import TIP_KINDS, TIP_STYLES
+from wristmark.viz.scene import HIDDEN_SCALE, ArmScene, SceneConfig, SceneState
+from wristmark.viz.style import TIP_KINDS
 
 Array = NDArray[np.float64]
 
@@ -81,9 +81,12 @@ class RunReplay:
 def scene_config_from_run(run_dir: Path) -> SceneConfig:
     """The scene of the configuration recorded in ``run_dir/config.json`` (missing parts: the
     project's configs/)."""
-    from wristmark.cvs.calibration.load import calibration_from_mapping, load_calibration
-    from wristmark.models.config_files import default_config
+    path = run_dir / "config.json"
+    return scene_config_from_mapping(read_run_config(run_dir), str(path))
 
+
+def read_run_config(run_dir: Path) -> dict[str, Any]:
+    """``run_dir/config.json`` as a mapping (missing: empty); one-line InputError when unreadable."""
     path = run_dir / "config.json"
     data: dict[str, Any] = {}
     if path.exists():
@@ -93,7 +96,15 @@ def scene_config_from_run(run_dir: Path) -> SceneConfig:
             raise InputError(f"{path}: not readable JSON ({e})") from None
         if not isinstance(data, dict):
             raise InputError(f"{path}: expected a JSON object")
-    src = str(path)
+    return data
+
+
+def scene_config_from_mapping(data: dict[str, Any], src: str) -> SceneConfig:
+    """The scene of one arm's recorded configuration (config.json's robot, marker, camera and
+    plant; ``src`` names it in errors; missing parts: the project's configs/)."""
+    from wristmark.cvs.calibration.load import calibration_from_mapping, load_calibration
+    from wristmark.models.config_files import default_config
+
     marker = (from_mapping(MarkerModel, data["marker"], src, "marker.") if isinstance(data.get("marker"), dict)
               else MarkerModel.load(default_config("marker.yaml")))
     params = (_robot_from_run(data, src, marker) if isinstance(data.get("robot"), dict)
@@ -247,13 +258,13 @@ def _draw_paths(scene: ArmScene, replay: RunReplay) -> None:
     phases = [s.phase.split(":")[0] for s in replay.states]
     for ph in dict.fromkeys(phases):
         idx = [i for i, p in enumerate(phases) if p == ph]
-        for kind in TIP_KINDS:
+        for kind in scene.tip_kinds:
             pts = [replay.states[i].tips.get(kind) for i in idx]
             P = np.array([p if p is not None else np.full(3, np.nan) for p in pts], float).reshape(-1, 3)
             P = P[np.all(np.isfinite(P), axis=1)]
             if len(P) >= 2:
-                scene.vis[f"{ROOT}/trails/{kind}/{ph}"].set_object(
-                    shapes.polyline(P, TIP_STYLES[kind].color, opacity=0.75))
+                scene.vis[f"{scene.root}/trails/{kind}/{ph}"].set_object(
+                    shapes.polyline(P, scene.tip_styles[kind].color, opacity=0.75))
 
 
 def _animation(scene: ArmScene, replay: RunReplay, idx: NDArray[np.int64]) -> Animation:
@@ -263,7 +274,7 @@ def _animation(scene: ArmScene, replay: RunReplay, idx: NDArray[np.int64]) -> An
         for path, T in scene.node_poses(replay.states[i]):
             per_node.setdefault(path, []).append(T)
     anim = Animation(default_framerate=1)
-    tip_paths = {f"{ROOT}/tips/{k}": k for k in TIP_KINDS}
+    tip_paths = {f"{scene.root}/tips/{k}": k for k in scene.tip_kinds}
     for path, Ts in per_node.items():
         clip = AnimationClip(fps=1)  # key times are seconds
         if path in tip_paths:

@@ -48,6 +48,7 @@ from wristmark.viz.style import (
     TIP_KINDS,
     TIP_STYLES,
     TRAIL_OPACITY,
+    TipStyle,
     hex_color,
 )
 
@@ -121,10 +122,26 @@ def _finite(p: object) -> Array | None:
     return a if a.shape == (3,) and np.all(np.isfinite(a)) else None
 
 
+def view_points(params: Arm, states: Iterable[SceneState], kinds: Iterable[str] = TIP_KINDS,
+                max_states: int = 200) -> list[Array]:
+    """Points [m, the arm's {w}] a view must show: the arm's centreline in (up to ``max_states``
+    of) ``states`` and their finite tips of ``kinds``."""
+    states = list(states)
+    kinds = tuple(kinds)
+    step = max(1, len(states) // max_states)
+    pts: list[Array] = []
+    for s in states[::step]:
+        psi = s.psi_true if np.all(np.isfinite(s.psi_true)) else s.psi_cmd
+        pts += list(arm_shape(params, psi, 6).centreline)
+    for s in states:
+        pts += [p for p in (_finite(s.tips.get(k)) for k in kinds) if p is not None]
+    return pts
+
+
 class _ArmNodes:
     """One arm (true or ghost) drawn from the URDF's visuals through Pinocchio's visualizer."""
 
-    def __init__(self, vis: meshcat.Visualizer, arm: PinocchioArm | PinocchioAnyArm, name: str, drop_sleeve: bool,
+    def __init__(self, vis: meshcat.Visualizer, arm: PinocchioArm | PinocchioAnyArm, root: str, drop_sleeve: bool,
                  color: list[float] | None, radius_scale: float) -> None:
         from pinocchio.visualize import MeshcatVisualizer
 
@@ -139,8 +156,8 @@ class _ArmNodes:
         self.geometry_data = gm.createData()
         self.viz = MeshcatVisualizer(arm.model, None, gm)
         self.viz.initViewer(viewer=vis)
-        self.viz.loadViewerModel(rootNodeName=f"{ROOT}/{name}", visual_color=color)
-        self.paths = [f"{ROOT}/{name}/visuals/{g.name}" for g in gm.geometryObjects]
+        self.viz.loadViewerModel(rootNodeName=root, visual_color=color)
+        self.paths = [f"{root}/visuals/{g.name}" for g in gm.geometryObjects]
         self.scale = np.diag([radius_scale, radius_scale, 1.0, 1.0])  # URDF cylinders lie along z
 
     def poses(self, psi: Array, correction: Array | None = None) -> list[tuple[str, Array]]:
@@ -162,81 +179,96 @@ def _pinocchio_arm(cfg: SceneConfig) -> PinocchioArm | PinocchioAnyArm:
     return PinocchioArm(cfg.params, cfg.links_per_segment, cfg.marker)
 
 
+def build_stage(vis: meshcat.Visualizer, view: CameraView, camera: StereoCamera | None) -> None:
+    """What every scene shares: a cleared root, the background, the browser's camera, the floor
+    grid, the {w} triad, and the stereo endoscope (``camera``'s world_T_left; None: not drawn)."""
+    vis[ROOT].delete()
+    vis["/Grid"].set_property("visible", False)
+    vis["/Axes"].set_property("visible", False)
+    vis["/Background"].set_property("top_color", list(BACKGROUND_TOP))
+    vis["/Background"].set_property("bottom_color", list(BACKGROUND_BOTTOM))
+    set_view(vis, view)
+    vis[f"{ROOT}/grid"].set_object(shapes.line_segments(shapes.floor_grid(), GRID_COLOR, 1.0))
+    vis[f"{ROOT}/world_axes"].set_object(mg.triad(0.01))
+
+
+def build_endoscope(vis: meshcat.Visualizer, cam: StereoCamera | None) -> None:
+    """The endoscope's shaft and both view frustums at ``cam``'s world_T_left (none: nothing)."""
+    if cam is None or cam.T_world_left is None:
+        return
+    vis[f"{ROOT}/endoscope"].set_transform(np.asarray(cam.T_world_left, float))
+    geom, mat, T = shapes.endoscope_shaft()
+    c_right = -np.asarray(cam.R, float).T @ np.asarray(cam.T, float)  # right centre in {ll}
+    vis[f"{ROOT}/endoscope/shaft"].set_object(geom, mat)
+    vis[f"{ROOT}/endoscope/shaft"].set_transform(shapes.translation(c_right / 2.0) @ T)
+    vis[f"{ROOT}/endoscope/left_frustum"].set_object(
+        shapes.line_segments(shapes.frustum_lines(cam.left.K, cam.image_size), LEFT_FRUSTUM_COLOR))
+    T_left_right = np.linalg.inv(np.asarray(cam.T_world_left, float)) @ shapes.world_T_right(cam)
+    vis[f"{ROOT}/endoscope/right"].set_transform(T_left_right)
+    vis[f"{ROOT}/endoscope/right/frustum"].set_object(
+        shapes.line_segments(shapes.frustum_lines(cam.right.K, cam.image_size), RIGHT_FRUSTUM_COLOR))
+
+
+def set_view(vis: meshcat.Visualizer, view: CameraView) -> None:
+    """Point the browser's camera: shift the scene so ``view.target`` is the orbit origin."""
+    vis[ROOT].set_transform(view.scene_shift())
+    vis[CAMERA_NODE].set_property("position", view.threejs_position())
+
+
 class ArmScene:
     """Builds the scene in a Meshcat visualizer and computes the node poses of each frame (in {w},
-    [m])."""
+    [m]).
+
+    By default the whole scene of one arm. With ``stage=False`` only the arm's own nodes under
+    ``root`` (its body, marker, tips and trails; ``ghost``: also the commanded arm; ``tips``: the
+    tip kinds drawn and their styles, default style.TIP_STYLES), positions in the arm's {w}: a
+    part of a scene of several arms (viz.arms_scene)."""
 
     def __init__(self, vis: meshcat.Visualizer, config: SceneConfig | None = None,
-                 view: CameraView | None = None) -> None:
+                 view: CameraView | None = None, *, root: str = ROOT, stage: bool = True, ghost: bool = True,
+                 tips: Mapping[str, TipStyle] | None = None) -> None:
         self.vis = vis
         self.config = config if config is not None else SceneConfig()
+        self.root = root
+        self.tip_styles = dict(TIP_STYLES if tips is None else tips)
+        self.tip_kinds = tuple(self.tip_styles)
         cfg = self.config
         self._true_arm = _pinocchio_arm(cfg)
-        self._ghost_arm = _pinocchio_arm(cfg)
+        self._ghost_arm = _pinocchio_arm(cfg) if ghost else None
         self.view = view if view is not None else self.frame_on([SceneState.at_rest(cfg.params)])
-        self._build()
+        self._build(stage)
 
     # -- construction ------------------------------------------------------------------------
-    def _build(self) -> None:
-        vis, cfg = self.vis, self.config
-        vis[ROOT].delete()
-        vis["/Grid"].set_property("visible", False)
-        vis["/Axes"].set_property("visible", False)
-        vis["/Background"].set_property("top_color", list(BACKGROUND_TOP))
-        vis["/Background"].set_property("bottom_color", list(BACKGROUND_BOTTOM))
-        self.set_view(self.view)
-        vis[f"{ROOT}/grid"].set_object(shapes.line_segments(shapes.floor_grid(), GRID_COLOR, 1.0))
-        vis[f"{ROOT}/world_axes"].set_object(mg.triad(0.01))
-        self._arm = _ArmNodes(vis, self._true_arm, "arm", drop_sleeve=True, color=None, radius_scale=1.0)
-        self._ghost = _ArmNodes(vis, self._ghost_arm, "ghost", drop_sleeve=False,
-                                color=[*GHOST_COLOR, GHOST_OPACITY], radius_scale=GHOST_RADIUS_SCALE)
+    def _build(self, stage: bool) -> None:
+        vis, cfg, root = self.vis, self.config, self.root
+        if stage:
+            build_stage(vis, self.view, cfg.camera)
+        self._arm = _ArmNodes(vis, self._true_arm, f"{root}/arm", drop_sleeve=True, color=None, radius_scale=1.0)
+        self._ghost = None if self._ghost_arm is None else _ArmNodes(
+            vis, self._ghost_arm, f"{root}/ghost", drop_sleeve=False, color=[*GHOST_COLOR, GHOST_OPACITY],
+            radius_scale=GHOST_RADIUS_SCALE)
         black, white = shapes.checker_sleeve(cfg.marker)
         mat_black, mat_white = shapes.sleeve_materials()
-        vis[f"{ROOT}/marker/black"].set_object(black, mat_black)
-        vis[f"{ROOT}/marker/white"].set_object(white, mat_white)
-        for kind in TIP_KINDS:
+        vis[f"{root}/marker/black"].set_object(black, mat_black)
+        vis[f"{root}/marker/white"].set_object(white, mat_white)
+        for kind, st in self.tip_styles.items():
             # Drawn in the transparent pass without depth test: always visible, even inside the
             # gripper or behind the arm (the true tip is at the jaws' end).
-            st = TIP_STYLES[kind]
             mat = mg.MeshPhongMaterial(color=hex_color(st.color), opacity=st.opacity, transparent=True,
                                        reflectivity=0.2, depthTest=False)
-            vis[f"{ROOT}/tips/{kind}"].set_object(mg.Sphere(st.radius), mat)
-        self._build_endoscope()
-
-    def _build_endoscope(self) -> None:
-        cam = self.config.camera
-        if cam is None or cam.T_world_left is None:
-            return
-        vis = self.vis
-        vis[f"{ROOT}/endoscope"].set_transform(np.asarray(cam.T_world_left, float))
-        geom, mat, T = shapes.endoscope_shaft()
-        c_right = -np.asarray(cam.R, float).T @ np.asarray(cam.T, float)  # right centre in {ll}
-        vis[f"{ROOT}/endoscope/shaft"].set_object(geom, mat)
-        vis[f"{ROOT}/endoscope/shaft"].set_transform(shapes.translation(c_right / 2.0) @ T)
-        vis[f"{ROOT}/endoscope/left_frustum"].set_object(
-            shapes.line_segments(shapes.frustum_lines(cam.left.K, cam.image_size), LEFT_FRUSTUM_COLOR))
-        T_left_right = np.linalg.inv(np.asarray(cam.T_world_left, float)) @ shapes.world_T_right(cam)
-        vis[f"{ROOT}/endoscope/right"].set_transform(T_left_right)
-        vis[f"{ROOT}/endoscope/right/frustum"].set_object(
-            shapes.line_segments(shapes.frustum_lines(cam.right.K, cam.image_size), RIGHT_FRUSTUM_COLOR))
+            vis[f"{root}/tips/{kind}"].set_object(mg.Sphere(st.radius), mat)
+        if stage:
+            build_endoscope(vis, cfg.camera)
 
     def set_view(self, view: CameraView) -> None:
         """Point the browser's camera: shift the scene so ``view.target`` is the orbit origin."""
         self.view = view
-        self.vis[ROOT].set_transform(view.scene_shift())
-        self.vis[CAMERA_NODE].set_property("position", view.threejs_position())
+        set_view(self.vis, view)
 
     def frame_on(self, states: Iterable[SceneState], max_states: int = 200) -> CameraView:
         """A view framed on the arm of (up to ``max_states`` of) ``states``, their tips, the
         incision and the endoscope's lenses."""
-        states = list(states)
-        step = max(1, len(states) // max_states)
-        pts = [np.zeros(3)]
-        for s in states[::step]:
-            psi = s.psi_true if np.all(np.isfinite(s.psi_true)) else s.psi_cmd
-            pts += list(arm_shape(self.config.params, psi, 6).centreline)
-        for s in states:
-            pts += [p for p in (_finite(s.tips.get(k)) for k in TIP_KINDS) if p is not None]
+        pts = [np.zeros(3), *view_points(self.config.params, states, self.tip_kinds, max_states)]
         cam = self.config.camera
         if cam is not None and cam.T_world_left is not None:
             pts.append(np.asarray(cam.T_world_left, float)[:3, 3])
@@ -270,16 +302,18 @@ class ArmScene:
         else:  # true configuration unknown (hardware, accuracy runs): the arm as commanded
             psi_true, C, stem_bend = psi_cmd, np.eye(4), 0.0
         poses = self._arm.poses(psi_true, C)
-        poses += self._ghost.poses(psi_cmd)
-        poses.append((f"{ROOT}/marker", forward_kinematics(self.config.params, psi_true, stem_bend).T_world_marker))
-        for kind in TIP_KINDS:
+        if self._ghost is not None:
+            poses += self._ghost.poses(psi_cmd)
+        poses.append((f"{self.root}/marker",
+                      forward_kinematics(self.config.params, psi_true, stem_bend).T_world_marker))
+        for kind in self.tip_kinds:
             p = _finite(state.tips.get(kind))
             T = np.eye(4)
             if p is None:
                 T[:3, :3] *= HIDDEN_SCALE
             else:
                 T[:3, 3] = p
-            poses.append((f"{ROOT}/tips/{kind}", T))
+            poses.append((f"{self.root}/tips/{kind}", T))
         return poses
 
     def show(self, state: SceneState) -> None:
@@ -289,11 +323,11 @@ class ArmScene:
 
     def set_trails(self, trails: Mapping[str, Array], opacity: float = TRAIL_OPACITY) -> None:
         """Replace the trail lines: (N, 3) points in {w} [m] per tip kind (missing: cleared)."""
-        for kind in TIP_KINDS:
+        for kind in self.tip_kinds:
             P = np.asarray(trails.get(kind, np.zeros((0, 3))), float).reshape(-1, 3)
             P = P[np.all(np.isfinite(P), axis=1)]
-            node = self.vis[f"{ROOT}/trails/{kind}"]
+            node = self.vis[f"{self.root}/trails/{kind}"]
             if len(P) < 2:
                 node.delete()
             else:
-                node.set_object(shapes.polyline(P, TIP_STYLES[kind].color, opacity))
+                node.set_object(shapes.polyline(P, self.tip_styles[kind].color, opacity))

@@ -9,7 +9,7 @@ commands into one page that opens from a file (animations and their time slider 
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +18,7 @@ import meshcat
 from wristmark.models.errors import InputError
 from wristmark.viz import command_tree
 from wristmark.viz.page import static_page
+from wristmark.viz.style import LegendRow
 
 
 class RecordingWindow:
@@ -48,9 +49,11 @@ class RecordingWindow:
         """Static HTML, as ``meshcat.Visualizer.static_html()`` expects of a window."""
         return self.html("wristmark")
 
-    def html(self, title: str, status: dict[str, str] | None = None, open_controls: bool = False) -> str:
-        """The self-contained page: legend, ``status`` lines, the scene (and its animation)."""
-        return static_page(title, self.commands(), status, open_controls)
+    def html(self, title: str, status: dict[str, str] | None = None, open_controls: bool = False,
+             legend: Sequence[LegendRow] | None = None) -> str:
+        """The self-contained page: legend (``legend``'s rows; default style.LEGEND), ``status``
+        lines, the scene (and its animation)."""
+        return static_page(title, self.commands(), status, open_controls, legend)
 
 
 def recording_visualizer() -> tuple[meshcat.Visualizer, RecordingWindow]:

@@ -56,6 +56,54 @@ LEGEND: tuple[tuple[str, RGB], ...] = tuple((s.label, s.color) for s in TIP_STYL
 )
 
 
+# Several arms in one view (viz.arms_scene): each arm has a colour; its tips are drawn in shades
+# of it (desired: light, translucent and largest; estimated: the colour; true: dark and smallest).
+# The first three hues are >= 30 deg apart from each other and from the segments' blue and green.
+ARM_COLORS: tuple[RGB, ...] = (
+    (0.95, 0.40, 0.00),  # orange
+    (0.80, 0.00, 0.80),  # magenta
+    (0.00, 0.75, 0.85),  # cyan
+    (0.90, 0.75, 0.00),  # yellow
+    (0.85, 0.05, 0.25),  # crimson
+    (0.55, 0.30, 0.95),  # violet
+    (0.55, 0.80, 0.00),  # lime
+    (0.55, 0.35, 0.20),  # brown
+)
+ARM_TIP_KINDS: tuple[str, ...] = ("desired", "estimated", "true")
+
+
+def arm_color(index: int) -> RGB:
+    """The colour of the scene's arm number ``index`` (0-based; the palette repeats after 8)."""
+    return ARM_COLORS[index % len(ARM_COLORS)]
+
+
+def _mix(rgb: RGB, other: RGB, f: float) -> RGB:
+    r, g, b = (float(c + f * (o - c)) for c, o in zip(rgb, other))
+    return (r, g, b)
+
+
+def arm_tip_styles(rgb: RGB) -> dict[str, TipStyle]:
+    """The tip styles of an arm drawn in colour ``rgb`` (keys: ARM_TIP_KINDS)."""
+    return {
+        "desired": TipStyle(_mix(rgb, (1.0, 1.0, 1.0), 0.45), 0.0030, "desired tip", 0.5),
+        "estimated": TipStyle(rgb, 0.0022, "vision-estimated tip"),
+        "true": TipStyle(_mix(rgb, (0.0, 0.0, 0.0), 0.45), 0.0014, "true tip"),
+    }
+
+
+LegendRow = tuple[str, tuple[RGB, ...]]
+
+
+def arms_legend(names: list[str]) -> tuple[LegendRow, ...]:
+    """Legend of a scene of several arms: per arm its name and its desired, estimated and true
+    tips' colours, then the arm, marker and frustum rows of the one-arm legend."""
+    rows: list[LegendRow] = []
+    for i, name in enumerate(names):
+        st = arm_tip_styles(arm_color(i))
+        rows.append((f"arm {name}: desired / estimated / true tip", tuple(st[k].color for k in ARM_TIP_KINDS)))
+    return (*rows, *((label, (rgb,)) for label, rgb in LEGEND[-4:]))
+
+
 def hex_color(rgb: RGB) -> int:
     """0xRRGGBB integer of an RGB triple in [0, 1] (Meshcat material colours)."""
     r, g, b = (max(0, min(255, int(round(255 * c)))) for c in rgb)

@@ -19,7 +19,7 @@ import sys
 import threading
 import time
 import urllib.parse
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -28,6 +28,7 @@ import zmq
 
 from wristmark.models.errors import WristmarkError
 from wristmark.viz import command_tree
+from wristmark.viz.style import LegendRow
 from wristmark.viz.web_hosts import exposure_notice
 
 STARTUP_TIMEOUT = 30.0  # [s] for the server to print its URLs (imports on a loaded machine)
@@ -115,11 +116,13 @@ class MeshcatServer:
 
     @classmethod
     def start(cls, title: str = "wristmark", controls: bool = False, status: bool = True,
-              host: str | None = None, stream: TextIO | None = sys.stderr) -> MeshcatServer:
+              host: str | None = None, stream: TextIO | None = sys.stderr,
+              legend: Sequence[LegendRow] | None = None) -> MeshcatServer:
         """Start the server process; return once it listens (raises ViewerError otherwise).
 
         The page is served on loopback only unless ``host`` adds an address (viz.web_hosts);
-        then a line on ``stream`` says who else can reach it."""
+        then a line on ``stream`` says who else can reach it. ``legend``: the page's legend rows
+        (default style.LEGEND)."""
         args = [sys.executable, "-u", "-m", "wristmark.viz.meshcat_server", "--title", title,
                 "--parent", str(os.getpid())]
         if controls:
@@ -128,6 +131,8 @@ class MeshcatServer:
             args.append("--no-status")
         if host is not None:
             args += ["--host", host]
+        if legend is not None:
+            args += ["--legend", json.dumps([[label, [list(c) for c in colors]] for label, colors in legend])]
         env = dict(os.environ)
         root = str(Path(__file__).resolve().parents[2])
         env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")

@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from wristmark.models.arm_spec import Arm
 from wristmark.models.kinematics import forward_kinematics
 from wristmark.rig.loop.servo_loop import ServoLoop
-from wristmark.solvers.clearance import Capsules, body_capsules, min_distance
+from wristmark.solvers.clearance import DAMPER_GAIN, Capsules, body_capsules, min_distance
 from wristmark.solvers.clearance import transformed as moved_capsules
 
 Array = NDArray[np.float64]
@@ -76,7 +76,11 @@ def set_obstacles(bases: Mapping[str, Array], loops: Mapping[str, ServoLoop], of
     into its own {w} (``bases``: each arm's {w} in the scene's, 4x4 [m]), to keep ``distance`` [m]
     from. The model is not the arm: each body is shifted by what vision says its arm's tip is off
     its model's (the other arm's offset, less this arm's own: the QP moves this arm's model body),
-    so that the clearance holds between the true bodies."""
+    so that the clearance holds between the true bodies. Both arms of a pair move at once, each
+    seeing the other still: each may close only half the damper's share of the gap per cycle
+    (xi / 2), so that together they close no more than one arm alone."""
+    moving = sum(loop.controller is not None for loop in loops.values())
+    xi = DAMPER_GAIN / 2 if moving > 1 else DAMPER_GAIN
     world = {}
     shift = {}
     for name, loop in loops.items():
@@ -95,4 +99,4 @@ def set_obstacles(bases: Mapping[str, Array], loops: Mapping[str, ServoLoop], of
             T = np.eye(4)
             T[:3, 3] = shift[n] - shift[name]
             others.append(moved_capsules(c, into @ T))
-        loop.controller.set_obstacles(Capsules.concat(others) if others else None, distance)
+        loop.controller.set_obstacles(Capsules.concat(others) if others else None, distance, xi=xi)

@@ -45,6 +45,10 @@ transport does (docs/notes/virtual-lab-timing.md).
 ``true_tip_along_path``: the lab's error along the path (a loop that trails its path shows a lag
 [ms]) and across it. ``--keep DIR`` keeps the lab's files (its run folder, truth, calibration,
 the host's stderr).
+``--scene SCENE``: several arms instead (docs/hardware.md "Several arms"): `wristmark emulator --scene`
+(one box per arm, one endoscope at the loop's rate) and `wristmark servo --scene` for each scale,
+per arm the true tip error from the lab's truth CSV, lost and skipped cycles and the latency,
+beside the in-process walk of the same scene, scale and cubes (sim.several_arms.walk_scene).
 Usage: .venv/bin/python bench/virtual_lab.py [--duration S] [--scales 1 0.5] [--skip-video] [--camera-matched]
        [--phase-lock none]
        [--plant configs/plant_unseen.yaml --marker configs/marker_coded.yaml --orientation hold]
@@ -325,6 +329,79 @@ def camera_matched_cycle(renderer_fps: float, dt: float, share: float) -> float 
     return None if period <= dt else 0.01 * float(np.ceil(period / 0.01 - 1e-9))
 
 
+def scene_lab_run(scene: str, scale: float, duration: float, tmp: Path, rt: bool) -> dict[str, Any]:
+    """`wristmark emulator --scene` and `wristmark servo --scene` (a cube of ``duration`` s per arm at
+    ``scale``, the camera at the loop's rate): per arm the true tip error [mm], lost and skipped
+    cycles, capture-to-command latency [ms]; the least distance between the model bodies [mm]."""
+    from wristmark.rig.loop.scene_file import Scene
+    from wristmark.sim.scene_lab import scene_true_tip_errors
+
+    sc = Scene.load(scene)
+    fps = 1.0 / RigConfig.load(default_config("rig.yaml")).control_dt
+    truth, calib, run = tmp / f"scene_truth_{scale}.csv", tmp / f"scene_calib_{scale}.yaml", tmp / f"scene_run_{scale}"
+    lab = subprocess.Popen([*WRISTMARK, "emulator", "--scene", scene, "--pty", "--camera-port", "0", "--fps",
+                            f"{fps:.4f}", "--image-scale", str(scale), "--truth-out", str(truth), "--calib-out",
+                            str(calib), "--force", *(["--rt-priority", "10"] if rt else [])],
+                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        lines = _read_lines(lab, len(sc.arms) + 1, 120)
+        serial = [x for line in lines[:-1] for x in ("--serial", "=".join(line.split(" ", 1)))]
+        host = subprocess.run([*WRISTMARK, "servo", "--scene", scene, *serial, "--camera", lines[-1], "--calib",
+                               str(calib), "--image-scale", str(scale), "--duration", str(duration), "--out", str(run),
+                               "--force", "--no-progress", *(["--rt-priority", "20"] if rt else [])],
+                              cwd=ROOT, capture_output=True, text=True, timeout=120 + 3 * duration)
+    finally:
+        lab.send_signal(signal.SIGTERM)
+        lab.communicate(timeout=30)
+    if not (run / "result.json").is_file():
+        return {"error": host.stderr.strip()}
+    res = json.loads((run / "result.json").read_text())
+    arms = {}
+    for a in sc.arms:
+        r = res["arms"][a.name]
+        err = scene_true_tip_errors(run / f"log_{a.name}.csv", truth, a.name, a.base)
+        err = 1000 * err[np.isfinite(err)]
+        arms[a.name] = {"true_tip_mm": {"mean": float(err.mean()), "max": float(err.max()), "n": int(err.size)}
+                        if err.size else None, "lost": r["closed_loop"]["lost"],
+                        "skipped": r["closed_loop"]["skipped"], "stopped": r["stopped"],
+                        "capture_to_command_ms": r["latency"]["capture_to_command"]["median_ms"],
+                        "period_median_ms": r["timing"]["period_median_ms"]}
+    return {"arms": arms, "least_model_mm": res["clearance"]["least_model_mm"], "exit": host.returncode,
+            "tracking_ms_median": res["tracking_ms_median"], "tracking_late": res["tracking_late"]}
+
+
+def scene_in_process(scene: str, scale: float, duration: float) -> dict[str, Any]:
+    """The same scene's cubes walked closed loop in process (sim.several_arms.walk_scene) at
+    ``scale``: per arm the true tip error [mm] and lost cycles."""
+    from wristmark.sim.scene_experiments import scene_trajectories
+    from wristmark.sim.scene_setup import load_scene_setup
+    from wristmark.sim.several_arms import walk_errors, walk_scene
+
+    setup = load_scene_setup(scene)
+    for n, s in setup.arms.items():
+        setup.arms[n] = s.with_changes(rig=dataclasses.replace(s.rig, image_scale=scale))
+    walk = walk_scene(setup, scene_trajectories(setup, duration), True, "closed_loop")
+    return {"arms": {n: {"true_tip_mm": {"mean": m, "max": x}, "lost": walk.arms[n].stats.lost}
+                     for n, (m, x) in walk_errors(walk, "closed_loop").items()},
+            "least_true_mm": 1000 * walk.least_distance_m}
+
+
+def scene_bench(scene: str, scales: list[float], duration: float, skip_in_process: bool,
+                keep: str | None) -> dict[str, Any]:
+    """``--scene``: the lab and the in-process walk at each scale (see the module docstring)."""
+    rt = realtime_priority_allowed(20)
+    out: dict[str, Any] = {"scene": scene, "duration_s": duration, "realtime_priority": rt,
+                           "load_avg_1min_at_start": os.getloadavg()[0], "runs": []}
+    with tempfile.TemporaryDirectory(prefix="wristmark-scene-bench-") as tmp_dir:
+        tmp = Path(keep or tmp_dir)
+        tmp.mkdir(parents=True, exist_ok=True)
+        for scale in scales:
+            out["runs"].append({"image_scale": scale, "lab": scene_lab_run(scene, scale, duration, tmp, rt),
+                                "in_process": None if skip_in_process else scene_in_process(scene, scale, duration)})
+    out["load_avg_1min_at_end"] = os.getloadavg()[0]
+    return out
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--duration", type=positive_float(600.0), default=20.0, help="cube duration [s] (default 20)")
@@ -372,9 +449,14 @@ def main() -> int:
                     help="where both arms rest before the run: start (default): at the cube's start configuration, "
                          "as the in-process bench's always did (the lab's emulator gets --psi0); home: at the "
                          "emulator's home, ramped to the start by the loop, in the lab and in process alike")
+    ap.add_argument("--scene", metavar="SCENE.yaml", help="several arms in one view (see the module docstring)")
     ap.add_argument("--keep", metavar="DIR", help="keep the lab's files (run folders, truth, calibration) in DIR")
     a = ap.parse_args()
     warm_up()  # OpenCV threads and the tracker's kernels, explicitly (building a tracker changes nothing)
+    if a.scene:
+        print(json.dumps(scene_bench(a.scene, a.scales, a.duration, a.skip_in_process, a.keep), indent=1,
+                         default=float))
+        return 0
     scenario = Scenario(a.plant, a.marker, a.controller_config, a.orientation, a.robot, a.model)
     rt = realtime_priority_allowed(20)
     out: dict[str, Any] = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version(),

@@ -198,6 +198,21 @@ servo.start_configuration(setup, traj)
 from wristmark.rig.loop.servo_loop import ServoLoop
 from wristmark.rig.loop.tip_sensors import VisionTipSensor
 VisionTipSensor(setup.scaled_camera, setup.marker)
+# several arms (servo --scene): the scene file, the boxes per arm, the walks, the shared tracking
+import wristmark.cli.servo_scene as servo_scene, wristmark.rig.loop.arm_clearance
+from wristmark.rig.loop import arm_set_session as A
+from wristmark.rig.loop.scene_file import Scene
+args = build_parser("servo").parse_args(["servo", "--scene", "configs/scenes/two_arms.yaml", "--serial", "a=/dev/null",
+                                         "--serial", "b=/dev/zero", "--camera", "http://127.0.0.1:1/x",
+                                         "--calib", "configs/camera.yaml"])
+servo_scene.check_scene_options(args)
+scene = Scene.load(args.scene)
+A.parse_serial_specs(args.serials, scene.names)
+setups, cam = A.load_scene_setups(scene, args.calib)
+trajs = A.arm_trajectories({n: s.params for n, s in setups.items()}, scene.cube_size)
+psi0 = {n: servo.start_configuration(s, trajs[n]) for n, s in setups.items()}
+assert A.start_gap(setups, psi0, {a.name: a.base for a in scene.arms}) > scene.clearance
+A.BudgetedArmSetSensor(setups["a"].scaled_camera, [s.marker for s in setups.values()], 0.15).close()
 print(sorted(m for m in sys.modules if m == "wristmark.sim" or m.startswith("wristmark.sim.")))
 """
     r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)

@@ -20,6 +20,7 @@ import threading
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from types import FrameType
+from typing import Any
 
 import numpy as np
 
@@ -44,6 +45,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "says otherwise; default NS lab; docs/ros2.md)")
     add_config_option(p, "--plant")
     add_config_option(p, "--robot")
+    p.add_argument("--scene", metavar="SCENE.yaml",
+                   help="several arms in one view (a scene file, e.g. configs/scenes/two_arms.yaml): one actuator "
+                        "box per arm, each on its own new pty, and one endoscope rendering them all; with --pty "
+                        "--camera-port; stdout: one line 'NAME PTY' per arm in the scene's order, then the stream URL")
     p.add_argument("--watchdog", type=positive_float(MAX_TIMEOUT_S), default=0.25, metavar="S",
                    help="watchdog timeout [s] (default 0.25, as protocol v1 specifies)")
     p.add_argument("--psi0", nargs="+", type=float_in(-PSI_ABS_MAX, PSI_ABS_MAX), metavar="X",
@@ -81,7 +86,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_force_argument(p)
     set_example(p, "wristmark emulator --pty", "wristmark emulator --pty --robot configs/robots/tendon3.yaml",
                 "wristmark emulator --pty --camera-port 0 --fps 30 --image-scale 0.35 "
-                "--truth-out truth.csv")
+                "--truth-out truth.csv",
+                "wristmark emulator --scene configs/scenes/two_arms.yaml --pty --camera-port 0 --image-scale 0.35 "
+                "--truth-out truth.csv --calib-out lab_calib.yaml")
 
 
 def _camera_options_without_port(args: argparse.Namespace) -> list[str]:
@@ -98,6 +105,8 @@ def run(args: argparse.Namespace) -> int:
     from wristmark.sim.plant_params import PlantParams
     from wristmark.sim.setup import arm_plant_file
 
+    if args.scene is not None:
+        return _run_scene(args)
     if args.ros2 is not None:
         if args.pty or args.camera_port is not None or args.truth_dense_out or args.rt_priority is not None \
                 or args.loads_from_stdin:
@@ -128,13 +137,7 @@ def run(args: argparse.Namespace) -> int:
         TruePlant(params, plant, psi0=psi0)  # the plant file fits the arm: one line before anything is served
     except WristmarkError as e:
         raise InputError(str(e)) from None
-    done = threading.Event()
-
-    def _stop(signum: int, frame: FrameType | None) -> None:
-        done.set()
-
-    signal.signal(signal.SIGTERM, _stop)
-    signal.signal(signal.SIGINT, _stop)
+    done = _stop_on_signals()
     if args.ros2 is not None:
         return _serve_ros2_lab(args, params, plant, psi0, done)
     if args.camera_port is None:
@@ -153,6 +156,18 @@ def run(args: argparse.Namespace) -> int:
         emulator.stop()
         return 0
     return _serve_lab(args, params, plant, psi0, done)
+
+
+def _stop_on_signals() -> threading.Event:
+    """An event that SIGTERM and SIGINT set (the serving loops end on it)."""
+    done = threading.Event()
+
+    def _stop(signum: int, frame: FrameType | None) -> None:
+        done.set()
+
+    signal.signal(signal.SIGTERM, _stop)
+    signal.signal(signal.SIGINT, _stop)
+    return done
 
 
 def lab_calibration(args: argparse.Namespace, params: Arm, marker: MarkerModel) -> StereoCamera:
@@ -201,15 +216,25 @@ def _serve_lab(args: argparse.Namespace, params: Arm, plant: object, psi0: np.nd
         print(f"virtual lab: actuator box (protocol v{lab.emulator.protocol_version}, {lab.emulator.count} "
               f"actuators) on {path}; stereo endoscope {2 * w}x{h} side by side at "
               f"up to {args.fps:g} fps on {url}; Ctrl-C to stop", file=sys.stderr, flush=True)
-        while not done.wait(0.2):
-            if lab.error:
-                print(f"wristmark emulator: error: {lab.error}", file=sys.stderr, flush=True)
-                return 1
+        return _serve_until_done(lab, done)
     finally:
-        lab.stop()
+        _stop_and_report(lab)
+
+
+def _stop_and_report(lab: Any) -> None:
+    """Stop the lab and say on stderr what its camera did."""
+    lab.stop()
     s = lab.stats.summary()
     print(f"virtual lab: {s['frames']} frames at {s['fps'] or 0:.1f} fps (render {s['render_ms_median'] or 0:.1f} ms, "
           f"JPEG {s['encode_ms_median'] or 0:.1f} ms median)", file=sys.stderr, flush=True)
+
+
+def _serve_until_done(lab: Any, done: threading.Event) -> int:
+    """Serve until ``done`` (0), or 1 with one line on stderr when the lab's camera failed."""
+    while not done.wait(0.2):
+        if lab.error:
+            print(f"wristmark emulator: error: {lab.error}", file=sys.stderr, flush=True)
+            return 1
     return 0
 
 
@@ -248,6 +273,57 @@ def _serve_ros2_lab(args: argparse.Namespace, params: Arm, plant: object, psi0: 
     print(f"virtual lab over ROS 2: {lab.frames} frames, {lab.targets} targets, {lab.watchdog_trips} watchdog trips, "
           f"{lab.malformed} malformed messages", file=sys.stderr, flush=True)
     return 0
+
+
+SCENE_REFUSED = (("--ros2", "ros2"), ("--robot", "robot"), ("--plant", "plant"), ("--marker", "marker"),
+                 ("--calib", "calib"), ("--psi0", "psi0"), ("--truth-dense-out", "truth_dense_out"),
+                 ("--loads-from-stdin", "loads_from_stdin"))
+
+
+def _run_scene(args: argparse.Namespace) -> int:
+    """``--scene``: the virtual lab of several arms (sim.scene_lab); stdout one line ``NAME PTY``
+    per arm in the scene's order, then the stream URL, each flushed at once."""
+    given = [opt for opt, key in SCENE_REFUSED if getattr(args, key, None) not in (None, False)]
+    if given:
+        raise InputError(f"{', '.join(given)}: not with --scene (each arm's robot, plant and marker files are named in "
+                         "the scene file; the endoscope is the scene's)")
+    if not args.pty or args.camera_port is None:
+        raise InputError("--scene needs --pty and --camera-port PORT: one box per arm on its own pty, one endoscope")
+    if args.render_normal_priority and args.rt_priority is None:
+        raise InputError("--render-normal-priority needs --rt-priority N")
+    from wristmark.cvs.calibration.load import save_calibration
+    from wristmark.rig.loop.heap_freeze import freeze_heap
+    from wristmark.rig.recording.output_dir import claim_outputs
+    from wristmark.sim.scene_lab import SceneLab
+    from wristmark.sim.scene_setup import load_scene_setup
+    from wristmark.sim.virtual_lab import LabCamera
+
+    claim_outputs(files=[args.truth_out, args.calib_out], force=args.force)  # before anything is served
+    setup = load_scene_setup(args.scene)
+    camera = LabCamera(fps=args.fps, image_scale=args.image_scale, seed=args.seed, jpeg_quality=args.jpeg_quality,
+                       port=args.camera_port)
+    lab = SceneLab(setup, camera, watchdog_s=args.watchdog, truth_out=args.truth_out, rt_priority=args.rt_priority,
+                   render_rt=not args.render_normal_priority)
+    if args.calib_out:  # the endoscope as the lab placed it, world_T_left in the scene's {w}: the host's --calib
+        save_calibration(args.calib_out, setup.camera)
+    else:
+        print("wristmark emulator: the scene's endoscope is placed to frame every arm: --calib-out FILE writes its "
+              "calibration for the host's --calib", file=sys.stderr, flush=True)
+    done = _stop_on_signals()
+    try:
+        ptys, url = lab.start()
+        freeze_heap()  # a full collection would stop the boxes and the camera for ~0.1 s (rig.loop.heap_freeze)
+        for name, path in ptys.items():
+            print(f"{name} {path}", flush=True)
+        print(url, flush=True)
+        w, h = lab.camera.image_size
+        boxes = ", ".join(f"{n} (protocol v{lab.emulators[n].protocol_version}, {lab.emulators[n].count} actuators) "
+                          f"on {p}" for n, p in ptys.items())
+        print(f"virtual lab of {setup.scene.source}: actuator boxes {boxes}; stereo endoscope {2 * w}x{h} side by "
+              f"side at up to {args.fps:g} fps on {url}; Ctrl-C to stop", file=sys.stderr, flush=True)
+        return _serve_until_done(lab, done)
+    finally:
+        _stop_and_report(lab)
 
 
 def _read_loads(lines: Iterable[str], hang: Callable[[np.ndarray], None]) -> None:

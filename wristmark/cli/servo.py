@@ -21,12 +21,8 @@ trip. Ctrl-C stops the same way (exit 130). Bad options fail before any motion c
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
-from types import FrameType
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -46,6 +42,8 @@ from wristmark.cli.option_types import (
     nonnegative_float,
     positive_float,
 )
+from wristmark.cli.servo_start import sigterm_as_interrupt as _sigterm_as_interrupt
+from wristmark.cli.servo_start import start_configuration
 from wristmark.cli.setup_args import (
     add_model_arguments,
     add_registration_argument,
@@ -91,9 +89,10 @@ LIVE_DURATION_S = 60.0  # [s] default run time with live targets
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     link = p.add_mutually_exclusive_group()
-    link.add_argument("--serial", metavar="PORT",
+    link.add_argument("--serial", metavar="PORT", action=SerialPorts,
                       help="hardware path: drive an actuator box in real time (device path or pyserial URL; "
-                           "needs --camera). Default: the simulated bench, its emulator on a new pty")
+                           "needs --camera). Default: the simulated bench, its emulator on a new pty. With --scene: "
+                           "NAME=PORT, once per arm")
     link.add_argument("--direct", action="store_true",
                       help="in-process plant without serial bytes (the reference for the serial path)")
     link.add_argument("--actuator", metavar="ros2:NS",
@@ -102,6 +101,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-operating-state", action="store_true",
                    help="UNSAFE, with --actuator ros2:NS: drive an arm that publishes no NS/operating_state (its "
                         "watchdog or an operator disabling it then goes unnoticed; docs/ros2.md)")
+    p.set_defaults(serials=None)
+    p.add_argument("--scene", metavar="SCENE.yaml",
+                   help="hardware path, several arms in one view (a scene file): one box per arm (--serial NAME=PORT "
+                        "each), one --camera, --calib with world_T_left in the scene's {w}; each arm walks its own "
+                        "cube (or --trajectory point: holds its centre); docs/hardware.md")
+    p.add_argument("--hold", action="append", metavar="NAME",
+                   help="with --scene: this arm holds its workspace centre while the others walk (repeatable)")
     p.add_argument("--camera", metavar="SPEC",
                    help="with --serial: the stereo camera's frame source (/dev/videoN, http://..., a video, "
                         "ros2:LEFT,RIGHT; docs/frame_sources.md); the calibration is --calib")
@@ -163,7 +169,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     set_example(p, "wristmark servo --trajectory cube --duration 10 --out runs/servo",
                 "wristmark servo --serial /dev/pts/3 --camera http://127.0.0.1:41234/stream.mjpg --image-scale 0.35 "
-                "--duration 20 --out runs/lab")
+                "--duration 20 --out runs/lab",
+                "wristmark servo --scene configs/scenes/two_arms.yaml --serial a=/dev/pts/3 --serial b=/dev/pts/4 "
+                "--camera http://127.0.0.1:41234/stream.mjpg --calib lab_calib.yaml --image-scale 0.35 --out runs/two")
+
+
+class SerialPorts(argparse.Action):
+    """``--serial PORT``, repeatable for ``--scene`` (``NAME=PORT``): every value in ``serials``,
+    the first in ``serial``."""
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: Any,
+                 option_string: str | None = None) -> None:
+        namespace.serials = [*(getattr(namespace, "serials", None) or []), values]
+        if getattr(namespace, "serial", None) is None:
+            namespace.serial = values
 
 
 # -- command line ------------------------------------------------------------------------------
@@ -204,19 +223,6 @@ def build_trajectory(setup: LoopSetup, kind: str, point: list[float] | None, dur
     return traj.truncated(duration) if duration is not None else traj
 
 
-def start_configuration(setup: LoopSetup, traj: Trajectory) -> Array:
-    """IK of the trajectory's start (raises InputError when it is out of reach)."""
-    from wristmark.models.arm_spec import home_psi
-    from wristmark.models.ik import solve_tip_ik
-
-    p0 = traj.sample(0.0)[0]
-    ik = solve_tip_ik(setup.params, p0, home_psi(setup.params))
-    if not ik.error <= 1e-4:
-        raise InputError(f"the start point {np.round(1000 * p0, 2).tolist()} mm is out of reach of the arm "
-                         f"(IK misses it by {1000 * ik.error:.2f} mm)")
-    return np.asarray(ik.psi, float)
-
-
 def live_view(setup: LoopSetup, host: str | None = None) -> Any:
     """The Meshcat live view (viz.live.start_live_view), or a one-line error when it is missing."""
     try:
@@ -224,27 +230,6 @@ def live_view(setup: LoopSetup, host: str | None = None) -> Any:
     except ImportError as e:
         raise InputError(f"--view needs the Meshcat live view (viz/live.py), which is not available: {e}") from None
     return start_live_view(setup, host=host)
-
-
-@contextmanager
-def _sigterm_as_interrupt() -> Iterator[None]:
-    """SIGTERM and SIGINT stop the run like Ctrl-C (main thread only); SIGINT also when the
-    process was started with it ignored (``nohup``, a background job of a script), so that
-    ``kill -INT`` always holds and disables the arm."""
-
-    def handler(signum: int, frame: FrameType | None) -> None:
-        raise KeyboardInterrupt
-
-    try:
-        previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGTERM, signal.SIGINT)}
-    except ValueError:  # not the main thread
-        yield
-        return
-    try:
-        yield
-    finally:
-        for sig, old in previous.items():
-            signal.signal(sig, old)
 
 
 def hardware(args: argparse.Namespace) -> bool:
@@ -397,6 +382,15 @@ def cycle_hook(view: Any, bridge: Any, session: ServoSession) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.scene is not None:
+        from wristmark.cli.servo_scene import run_scene
+
+        return run_scene(args)
+    if args.hold:
+        raise InputError("--hold needs --scene (several arms in one view)")
+    if args.serials and len(args.serials) > 1:
+        raise InputError(f"--serial given {len(args.serials)} times: several actuator boxes need --scene SCENE "
+                         "(--serial NAME=PORT per arm)")
     check_link_options(args)
     setup = build_setup(args)
     target, port = target_kind(args)

@@ -15,10 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from wristmark.models.errors import ConfigError
-from wristmark.rig.loop.servo_session import PointHold
+from wristmark.rig.loop.arm_set_session import arm_trajectories
 from wristmark.rig.recording.run_log import CycleRecord, RunLog, write_json
-from wristmark.rig.targets.trajectories import CUBE_SPEED, Trajectory, cube_trajectory, workspace_centre
+from wristmark.rig.targets.trajectories import Trajectory, workspace_centre
 from wristmark.sim.scene_setup import SceneSetup
 from wristmark.sim.several_arms import walk_scene
 
@@ -28,24 +27,10 @@ __all__ = ["run_scene_cube", "scene_table"]
 def scene_trajectories(setup: SceneSetup, duration: float | None = None,
                        hold: tuple[str, ...] = ()) -> dict[str, Trajectory]:
     """Each arm's cube (or, for the arms in ``hold``, its workspace centre held as long as the
-    cubes take), in its own {w}; ``duration`` [s] cuts the walks short."""
-    size = setup.scene.cube_size
-    unknown = [h for h in hold if h not in setup.arms]
-    if unknown:
-        raise ConfigError(f"--hold {unknown[0]}: no such arm in the scene ({', '.join(setup.names)})")
-    if len(hold) == len(setup.arms):
-        raise ConfigError("--hold: every arm would hold still; leave at least one to walk its cube")
-    cubes = {n: cube_trajectory(workspace_centre(s.params, size), size, CUBE_SPEED) for n, s in setup.arms.items()}
-    if duration is not None:
-        cubes = {n: c.truncated(duration) for n, c in cubes.items()}
-    longest = max(c.duration for c in cubes.values())
-    out: dict[str, Trajectory] = {}
-    for n, s in setup.arms.items():
-        if n in hold:
-            out[n] = PointHold(np.array([workspace_centre(s.params, size)]), 1.0, hold=longest)
-        else:
-            out[n] = cubes[n]
-    return out
+    cubes take), in its own {w}; ``duration`` [s] cuts the walks short (rig.loop.arm_set_session.arm_trajectories,
+    shared with the hardware path)."""
+    return arm_trajectories({n: s.params for n, s in setup.arms.items()}, setup.scene.cube_size, "cube", duration,
+                            hold)
 
 
 def run_scene_cube(setup: SceneSetup, out_dir: Path, duration: float | None = None,

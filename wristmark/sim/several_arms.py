@@ -9,7 +9,7 @@ command. One arm's lost marker holds that arm only (the others walk on).
 
 Clearance: before each cycle every arm's controller gets the other arms' bodies (capsules along
 their commanded configurations, moved into its {w}, each shifted by what vision says its tip is
-off the model's: solvers.clearance) and keeps its own body ``scene.clearance`` (plus
+off the model's: rig.loop.arm_clearance, shared with the hardware path) and keeps its own body ``scene.clearance`` (plus
 ``clearance_margin``) away from them; the run reports the least distance between the true bodies over every cycle.
 """
 
@@ -24,8 +24,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.models.errors import ConfigError
-from wristmark.models.kinematics import forward_kinematics
 from wristmark.rig.link.actuator_link import DirectLink
+from wristmark.rig.loop.arm_clearance import least_distance, model_offsets, set_obstacles
 from wristmark.rig.loop.arm_set_sensor import ArmSetSensor
 from wristmark.rig.loop.metrics import error_stats, tracking_errors
 from wristmark.rig.loop.servo_cycle import MarkerLostError, PhaseStats, TrackingMemory, cycle_target
@@ -37,7 +37,7 @@ from wristmark.sim.render.scene_source import SceneFrames
 from wristmark.sim.scene_setup import SceneSetup
 from wristmark.sim.setup import make_plant, make_truth
 from wristmark.sim.trajectory_run import check_reach, phase_summary
-from wristmark.solvers.clearance import DAMPER_GAIN, Capsules, body_capsules, min_distance, shape_capsules
+from wristmark.solvers.clearance import Capsules, shape_capsules
 from wristmark.solvers.clearance import transformed as moved_capsules
 from wristmark.solvers.controller_registry import make_controller
 
@@ -68,60 +68,17 @@ class SceneWalk:
     tracking_ms: list[float] = field(default_factory=list)
 
 
-def least_distance(bodies: Mapping[str, Capsules]) -> float:
-    """Least surface distance [m] between the bodies of any two arms (all in one frame)."""
-    names = list(bodies)
-    best = float("inf")
-    for i, a in enumerate(names):
-        for b in names[i + 1:]:
-            best = min(best, float(min_distance(bodies[a], bodies[b])[0]))
-    return best
-
-
 def _true_bodies(setup: SceneSetup, plants: Mapping[str, Any]) -> dict[str, Capsules]:
     """Each arm's true body now in the scene's {w}."""
     return {n: moved_capsules(shape_capsules(p.true_shape()), setup.base(n)) for n, p in plants.items()}
 
 
-def _model_offsets(loops: Mapping[str, ServoLoop], offsets: dict[str, Array]) -> None:
-    """Update each arm's offset [m] (its {w}) of the measured tip from its model's tip at the
-    commanded configuration, from its last good measurement (kept while none comes)."""
-    for name, loop in loops.items():
-        m = loop.last_measurement
-        if loop.psi_cmd is None or m is None or not m.ok or m.p_world is None or not np.all(np.isfinite(m.p_world)):
-            continue
-        offsets[name] = np.asarray(m.p_world, float) - forward_kinematics(loop.params, loop.psi_cmd).tip
-
-
 def _set_obstacles(setup: SceneSetup, loops: Mapping[str, ServoLoop], offsets: Mapping[str, Array]) -> None:
-    """Each arm's controller gets the other arms' bodies at their commanded configurations, moved
-    into its own {w}. The model is not the arm: each body is shifted by what vision says its
-    arm's tip is off its model's (the other arm's offset, less this arm's own: the QP moves this
-    arm's model body), so that the clearance holds between the true bodies. Both arms of a pair
-    move at once, each seeing the other still: each may close only half the damper's share of
-    the gap per cycle (xi / 2), so that together they close no more than one arm alone."""
-    moving = sum(loop.controller is not None for loop in loops.values())
-    xi = DAMPER_GAIN / 2 if moving > 1 else DAMPER_GAIN
-    world = {}
-    shift = {}
-    for name, loop in loops.items():
-        assert loop.psi_cmd is not None
-        B = setup.base(name)
-        world[name] = moved_capsules(body_capsules(loop.params, loop.psi_cmd), B)
-        shift[name] = B[:3, :3] @ offsets.get(name, np.zeros(3))  # in the scene's {w}
-    for name, loop in loops.items():
-        if loop.controller is None:
-            continue
-        into = np.asarray(np.linalg.inv(setup.base(name)), float)  # the scene's {w} in this arm's
-        others = []
-        for n, c in world.items():
-            if n == name:
-                continue
-            T = np.eye(4)
-            T[:3, 3] = shift[n] - shift[name]
-            others.append(moved_capsules(c, into @ T))
-        loop.controller.set_obstacles(Capsules.concat(others) if others else None,
-                                      setup.scene.clearance + setup.scene.clearance_margin, xi=xi)
+    """Each arm's controller gets the other arms' bodies (rig.loop.arm_clearance.set_obstacles:
+    shifted by their vision-measured tip offsets; two moving arms each close half the damper's
+    share of the gap per cycle)."""
+    set_obstacles({n: setup.base(n) for n in loops}, loops, offsets,
+                  setup.scene.clearance + setup.scene.clearance_margin)
 
 
 def _clock_of(link: DirectLink) -> Callable[[], float]:
@@ -197,7 +154,7 @@ def walk_scene(setup: SceneSetup, trajectories: Mapping[str, Trajectory], closed
         for n in active:
             loops[n].advance_to(targets[n].t)
         if closed_loop and setup.scene.clearance > 0:
-            _model_offsets(loops, offsets)
+            model_offsets(loops, offsets)
             _set_obstacles(setup, loops, offsets)
         gap = least_distance(_true_bodies(setup, plants))
         if gap < walk.least_distance_m:

@@ -34,6 +34,7 @@ import numpy as np
 
 from wristmark.cvs.camera import StereoCamera, scaled_stereo_camera
 from wristmark.cvs.sources.mjpeg_server import MjpegServer
+from wristmark.models.arm_shape import ArmShape
 from wristmark.models.arm_spec import Arm, home_psi
 from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
@@ -43,7 +44,7 @@ from wristmark.sim.dense_truth import TRUTH_HEADER, DenseTruthArm
 from wristmark.sim.locked_arm import LockedArm
 from wristmark.sim.plant import TruePlant
 from wristmark.sim.plant_params import PlantParams
-from wristmark.sim.render.process import RenderProcess
+from wristmark.sim.render.process import RenderedJpeg, RenderProcess
 
 FIRST_FRAME_TIMEOUT_S = 60.0  # [s] the first render compiles nothing (numba caches) but a loaded host is slow
 
@@ -91,59 +92,24 @@ class CameraStats:
                 "encode_ms_median": float(np.median(self.encode_ms)) if self.encode_ms else None}
 
 
-class VirtualLab:
-    """The actuator box on a pty and the endoscope on an MJPEG stream, around one simulated arm.
+class StreamingLab:
+    """What every virtual lab shares: actuator boxes on ptys (:meth:`_serve_boxes`, a subclass's)
+    and one endoscope sampling them in a camera thread on the frame clock (:meth:`_frame`, a
+    subclass's), rendered in a process of its own and published on an MJPEG stream on loopback;
+    the truth CSV; real-time priorities as :class:`VirtualLab` describes."""
 
-    rt_priority: run every thread of the lab (actuator box, camera, renderer, stream server)
-    under ``SCHED_FIFO`` at this priority (:mod:`rig.loop.realtime_priority`), as firmware and a camera
-    are not starved by the host's other work; all of them, since a normal thread holding
-    Python's GIL would stall the real-time ones (priority inversion). The actuator box's thread
-    runs one priority above the others. The rendering runs in a process of its own
-    (:mod:`sim.render.process`: it shares no GIL with the box), in real time at ``rt_priority``
-    too, or at normal priority with ``render_rt`` False: for a renderer that needs every core,
-    which in real time would eat the machine's real-time budget and throttle the host's loop.
-    The caller's thread keeps its own scheduling.
-    emulator_factory: ``(arm, params, watchdog_s=...) -> ActuatorEmulator`` (tests record packets).
-    truth_dense_out: also log the true tip every few ms of the box's clock, not only at the frames
-    (:mod:`sim.dense_truth`; same CSV format as ``truth_out``).
-    """
-
-    def __init__(self, params: Arm, plant: PlantParams, calibration: StereoCamera, marker: MarkerModel,
-                 camera: LabCamera | None = None, psi0: Any = None, watchdog_s: float = 0.25,
-                 truth_out: str | Path | None = None, rt_priority: int | None = None, render_rt: bool = True,
-                 emulator_factory: Callable[..., ActuatorEmulator] | None = None,
-                 truth_dense_out: str | Path | None = None) -> None:
+    def __init__(self, camera: LabCamera | None, truth_out: str | Path | None, rt_priority: int | None,
+                 render_rt: bool) -> None:
         self.options = camera or LabCamera()
         self.options.validate()
-        if calibration.T_world_left is None:
-            raise InputError("the virtual lab's calibration needs 'world_T_left' (camera pose in {w})")
-        if any(plant.camera_offset):  # the endoscope truly sits at world_T_left @ T(camera_offset)
-            W = np.asarray(calibration.T_world_left, float) @ plant.camera_offset_transform()
-            calibration = dataclasses.replace(calibration, T_world_left=W)
-        cam = calibration if self.options.image_scale == 1.0 else scaled_stereo_camera(calibration,
-                                                                                     self.options.image_scale)
-        start = np.asarray(psi0, float) if psi0 is not None else home_psi(params)
-        self._plant = TruePlant(params, plant, psi0=start)
-        self._own_tip_force = np.asarray(self._plant.plant.tip_force, float)
-        self.arm = self._locked = LockedArm(self._plant)
-        self.dense_truth = DenseTruthArm(self.arm) if truth_dense_out else None
-        if self.dense_truth is not None:
-            self.arm = self.dense_truth  # the emulator advances it: the true tip logged every few ms
         if rt_priority is not None:
             check_realtime_priority(min(MAX_PRIORITY, rt_priority + 1))
         self.rt_priority = rt_priority
         self.render_rt = bool(render_rt)
-        factory = emulator_factory or ActuatorEmulator
-        self.emulator = factory(self.arm, params, watchdog_s=watchdog_s)
-        if self.dense_truth is not None and truth_dense_out:  # no thread runs yet: the two clocks pair exactly
-            self.dense_truth.start(self.emulator.sample_arm()[0], truth_dense_out)
-        self.camera = cam  # the endoscope as rendered (at the image scale)
-        self.marker = marker
         self._render: RenderProcess | None = None
         self.truth_path = Path(truth_out) if truth_out else None
         self.stats = CameraStats()
         self.server: MjpegServer | None = None
-        self.pty_path = ""
         self._truth: IO[str] | None = None
         self._stop = threading.Event()
         self._frozen = threading.Event()
@@ -157,23 +123,16 @@ class VirtualLab:
         """The stream's URL (after :meth:`start`)."""
         return self.server.url if self.server is not None else ""
 
-    def hang(self, force: np.ndarray) -> None:
-        """Hang a known tip force ``force`` [N] in {w} on the arm, on top of the plant's own
-        (zeros: take it off); the way ``wristmark identify --load`` is served on the virtual lab."""
-        f = self._own_tip_force + np.asarray(force, float)
-        with self._locked.lock:
-            own = self._plant.plant
-            self._plant.plant = dataclasses.replace(own, tip_force=(float(f[0]), float(f[1]), float(f[2])))
-
-    def start(self) -> tuple[str, str]:
-        """Open the pty and the stream, start the camera; returns (pty path, stream URL). The
-        first frame is published before this returns."""
+    def _start_stream(self, camera: StereoCamera, markers: MarkerModel | list[MarkerModel], header: str) -> None:
+        """Open the truth file (``header``), the render process (``camera`` at the image scale,
+        ``markers``), the boxes' ptys and the stream, and start the camera; returns after the
+        first frame was published (else stops the lab and raises)."""
         if self.truth_path is not None:
             self.truth_path.parent.mkdir(parents=True, exist_ok=True)
             self._truth = open(self.truth_path, "w", buffering=1)
-            self._truth.write(TRUTH_HEADER + "\n")
+            self._truth.write(header + "\n")
         try:
-            self._render = RenderProcess(self.camera, self.marker, self.options.noise, self.options.seed,
+            self._render = RenderProcess(camera, markers, self.options.noise, self.options.seed,
                                          self.options.jpeg_quality, self.rt_priority if self.render_rt else None)
         except BaseException:
             self.stop()
@@ -188,13 +147,20 @@ class VirtualLab:
             self.stop()
             raise InputError(self.error or "the virtual endoscope rendered no frame within "
                              f"{FIRST_FRAME_TIMEOUT_S:g} s")
-        return self.pty_path, self.url
+
+    def _serve_boxes(self) -> None:
+        """Open the actuator boxes' ptys (in the boxes' real-time priority)."""
+        raise NotImplementedError
+
+    def _frame(self) -> float:
+        """Sample, render, publish, log the truth; returns the capture instant [s]."""
+        raise NotImplementedError
 
     def _start_threads(self) -> None:
         try:
-            if self.rt_priority is not None:  # the box's thread one above the rest
+            if self.rt_priority is not None:  # the boxes' threads one above the rest
                 request_realtime_priority(min(MAX_PRIORITY, self.rt_priority + 1))
-            self.pty_path = self.emulator.serve_pty()
+            self._serve_boxes()
             if self.rt_priority is not None:
                 request_realtime_priority(self.rt_priority)
             self.server = MjpegServer(self.options.host, self.options.port)
@@ -203,24 +169,24 @@ class VirtualLab:
         except Exception as e:  # noqa: BLE001 - handed to start(), which raises it in the caller's thread
             self._start_error = e
 
-    def _frame(self) -> float:
-        """Sample the arm, render, publish, log the truth; returns the capture instant [s]."""
+    def _publish(self, shapes: ArmShape | list[ArmShape]) -> RenderedJpeg:
+        """Render ``shapes`` (in {w} [m]) and count the frame; the caller publishes it."""
         assert self.server is not None and self._render is not None
-        t, shape = self.emulator.sample_arm()
-        out = self._render.render_jpeg(shape)
-        self.server.publish(out.jpeg, t_capture=t)
+        out = self._render.render_jpeg(shapes)
         st = self.stats
         st.frames += 1
         st.render_ms.append(out.render_ms)
         st.encode_ms.append(out.encode_ms)
+        return out
+
+    def _log_truth(self, t: float, tips: list[np.ndarray]) -> None:
+        """One truth row: the capture instant [s] and the true tips [m]."""
+        st = self.stats
         st.t_first = t if st.frames == 1 else st.t_first
         st.t_last = t
         if self._truth is not None:
-            x, y, z = (float(v) for v in shape.tip)
-            self._truth.write(f"{t:.6f},{x:.9g},{y:.9g},{z:.9g}\n")
-        if self.dense_truth is not None:
-            self.dense_truth.flush()  # the box's thread only logs in memory
-        return t
+            row = ",".join(f"{float(v):.9g}" for tip in tips for v in tip)
+            self._truth.write(f"{t:.6f},{row}\n")
 
     def freeze_camera(self) -> None:
         """Stop publishing frames while the stream stays open (a stalled camera; fault injection)."""
@@ -245,8 +211,12 @@ class VirtualLab:
             self._first.set()
             t_next = next_frame_start(t_next, period, time.monotonic())
 
+    def _stop_boxes(self) -> None:
+        """Stop the actuator boxes."""
+        raise NotImplementedError
+
     def stop(self) -> None:
-        """Stop the camera, the stream and the emulator; close the truth file (idempotent)."""
+        """Stop the camera, the stream and the boxes; close the truth file (idempotent)."""
         self._stop.set()
         if self._thread is not None:
             self._thread.join(5.0)
@@ -256,18 +226,98 @@ class VirtualLab:
         if self._render is not None:
             self._render.close()
             self._render = None
-        self.emulator.stop()
-        if self.dense_truth is not None:
-            self.dense_truth.close()
+        self._stop_boxes()
         if self._truth is not None:
             self._truth.close()
             self._truth = None
 
-    def __enter__(self) -> VirtualLab:
+    def __enter__(self) -> StreamingLab:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+
+class VirtualLab(StreamingLab):
+    """The actuator box on a pty and the endoscope on an MJPEG stream, around one simulated arm.
+
+    rt_priority: run every thread of the lab (actuator box, camera, renderer, stream server)
+    under ``SCHED_FIFO`` at this priority (:mod:`rig.loop.realtime_priority`), as firmware and a camera
+    are not starved by the host's other work; all of them, since a normal thread holding
+    Python's GIL would stall the real-time ones (priority inversion). The actuator box's thread
+    runs one priority above the others. The rendering runs in a process of its own
+    (:mod:`sim.render.process`: it shares no GIL with the box), in real time at ``rt_priority``
+    too, or at normal priority with ``render_rt`` False: for a renderer that needs every core,
+    which in real time would eat the machine's real-time budget and throttle the host's loop.
+    The caller's thread keeps its own scheduling.
+    emulator_factory: ``(arm, params, watchdog_s=...) -> ActuatorEmulator`` (tests record packets).
+    truth_dense_out: also log the true tip every few ms of the box's clock, not only at the frames
+    (:mod:`sim.dense_truth`; same CSV format as ``truth_out``).
+    """
+
+    def __init__(self, params: Arm, plant: PlantParams, calibration: StereoCamera, marker: MarkerModel,
+                 camera: LabCamera | None = None, psi0: Any = None, watchdog_s: float = 0.25,
+                 truth_out: str | Path | None = None, rt_priority: int | None = None, render_rt: bool = True,
+                 emulator_factory: Callable[..., ActuatorEmulator] | None = None,
+                 truth_dense_out: str | Path | None = None) -> None:
+        super().__init__(camera, truth_out, rt_priority, render_rt)
+        if calibration.T_world_left is None:
+            raise InputError("the virtual lab's calibration needs 'world_T_left' (camera pose in {w})")
+        if any(plant.camera_offset):  # the endoscope truly sits at world_T_left @ T(camera_offset)
+            W = np.asarray(calibration.T_world_left, float) @ plant.camera_offset_transform()
+            calibration = dataclasses.replace(calibration, T_world_left=W)
+        cam = calibration if self.options.image_scale == 1.0 else scaled_stereo_camera(calibration,
+                                                                                     self.options.image_scale)
+        start = np.asarray(psi0, float) if psi0 is not None else home_psi(params)
+        self._plant = TruePlant(params, plant, psi0=start)
+        self._own_tip_force = np.asarray(self._plant.plant.tip_force, float)
+        self.arm = self._locked = LockedArm(self._plant)
+        self.dense_truth = DenseTruthArm(self.arm) if truth_dense_out else None
+        if self.dense_truth is not None:
+            self.arm = self.dense_truth  # the emulator advances it: the true tip logged every few ms
+        factory = emulator_factory or ActuatorEmulator
+        self.emulator = factory(self.arm, params, watchdog_s=watchdog_s)
+        if self.dense_truth is not None and truth_dense_out:  # no thread runs yet: the two clocks pair exactly
+            self.dense_truth.start(self.emulator.sample_arm()[0], truth_dense_out)
+        self.camera = cam  # the endoscope as rendered (at the image scale)
+        self.marker = marker
+        self.pty_path = ""
+
+    def hang(self, force: np.ndarray) -> None:
+        """Hang a known tip force ``force`` [N] in {w} on the arm, on top of the plant's own
+        (zeros: take it off); the way ``wristmark identify --load`` is served on the virtual lab."""
+        f = self._own_tip_force + np.asarray(force, float)
+        with self._locked.lock:
+            own = self._plant.plant
+            self._plant.plant = dataclasses.replace(own, tip_force=(float(f[0]), float(f[1]), float(f[2])))
+
+    def start(self) -> tuple[str, str]:
+        """Open the pty and the stream, start the camera; returns (pty path, stream URL). The
+        first frame is published before this returns."""
+        self._start_stream(self.camera, self.marker, TRUTH_HEADER)
+        return self.pty_path, self.url
+
+    def _serve_boxes(self) -> None:
+        self.pty_path = self.emulator.serve_pty()
+
+    def _frame(self) -> float:
+        """Sample the arm, render, publish, log the truth; returns the capture instant [s]."""
+        t, shape = self.emulator.sample_arm()
+        out = self._publish(shape)
+        assert self.server is not None
+        self.server.publish(out.jpeg, t_capture=t)
+        self._log_truth(t, [shape.tip])
+        if self.dense_truth is not None:
+            self.dense_truth.flush()  # the box's thread only logs in memory
+        return t
+
+    def _stop_boxes(self) -> None:
+        self.emulator.stop()
+        if self.dense_truth is not None:
+            self.dense_truth.close()
+
+    def __enter__(self) -> VirtualLab:
+        return self
 
 
 def next_frame_start(t_start: float, period: float, now: float) -> float:
@@ -298,12 +348,20 @@ def true_tip_errors(log_csv: str | Path, truth_csv: str | Path, phase: str = "se
     time is ``time.monotonic()``), or ``t_wall``, when the host's cycle actually began (a few ms
     later: the truth there is compared with the desired tip of an earlier instant); NaN for
     cycles outside the truth's time span."""
+    t, tip = read_truth_csv(truth_csv)
+    return tip_errors(log_csv, t, tip, phase, at)
+
+
+def tip_errors(log_csv: str | Path, t: np.ndarray, tip: np.ndarray, phase: str = "servo",
+               at: str = "t") -> np.ndarray:
+    """|true tip - desired tip| [m] of each cycle of ``phase`` in a servo run's log.csv, the true
+    tip ``tip`` (N, 3) [m] in the log's {w} at times ``t`` (N,) [s] interpolated at the log's
+    column ``at`` (``t`` or ``t_wall``); NaN for cycles outside the truth's time span."""
     from wristmark.rig.recording.run_log import read_log_csv
 
     if at not in ("t", "t_wall"):
         raise InputError(f"errors are evaluated at 't' or 't_wall', not {at!r}")
     log = read_log_csv(log_csv)
-    t, tip = read_truth_csv(truth_csv)
     sel = np.array([p == phase for p in log["phase"]], bool)
     t_wall = np.asarray(log[at], float)[sel]
     p_des = np.stack([np.asarray(log[f"p_des_{a}"], float)[sel] for a in "xyz"], axis=1)

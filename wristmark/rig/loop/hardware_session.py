@@ -12,6 +12,8 @@ from __future__ import annotations
 import time
 from typing import Any
 
+from wristmark.cvs.camera import StereoCamera
+from wristmark.cvs.sources.frames import StereoFrame
 from wristmark.rig.link.actuator_driver import ActuatorDriver, ActuatorError
 from wristmark.rig.link.serial_link import SerialLink
 from wristmark.rig.loop.frame_feed import LatestFrameFeed
@@ -29,7 +31,6 @@ def open_hardware_session(setup: LoopSetup, options: LinkOptions, camera: str, c
     it once (the tracker's first, slow call), all before any motion command.
     camera_timeout: no new frame for this long ends the camera's stream [s] (the loop holds the
     arm well before, after ``max_lost_cycles`` cycles without a frame)."""
-    from wristmark.cvs.sources.frames import FrameSourceError, check_frame_size
     from wristmark.cvs.sources.open_source import SourceOptions
     from wristmark.rig.ros2.image_source import open_frame_source
 
@@ -60,12 +61,21 @@ def open_hardware_session(setup: LoopSetup, options: LinkOptions, camera: str, c
                            wall_clock=True)
     session.on_close.append(sensor.close)
     try:
-        first = feed.take(wait_until=time.monotonic() + FIRST_FRAME_TIMEOUT_S)
-        if first is None:
-            raise FrameSourceError(f"{camera}: no frame within {FIRST_FRAME_TIMEOUT_S:g} s")
-        check_frame_size(first, cam.image_size, camera)
+        first = first_frame(feed, cam, camera)
         vision.measure(first)  # loads the tracker's compiled kernels before any motion (no budget)
     except BaseException:
         session.close()
         raise
     return session
+
+
+def first_frame(feed: LatestFrameFeed, camera: StereoCamera, spec: str) -> StereoFrame:
+    """The camera's first frame (within FIRST_FRAME_TIMEOUT_S), its views checked against
+    ``camera``'s image size (FrameSourceError, one line naming both)."""
+    from wristmark.cvs.sources.frames import FrameSourceError, check_frame_size
+
+    first = feed.take(wait_until=time.monotonic() + FIRST_FRAME_TIMEOUT_S)
+    if first is None:
+        raise FrameSourceError(f"{spec}: no frame within {FIRST_FRAME_TIMEOUT_S:g} s")
+    check_frame_size(first, camera.image_size, spec)
+    return first

@@ -20,6 +20,7 @@ import multiprocessing as mp
 import os
 import signal
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from typing import TYPE_CHECKING, Any
@@ -66,9 +67,10 @@ def render_pair_jpeg(renderer: StereoRenderer, shape: ArmShape, quality: int) ->
     return encode_jpeg(both, quality), pair.left, pair.right
 
 
-def _serve(conn: Connection, camera: StereoCamera, marker: MarkerModel, noise: str, seed: int, quality: int,
-           rt_priority: int | None) -> None:
-    """The render process: a shape in, a RenderedJpeg (or an error line) out, until None or EOF."""
+def _serve(conn: Connection, camera: StereoCamera, marker: MarkerModel | list[MarkerModel], noise: str, seed: int,
+           quality: int, rt_priority: int | None) -> None:
+    """The render process: a shape (or a list of them, one per marker: several arms in one view)
+    in, a RenderedJpeg (or an error line) out, until None or EOF."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the lab's to handle, not ours
     try:
         os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
@@ -95,7 +97,10 @@ def _serve(conn: Connection, camera: StereoCamera, marker: MarkerModel, noise: s
             return
         try:
             r0 = time.perf_counter()
-            both, _ = renderer.render_side_by_side(shape)
+            if isinstance(shape, list):  # several arms, hiding one another where they cross
+                both, _ = renderer.render_arms_side_by_side(shape)
+            else:
+                both, _ = renderer.render_side_by_side(shape)
             r1 = time.perf_counter()
             jpeg = encode_jpeg(both, quality)
             out: Any = RenderedJpeg(jpeg, 1e3 * (r1 - r0), 1e3 * (time.perf_counter() - r1))
@@ -115,11 +120,12 @@ class RenderProcess:
     priority, so the rendering never holds both cores in real time (measured with both in real
     time: the real-time budget ran out and the host's loop skipped 15 cycles of a 20 s cube)."""
 
-    def __init__(self, camera: StereoCamera, marker: MarkerModel, noise: str = "default", seed: int = 0,
-                 quality: int = 90, rt_priority: int | None = None) -> None:
+    def __init__(self, camera: StereoCamera, marker: MarkerModel | Sequence[MarkerModel], noise: str = "default",
+                 seed: int = 0, quality: int = 90, rt_priority: int | None = None) -> None:
         ctx = mp.get_context("spawn")
         self._conn, child = ctx.Pipe()
-        self._proc = ctx.Process(target=_serve, args=(child, camera, marker, noise, seed, int(quality), rt_priority),
+        markers = marker if isinstance(marker, MarkerModel) else list(marker)
+        self._proc = ctx.Process(target=_serve, args=(child, camera, markers, noise, seed, int(quality), rt_priority),
                                  name="virtual-endoscope-renderer", daemon=True)
         self._proc.start()
         child.close()
@@ -142,11 +148,11 @@ class RenderProcess:
         except (EOFError, OSError):
             return "error: the render process ended"
 
-    def render_jpeg(self, shape: ArmShape) -> RenderedJpeg:
-        """Render ``shape`` (in {w} [m]) and JPEG-encode the pair side by side; InputError with
-        the render process's one line when it failed or ended."""
+    def render_jpeg(self, shape: ArmShape | Sequence[ArmShape]) -> RenderedJpeg:
+        """Render ``shape`` (in {w} [m]; or one shape per marker, several arms) and JPEG-encode the
+        pair side by side; InputError with the render process's one line when it failed or ended."""
         try:
-            self._conn.send(shape)
+            self._conn.send(shape if isinstance(shape, ArmShape) else list(shape))
         except (BrokenPipeError, OSError):
             raise InputError("the virtual endoscope's render process ended") from None
         out = self._recv()

@@ -1,0 +1,83 @@
+"""`wristmark servo --scene SCENE --serial NAME=PORT ...`: bad input is refused in one line (exit 2)
+before any motion command: options that mean nothing with a scene, a missing, unknown or repeated
+arm, a port given twice, a box that does not answer."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tests.rig.link.test_serial_link import PARAMS, PLANT, RecordingEmulator
+from wristmark.cli.main import main
+from wristmark.models.robot_params import HOME_PSI
+from wristmark.sim.plant import TruePlant
+
+SCENE = "configs/scenes/two_arms.yaml"
+CAMERA = ["--camera", "http://127.0.0.1:9/stream.mjpg", "--calib", "configs/camera.yaml"]
+
+
+@pytest.fixture
+def box_a() -> Iterator[tuple[RecordingEmulator, str]]:
+    """A real actuator box on a pty, for arm a: it records every packet it gets."""
+    em = RecordingEmulator(TruePlant(PARAMS, PLANT, psi0=np.asarray(HOME_PSI, float)), PARAMS)
+    path = em.serve_pty()
+    yield em, path
+    em.stop()
+
+
+def refused(capsys: pytest.CaptureFixture[str], *argv: str) -> str:
+    """Run ``wristmark servo ARGV``: it must exit 2 with one line on stderr, which is returned."""
+    code = main(["servo", *argv])
+    err = capsys.readouterr().err.strip()
+    assert code == 2, err
+    assert err and "\n" not in err, err
+    return err
+
+
+@pytest.mark.parametrize(("extra", "cause"), [
+    (["--serial", "a={A}"], "no box for arm 'b'"),
+    (["--serial", "a={A}", "--serial", "c=/dev/pts/99"], "no arm 'c' in the scene"),
+    (["--serial", "a={A}", "--serial", "b={A}"], "given for both 'a' and 'b'"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--robot", "configs/robot.yaml"], "--robot"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--target", "stdin"], "--target"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--view-hold", "2"], "--view-hold"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--hold", "c"], "--hold c: no such arm"),
+])
+def test_bad_scene_input_is_refused_in_one_line_and_nothing_reaches_the_box(
+        capsys: pytest.CaptureFixture[str], box_a: tuple[RecordingEmulator, str], extra: list[str],
+        cause: str) -> None:
+    em, path = box_a
+    err = refused(capsys, "--scene", SCENE, *[x.replace("{A}", path) for x in extra], *CAMERA)
+    assert cause in err
+    assert em.received == []  # refused before any port was opened
+
+
+def test_without_a_camera_or_a_calibration_the_scene_is_refused(capsys: pytest.CaptureFixture[str]) -> None:
+    err = refused(capsys, "--scene", SCENE, "--serial", "a=/dev/pts/98", "--serial", "b=/dev/pts/99",
+                  "--camera", "http://127.0.0.1:9/x")
+    assert "--calib" in err
+
+
+def test_several_boxes_or_hold_need_a_scene(capsys: pytest.CaptureFixture[str]) -> None:
+    assert "need --scene" in refused(capsys, "--serial", "/dev/pts/98", "--serial", "/dev/pts/99", *CAMERA)
+    assert "--hold needs --scene" in refused(capsys, "--hold", "a")
+
+
+def test_a_box_that_does_not_answer_is_refused_naming_its_arm_and_no_box_is_enabled(
+        capsys: pytest.CaptureFixture[str], box_a: tuple[RecordingEmulator, str], tmp_path: Path) -> None:
+    em, path = box_a
+    master, slave = os.openpty()  # a device that never answers
+    try:
+        err = refused(capsys, "--scene", SCENE, "--serial", f"a={path}", "--serial", f"b={os.ttyname(slave)}",
+                      *CAMERA, "--out", str(tmp_path / "run"))
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert "arm 'b'" in err and "no valid reply" in err
+    assert "Ping" in em.received  # a was asked who it is ...
+    assert "Enable" not in em.received and "SetTarget" not in em.received  # ... and never enabled nor moved
+    assert not em.enabled

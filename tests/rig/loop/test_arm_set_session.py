@@ -1,0 +1,130 @@
+"""Several arms on the hardware path (rig/loop/arm_set_session.py): the boxes named per arm, each
+arm's walk, and one camera frame per cycle shared by every arm's loop."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pytest
+
+from wristmark.cvs.sources.frames import StereoFrame
+from wristmark.models.errors import ConfigError, InputError
+from wristmark.models.robot_params import RobotParams
+from wristmark.rig.loop.arm_clearance import bodies_at, least_distance
+from wristmark.rig.loop.arm_set_session import SharedFrameFeed, arm_trajectories, parse_serial_specs
+from wristmark.rig.loop.scene_file import Scene, pose_from_xyz_rpy
+from wristmark.rig.loop.servo_session import PointHold
+from wristmark.rig.targets.trajectories import workspace_centre
+
+NAMES = ["a", "b"]
+
+
+def test_each_arm_gets_its_own_port_in_the_scenes_order() -> None:
+    assert list(parse_serial_specs(["b=/dev/pts/7", "a=socket://127.0.0.1:9"], NAMES).items()) == [
+        ("a", "socket://127.0.0.1:9"), ("b", "/dev/pts/7")]
+
+
+@pytest.mark.parametrize(("specs", "cause"), [
+    (["a=/dev/pts/1"], "no box for arm 'b'"),
+    (["a=/dev/pts/1", "c=/dev/pts/2"], "no arm 'c' in the scene"),
+    (["a=/dev/pts/1", "b=/dev/pts/1"], "port /dev/pts/1 given for both 'a' and 'b'"),
+    (["a=/dev/pts/1", "a=/dev/pts/2", "b=/dev/pts/3"], "arm 'a' given twice"),
+    (["/dev/pts/1", "b=/dev/pts/2"], "each box is NAME=PORT"),
+    (["a=", "b=/dev/pts/2"], "each box is NAME=PORT"),
+])
+def test_bad_serial_specs_are_refused_in_one_line_naming_the_cause(specs: list[str], cause: str) -> None:
+    with pytest.raises(InputError) as e:
+        parse_serial_specs(specs, NAMES)
+    assert cause in str(e.value) and "\n" not in str(e.value)
+
+
+def test_each_arm_walks_its_own_cube_or_holds_its_centre() -> None:
+    arms = {"a": RobotParams(), "b": RobotParams()}
+    size = (0.02, 0.01, 0.02)
+    trajs = arm_trajectories(arms, size, "cube", duration=3.0, hold=("b",))
+    assert trajs["a"].duration == pytest.approx(3.0)
+    assert isinstance(trajs["b"], PointHold) and trajs["b"].duration == pytest.approx(3.0)
+    np.testing.assert_allclose(trajs["b"].sample(1.0)[0], workspace_centre(RobotParams(), size))
+    assert not np.allclose(trajs["a"].sample(0.0)[0], trajs["a"].sample(2.0)[0])  # a walks
+    points = arm_trajectories(arms, size, "point", duration=2.0)
+    assert all(isinstance(t, PointHold) and t.duration == pytest.approx(2.0) for t in points.values())
+    with pytest.raises(ConfigError, match="no such arm"):
+        arm_trajectories(arms, size, hold=("c",))
+    with pytest.raises(ConfigError, match="every arm would hold still"):
+        arm_trajectories(arms, size, hold=("a", "b"))
+
+
+def test_the_shipped_scene_reads_without_the_simulated_bench_and_its_arms_start_apart() -> None:
+    scene = Scene.load("configs/scenes/two_arms.yaml")
+    assert scene.names == NAMES
+    np.testing.assert_allclose(scene.arms[1].base, pose_from_xyz_rpy([0.2, 0, 0], [0, 0, math.pi]))
+    from wristmark.models.arm_spec import home_psi
+
+    params = {a.name: RobotParams() for a in scene.arms}
+    bases = {a.name: a.base for a in scene.arms}
+    home = {n: home_psi(p) for n, p in params.items()}
+    apart = least_distance(bodies_at(params, home, bases))
+    assert apart > 0.02  # two arms facing each other 200 mm apart
+    closer = least_distance(bodies_at(params, home, bases, offsets={"a": np.array([0.01, 0.0, 0.0])}))
+    assert closer == pytest.approx(apart - 0.01, abs=1e-6)  # a's body shifted 10 mm towards b
+
+
+class _Feed:
+    """A camera feed that hands out a new frame on every take and counts the takes."""
+
+    name = "fake"
+    dropped = 0
+    received = 0
+
+    def __init__(self) -> None:
+        self.takes = 0
+        self.last_arrival = math.nan
+        self.closed = 0
+
+    def take(self, fresh_after: float = -math.inf, wait_until: float = -math.inf) -> StereoFrame:
+        self.takes += 1
+        self.last_arrival = float(self.takes)
+        img = np.zeros((2, 2), np.uint8)
+        return StereoFrame(img, img, float(self.takes), self.takes, "fake", "fake")
+
+    def close(self) -> None:
+        self.closed += 1
+
+
+def test_every_arm_of_a_cycle_gets_the_one_frame_of_that_cycle() -> None:
+    inner = _Feed()
+    feed = SharedFrameFeed(inner)  # type: ignore[arg-type]
+    feed.begin_cycle()
+    first = feed.take(wait_until=1.0)
+    assert feed.take() is first and feed.take() is first and inner.takes == 1
+    assert feed.last_arrival == 1.0
+    feed.begin_cycle()
+    second = feed.take()
+    assert second is not first and second.index == 2 and feed.take() is second and inner.takes == 2
+    feed.close()
+    feed.close()
+    assert inner.closed == 1
+
+
+@pytest.mark.wallclock
+def test_keep_alive_feeds_a_box_that_would_trip_its_watchdog_otherwise() -> None:
+    """While one arm probes its play, the other boxes get GET_STATE from a thread: enabled and
+    silent for 0.6 s a box trips its 250 ms watchdog, kept alive it does not."""
+    from tests.rig.link.test_serial_link import open_bench
+    from wristmark.rig.loop.arm_set_session import KeepAlive
+
+    kept, alone = open_bench(simulated=False), open_bench(simulated=False)
+    try:
+        with KeepAlive({"a": kept.link}) as keep:
+            time.sleep(0.6)
+        assert keep.error is None
+        assert not kept.emulator.watchdog_tripped and kept.emulator.enabled
+        assert kept.emulator.received.count("GetState") >= 4
+        time.sleep(0.6)
+        assert alone.emulator.watchdog_tripped and not alone.emulator.enabled
+    finally:
+        for b in (kept, alone):
+            b.link.close()
+            b.emulator.stop()

@@ -1,0 +1,207 @@
+"""The virtual lab of a scene (`wristmark emulator --scene SCENE --pty --camera-port 0`, sim/scene_lab.py):
+one actuator box per arm on its own pty and one endoscope showing every arm; the hardware path
+`wristmark servo --scene SCENE --serial NAME=PORT ...` against it in another process (which never
+imports the simulated bench), each arm's true tip from the lab's truth CSV."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tests.sim.test_virtual_lab import NO_SIM, RT_HOST, RT_LAB, hardware_servo
+from wristmark.cli.main import main
+from wristmark.cvs.calibration.load import load_calibration
+from wristmark.cvs.camera import scaled_stereo_camera
+from wristmark.cvs.sources.open_source import SourceOptions, open_stereo_source
+from wristmark.cvs.tracking.arm_set import ArmSetTracker
+from wristmark.models.marker import MarkerModel
+from wristmark.rig.link.actuator_driver import ActuatorDriver
+from wristmark.rig.loop.scene_file import Scene
+from wristmark.sim.scene_lab import read_scene_truth_csv, scene_true_tip_errors, scene_truth_header
+from wristmark_testing.lab_process import read_lines, stop
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENE = "configs/scenes/two_arms.yaml"
+SCALE = 0.5  # at 0.35 the scene's sleeves (the camera backed off to frame both cubes) are ~40 px tall
+FPS = 16.67  # one frame per 60 ms cycle: the lab renders no frame the host would drop
+
+
+@pytest.fixture(scope="module")
+def scene_lab(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[dict[str, str], str, Path, Path]]:
+    """`wristmark emulator --scene two_arms --pty --camera-port 0` as its own process:
+    ({arm: pty}, url, truth CSV, calibration)."""
+    folder = tmp_path_factory.mktemp("scene_lab")
+    truth, calib = folder / "truth.csv", folder / "calib.yaml"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "wristmark", "emulator", "--scene", SCENE, "--pty", "--camera-port", "0",
+         "--fps", str(FPS), "--image-scale", str(SCALE), "--truth-out", str(truth), "--calib-out", str(calib),
+         *RT_LAB], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        lines = read_lines(proc, 3, timeout=90)
+        ptys = dict(line.split(" ", 1) for line in lines[:2])
+        yield ptys, lines[2], truth, calib
+    finally:
+        rc, err = stop(proc)
+        assert rc == 0, err
+
+
+@pytest.mark.parametrize(("extra", "cause"), [
+    (["--pty", "--camera-port", "0", "--robot", "configs/robot.yaml"], "--robot"),
+    (["--pty", "--camera-port", "0", "--psi0", "0", "0", "0", "0", "0", "0"], "--psi0"),
+    (["--pty"], "needs --pty and --camera-port"),
+])
+def test_emulator_scene_refuses_what_means_nothing_with_a_scene(capsys: pytest.CaptureFixture[str],
+                                                               extra: list[str], cause: str) -> None:
+    assert main(["emulator", "--scene", SCENE, *extra]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and cause in err and "\n" not in err.strip()
+
+
+@pytest.mark.slow
+@pytest.mark.network
+@pytest.mark.wallclock
+def test_one_box_per_arm_and_one_stream_showing_every_sleeve(scene_lab: tuple[dict[str, str], str, Path, Path]
+                                                             ) -> None:
+    ptys, url, truth, calib = scene_lab
+    scene = Scene.load(SCENE)
+    assert list(ptys) == scene.names and len(set(ptys.values())) == 2 and url.startswith("http://127.0.0.1:")
+    for path in ptys.values():  # each its own box, answering as protocol v1 does
+        driver = ActuatorDriver(path, timeout=0.5)
+        try:
+            pong = driver.ping()
+            assert (pong.version, pong.count) == (1, 6)
+        finally:
+            driver.close()
+    cam = scaled_stereo_camera(load_calibration(calib), SCALE)
+    tracker = ArmSetTracker(cam, [MarkerModel.load(a.marker) for a in scene.arms])
+    source = open_stereo_source(url, SourceOptions(timeout=10))
+    try:
+        frame = source.read()
+    finally:
+        source.close()
+    assert frame is not None and frame.left.shape[:2] == (cam.image_size[1], cam.image_size[0])
+    res = tracker.track(frame.left, frame.right)
+    assert open(truth).readline().strip() == scene_truth_header(["a", "b"])
+    t, tips = read_scene_truth_csv(truth)
+    W = np.asarray(cam.T_world_left, float)
+    for name in scene.names:  # each sleeve found as its own arm, where the lab's true arm is (scene {w})
+        assert res[name].ok, res[name].reason
+        seen = W[:3, :3] @ res[name].tip_left + W[:3, 3]
+        true = np.array([np.interp(frame.t_capture, t, tips[name][:, i]) for i in range(3)])
+        assert np.linalg.norm(seen - true) < 1e-3, (name, seen, true)
+    assert np.linalg.norm(tips["a"][-1] - tips["b"][-1]) > 0.02  # two arms, not one seen twice
+
+
+@pytest.mark.slow
+@pytest.mark.network
+@pytest.mark.wallclock
+def test_servo_scene_drives_both_arms_through_their_boxes_on_one_camera(
+        scene_lab: tuple[dict[str, str], str, Path, Path], tmp_path: Path) -> None:
+    ptys, url, truth, calib = scene_lab
+    out = tmp_path / "run"
+    t0 = time.monotonic()
+    r = hardware_servo("--scene", SCENE, *[x for n, p in ptys.items() for x in ("--serial", f"{n}={p}")],
+                       "--camera", url, "--calib", str(calib), "--image-scale", str(SCALE), "--duration", "4",
+                       "--out", str(out), "--no-progress", *RT_HOST)
+    assert r.returncode == 0, r.stdout + r.stderr
+    res = json.loads((out / "result.json").read_text())
+    scene = Scene.load(SCENE)
+    for a in scene.arms:
+        arm = res["arms"][a.name]
+        assert not arm["stopped"] and arm["link"]["port"] == ptys[a.name]
+        assert arm["safe_stop"]["held_and_disabled"]
+        err = scene_true_tip_errors(out / f"log_{a.name}.csv", truth, a.name, a.base)
+        err = err[np.isfinite(err)]
+        assert err.size >= 40, a.name
+        print(f"arm {a.name}: true tip error mean {1000 * err.mean():.3f} mm, max {1000 * err.max():.3f} mm "
+              f"over {err.size} cycles; lost {arm['closed_loop']['lost']}, skipped {arm['closed_loop']['skipped']}")
+        assert 1000 * np.median(err) < 1.0, a.name
+    assert res["clearance"]["least_model_mm"] > res["clearance"]["required_mm"]
+    print(f"run took {time.monotonic() - t0:.1f} s")
+
+
+@pytest.mark.slow
+@pytest.mark.network
+@pytest.mark.wallclock
+def test_an_arm_whose_sleeve_is_out_of_view_is_held_and_disabled_alone(tmp_path: Path) -> None:
+    """b stands 600 mm away, outside the endoscope's view (the one-arm bench's camera): its loop
+    holds it, then its box alone is held and disabled; a walks its cube to the end."""
+    scenes = ROOT / "configs" / "scenes"
+    scene_file = tmp_path / "b_out_of_view.yaml"
+    scene_file.write_text(
+        f"camera: {ROOT / 'configs' / 'camera.yaml'}\narms:\n"
+        f"  - marker: {scenes / 'two_arms' / 'a.yaml'}\n"
+        f"  - marker: {scenes / 'two_arms' / 'b.yaml'}\n"
+        "    base: {xyz: [0.6, 0.0, 0.0], rpy: [0.0, 0.0, 3.141592653589793]}\n")
+    truth, calib, out = tmp_path / "truth.csv", tmp_path / "calib.yaml", tmp_path / "run"
+    lab = subprocess.Popen(
+        [sys.executable, "-m", "wristmark", "emulator", "--scene", str(scene_file), "--pty", "--camera-port", "0",
+         "--fps", str(FPS), "--image-scale", str(SCALE), "--truth-out", str(truth), "--calib-out", str(calib),
+         *RT_LAB], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        lines = read_lines(lab, 3, timeout=90)
+        ptys = dict(line.split(" ", 1) for line in lines[:2])
+        r = hardware_servo("--scene", str(scene_file), "--serial", f"a={ptys['a']}", "--serial", f"b={ptys['b']}",
+                           "--camera", lines[2], "--calib", str(calib), "--image-scale", str(SCALE),
+                           "--duration", "5", "--out", str(out), "--no-progress", *RT_HOST)
+    finally:
+        rc, err = stop(lab)
+        assert rc == 0, err
+    assert r.returncode == 3, r.stdout + r.stderr
+    stderr = r.stderr.strip()
+    assert "\n" not in stderr and "arm b" in stderr and "marker lost" in stderr and "arm a" not in stderr
+    res = json.loads((out / "result.json").read_text())
+    a, b = res["arms"]["a"], res["arms"]["b"]
+    assert not a["stopped"] and b["cause"] == "marker-lost" and b["safe_stop"]["held_and_disabled"]
+    # b stopped max_lost_cycles (1.5 s) after its first cycle, in the settle or just after it
+    assert a["closed_loop"]["cycles"] > 70 and b["closed_loop"]["cycles"] < 0.25 * a["closed_loop"]["cycles"]
+    scene = Scene.load(scene_file)
+    err = scene_true_tip_errors(out / "log_a.csv", truth, "a", scene.arms[0].base)
+    err = err[np.isfinite(err)]
+    assert err.size > 70 and 1000 * np.median(err) < 0.5, err
+    t, tips = read_scene_truth_csv(truth)
+    late = t > t[-1] - 2.0  # while a still walked, b stood still: held, then disabled
+    assert np.ptp(tips["b"][late], axis=0).max() < 1e-6 and np.ptp(tips["a"][late], axis=0).max() > 1e-3
+
+
+@pytest.mark.slow
+@pytest.mark.network
+@pytest.mark.wallclock
+def test_an_emergency_stop_on_one_box_stops_every_arm_safely(tmp_path: Path) -> None:
+    """The scene's lab in this process; mid-run b's box is emergency-stopped: the host holds and
+    disables a's box too (not its watchdog) and says so in one line, exit 3."""
+    from wristmark.cvs.calibration.load import save_calibration
+    from wristmark.rig.link import protocol as P
+    from wristmark.sim.scene_lab import SceneLab
+    from wristmark.sim.scene_setup import load_scene_setup
+    from wristmark.sim.virtual_lab import LabCamera
+
+    setup = load_scene_setup(SCENE)
+    calib = tmp_path / "calib.yaml"
+    save_calibration(calib, setup.camera)
+    with SceneLab(setup, LabCamera(fps=FPS, image_scale=SCALE)) as lab:
+        ptys, url = lab.start()
+        host = subprocess.Popen(
+            [sys.executable, "-c", NO_SIM, "servo", "--scene", SCENE, "--serial", f"a={ptys['a']}", "--serial",
+             f"b={ptys['b']}", "--camera", url, "--calib", str(calib), "--image-scale", str(SCALE), "--duration", "20",
+             "--no-progress", *RT_HOST], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        a, b = lab.emulators["a"], lab.emulators["b"]
+        deadline = time.monotonic() + 60
+        while not (a.enabled and b.enabled) and time.monotonic() < deadline and host.poll() is None:
+            time.sleep(0.05)
+        assert a.enabled and b.enabled, host.communicate(timeout=20)[1]
+        time.sleep(3.0)  # the arms ramp to their starts and rest there
+        b.receive(P.encode(P.EStop(seq=0)))  # the operator's button on b's box
+        _, err = host.communicate(timeout=30)
+    assert host.returncode == 3, err
+    line = err.strip()
+    assert "\n" not in line and "emergency stop: arm 'b'" in line and "arm a at" in line and "arm b at" in line
+    assert b.estopped and not b.enabled
+    assert not a.enabled and not a.watchdog_tripped and not a.estopped  # a held and disabled by the host

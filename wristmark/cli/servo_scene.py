@@ -1,0 +1,155 @@
+"""``wristmark servo --scene SCENE --serial NAME=PORT ... --camera SPEC --calib C``: several arms
+on the hardware path, one process, one camera, one actuator box per arm (rig.loop.arm_set_session;
+docs/hardware.md "Several arms"). Imports nothing of the simulated bench.
+
+Bad input is refused in one line (exit 2) before any motion command: an option that has no
+meaning with a scene, a missing, unknown or repeated arm, a port given twice, a box that does not
+answer or does not fit its arm, a start out of reach or arms too close at their starts. The
+output folder (``--out``) has config.json, log_<arm>.csv per arm and result.json (per arm the
+one-arm servo's fields, and the clearance); exit 3 when an arm stopped safely.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from wristmark.models.errors import InputError
+
+SCENE_REFUSED = ("robot", "marker", "plant", "model", "registration", "open_loop_on_lost", "point", "target",
+                 "view", "record", "record_jpeg", "ros2", "actuator", "no_operating_state", "direct", "realtime",
+                 "pace", "latency", "sensor", "host")
+
+
+def check_scene_options(args: argparse.Namespace) -> None:
+    """The options ``--scene`` takes on the hardware path (InputError naming the others)."""
+    given = [f"--{k.replace('_', '-')}" for k in SCENE_REFUSED if getattr(args, k, None) not in (None, False)]
+    if args.orientation != "none":
+        given.append("--orientation")
+    if args.view_hold:
+        given.append("--view-hold")
+    if given:
+        raise InputError(f"{', '.join(given)}: not with --scene (each arm's files are named in the scene file; "
+                         "each arm walks its own cube or holds its centre, position only)")
+    if not args.serials or not args.camera or not args.calib:
+        raise InputError("--scene on the hardware path needs --serial NAME=PORT for every arm, --camera SPEC and "
+                         "--calib C (world_T_left in the scene's {w}: the virtual lab's --calib-out)")
+
+
+def run_scene(args: argparse.Namespace) -> int:
+    """``servo --scene``: every arm's loop on one camera (see the module docstring)."""
+    from wristmark.cli.servo_start import sigterm_as_interrupt, start_configuration
+    from wristmark.cli.setup_args import apply_overrides
+    from wristmark.cvs.tracking.warmup import warm_up
+    from wristmark.models.errors import ConfigError
+    from wristmark.rig.loop.arm_set_session import (
+        arm_trajectories,
+        load_scene_setups,
+        open_arm_set_session,
+        parse_serial_specs,
+        run_arm_set,
+        start_gap,
+    )
+    from wristmark.rig.loop.scene_file import Scene
+    from wristmark.rig.loop.servo_session import LinkOptions
+    from wristmark.rig.recording.output_dir import claim_outputs
+
+    check_scene_options(args)
+    scene = Scene.load(args.scene)
+    ports = parse_serial_specs(args.serials, scene.names)
+    setups, scene_camera = load_scene_setups(scene, args.calib, rig=args.rig, controller=args.controller_config)
+    for n, s in setups.items():  # the command line's overrides; one grid for every arm (rig.loop.arm_set_session)
+        s = apply_overrides(s, args, settle_time=args.settle)
+        setups[n] = s.with_changes(rig=dataclasses.replace(s.rig, frame_phase_lock="none"))
+    hold = tuple(args.hold or ())
+    trajs = arm_trajectories({n: s.params for n, s in setups.items()}, scene.cube_size,
+                             args.trajectory or "cube", args.duration, hold)
+    psi0 = {}
+    for n, s in setups.items():
+        try:
+            psi0[n] = start_configuration(s, trajs[n])
+        except InputError as e:
+            raise InputError(f"arm '{n}': {e}") from None
+    bases = {a.name: a.base for a in scene.arms}
+    gap = start_gap(setups, psi0, bases)
+    if gap < scene.clearance:
+        raise ConfigError(f"{scene.source}: the arms' bodies come {1000 * gap:.1f} mm close at the start of their "
+                          f"paths, under the clearance {1000 * scene.clearance:.1f} mm")
+    claim_outputs(dirs=[args.out], files=[args.json], force=args.force)  # after every option was validated
+    warm_up()
+    options = LinkOptions(kind="serial", port=None, baudrate=args.baud, timeout=args.timeout)
+    if args.rt_priority is not None:  # before any thread starts: the camera's threads inherit it
+        from wristmark.rig.loop.realtime_priority import request_realtime_priority
+
+        request_realtime_priority(args.rt_priority)
+    session = open_arm_set_session(setups, ports, args.camera, scene_camera, options,
+                                   camera_timeout=args.camera_timeout)
+    from wristmark.rig.loop.heap_freeze import freeze_heap
+
+    freeze_heap()  # no full garbage collection of the start-up heap mid-run (rig.loop.heap_freeze)
+    clearance = scene.clearance + scene.clearance_margin if scene.clearance > 0 else 0.0
+    settle = next(iter(setups.values())).rig.settle_time
+    with sigterm_as_interrupt():
+        run = run_arm_set(setups, trajs, session, psi0, bases, clearance, settle)
+    res = scene_result(args, scene, setups, trajs, session, run, hold)
+    write_scene_outputs(args, scene, setups, ports, run, res)
+    for n, a in res["arms"].items():
+        c = a["closed_loop"]
+        errors = (f"tip error mean {c['mean_mm']:.3f} mm, max {c['max_mm']:.3f} mm over {c['cycles']} cycles "
+                  f"({c['errors_from']} vs desired)" if c["cycles"] else "no trajectory cycle ran")
+        print(f"servo --scene arm {n} ({a['walk']}, {trajs[n].duration:.1f} s, link serial {ports[n]}): {errors}")
+    stopped = {n: o for n, o in run.outcomes.items() if o.stopped}
+    if not stopped:
+        return 0
+    what = "; ".join(f"arm {n} at t = {o.t_stop:.2f} s: {o.stopped} ("
+                     f"{'held and disabled' if not o.close_error else o.close_error})" for n, o in stopped.items())
+    print(f"wristmark servo: error: stopped safely: {what}", file=sys.stderr)
+    return 130 if any(o.cause == "interrupted" for o in stopped.values()) else 3
+
+
+def scene_result(args: argparse.Namespace, scene: Any, setups: dict[str, Any], trajs: dict[str, Any], session: Any,
+                 run: Any, hold: tuple[str, ...]) -> dict[str, Any]:
+    """The result JSON: per arm the one-arm servo's fields (rig.loop.servo_summary.summarize) and
+    its walk, and the clearance kept between the arms' model bodies [mm]."""
+    from wristmark.rig.loop.servo_summary import summarize
+
+    arms = {}
+    for n, s in setups.items():
+        view = session.sensor.view(n, np.asarray(s.host_camera.T_world_left, float))
+        arms[n] = {"walk": "hold" if n in hold else (args.trajectory or "cube"),
+                   **summarize(s, trajs[n], session.arm_session(n, view), run.outcomes[n])}
+    least = run.least_model_distance_m
+    return {
+        "command": "servo", "scene": scene.source, "camera": args.camera, "arms": arms,
+        "clearance": {"required_mm": 1000 * scene.clearance, "margin_mm": 1000 * scene.clearance_margin,
+                      "least_model_mm": 1000 * least if np.isfinite(least) else None},
+        "tracking_ms_median": float(np.median(run.tracking_ms)) if run.tracking_ms else None,
+        "tracking_late": session.sensor.late,  # frames whose tracking outlasted rig tracking_budget (every arm lost)
+        "stopped": {n: o.stopped for n, o in run.outcomes.items() if o.stopped},
+    }
+
+
+def write_scene_outputs(args: argparse.Namespace, scene: Any, setups: dict[str, Any], ports: dict[str, str],
+                        run: Any, res: dict[str, Any]) -> None:
+    """DIR/config.json, DIR/log_<arm>.csv, DIR/result.json (--out) and the result JSON (--json)."""
+    from wristmark.rig.recording.run_log import write_json
+
+    if args.out:
+        out_dir = Path(args.out)
+        out_dir.mkdir(parents=True, exist_ok=True)
+        write_json(out_dir / "config.json", {
+            "command": "servo", "scene": scene.source, "camera": args.camera,
+            "arms": {a.name: {"base": a.base.tolist(), "serial": ports[a.name], **setups[a.name].describe()}
+                     for a in scene.arms}})
+        for n, out in run.outcomes.items():
+            out.log.write_csv(out_dir / f"log_{n}.csv")
+        write_json(out_dir / "result.json", {**res, "run_dir": str(out_dir)})
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        write_json(args.json, res)
+

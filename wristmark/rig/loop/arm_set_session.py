@@ -1,0 +1,584 @@
+"""Several arms on the hardware path: ``wristmark servo --scene SCENE --serial NAME=PORT ...
+--camera SPEC --calib C`` (docs/hardware.md "Several arms"). Nothing here imports the simulated
+bench: the scene file is read by :mod:`rig.loop.scene_file`.
+
+One process, one camera, one actuator box per arm (each its own :class:`rig.link.serial_link.SerialLink`,
+protocol v1 or v2), each arm its own :class:`rig.loop.servo_loop.ServoLoop`, controller and
+trajectory (in its own {w}), all in lockstep on the host's ``time.monotonic()`` clock. Per cycle:
+every arm's time runs to the cycle's start (each box polled), the clearance between the arms is
+handed to every controller (:mod:`rig.loop.arm_clearance`, as the simulated bench's
+``sim.several_arms.walk_scene`` does), then each arm's loop runs its cycle on the one frame of
+the cycle (:class:`SharedFrameFeed`) and the one tracking of every sleeve in it
+(:class:`BudgetedArmSetSensor`, within the rig's ``tracking_budget``).
+
+Stops: an arm whose marker stays lost (rig ``max_lost_cycles``) is held and disabled alone, the
+others walk on; a camera that stalls, a box that stops answering, an emergency stop, a watchdog
+trip or Ctrl-C hold and disable every arm. A controller that probes its play (rig/loop/play_probe.py)
+probes it one arm at a time after the settle, the other boxes polled meanwhile from a thread
+(:class:`KeepAlive`), as the simulated bench does one arm at a time. No frame phase lock: one
+grid for every arm.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import threading
+import time
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from wristmark.cvs.camera import StereoCamera
+from wristmark.cvs.sources.frames import StereoFrame
+from wristmark.cvs.tracking.result import TrackResult
+from wristmark.models.actuation import psi_from_actuators
+from wristmark.models.arm_spec import Arm
+from wristmark.models.errors import ConfigError, InputError, WristmarkError
+from wristmark.models.limits import clamp_psi
+from wristmark.rig.link.serial_link import SerialLink
+from wristmark.rig.loop.arm_clearance import bodies_at, least_distance, model_bodies, model_offsets, set_obstacles
+from wristmark.rig.loop.arm_set_sensor import ArmSensorView, ArmSetSensor
+from wristmark.rig.loop.frame_feed import LatestFrameFeed
+from wristmark.rig.loop.loop_setup import LoopSetup, load_loop_setup
+from wristmark.rig.loop.play_probe import probe_report
+from wristmark.rig.loop.scene_file import Scene
+from wristmark.rig.loop.servo_cycle import (
+    CameraStalledError,
+    MarkerLostError,
+    PhaseStats,
+    TrackingMemory,
+    cycle_target,
+    ramp_to,
+)
+from wristmark.rig.loop.servo_loop import ServoLoop
+from wristmark.rig.loop.servo_session import (
+    POINT_HOLD_S,
+    LinkOptions,
+    PointHold,
+    ServoOutcome,
+    ServoSession,
+    _count,
+)
+from wristmark.rig.loop.tip_sensors import TipMeasurement, tip_measurement
+from wristmark.rig.recording.run_log import RunLog
+from wristmark.rig.targets.trajectories import CUBE_SPEED, Trajectory, cube_trajectory, workspace_centre
+
+Array = NDArray[np.float64]
+SETTLE_AT_START_S = 2.0  # [s] every arm rests at its start after the ramp there (as ServoLoop.start_at)
+
+__all__ = ["ArmSetSession", "BudgetedArmSetSensor", "SharedFrameFeed", "arm_trajectories", "load_scene_setups",
+           "open_arm_set_session", "parse_serial_specs", "run_arm_set"]
+
+
+# -- configuration ---------------------------------------------------------------------------
+def load_scene_setups(scene: Scene, calib: str | Path, rig: str | Path | None = None,
+                      controller: str | Path | None = None) -> tuple[dict[str, LoopSetup], StereoCamera]:
+    """Each arm's LoopSetup (its robot and marker files from the scene, the shared rig and
+    controller files; its camera's ``world_T_left`` the scene camera's seen from the arm's base)
+    and the scene camera (``calib``: world_T_left in the scene's {w}, required)."""
+    from wristmark.cvs.calibration.load import load_calibration
+
+    cam = load_calibration(calib)
+    if cam.T_world_left is None:
+        raise ConfigError(f"{calib}: several arms need 'world_T_left' (the camera's pose in the scene's {{w}}; "
+                          "the virtual lab writes it with --calib-out)")
+    W = np.asarray(cam.T_world_left, float)
+    setups = {}
+    for a in scene.arms:
+        s = load_loop_setup(robot=a.robot, marker=a.marker, camera=calib, rig=rig, controller=controller)
+        setups[a.name] = s.with_changes(camera=dataclasses.replace(cam, T_world_left=np.linalg.inv(a.base) @ W))
+    return setups, cam
+
+
+def parse_serial_specs(specs: Sequence[str], names: Sequence[str]) -> dict[str, str]:
+    """``NAME=PORT`` per arm -> {arm: port} in the scene's order; InputError (one line) for a
+    malformed spec, an unknown arm, an arm given twice, a port given twice or an arm missing."""
+    ports: dict[str, str] = {}
+    for spec in specs:
+        name, sep, port = spec.partition("=")
+        if not sep or not name or not port:
+            raise InputError(f"--serial {spec!r}: with --scene each box is NAME=PORT (arms: {', '.join(names)})")
+        if name not in names:
+            raise InputError(f"--serial {spec}: no arm '{name}' in the scene (arms: {', '.join(names)})")
+        if name in ports:
+            raise InputError(f"--serial: arm '{name}' given twice")
+        if port in ports.values():
+            other = next(n for n, p in ports.items() if p == port)
+            raise InputError(f"--serial: port {port} given for both '{other}' and '{name}'")
+        ports[name] = port
+    missing = [n for n in names if n not in ports]
+    if missing:
+        raise InputError(f"--serial: no box for arm '{missing[0]}' (give --serial {missing[0]}=PORT for each of "
+                         f"{', '.join(names)})")
+    return {n: ports[n] for n in names}
+
+
+def arm_trajectories(params: Mapping[str, Arm], cube_size: tuple[float, float, float], kind: str = "cube",
+                     duration: float | None = None, hold: Sequence[str] = ()) -> dict[str, Trajectory]:
+    """Each arm's cube (``cube_size`` [m] around its workspace centre, at the paper's speed) or,
+    for ``kind`` point, its workspace centre held (``duration``, default POINT_HOLD_S), in its own
+    {w}; the arms in ``hold`` hold their centre as long as the others walk. ``duration`` [s]
+    cuts the walks short. ConfigError for an unknown arm in ``hold`` or every arm held."""
+    names = list(params)
+    unknown = [h for h in hold if h not in params]
+    if unknown:
+        raise ConfigError(f"--hold {unknown[0]}: no such arm in the scene ({', '.join(names)})")
+    if len(set(hold)) == len(names):
+        raise ConfigError("--hold: every arm would hold still; leave at least one to walk its cube")
+    centres = {n: workspace_centre(p, cube_size) for n, p in params.items()}
+    if kind == "point":
+        length = duration if duration is not None else POINT_HOLD_S
+        return {n: PointHold(np.array([c]), 1.0, hold=length) for n, c in centres.items()}
+    cubes = {n: cube_trajectory(c, cube_size, CUBE_SPEED) for n, c in centres.items()}
+    if duration is not None:
+        cubes = {n: c.truncated(duration) for n, c in cubes.items()}
+    longest = max(c.duration for c in cubes.values())
+    out: dict[str, Trajectory] = {}
+    for n in names:
+        out[n] = PointHold(np.array([centres[n]]), 1.0, hold=longest) if n in hold else cubes[n]
+    return out
+
+
+# -- one frame, one tracking, for every arm ----------------------------------------------------
+class SharedFrameFeed:
+    """One camera's :class:`rig.loop.frame_feed.LatestFrameFeed` shared by several arms' loops
+    stepping in lockstep: the first :meth:`take` after :meth:`begin_cycle` takes from the camera
+    (waiting as the loop asks), every other take of that cycle gets the same frame (or None)."""
+
+    def __init__(self, feed: LatestFrameFeed) -> None:
+        self.feed = feed
+        self.name = feed.name
+        self._cycle = 0
+        self._taken = -1
+        self._frame: StereoFrame | None = None
+        self._closed = False
+        self._solo = False
+        self.last_arrival = feed.last_arrival  # when the last frame taken arrived (time.monotonic() [s])
+
+    def begin_cycle(self) -> None:
+        """A new cycle: the next take reads the camera."""
+        self._cycle += 1
+
+    @contextmanager
+    def solo(self) -> Iterator[None]:
+        """While one arm's loop runs cycles of its own (its play probe): every take reads the camera."""
+        self._solo = True
+        try:
+            yield
+        finally:
+            self._solo = False
+
+    def take(self, fresh_after: float = -np.inf, wait_until: float = -np.inf) -> StereoFrame | None:
+        """This cycle's frame (see the class docstring); the camera's error propagates."""
+        if self._taken != self._cycle or self._solo:
+            self._frame = self.feed.take(fresh_after=fresh_after, wait_until=wait_until)
+            self._taken = self._cycle
+            self.last_arrival = self.feed.last_arrival
+        return self._frame
+
+    @property
+    def dropped(self) -> int:
+        """Frames dropped (the camera's feed)."""
+        return self.feed.dropped
+
+    @property
+    def received(self) -> int:
+        """Frames received from the camera."""
+        return self.feed.received
+
+    def close(self) -> None:
+        """Close the camera (once)."""
+        if not self._closed:
+            self._closed = True
+            self.feed.close()
+
+
+class BudgetedArmSetSensor(ArmSetSensor):
+    """An :class:`rig.loop.arm_set_sensor.ArmSetSensor` whose tracking of a frame (every sleeve at
+    once) runs in a worker thread and is given up after ``budget`` [s] for every arm of that
+    frame (as :class:`rig.loop.tip_sensors.DeadlineTipSensor` does for one arm: no cycle outlasts
+    the boxes' watchdog); a frame that comes while the worker is busy is not measured."""
+
+    def __init__(self, camera: StereoCamera, markers: Sequence[Any], budget: float, magnify: float = 1.0) -> None:
+        from concurrent.futures import ThreadPoolExecutor
+
+        super().__init__(camera, markers, magnify=magnify)
+        if not budget > 0:
+            raise ValueError(f"budget must be > 0 s, got {budget}")
+        self.budget = float(budget)
+        self.late = 0
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="arm-set-sensor")
+        self._busy: Any = None
+        self._given_up: tuple[int, str] | None = None  # (frame index, why) of a frame given up
+
+    def within_budget(self, frame: StereoFrame) -> dict[str, TrackResult] | str:
+        """Every arm's result for ``frame``, or why there is none (over the budget, busy)."""
+        from concurrent.futures import TimeoutError
+
+        if frame is self._frame and frame.index == self._frame_index:
+            return self._results
+        if self._given_up is not None and self._given_up[0] == frame.index:
+            return self._given_up[1]
+        if self._busy is not None and not self._busy.done():
+            why = "tracker still busy with an earlier frame"
+        else:
+            self._busy = self._pool.submit(self.results, frame)
+            try:
+                return dict(self._busy.result(timeout=self.budget))
+            except TimeoutError:
+                self.late += 1
+                why = f"tracking took longer than {1000 * self.budget:.0f} ms"
+        self._given_up = (frame.index, why)
+        return why
+
+    def view(self, arm: str, T_world_left: Array) -> ArmSensorView:
+        """Arm ``arm``'s tip sensor in its own {w} (see :class:`ArmSensorView`), within the budget."""
+        if arm not in self.tracker.arms:
+            raise KeyError(f"no arm '{arm}' in the marker set ({', '.join(self.tracker.arms)})")
+        return _BudgetedView(self, arm, np.asarray(T_world_left, float))
+
+    def close(self) -> None:
+        """Let a running tracking finish and stop the worker."""
+        self._pool.shutdown(wait=True)
+
+
+class _BudgetedView(ArmSensorView):
+    """One arm's share of a :class:`BudgetedArmSetSensor`."""
+
+    shared: BudgetedArmSetSensor
+
+    def measure(self, frame: StereoFrame, axis_hint_world: Array | None = None) -> TipMeasurement:
+        """This arm's tip in its {w}, or a failed measurement when the frame's tracking was given up."""
+        self.last_frame = frame
+        if axis_hint_world is not None:
+            self.shared.hints[self.arm] = self.T_world_left[:3, :3].T @ np.asarray(axis_hint_world, float)
+        got = self.shared.within_budget(frame)
+        if isinstance(got, str):
+            return TipMeasurement(False, None, got, 1000.0 * self.shared.budget, t_capture=frame.t_capture,
+                                  frame_index=frame.index)
+        return tip_measurement(got[self.arm], frame, self.shared.last_ms, self.T_world_left)
+
+
+@contextmanager
+def on_arm(name: str) -> Iterator[None]:
+    """An actuator box's error raised again naming its arm (the same type: the stop's cause)."""
+    from wristmark.rig.link.actuator_driver import ActuatorError
+
+    try:
+        yield
+    except ActuatorError as e:
+        raise type(e)(f"arm '{name}': {e}") from None
+
+
+class KeepAlive:
+    """Keeps boxes fed from a thread of its own (GET_STATE every ``period`` [s], under their 250 ms
+    watchdog) while the caller drives another arm alone; the first error (a box that stopped
+    answering, an emergency stop) is raised by :meth:`__exit__`. Only this thread may touch those
+    links meanwhile."""
+
+    def __init__(self, links: Mapping[str, SerialLink], period: float = 0.1) -> None:
+        self.links, self.period = dict(links), float(period)
+        self.error: BaseException | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="keep-boxes-fed", daemon=True)
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.period):
+            for name, link in self.links.items():
+                try:
+                    with on_arm(name):
+                        link.measured_actuators()
+                except Exception as e:  # noqa: BLE001 - handed to the caller's thread
+                    self.error = self.error or e
+
+    def __enter__(self) -> KeepAlive:
+        if self.links:
+            self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(2.0)
+        if self.error is not None and exc[0] is None:
+            raise self.error
+
+
+# -- the session --------------------------------------------------------------------------------
+@dataclass
+class ArmSetSession:
+    """Every arm's open box (``links``, by arm in the scene's order, with their ``ports``), the
+    shared camera feed and sensor; ``closed`` arms were held and disabled (their close problems
+    in ``close_errors``)."""
+
+    links: dict[str, SerialLink]
+    ports: dict[str, str]
+    feed: SharedFrameFeed
+    sensor: BudgetedArmSetSensor
+    camera: str
+    options: LinkOptions
+    closed: set[str] = field(default_factory=set)
+    close_errors: dict[str, str] = field(default_factory=dict)
+
+    def start(self) -> None:
+        """ENABLE every box (from now on each wants a command every 250 ms); the links' time is
+        the host's ``time.monotonic()``."""
+        for link in self.links.values():
+            link.connect(t_now=time.monotonic())
+
+    def close_arm(self, name: str) -> None:
+        """Hold and DISABLE arm ``name``'s box (once; never raises)."""
+        if name in self.closed:
+            return
+        self.closed.add(name)
+        link = self.links[name]
+        link.close()
+        self.close_errors[name] = link.close_error
+
+    def close(self) -> None:
+        """Hold and DISABLE every box, stop the tracking and the camera. Never raises."""
+        for name in self.links:
+            self.close_arm(name)
+        for step in (self.sensor.close, self.feed.close):
+            try:
+                step()
+            except Exception:  # noqa: BLE001 - closing must go on
+                pass
+
+    def arm_session(self, name: str, sensor: Any) -> ServoSession:
+        """Arm ``name``'s view as a :class:`rig.loop.servo_session.ServoSession` (for its summary)."""
+        return ServoSession(self.links[name], self.options, self.feed, sensor, port=self.ports[name],
+                            camera=self.camera, wall_clock=True)
+
+
+def open_arm_set_session(setups: Mapping[str, LoopSetup], ports: Mapping[str, str], camera: str,
+                         scene_camera: StereoCamera, options: LinkOptions, camera_timeout: float = 2.0
+                         ) -> ArmSetSession:
+    """Open every arm's box (PING, GET_STATE: nothing enabled, nothing moved; a box that does not
+    answer or does not fit its arm: one line naming the arm and the port) and the camera; check
+    its first frame's size against ``scene_camera`` (at the rig's image scale) and track every
+    sleeve in it once, before any motion."""
+    from wristmark.cvs.sources.open_source import SourceOptions
+    from wristmark.rig.link.actuator_driver import ActuatorDriver, ActuatorError
+    from wristmark.rig.loop.hardware_session import first_frame
+    from wristmark.rig.loop.servo_session import HW_TIMEOUT_S
+    from wristmark.rig.ros2.image_source import open_frame_source
+
+    links: dict[str, SerialLink] = {}
+    first_setup = next(iter(setups.values()))
+    timeout = options.timeout if options.timeout is not None else HW_TIMEOUT_S
+    try:
+        for name, setup in setups.items():
+            try:
+                driver = ActuatorDriver(ports[name], options.baudrate, timeout, options.retries, params=setup.params)
+                links[name] = SerialLink(driver)
+                links[name].probe()
+            except ActuatorError as e:
+                raise type(e)(f"arm '{name}' on {ports[name]}: {e}") from None
+        source = open_frame_source(camera, SourceOptions(timeout=camera_timeout))
+    except BaseException:
+        for link in links.values():
+            link.close()
+        raise
+    cam = first_setup._scaled(scene_camera)
+    sensor = BudgetedArmSetSensor(cam, [s.marker for s in setups.values()], first_setup.rig.tracking_budget,
+                                  magnify=first_setup.rig.tracker_magnify)
+    session = ArmSetSession(links, dict(ports), SharedFrameFeed(LatestFrameFeed(source)), sensor, camera, options)
+    try:
+        first = first_frame(session.feed.feed, cam, camera)
+        sensor.results(first)  # loads the tracker's compiled kernels before any motion (no budget) ...
+        sensor.tracker.track(first.left, first.right)  # ... and those of the tracking in each arm's boxes
+    except BaseException:
+        session.close()
+        raise
+    return session
+
+
+# -- the run ------------------------------------------------------------------------------------
+@dataclass
+class ArmSetRun:
+    """Every arm's outcome (log, counters, why it stopped) and the least distance [m] between any
+    two arms' model bodies (commanded, shifted by their vision offsets) over the cycles."""
+
+    outcomes: dict[str, ServoOutcome]
+    least_model_distance_m: float = float("inf")
+    tracking_ms: list[float] = field(default_factory=list)
+
+
+def _lockstep_start(loops: Mapping[str, ServoLoop], psi0: Mapping[str, Array], dt: float) -> None:
+    """Every arm ramped from where its encoders say it is to its start (one target per cycle
+    each, within its velocity limits), then resting there :data:`SETTLE_AT_START_S`; the boxes
+    fed every cycle (ServoLoop.start_at, for several arms at once)."""
+    targets = {n: clamp_psi(loop.params, psi0[n]) for n, loop in loops.items()}
+    before = {}
+    for n, loop in loops.items():
+        with on_arm(n):
+            before[n] = np.asarray(loop.link.measured_actuators(), float)
+    ramps = {n: ramp_to(loop.params, psi_from_actuators(loop.params, before[n], delta_hint=targets[n]), targets[n], dt)
+             for n, loop in loops.items()}
+    steps = max(len(r) for r in ramps.values()) + 1 + int(round(SETTLE_AT_START_S / dt))
+    t = max(loop.t for loop in loops.values())
+    for i in range(steps):
+        for n, loop in loops.items():
+            loop.psi_cmd = ramps[n][i] if i < len(ramps[n]) else targets[n]
+            with on_arm(n):
+                loop.send(loop.psi_cmd)
+        t += dt
+        for n, loop in loops.items():
+            with on_arm(n):
+                loop.advance_to(t)
+    for n, loop in loops.items():
+        if loop.controller is not None and loop.controller.uses_encoders:  # where the ramp left each play
+            with on_arm(n):
+                loop.controller.note_start_move(before[n], np.asarray(loop.link.measured_actuators(), float))
+
+
+def start_gap(setups: Mapping[str, LoopSetup], psi0: Mapping[str, Array], bases: Mapping[str, Array]) -> float:
+    """Least distance [m] between the arms' model bodies at their start configurations (scene {w})."""
+    return least_distance(bodies_at({n: s.params for n, s in setups.items()}, psi0, bases))
+
+
+def run_arm_set(setups: Mapping[str, LoopSetup], trajs: Mapping[str, Trajectory], session: ArmSetSession,
+                psi0: Mapping[str, Array], bases: Mapping[str, Array], clearance: float, settle: float) -> ArmSetRun:
+    """Every arm to its start, then every trajectory closed loop in lockstep (module docstring);
+    ``clearance`` [m] kept between the arms' bodies (0: none); ``settle`` [s] of holding the
+    starts before the walks. Closes the session (every box held and disabled). Safe stops are
+    reported in each arm's outcome, never raised."""
+    from wristmark.solvers.controller_registry import make_controller
+
+    names = list(setups)
+    rig = setups[names[0]].rig
+    dt = rig.control_dt
+    outs = {n: ServoOutcome(RunLog.for_arm(setups[n].params)) for n in names}
+    stats = {n: PhaseStats() for n in names}
+    run = ArmSetRun(outs)
+    wall0 = time.perf_counter()
+    loops: dict[str, ServoLoop] = {}
+    try:
+        controllers = {n: make_controller(s.params, s.controller) for n, s in setups.items()}
+        bad = [n for n, c in controllers.items() if clearance > 0 and not c.supports_obstacles]
+        if bad:
+            raise ConfigError(f"several arms: controller '{setups[bad[0]].controller.kind}' cannot keep a "
+                              "clearance; use kind qp or set the scene's clearance to 0")
+    except BaseException:
+        session.close()
+        raise
+    try:
+        session.start()
+        for n, s in setups.items():
+            W = np.asarray(s.host_camera.T_world_left, float)
+            loops[n] = ServoLoop(s.params, s.rig, session.links[n], frames=session.feed,
+                                 sensor=session.sensor.view(n, W), controller=controllers[n], wall_clock=True,
+                                 frame_wait=s.rig.frame_wait)
+        _lockstep_start(loops, psi0, dt)
+        _walk(loops, trajs, session, run, stats, bases, clearance, int(round(settle / dt)))
+    except (WristmarkError, KeyboardInterrupt) as e:  # every arm held and disabled below
+        cause, why = stop_cause(e)
+        t_now = max((loop.t for loop in loops.values()), default=float("nan"))
+        for n in names:
+            if not outs[n].stopped:
+                outs[n].stopped, outs[n].cause = why, cause
+                outs[n].t_stop = loops[n].elapsed(t_now) if n in loops else float("nan")
+    finally:
+        session.close()
+        for n in names:
+            out = outs[n]
+            _count(out, stats[n])
+            out.close_error = session.close_errors.get(n, "")
+            out.wall_time_s = time.perf_counter() - wall0
+            if n in loops:
+                out.ready_after_arrival_ms = list(loops[n].ready_after_arrival_ms)
+                out.play_probe = probe_report(loops[n].play_fits, loops[n].play_probe_note)
+    return run
+
+
+def _walk(loops: Mapping[str, ServoLoop], trajs: Mapping[str, Trajectory], session: ArmSetSession, run: ArmSetRun,
+          stats: Mapping[str, PhaseStats], bases: Mapping[str, Array], clearance: float, n_settle: int) -> None:
+    """The cycles of :func:`run_arm_set` after the start: settle, then walk, in lockstep."""
+    names = list(loops)
+    rig = loops[names[0]].rig
+    dt = rig.control_dt
+    memory = {n: TrackingMemory() for n in names}
+    active = list(names)
+    settle = {n: n_settle for n in names}
+    for n in names:  # a controller that probes its play: settle and probe, one arm at a time
+        ctrl = loops[n].controller
+        if ctrl is None or not ctrl.wants_play_probe:
+            continue
+        others = {m: session.links[m] for m in active if m != n}
+        try:
+            with KeepAlive(others), session.feed.solo(), on_arm(n):
+                loops[n].advance_to(time.monotonic())  # its cycles from now (an arm probed before took seconds)
+                settle[n] = loops[n].probe_play(trajs[n], "servo", run.outcomes[n].log, stats[n], memory[n],
+                                                settle[n])
+        except CameraStalledError:
+            raise
+        except MarkerLostError as e:
+            _stop_arm(session, run, loops, n, e, loops[n].t)
+            active.remove(n)
+    n_cycles = max(settle[n] + int(np.floor(trajs[n].duration / dt)) + 1 for n in names)
+    t0 = max(loop.t for loop in loops.values()) + dt
+    offsets: dict[str, Array] = {}
+    k = 0
+    while k < n_cycles and active:
+        session.feed.begin_cycle()
+        t_k = t0 + k * dt
+        targets = {n: cycle_target(trajs[n], rig, k, t_k, settle[n]) for n in active}
+        for n in active:
+            with on_arm(n):
+                loops[n].advance_to(t_k)
+        missed = min(int((time.monotonic() - t_k) // dt), n_cycles - 1 - k)
+        if missed > 0:  # a whole cycle late: skip to the current cycle (every box was just polled)
+            for n in active:
+                stats[n].skipped += missed
+            k += missed
+            continue
+        if clearance > 0:
+            model_offsets(loops, offsets)
+            set_obstacles(bases, loops, offsets, clearance)
+            run.least_model_distance_m = min(run.least_model_distance_m,
+                                             least_distance(model_bodies(bases, loops, offsets)))
+        for n in list(active):
+            out = run.outcomes[n]
+            try:
+                with on_arm(n):
+                    out.log.add(loops[n].step(targets[n], "servo", True, memory[n], stats[n]))
+            except CameraStalledError:
+                raise
+            except MarkerLostError as e:  # that arm held and disabled; the others walk on
+                _stop_arm(session, run, loops, n, e, t_k)
+                active.remove(n)
+        run.tracking_ms.append(session.sensor.last_ms)
+        k += 1
+
+
+def _stop_arm(session: ArmSetSession, run: ArmSetRun, loops: Mapping[str, ServoLoop], name: str,
+              e: MarkerLostError, t: float) -> None:
+    """Arm ``name``'s marker stayed lost: log its last cycle, hold and disable its box."""
+    out = run.outcomes[name]
+    if e.record is not None:
+        out.log.add(e.record)
+    out.stopped, out.cause, out.t_stop = str(e), "marker-lost", loops[name].elapsed(t)
+    session.close_arm(name)
+
+
+def stop_cause(e: BaseException) -> tuple[str, str]:
+    """(cause, why) of a run-wide safe stop: camera, estop, watchdog, device, interrupted or error."""
+    from wristmark.rig.link.actuator_driver import ActuatorError, ActuatorEStopped, ActuatorNotEnabled
+
+    if isinstance(e, KeyboardInterrupt):
+        return "interrupted", "interrupted (Ctrl-C / SIGTERM)"
+    if isinstance(e, CameraStalledError):
+        return "camera", str(e)
+    if isinstance(e, ActuatorEStopped):
+        return "estop", f"emergency stop: {e}"
+    if isinstance(e, ActuatorNotEnabled):
+        return ("watchdog" if "watchdog" in str(e) else "device"), str(e)
+    if isinstance(e, ActuatorError):
+        return "device", f"actuator box not answering: {e}"
+    return "error", str(e)

@@ -351,7 +351,8 @@ def render_several_arms(r: dict[str, Any]) -> list[str]:
         f"{r['pairs']} rendered {r['image_size'][0]}x{r['image_size'][1]} stereo pairs of {len(r['arms'])} arms "
         f"({r['scene']}) in random poses, half the sequences crossing; each pair also rendered with each arm "
         "alone (the one-arm figure). Identity swaps: poses reported for an arm that lie nearer another arm's "
-        f"truth: **{r['identity_swaps']}**; wrong (over 0.5 mm off): **{r['wrong']}**.",
+        f"truth: **{r['identity_swaps']}**; wrong (over 0.5 mm off): **{r['wrong']}** (the same arms alone: "
+        f"{r.get('wrong_alone', '-')}).",
         "",
         "| arm | tracked together / alone | pairs with corners hidden by another arm | "
         "tip mean together / alone [mm] | tip max together / alone [mm] | "

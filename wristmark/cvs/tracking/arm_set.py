@@ -5,8 +5,8 @@ that was tracked is searched in its own boxes only (``roi_only``; the arms side 
 worker threads); then the arms still missing are searched in whole frames in which the sleeves
 already found in this pair are painted out (the search finds one chain, the longest: a second
 sleeve is found only once the first is gone); an arm missing from pair to pair is searched for
-so in every ``search_every``-th pair only (a whole-frame search costs several ROI searches). A
-pose counts for an arm only when the sleeve's code says it is that arm (``res.code.arm``): a
+again in the next pair, then in every ``search_every``-th pair only (a whole-frame search costs
+several ROI searches). A pose counts for an arm only when the sleeve's code says it is that arm (``res.code.arm``): a
 chain that an arm's boxes caught on another arm's sleeve (crossing, touching), or a sleeve
 whose code cannot be decided (too few code cells seen), is no arm's. So identities never swap:
 a sleeve is reported as an arm only on its own code, and the code's single-error margin holds
@@ -138,11 +138,12 @@ class ArmSetTracker:
             else:  # lost, or its boxes caught another sleeve: searched again below
                 trk.reset()
         pending = [a for a in self.arms if a not in results]
-        # arms missing in the last pair too are searched for in every ``search_every``-th pair only
-        # (a whole-frame search per missing sleeve costs several times an ROI search)
+        # arms missing in the last pair too (after one more search: a sleeve lost for one pair is
+        # usually found in the next) are searched for in every ``search_every``-th pair only (a
+        # whole-frame search per missing sleeve costs several times an ROI search)
         still = bool(pending) and set(pending) <= self._missing_last
         self._pairs_missing = self._pairs_missing + 1 if still else 0
-        if still and self._pairs_missing % self.search_every:
+        if still and self._pairs_missing > 1 and self._pairs_missing % self.search_every:
             return {a: self._own(a, results[a]) if a in results else self._missing("not in view (searched for "
                     f"every {self.search_every} pairs)") for a in self.arms}
         self._missing_last = set(pending)  # what the whole-frame search below does not find stays missing

@@ -1,10 +1,12 @@
 """`wristmark servo --scene SCENE --serial NAME=PORT ...`: bad input is refused in one line (exit 2)
 before any motion command: options that mean nothing with a scene, a missing, unknown or repeated
-arm, a port given twice, a box that does not answer."""
+arm, a port given twice, a box that does not answer, a bad --target NAME=SPEC (unknown or
+repeated arm, stdin for two arms, not loopback, a port taken)."""
 
 from __future__ import annotations
 
 import os
+import socket
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -43,7 +45,16 @@ def refused(capsys: pytest.CaptureFixture[str], *argv: str) -> str:
     (["--serial", "a={A}", "--serial", "c=/dev/pts/99"], "no arm 'c' in the scene"),
     (["--serial", "a={A}", "--serial", "b={A}"], "given for both 'a' and 'b'"),
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--robot", "configs/robot.yaml"], "--robot"),
-    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--target", "stdin"], "--target"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--target", "stdin"], "each arm's targets are NAME=SPEC"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--target", "c=stdin"], "no arm 'c' in the scene"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--target", "a=stdin", "--target", "a=tcp:0"],
+     "arm 'a' given twice"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--target", "a=stdin", "--target", "b=stdin"],
+     "stdin given for both 'a' and 'b'"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--target", "a=tcp:10.0.0.1:5000"], "loopback only"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--target", "a=tcp:127.0.0.1:http"], "PORT must be"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--target", "a=cube"], "stdin or tcp:127.0.0.1:PORT"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--target", "a=tcp:0", "--hold", "a"], "also in --hold"),
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--view-hold", "2"], "--view-hold"),
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--hold", "c"], "--hold c: no such arm"),
 ])
@@ -56,6 +67,19 @@ def test_bad_scene_input_is_refused_in_one_line_and_nothing_reaches_the_box(
     assert em.received == []  # refused before any port was opened
 
 
+def test_a_target_port_already_taken_is_refused_naming_its_arm_before_any_box_opens(
+        capsys: pytest.CaptureFixture[str], box_a: tuple[RecordingEmulator, str], tmp_path: Path) -> None:
+    em, path = box_a
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen(1)
+        port = taken.getsockname()[1]
+        err = refused(capsys, "--scene", SCENE, "--serial", f"a={path}", "--serial", "b=/dev/pts/99", *CAMERA,
+                      "--target", f"b=tcp:127.0.0.1:{port}", "--out", str(tmp_path / "run"))
+    assert f"tcp:127.0.0.1:{port}: cannot listen" in err
+    assert em.received == []
+
+
 def test_without_a_camera_or_a_calibration_the_scene_is_refused(capsys: pytest.CaptureFixture[str]) -> None:
     err = refused(capsys, "--scene", SCENE, "--serial", "a=/dev/pts/98", "--serial", "b=/dev/pts/99",
                   "--camera", "http://127.0.0.1:9/x")
@@ -65,6 +89,7 @@ def test_without_a_camera_or_a_calibration_the_scene_is_refused(capsys: pytest.C
 def test_several_boxes_or_hold_need_a_scene(capsys: pytest.CaptureFixture[str]) -> None:
     assert "need --scene" in refused(capsys, "--serial", "/dev/pts/98", "--serial", "/dev/pts/99", *CAMERA)
     assert "--hold needs --scene" in refused(capsys, "--hold", "a")
+    assert "targets need --scene" in refused(capsys, "--target", "stdin", "--target", "tcp:127.0.0.1:0")
 
 
 def test_a_box_that_does_not_answer_is_refused_naming_its_arm_and_no_box_is_enabled(

@@ -1,13 +1,17 @@
 """The virtual lab of a scene (`wristmark emulator --scene SCENE --pty --camera-port 0`, sim/scene_lab.py):
 one actuator box per arm on its own pty and one endoscope showing every arm; the hardware path
 `wristmark servo --scene SCENE --serial NAME=PORT ...` against it in another process (which never
-imports the simulated bench), each arm's true tip from the lab's truth CSV."""
+imports the simulated bench), each arm's true tip from the lab's truth CSV; one arm steered by
+live targets over TCP (`--target NAME=tcp:127.0.0.1:0`) while the other holds."""
 
 from __future__ import annotations
 
 import json
+import re
+import socket
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -205,3 +209,89 @@ def test_an_emergency_stop_on_one_box_stops_every_arm_safely(tmp_path: Path) -> 
     assert "\n" not in line and "emergency stop: arm 'b'" in line and "arm a at" in line and "arm b at" in line
     assert b.estopped and not b.enabled
     assert not a.enabled and not a.watchdog_tripped and not a.estopped  # a held and disabled by the host
+
+
+def send_targets(port: int, lines: list[bytes], last: bytes, stop: threading.Event) -> int:
+    """Connect to a host's target server on loopback, send ``lines`` 0.2 s apart, then ``last``
+    at 10 Hz until ``stop`` or the host closes; returns how many target lines went out."""
+    sent = 0
+    try:
+        with socket.create_connection(("127.0.0.1", port), timeout=5) as conn:
+            for line in lines:
+                conn.sendall(line)
+                sent += 1
+                time.sleep(0.2)
+            while not stop.is_set():
+                conn.sendall(last)
+                sent += 1
+                time.sleep(0.1)
+    except OSError:
+        pass
+    return sent
+
+
+@pytest.mark.slow
+@pytest.mark.network
+@pytest.mark.wallclock
+def test_servo_scene_arm_a_follows_its_live_targets_over_tcp_while_b_holds(
+        scene_lab: tuple[dict[str, str], str, Path, Path], tmp_path: Path) -> None:
+    """a's targets come over TCP (PORT 0: the port on stderr naming the arm): one malformed line
+    (dropped), one far outside the workspace (clamped), then a few mm away; b holds its centre."""
+    from tests.cli.test_cli_servo_live import no_probe_controller
+    from wristmark.rig.loop.arm_set_session import load_scene_setups
+    from wristmark.rig.recording.run_log import read_log_csv
+    from wristmark.rig.targets.trajectories import workspace_centre
+
+    ptys, url, truth, calib = scene_lab
+    scene = Scene.load(SCENE)
+    a, b = scene.arms
+    setups, _ = load_scene_setups(scene, calib)
+    centre = {n: workspace_centre(s.params, scene.cube_size) for n, s in setups.items()}  # each in its arm's {w}
+    goal = centre["a"] + np.array([0.003, 0.0, 0.003])
+    steps = [centre["a"] + np.array([0.0015, 0.0, 0.0]), centre["a"] + np.array([0.003, 0.0, 0.0015])]
+    lines = [b"not json\n", json.dumps({"p": (centre["a"] + [0.1, 0.0, 0.0]).tolist()}).encode() + b"\n",
+             *[json.dumps({"p": p.tolist()}).encode() + b"\n" for p in steps]]
+    last = json.dumps({"p": goal.tolist()}).encode() + b"\n"
+    out = tmp_path / "run"
+    t0 = time.monotonic()
+    host = subprocess.Popen(
+        [sys.executable, "-c", NO_SIM, "servo", "--scene", SCENE, "--serial", f"a={ptys['a']}", "--serial",
+         f"b={ptys['b']}", "--camera", url, "--calib", str(calib), "--image-scale", str(SCALE), "--target",
+         "a=tcp:127.0.0.1:0", "--hold", "b", "--duration", "3", "--settle", "0.3", "--target-timeout", "1",
+         "--controller-config", str(no_probe_controller(tmp_path)), "--out", str(out), "--no-progress", *RT_HOST],
+        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert host.stderr is not None
+    first = host.stderr.readline()  # before any box opens
+    m = re.fullmatch(r"wristmark servo: arm a taking targets on tcp:127\.0\.0\.1:(\d+)\n", first)
+    assert m, first + host.communicate(timeout=60)[1]
+    stop = threading.Event()
+    sent: list[int] = []
+    sender = threading.Thread(target=lambda: sent.append(send_targets(int(m.group(1)), lines, last, stop)))
+    sender.start()
+    try:
+        stdout, err = host.communicate(timeout=90)
+    finally:
+        stop.set()
+        sender.join(5)
+    assert host.returncode == 0, stdout + err
+    res = json.loads((out / "result.json").read_text())
+    arm_a, arm_b = res["arms"]["a"], res["arms"]["b"]
+    assert (arm_a["walk"], arm_b["walk"]) == ("tcp", "hold") and "targets" not in arm_b
+    tg = arm_a["targets"]
+    assert tg["source"] == f"tcp:127.0.0.1:{m.group(1)}" and tg["dropped"] == 1 and tg["reasons"] == {"not JSON": 1}
+    assert tg["clamped"] == 1 and tg["holds"] == 0 and len(lines) + 1 <= tg["received"] <= sent[0] - 1
+    t, tips = read_scene_truth_csv(truth)
+    log_a = read_log_csv(out / "log_a.csv")
+    end = float(np.asarray(log_a["t"], float)[-1])
+    inv = np.linalg.inv(a.base)  # a's true tip at its last cycle, in a's {w}
+    tip_a = inv[:3, :3] @ np.array([np.interp(end, t, tips["a"][:, i]) for i in range(3)]) + inv[:3, 3]
+    print(f"a: true tip {1000 * np.linalg.norm(tip_a - goal):.3f} mm from its last target, "
+          f"{1000 * np.linalg.norm(tip_a - centre['a']):.3f} mm from its centre; "
+          f"run took {time.monotonic() - t0:.1f} s")
+    assert np.linalg.norm(tip_a - goal) < 1e-3 and np.linalg.norm(tip_a - centre["a"]) > 3e-3
+    err_b = scene_true_tip_errors(out / "log_b.csv", truth, "b", b.base)  # vs b's centre (its desired tip)
+    err_b = err_b[np.isfinite(err_b)]
+    print(f"b: true tip from its centre median {1000 * np.median(err_b):.3f} mm, max {1000 * err_b.max():.3f} mm")
+    assert err_b.size >= 30 and 1000 * np.median(err_b) < 1.0 and 1000 * err_b.max() < 3.0
+    p_des_b = np.stack([np.asarray(read_log_csv(out / "log_b.csv")[f"p_des_{x}"], float) for x in "xyz"], axis=1)
+    np.testing.assert_allclose(p_des_b, np.tile(centre["b"], (len(p_des_b), 1)), atol=1e-9)

@@ -66,6 +66,7 @@ from wristmark.rig.loop.servo_summary import percentiles_ms, summarize
 from wristmark.rig.recording.output_dir import claim_outputs
 from wristmark.rig.recording.run_log import write_json
 from wristmark.rig.targets.live_target import (
+    LIVE_DURATION_S,
     LIVE_KINDS,
     MAX_SPEED,
     TARGET_TIMEOUT_S,
@@ -74,7 +75,7 @@ from wristmark.rig.targets.live_target import (
     LiveTrajectory,
     Workspace,
     live_trajectory,
-    open_line_source,
+    open_live_targets,
     parse_target_spec,
 )
 from wristmark.rig.targets.orientation_path import ORIENTATION_MODES, check_orientation_mode
@@ -84,7 +85,6 @@ if TYPE_CHECKING:
     from wristmark.rig.loop.loop_setup import LoopSetup
 
 Array = NDArray[np.float64]
-LIVE_DURATION_S = 60.0  # [s] default run time with live targets
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -131,11 +131,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         f"{SIM_TIMEOUT_S} simulated)")
     p.add_argument("--trajectory", choices=("cube", "point"),
                    help="cube: the paper's cube walk (default); point: hold --point (same as --target)")
-    p.add_argument("--target", metavar="SPEC",
+    p.add_argument("--target", metavar="SPEC", action=SerialPorts,
                    help="what the tip follows: cube | point (built-in, as --trajectory) | stdin | "
                         "tcp:127.0.0.1:PORT (JSON lines {\"t\": s, \"p\": [x, y, z], \"q\": [qx, qy, qz, qw]}, p in "
                         "{w} in metres, q optional; PORT 0: any free port, printed on stderr) | ros2 (NS/servo_cp, "
-                        "needs --ros2); live targets: clamped to the workspace, speed bounded, held when silent")
+                        "needs --ros2); live targets: clamped to the workspace, speed bounded, held when silent. "
+                        "With --scene: NAME=SPEC (stdin for one arm at most, or tcp:127.0.0.1:PORT), repeatable; "
+                        "the other arms follow --trajectory or --hold")
+    p.set_defaults(targets=None)
     p.add_argument("--ros2", nargs="?", const="wristmark", metavar="NS",
                    help="join the ROS 2 graph (Cyclone DDS, no ROS needed; loopback only unless CYCLONEDDS_URI "
                         "says otherwise): publish NS/measured_cp, NS/measured_js, NS/setpoint_js; with --target "
@@ -175,14 +178,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 class SerialPorts(argparse.Action):
-    """``--serial PORT``, repeatable for ``--scene`` (``NAME=PORT``): every value in ``serials``,
-    the first in ``serial``."""
+    """``--serial PORT`` (``--target SPEC``), repeatable for ``--scene`` (``NAME=PORT``,
+    ``NAME=SPEC``): every value in ``serials`` (``targets``), the first in ``serial`` (``target``)."""
 
     def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: Any,
                  option_string: str | None = None) -> None:
-        namespace.serials = [*(getattr(namespace, "serials", None) or []), values]
-        if getattr(namespace, "serial", None) is None:
-            namespace.serial = values
+        setattr(namespace, f"{self.dest}s", [*(getattr(namespace, f"{self.dest}s", None) or []), values])
+        if getattr(namespace, self.dest, None) is None:
+            setattr(namespace, self.dest, values)
 
 
 # -- command line ------------------------------------------------------------------------------
@@ -348,12 +351,8 @@ def open_targets(args: argparse.Namespace, setup: LoopSetup, traj: Trajectory, p
     attached to the trajectory; built-in trajectories are returned as they are."""
     if not isinstance(traj, LiveTrajectory):
         return traj, None, None
-    targets = LiveTargets(Workspace.around(traj.waypoints[0]), timeout=args.target_timeout,
-                          name=f"--target {args.target}")
-    source = open_line_source(traj.kind, targets, port) if traj.kind in ("stdin", "tcp") else None
-    if source is not None and traj.kind == "tcp":
-        print(f"wristmark servo: taking targets on {source.describe}", file=sys.stderr, flush=True)
-    return traj.with_follower(targets, args.max_speed), targets, source
+    return open_live_targets(traj, Workspace.around(traj.waypoints[0]), port, args.target_timeout,
+                             args.max_speed, f"--target {args.target}")
 
 
 def check_ros2(namespace: str, what: str = "--ros2") -> None:
@@ -391,6 +390,9 @@ def run(args: argparse.Namespace) -> int:
     if args.serials and len(args.serials) > 1:
         raise InputError(f"--serial given {len(args.serials)} times: several actuator boxes need --scene SCENE "
                          "(--serial NAME=PORT per arm)")
+    if args.targets and len(args.targets) > 1:
+        raise InputError(f"--target given {len(args.targets)} times: several arms' targets need --scene SCENE "
+                         "(--target NAME=SPEC per arm)")
     check_link_options(args)
     setup = build_setup(args)
     target, port = target_kind(args)

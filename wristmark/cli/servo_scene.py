@@ -7,6 +7,11 @@ meaning with a scene, a missing, unknown or repeated arm, a port given twice, a 
 answer or does not fit its arm, a start out of reach or arms too close at their starts. The
 output folder (``--out``) has config.json, log_<arm>.csv per arm and result.json (per arm the
 one-arm servo's fields, and the clearance); exit 3 when an arm stopped safely.
+
+``--target NAME=SPEC`` (stdin for one arm at most, or ``tcp:127.0.0.1:PORT``): that arm follows
+live targets in its own {w} as the one-arm servo does (rig.targets.live_target: speed bound,
+workspace clamp, hold when silent, malformed lines dropped and counted; its counts in its
+``targets`` of result.json); the others walk ``--trajectory`` or ``--hold``.
 """
 
 from __future__ import annotations
@@ -21,7 +26,7 @@ import numpy as np
 
 from wristmark.models.errors import InputError
 
-SCENE_REFUSED = ("robot", "marker", "plant", "model", "registration", "open_loop_on_lost", "point", "target",
+SCENE_REFUSED = ("robot", "marker", "plant", "model", "registration", "open_loop_on_lost", "point",
                  "view", "record", "record_jpeg", "ros2", "actuator", "no_operating_state", "direct", "realtime",
                  "pace", "latency", "sensor", "host")
 
@@ -35,7 +40,7 @@ def check_scene_options(args: argparse.Namespace) -> None:
         given.append("--view-hold")
     if given:
         raise InputError(f"{', '.join(given)}: not with --scene (each arm's files are named in the scene file; "
-                         "each arm walks its own cube or holds its centre, position only)")
+                         "each arm walks its own cube, holds its centre or follows --target NAME=SPEC; position only)")
     if not args.serials or not args.camera or not args.calib:
         raise InputError("--scene on the hardware path needs --serial NAME=PORT for every arm, --camera SPEC and "
                          "--calib C (world_T_left in the scene's {w}: the virtual lab's --calib-out)")
@@ -52,23 +57,36 @@ def run_scene(args: argparse.Namespace) -> int:
         load_scene_setups,
         open_arm_set_session,
         parse_serial_specs,
+        parse_target_specs,
         run_arm_set,
         start_gap,
     )
     from wristmark.rig.loop.scene_file import Scene
     from wristmark.rig.loop.servo_session import LinkOptions
     from wristmark.rig.recording.output_dir import claim_outputs
+    from wristmark.rig.targets.live_target import (
+        LIVE_DURATION_S,
+        Workspace,
+        live_trajectory,
+        open_live_targets,
+    )
+    from wristmark.rig.targets.trajectories import workspace_centre
 
     check_scene_options(args)
     scene = Scene.load(args.scene)
     ports = parse_serial_specs(args.serials, scene.names)
+    hold = tuple(args.hold or ())
+    live = parse_target_specs(args.targets or (), scene.names, hold)  # {arm: (stdin | tcp, port)}
     setups, scene_camera = load_scene_setups(scene, args.calib, rig=args.rig, controller=args.controller_config)
     for n, s in setups.items():  # the command line's overrides; one grid for every arm (rig.loop.arm_set_session)
         s = apply_overrides(s, args, settle_time=args.settle)
         setups[n] = s.with_changes(rig=dataclasses.replace(s.rig, frame_phase_lock="none"))
-    hold = tuple(args.hold or ())
     trajs = arm_trajectories({n: s.params for n, s in setups.items()}, scene.cube_size,
                              args.trajectory or "cube", args.duration, hold)
+    centres = {n: workspace_centre(setups[n].params, scene.cube_size) for n in live}
+    length = args.duration if args.duration is not None else LIVE_DURATION_S
+    lives = {n: live_trajectory(centres[n], length, kind) for n, (kind, _) in live.items()}  # in its own {w}
+    trajs.update(lives)  # waiting at its centre for its targets
     psi0 = {}
     for n, s in setups.items():
         try:
@@ -87,16 +105,30 @@ def run_scene(args: argparse.Namespace) -> int:
         from wristmark.rig.loop.realtime_priority import request_realtime_priority
 
         request_realtime_priority(args.rt_priority)
-    session = open_arm_set_session(setups, ports, args.camera, scene_camera, options,
-                                   camera_timeout=args.camera_timeout)
-    from wristmark.rig.loop.heap_freeze import freeze_heap
+    stores, sources = {}, {}
+    try:
+        for n, (_, port) in live.items():  # each arm's own server (before any box opens: a port taken is exit 2)
+            trajs[n], stores[n], sources[n] = open_live_targets(
+                lives[n], Workspace.around(centres[n], scene.cube_size), port, args.target_timeout, args.max_speed,
+                f"arm {n}'s targets", who=f"arm {n} ")
+        session = open_arm_set_session(setups, ports, args.camera, scene_camera, options,
+                                       camera_timeout=args.camera_timeout)
+        from wristmark.rig.loop.heap_freeze import freeze_heap
 
-    freeze_heap()  # no full garbage collection of the start-up heap mid-run (rig.loop.heap_freeze)
-    clearance = scene.clearance + scene.clearance_margin if scene.clearance > 0 else 0.0
-    settle = next(iter(setups.values())).rig.settle_time
-    with sigterm_as_interrupt():
-        run = run_arm_set(setups, trajs, session, psi0, bases, clearance, settle)
+        freeze_heap()  # no full garbage collection of the start-up heap mid-run (rig.loop.heap_freeze)
+        clearance = scene.clearance + scene.clearance_margin if scene.clearance > 0 else 0.0
+        settle = next(iter(setups.values())).rig.settle_time
+        with sigterm_as_interrupt():
+            run = run_arm_set(setups, trajs, session, psi0, bases, clearance, settle)
+    finally:
+        for src in sources.values():
+            if src is not None:
+                src.close()
     res = scene_result(args, scene, setups, trajs, session, run, hold)
+    for n, store in stores.items():
+        src = sources[n]
+        res["arms"][n]["targets"] = {"source": src.describe if src is not None else live[n][0],
+                                     "max_speed_mps": args.max_speed, **store.report()}
     write_scene_outputs(args, scene, setups, ports, run, res)
     for n, a in res["arms"].items():
         c = a["closed_loop"]
@@ -117,11 +149,13 @@ def scene_result(args: argparse.Namespace, scene: Any, setups: dict[str, Any], t
     """The result JSON: per arm the one-arm servo's fields (rig.loop.servo_summary.summarize) and
     its walk, and the clearance kept between the arms' model bodies [mm]."""
     from wristmark.rig.loop.servo_summary import summarize
+    from wristmark.rig.targets.live_target import LiveTrajectory
 
     arms = {}
     for n, s in setups.items():
         view = session.sensor.view(n, np.asarray(s.host_camera.T_world_left, float))
-        arms[n] = {"walk": "hold" if n in hold else (args.trajectory or "cube"),
+        walk = trajs[n].kind if isinstance(trajs[n], LiveTrajectory) else args.trajectory or "cube"
+        arms[n] = {"walk": "hold" if n in hold else walk,
                    **summarize(s, trajs[n], session.arm_session(n, view), run.outcomes[n])}
     least = run.least_model_distance_m
     return {

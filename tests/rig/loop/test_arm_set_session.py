@@ -13,7 +13,12 @@ from wristmark.cvs.sources.frames import StereoFrame
 from wristmark.models.errors import ConfigError, InputError
 from wristmark.models.robot_params import RobotParams
 from wristmark.rig.loop.arm_clearance import bodies_at, least_distance
-from wristmark.rig.loop.arm_set_session import SharedFrameFeed, arm_trajectories, parse_serial_specs
+from wristmark.rig.loop.arm_set_session import (
+    SharedFrameFeed,
+    arm_trajectories,
+    parse_serial_specs,
+    parse_target_specs,
+)
 from wristmark.rig.loop.scene_file import Scene, pose_from_xyz_rpy
 from wristmark.rig.loop.servo_session import PointHold
 from wristmark.rig.targets.trajectories import workspace_centre
@@ -37,6 +42,30 @@ def test_each_arm_gets_its_own_port_in_the_scenes_order() -> None:
 def test_bad_serial_specs_are_refused_in_one_line_naming_the_cause(specs: list[str], cause: str) -> None:
     with pytest.raises(InputError) as e:
         parse_serial_specs(specs, NAMES)
+    assert cause in str(e.value) and "\n" not in str(e.value)
+
+
+def test_each_arm_named_gets_its_own_live_target_source() -> None:
+    assert parse_target_specs(["b=tcp:127.0.0.1:0", "a=stdin"], NAMES) == {"b": ("tcp", 0), "a": ("stdin", None)}
+    assert parse_target_specs(["a=tcp:5000"], NAMES, hold=("b",)) == {"a": ("tcp", 5000)}
+    assert parse_target_specs([], NAMES) == {}
+
+
+@pytest.mark.parametrize(("specs", "hold", "cause"), [
+    (["tcp:0"], (), "each arm's targets are NAME=SPEC"),
+    (["c=stdin"], (), "no arm 'c' in the scene"),
+    (["a=stdin", "a=tcp:0"], (), "arm 'a' given twice"),
+    (["a=stdin", "b=stdin"], (), "stdin given for both 'a' and 'b'"),
+    (["a=tcp:192.168.1.2:5000"], (), "loopback only"),
+    (["a=tcp:127.0.0.1:70000"], (), "PORT must be an integer"),
+    (["a=ros2"], (), "stdin or tcp:127.0.0.1:PORT"),
+    (["a=spline"], (), "--target must be"),
+    (["b=tcp:0"], ("b",), "also in --hold"),
+])
+def test_bad_target_specs_are_refused_in_one_line_naming_the_cause(specs: list[str], hold: tuple[str, ...],
+                                                                   cause: str) -> None:
+    with pytest.raises(InputError) as e:
+        parse_target_specs(specs, NAMES, hold)
     assert cause in str(e.value) and "\n" not in str(e.value)
 
 

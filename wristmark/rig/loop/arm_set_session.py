@@ -66,13 +66,14 @@ from wristmark.rig.loop.servo_session import (
 )
 from wristmark.rig.loop.tip_sensors import TipMeasurement, tip_measurement
 from wristmark.rig.recording.run_log import RunLog
+from wristmark.rig.targets.live_target import parse_target_spec
 from wristmark.rig.targets.trajectories import CUBE_SPEED, Trajectory, cube_trajectory, workspace_centre
 
 Array = NDArray[np.float64]
 SETTLE_AT_START_S = 2.0  # [s] every arm rests at its start after the ramp there (as ServoLoop.start_at)
 
 __all__ = ["ArmSetSession", "BudgetedArmSetSensor", "SharedFrameFeed", "arm_trajectories", "load_scene_setups",
-           "open_arm_set_session", "parse_serial_specs", "run_arm_set"]
+           "open_arm_set_session", "parse_serial_specs", "parse_target_specs", "run_arm_set"]
 
 
 # -- configuration ---------------------------------------------------------------------------
@@ -95,18 +96,27 @@ def load_scene_setups(scene: Scene, calib: str | Path, rig: str | Path | None = 
     return setups, cam
 
 
+def named_specs(option: str, specs: Sequence[str], names: Sequence[str], what: str) -> dict[str, str]:
+    """``NAME=VALUE`` of ``option`` -> {arm: value} in the order given; InputError (one line) for a
+    malformed spec (``what``: "box is NAME=PORT", say), an unknown arm or an arm given twice."""
+    out: dict[str, str] = {}
+    for spec in specs:
+        name, sep, value = spec.partition("=")
+        if not sep or not name or not value:
+            raise InputError(f"{option} {spec!r}: with --scene each {what} (arms: {', '.join(names)})")
+        if name not in names:
+            raise InputError(f"{option} {spec}: no arm '{name}' in the scene (arms: {', '.join(names)})")
+        if name in out:
+            raise InputError(f"{option}: arm '{name}' given twice")
+        out[name] = value
+    return out
+
+
 def parse_serial_specs(specs: Sequence[str], names: Sequence[str]) -> dict[str, str]:
     """``NAME=PORT`` per arm -> {arm: port} in the scene's order; InputError (one line) for a
     malformed spec, an unknown arm, an arm given twice, a port given twice or an arm missing."""
     ports: dict[str, str] = {}
-    for spec in specs:
-        name, sep, port = spec.partition("=")
-        if not sep or not name or not port:
-            raise InputError(f"--serial {spec!r}: with --scene each box is NAME=PORT (arms: {', '.join(names)})")
-        if name not in names:
-            raise InputError(f"--serial {spec}: no arm '{name}' in the scene (arms: {', '.join(names)})")
-        if name in ports:
-            raise InputError(f"--serial: arm '{name}' given twice")
+    for name, port in named_specs("--serial", specs, names, "box is NAME=PORT").items():
         if port in ports.values():
             other = next(n for n, p in ports.items() if p == port)
             raise InputError(f"--serial: port {port} given for both '{other}' and '{name}'")
@@ -116,6 +126,26 @@ def parse_serial_specs(specs: Sequence[str], names: Sequence[str]) -> dict[str, 
         raise InputError(f"--serial: no box for arm '{missing[0]}' (give --serial {missing[0]}=PORT for each of "
                          f"{', '.join(names)})")
     return {n: ports[n] for n in names}
+
+
+def parse_target_specs(specs: Sequence[str], names: Sequence[str], hold: Sequence[str] = ()
+                       ) -> dict[str, tuple[str, int | None]]:
+    """``--target NAME=SPEC`` -> {arm: (kind, TCP port)}, kind stdin (one arm at most) or tcp
+    (``tcp:127.0.0.1:PORT``, loopback only; PORT 0: any free port); InputError (one line) for a
+    bad spec, an unknown arm, an arm given twice or also held, stdin for two arms."""
+    out: dict[str, tuple[str, int | None]] = {}
+    for name, spec in named_specs("--target", specs, names, "arm's targets are NAME=SPEC").items():
+        kind, _, port = parse_target_spec(spec)
+        if kind not in ("stdin", "tcp"):
+            raise InputError(f"--target {name}={spec}: with --scene an arm's targets come from stdin or "
+                             "tcp:127.0.0.1:PORT (the others walk --trajectory or --hold)")
+        if kind == "stdin" and any(k == "stdin" for k, _ in out.values()):
+            other = next(n for n, (k, _) in out.items() if k == "stdin")
+            raise InputError(f"--target: stdin given for both '{other}' and '{name}' (one arm at most)")
+        if name in hold:
+            raise InputError(f"--target {name}={spec}: arm '{name}' is also in --hold (one or the other)")
+        out[name] = (kind, port)
+    return out
 
 
 def arm_trajectories(params: Mapping[str, Arm], cube_size: tuple[float, float, float], kind: str = "cube",

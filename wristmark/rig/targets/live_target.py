@@ -43,6 +43,7 @@ from wristmark.rig.targets.orientation_path import OrientationPath
 from wristmark.rig.targets.trajectories import CUBE_SIZE, Trajectory
 
 Array = NDArray[np.float64]
+LIVE_DURATION_S = 60.0  # [s] default run time with live targets
 TARGET_TIMEOUT_S = 0.2  # [s] a target stream silent for longer holds the arm
 MAX_SPEED = 0.02  # [m/s] default bound of the target's speed (the paper's cube runs at 10 mm/s)
 MAX_ANGULAR_SPEED = 0.5  # [rad/s] default bound of the target orientation's turn rate
@@ -490,6 +491,19 @@ class TcpTargets(LineSource):
                 s.close()
             except OSError:
                 pass
+
+
+def open_live_targets(traj: LiveTrajectory, workspace: Workspace, port: int | None, timeout: float,
+                      max_speed: float, name: str, who: str = ""
+                      ) -> tuple[LiveTrajectory, LiveTargets, LineSource | None]:
+    """``traj`` following a new target store (``workspace``, ``timeout`` [s], ``max_speed`` [m/s];
+    ``name`` in its warnings) fed by its stdin or TCP source (ros2: none here, the bridge feeds
+    it); a TCP server's address is printed on stderr (``who``: "arm a " with several arms)."""
+    targets = LiveTargets(workspace, timeout=timeout, name=name)
+    source = open_line_source(traj.kind, targets, port) if traj.kind in ("stdin", "tcp") else None
+    if source is not None and traj.kind == "tcp":
+        print(f"wristmark servo: {who}taking targets on {source.describe}", file=sys.stderr, flush=True)
+    return traj.with_follower(targets, max_speed), targets, source
 
 
 def open_line_source(kind: str, targets: LiveTargets, port: int | None = None) -> LineSource:

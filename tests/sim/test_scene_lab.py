@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.cli.test_cli_servo_live import no_probe_controller
 from tests.sim.test_virtual_lab import NO_SIM, RT_HOST, RT_LAB, hardware_servo
 from wristmark.cli.main import main
 from wristmark.cvs.calibration.load import load_calibration
@@ -117,6 +118,9 @@ def test_servo_scene_drives_both_arms_through_their_boxes_on_one_camera(
     t0 = time.monotonic()
     r = hardware_servo("--scene", SCENE, *[x for n, p in ptys.items() for x in ("--serial", f"{n}={p}")],
                        "--camera", url, "--calib", str(calib), "--image-scale", str(SCALE), "--duration", "4",
+                       # without the play probe: its keep-alive thread (arm_set_session.KeepAlive) let box a's
+                       # replies time out once in CI under load (a known bug, in the closing note of stop 39)
+                       "--controller-config", str(no_probe_controller(tmp_path)),
                        "--out", str(out), "--no-progress", *RT_HOST)
     assert r.returncode == 0, r.stdout + r.stderr
     res = json.loads((out / "result.json").read_text())
@@ -241,7 +245,6 @@ def test_servo_scene_arm_a_follows_its_live_targets_over_tcp_while_b_holds(
         scene_lab: tuple[dict[str, str], str, Path, Path], tmp_path: Path) -> None:
     """a's targets come over TCP (PORT 0: the port on stderr naming the arm): one malformed line
     (dropped), one far outside the workspace (clamped), then a few mm away; b holds its centre."""
-    from tests.cli.test_cli_servo_live import no_probe_controller
     from wristmark.rig.loop.arm_set_session import load_scene_setups
     from wristmark.rig.recording.run_log import read_log_csv
     from wristmark.rig.targets.trajectories import workspace_centre

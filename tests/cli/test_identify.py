@@ -28,8 +28,10 @@ def wristmark(*args: str, timeout: float = 240) -> subprocess.CompletedProcess[s
 
 def identify_on_the_bench_and_offline(tmp_path: Path, *options: str) -> tuple[dict, dict]:
     """(the model identify writes on the bench with ``options`` and --log, the one refitted
-    offline from that record)."""
-    r = wristmark("identify", "--plant", UNSEEN, *options, "--out", str(tmp_path / "m.yaml"),
+    offline from that record). Half-size frames: a quarter of the rendering and tracking; the
+    fits agree with full size's within the tolerances below (2026-12-04: gains 1.059 / 0.881,
+    rms 0.149 mm with 12 poses; stiffness 0.350 / 0.122, load 0.029 / 0.048 / -0.081 N)."""
+    r = wristmark("identify", "--plant", UNSEEN, *options, "--image-scale", "0.5", "--out", str(tmp_path / "m.yaml"),
                   "--log", str(tmp_path / "log"), "--no-progress")
     assert r.returncode == 0, r.stderr
     off = wristmark("identify", "--from-log", str(tmp_path / "log"), "--out", str(tmp_path / "m2.yaml"))
@@ -79,14 +81,16 @@ def test_the_hardware_path_never_imports_the_simulated_bench(tmp_path: Path) -> 
 def test_identify_offline_from_a_servo_run_of_the_unseen_arm(tmp_path: Path) -> None:
     # a closed-loop cube on the unseen plant (no excitation of its own): its log.csv keeps the box's
     # targets and encoders every cycle, and the tracked tips at their capture
-    run = wristmark("experiment", "cube", "--plant", UNSEEN, "--duration", "16", "--out", str(tmp_path / "run"),
-                    "--no-progress")
+    # (half-size frames: a quarter of the rendering and tracking, the same fit)
+    run = wristmark("experiment", "cube", "--plant", UNSEEN, "--duration", "16", "--image-scale", "0.5", "--out",
+                    str(tmp_path / "run"), "--no-progress")
     assert run.returncode == 0, run.stderr
     r = wristmark("identify", "--from-log", str(tmp_path / "run"), "--out", str(tmp_path / "m.yaml"))
     assert r.returncode == 0, r.stderr
     assert "servo run" in r.stderr
     model = yaml.safe_load((tmp_path / "m.yaml").read_text())
-    # measured: 301 tips, rms 0.046 mm, gains 1.069 / 0.885, offsets -0.064 / 0.065 rad, lag 0.071 s
+    # measured at half size (2026-12-04): 301 tips, rms 0.101 mm, gains 1.067 / 0.885, offsets -0.064 / 0.065 rad,
+    # lag 0.071 s (full size: rms 0.046 mm, the rest the same to 0.002)
     assert model["poses"] >= 200 and model["rms_m"] < 1.5e-4
     assert model["bend_gain"] == pytest.approx([1.06, 0.88], abs=0.02)  # the unseen plant's truth
     assert model["plane_offset"] == pytest.approx([-0.06, 0.08], abs=0.03)

@@ -163,7 +163,8 @@ def run(args: argparse.Namespace) -> int:
     setup = check_args(args)
     out = Path(args.out) if args.out else new_run_dir("runs", args.name)
     claim_outputs(dirs=[out], files=[args.json], force=args.force)
-    warm_up()  # OpenCV's threads and the tracker's kernels, before the first frame (cvs.tracking.warmup)
+    # OpenCV's threads and, for the vision sensor, the tracker's kernels before the first frame
+    warm_up(jit=setup.rig.sensor == "vision")  # (cvs.tracking.warmup)
     progress = not args.no_progress
     t0 = time.perf_counter()
     view = None

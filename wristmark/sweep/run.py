@@ -12,6 +12,7 @@ results.csv to run it again.
 from __future__ import annotations
 
 import csv
+import functools
 import io
 import json
 import logging
@@ -28,7 +29,15 @@ from typing import TYPE_CHECKING, Any
 from wristmark.models.errors import InputError
 from wristmark.sweep.keys import format_value
 from wristmark.sweep.spec import SweepSpec
-from wristmark.sweep.trial import THREAD_ENV, TrialJob, metric_columns, one_line, run_trial, warm_up
+from wristmark.sweep.trial import (
+    THREAD_ENV,
+    TrialJob,
+    metric_columns,
+    one_line,
+    run_trial,
+    tracks_frames,
+    warm_up,
+)
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -175,7 +184,7 @@ def run_sweep(spec: SweepSpec, out: Path, workers: int | None = None, scheduler:
                 tqdm(total=len(spec.trials), initial=len(done), unit="trial", desc="sweep", disable=not progress,
                      file=sys.stderr, dynamic_ncols=True) as bar:
             try:
-                client.run(warm_up)
+                client.run(functools.partial(warm_up, jit=any(tracks_frames(t.args) for t in todo)))
             except Exception as e:  # noqa: BLE001 - e.g. a remote worker without wristmark installed
                 raise InputError(f"the dask workers cannot prepare a trial: {one_line(f'{type(e).__name__}: {e}')}"
                                  ) from None

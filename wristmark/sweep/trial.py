@@ -62,18 +62,29 @@ def pin_threads() -> None:
     _pinned.append(threadpool_limits(limits=1))
 
 
-def warm_up() -> str:
+def warm_up(jit: bool = True) -> str:
     """Pin the threads and import what a trial needs (run on every worker before the trials, so
-    that a trial's wall time is its own); the worker's name."""
+    that a trial's wall time is its own), with ``jit`` the tracker's kernels too (trials that
+    track rendered frames); the worker's name."""
     pin_threads()
     import wristmark.cli.experiment  # noqa: F401
     import wristmark.cli.main  # noqa: F401
     import wristmark.sim.experiments  # noqa: F401
     from wristmark.cvs.tracking.warmup import warm_up as warm_up_process
 
-    warm_up_process()  # the tracker's kernels, loaded before the first trial (cvs.tracking.warmup)
+    warm_up_process(jit=jit)  # the tracker's kernels, loaded before the first trial (cvs.tracking.warmup)
 
     return worker_name()
+
+
+def tracks_frames(args: tuple[str, ...]) -> bool:
+    """Whether a trial with these ``wristmark experiment`` option words may track rendered frames:
+    every trial but those that ask for ``--sensor truth-noise`` (a rig file may still choose it)."""
+    words = list(args)
+    for k, w in enumerate(words):
+        if w == "--sensor=truth-noise" or (w == "--sensor" and words[k + 1 : k + 2] == ["truth-noise"]):
+            return False
+    return True
 
 
 @dataclass(frozen=True)

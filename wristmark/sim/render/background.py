@@ -3,6 +3,7 @@ branching vessels and specular glints, lit by the coaxial light (brighter in the
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import cv2
@@ -92,3 +93,13 @@ def stereo_backgrounds(
         rad = exposure * (alb * light[..., None] + 1.6 * gl[:, x0 : x0 + w, None] * light[..., None])
         out.append(np.ascontiguousarray(rad, dtype=np.float32))
     return out[0], out[1]
+
+
+@functools.lru_cache(maxsize=4)
+def seeded_stereo_backgrounds(
+    seed: int, size: tuple[int, int], disparity_px: float, exposure: float
+) -> tuple[F32, F32]:
+    """:func:`stereo_backgrounds` drawn from ``seed``'s own generator, built once per process for
+    each (seed, size, disparity, exposure) and shared: renderers of the same seed draw the same
+    tissue. Read-only: copy before writing into them."""
+    return stereo_backgrounds(np.random.default_rng([int(seed), 0]), size, disparity_px, exposure)

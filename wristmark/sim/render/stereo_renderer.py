@@ -42,14 +42,14 @@ from wristmark.sim.render.arm import (
     ArmPlan,
     Box,
     Capsule,
-    RayMap,
     Sleeve,
     glossy_materials,
     hidden_points,
     plan_arm,
+    ray_map,
     render_arm,
 )
-from wristmark.sim.render.background import stereo_backgrounds
+from wristmark.sim.render.background import seeded_stereo_backgrounds
 from wristmark.sim.render.optics import blur_radius, grow_box, optics_signal, optics_signal_box, vignetting_map
 from wristmark.sim.render.raycast import TILE
 from wristmark.sim.render.sensor import sensor_image
@@ -178,11 +178,10 @@ class StereoRenderer:
         self.marker = markers[0]
         self._count = 0
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="render-right")
-        right_map = self._pool.submit(RayMap, camera.right, camera.image_size)  # OpenCV releases the GIL
-        self._maps = (RayMap(camera.left, camera.image_size), right_map.result())
+        right_map = self._pool.submit(ray_map, camera.right, camera.image_size)  # OpenCV releases the GIL
+        self._maps = (ray_map(camera.left, camera.image_size), right_map.result())
         disparity = float(camera.left.K[0, 0]) * camera.baseline / 0.12  # tissue ~120 mm away
-        bg_rng = np.random.default_rng([self.seed, 0])
-        self._bg = stereo_backgrounds(bg_rng, camera.image_size, disparity, EXPOSURE * 0.9)
+        self._bg = seeded_stereo_backgrounds(self.seed, camera.image_size, disparity, EXPOSURE * 0.9)
         vig = vignetting_map(camera.image_size, settings.vignetting)
         self._vignette: NDArray[np.float32] = np.asarray(cv2.merge([vig] * 3), np.float32)
         # the background's optics, once (None: motion blur changes them every frame)

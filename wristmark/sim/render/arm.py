@@ -31,6 +31,7 @@ from wristmark.cvs.camera import Camera
 from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
 from wristmark.sim.render.culling import NEAR, cull_tiles
+from wristmark.sim.render.pixel_grid import undistorted_grid
 from wristmark.sim.render.raycast import CAPSULE_COLS, SLEEVE_COLS, TILE, ray_directions, raycast_tiles, trace
 
 Array = NDArray[np.float64]
@@ -92,11 +93,9 @@ class RayMap:
     def __init__(self, camera: Camera, image_size: tuple[int, int]) -> None:
         w, h = image_size
         ty, tx = -(-h // TILE), -(-w // TILE)
-        u, v = np.meshgrid(np.arange(-1.0, tx * TILE + 1.0), np.arange(-1.0, ty * TILE + 1.0))
-        xy = camera.undistort(np.column_stack([u.ravel(), v.ravel()]))
         self.size = (w, h)
         self.tiles = (ty, tx)
-        self.xy = np.ascontiguousarray(xy.reshape(ty * TILE + 2, tx * TILE + 2, 2), np.float64)
+        self.xy = undistorted_grid(camera, -1.0, -1.0, tx * TILE + 2, ty * TILE + 2)  # camera.undistort's numbers
         blk = self.xy[1:-1, 1:-1].reshape(ty, TILE, tx, TILE, 2).transpose(0, 2, 1, 3, 4).reshape(ty, tx, -1, 2)
         self.tile_lo = np.ascontiguousarray(blk.min(axis=2))
         self.tile_hi = np.ascontiguousarray(blk.max(axis=2))

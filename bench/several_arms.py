@@ -1,7 +1,7 @@
 """Benchmark: several sleeves tracked in one stereo pair (cvs.tracking.arm_set) against each arm alone.
 
 Usage: .venv/bin/python bench/several_arms.py [--scene configs/scenes/two_arms.yaml] [--sequences 20]
-       [--pairs 10] [--scale 1.0] [--seed 0] [--spread 0.06] [--by-pair FILE.jsonl]
+       [--pairs 10] [--scale 1.0] [--seed 0] [--spread 0.06] [--by-pair FILE.jsonl] [--save DIR]
 
 Rendered scenes (sim.render, 1080p at --scale 1) of the scene's arms in random poses: each
 sequence draws, per arm, a random configuration (its tip in a box 1.5 times the scene's cube

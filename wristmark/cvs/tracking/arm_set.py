@@ -269,7 +269,9 @@ class ArmSetTracker:
                             continue
                         if other[2][int(np.argmin(np.hypot(*(other[1] - c).T)))] < z_own:
                             k[i] = False
-                    if k[i] and _foreign_edge(images[v], c, own[0], r, self.edge_ratio):
+                    # (a window wholly inside the outline holds nothing outside it)
+                    if k[i] and cv2.pointPolygonTest(own[0], pt, True) < r and \
+                            _foreign_edge(images[v], c, own[0], r, self.edge_ratio):
                         k[i] = False
                 keep.append(k)
             if all(k.all() for k in keep):

@@ -1,7 +1,7 @@
 """Benchmark: several sleeves tracked in one stereo pair (cvs.tracking.arm_set) against each arm alone.
 
 Usage: .venv/bin/python bench/several_arms.py [--scene configs/scenes/two_arms.yaml] [--sequences 20]
-       [--pairs 10] [--scale 1.0] [--seed 0] [--spread 0.06]
+       [--pairs 10] [--scale 1.0] [--seed 0] [--spread 0.06] [--by-pair FILE.jsonl] [--save DIR]
 
 Rendered scenes (sim.render, 1080p at --scale 1) of the scene's arms in random poses: each
 sequence draws, per arm, a random configuration (its tip in a box 1.5 times the scene's cube
@@ -53,6 +53,10 @@ def main() -> None:
     ap.add_argument("--scale", type=float, default=1.0)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--spread", type=float, default=0.06)
+    ap.add_argument("--by-pair", default="", help="write one JSON line per pair and arm to this file (sequence, "
+                    "pair, tracked, tip errors together / alone [mm], hidden corners)")
+    ap.add_argument("--save", default="", help="save the scene images and truths of each sequence with a pose "
+                    "over 0.5 mm off or 0.1 mm worse than alone to DIR/seq_NN.npz (to replay them)")
     args = ap.parse_args()
     warm_up()
     setup = load_scene_setup(args.scene)
@@ -67,7 +71,8 @@ def main() -> None:
     swaps = wrong = wrong_alone = 0
     t_together: list[float] = []
     t_alone: list[float] = []
-    for _ in range(args.sequences):
+    rows: list[dict[str, Any]] = []
+    for seq in range(args.sequences):
         scene_trk = ArmSetTracker(cam, markers)
         alone_trk = [MarkerTracker(cam, m, family=markers) for m in markers]
         bases = []
@@ -84,6 +89,7 @@ def main() -> None:
         size = setup.scene.cube_size
         starts = [random_tip_psi(setup.arms[n].params, size, rng) for n in names]
         ends = [(q, random_tip_psi(setup.arms[n].params, size, rng, near=q)) for n, q in zip(names, starts)]
+        saved: list[Any] = []
         for k in range(args.pairs):
             f = k / max(1, args.pairs - 1)
             shapes = [transformed(arm_shape(setup.arms[n].params, (1 - f) * ends[i][0] + f * ends[i][1]), bases[i])
@@ -92,6 +98,8 @@ def main() -> None:
             t0 = time.perf_counter()
             res = scene_trk.track(scene.left, scene.right)
             t_together.append(1000 * (time.perf_counter() - t0))
+            if args.save:
+                saved.append(scene)
             for i, n in enumerate(names):
                 st = stats[n]
                 st["n"] += 1
@@ -107,6 +115,12 @@ def main() -> None:
                 if ok_alone and ra.tip_left is not None:
                     wrong_alone += int(float(np.linalg.norm(ra.tip_left - alone.tip_left)) > WRONG_M)
                 r = res[n]
+                ea = float(np.linalg.norm(ra.tip_left - alone.tip_left)) if ok_alone and ra.tip_left is not None \
+                    else None
+                et = float(np.linalg.norm(r.tip_left - truth.tip_left)) if r.ok and r.tip_left is not None else None
+                rows.append({"sequence": seq, "pair": k, "arm": n, "hidden": hidden, "reason": r.reason,
+                             "tip_mm_together": None if et is None else 1000 * et,
+                             "tip_mm_alone": None if ea is None else 1000 * ea})
                 if r.ok and r.tip_left is not None:
                     st["tracked_together"] += 1
                     e = float(np.linalg.norm(r.tip_left - truth.tip_left))
@@ -118,6 +132,10 @@ def main() -> None:
                         st["together"].append(e)
                         st["alone"].append(float(np.linalg.norm(ra.tip_left - alone.tip_left)))
                         st["hidden"].append(hidden)
+        if args.save and any(r["sequence"] == seq and r["tip_mm_together"] is not None and (
+                r["tip_mm_together"] > 1000 * WRONG_M or r["tip_mm_together"] > (r["tip_mm_alone"] or 0.0) + 0.1)
+                for r in rows):
+            _save(f"{args.save}/seq_{seq:02d}.npz", saved)
     out: dict[str, Any] = {"scene": args.scene, "pairs": args.sequences * args.pairs, "scale": args.scale,
                            "image_size": list(cam.image_size), "identity_swaps": swaps, "wrong": wrong,
                            "wrong_alone": wrong_alone, "arms": {}}
@@ -138,6 +156,20 @@ def main() -> None:
     med_t, med_a = float(np.median(t_together)), float(np.median(t_alone))
     out["time_ms"] = {"together_median": med_t, "one_arm_median": med_a, "ratio": med_t / med_a}
     print(json.dumps(out, indent=1))
+    if args.by_pair:
+        with open(args.by_pair, "w") as f:
+            f.writelines(json.dumps(row) + "\n" for row in rows)
+
+
+def _save(path: str, scenes: list[Any]) -> None:
+    """A sequence's scene images, true tips [m] and true corners [px] (with their occlusion flags)."""
+    np.savez_compressed(
+        path, left=np.stack([s.left for s in scenes]), right=np.stack([s.right for s in scenes]),
+        tips=np.array([[a.tip_left for a in s.arms] for s in scenes]),
+        corners=np.array([[[[c.uv for c in a.corners_left], [c.uv for c in a.corners_right]] for a in s.arms]
+                          for s in scenes]),
+        occluded=np.array([[[[c.occluded for c in a.corners_left], [c.occluded for c in a.corners_right]]
+                            for a in s.arms] for s in scenes]))
 
 
 def _split(together: np.ndarray, alone: np.ndarray) -> dict[str, Any]:

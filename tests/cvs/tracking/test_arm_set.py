@@ -110,3 +110,51 @@ def test_an_arm_missing_from_pair_to_pair_is_searched_for_in_the_next_pair_then_
     reasons = [trk.track(scene.left, scene.right)["b"].reason for _ in range(7)]
     skipped = [k for k, r in enumerate(reasons) if "every 3 pairs" in r]
     assert skipped == [2, 4, 5], reasons  # searched in pairs 0, 1 (the next pair), 3 and 6
+
+
+THREE = load_scene_setup("scenes/three_arms.yaml")
+
+
+def _three_arm_scene(seed: int = 0) -> RenderedScene:
+    """bench/several_arms.py's three-arm scene, seed 2, sequence 9, first pair (1080p): arm b's
+    sleeve behind arm a's (b's corners hidden, so b is not found) peeks out just beside a's corner
+    at a's silhouette in the left view."""
+    psi = {"a": [-0.07792, 0.04744, 0.67899, -0.02812, 0.89911, -0.01265],
+           "b": [-0.05468, 0.0521, 0.89327, 0.01419, 0.90415, 0.00656],
+           "c": [-0.11222, 0.04561, 0.78441, -0.09989, 0.90194, -0.04562]}
+    shift = {"a": [0.0, 0.0, 0.0], "b": [-0.0629, 0.01935, 0.0081], "c": [-0.05201, 0.01627, -0.00582]}
+    shapes = []
+    for n in THREE.names:
+        base = THREE.base(n).copy()
+        base[:3, 3] += shift[n]
+        shapes.append(transformed(arm_shape(THREE.arms[n].params, np.array(psi[n])), base))
+    return StereoRenderer(THREE.camera, THREE.markers, RenderSettings(), seed=seed).render_arms(shapes)
+
+
+def test_a_corner_another_arms_edge_reaches_is_left_out_of_the_pose() -> None:
+    """A corner whose fit window holds an edge of another sleeve (here one that is not found) is
+    pulled off by ~2 px, which the pose solve's outlier test keeps (0.5 mm off at the tip); the
+    arm set solves again without it."""
+    scene = _three_arm_scene()
+    truth = scene.arms[0].tip_left
+    res = ArmSetTracker(THREE.camera, THREE.markers, threads=False).track(scene.left, scene.right)
+    assert res["a"].ok and np.linalg.norm(res["a"].tip_left - truth) < 1.5e-4
+    assert res["a"].ids_left is not None and (res["a"].ids_left == -1).any()  # the corner left out
+    before = ArmSetTracker(THREE.camera, THREE.markers, threads=False, clear_px=0.0).track(scene.left, scene.right)
+    assert before["a"].ok and np.linalg.norm(before["a"].tip_left - truth) > 3e-4  # the case still tests it
+
+
+def test_a_refit_keeps_the_code_and_refuses_too_few_corners() -> None:
+    scene = _render([HOME, _b_at(0.2)])
+    trk = ArmSetTracker(CAM, SETUP.markers, clear_px=0.0)
+    res = trk.track(scene.left, scene.right)["a"]
+    one = trk.trackers["a"]
+    kl, kr = np.ones(len(res.corners_left), bool), np.ones(len(res.corners_right), bool)
+    same = one.refit(res, kl, kr)
+    assert same is not None and np.linalg.norm(same.tip_left - res.tip_left) < 1e-6
+    kl[np.flatnonzero(res.match.index_left >= 0)[0]] = False
+    less = one.refit(res, kl, kr)
+    assert less is not None and less.roll_known and less.ids_left is not None and (less.ids_left == -1).any()
+    assert np.linalg.norm(less.tip_left - scene.arms[0].tip_left) < 2e-4
+    kl[:] = False
+    assert one.refit(res, kl, kr) is None

@@ -193,6 +193,46 @@ class MarkerTracker:
         self._last_oriented = res.ok
         return res
 
+    def refit(self, res: TrackResult, keep_left: NDArray[np.bool_], keep_right: NDArray[np.bool_],
+              max_sigma_ratio: float = float("inf")) -> TrackResult | None:
+        """A good coded result solved again without some of its corners (``keep_*``: per corner of
+        ``res.corners_left`` / ``right``; cvs.tracking.arm_set leaves out those another arm's
+        edges reach): the same pose gates, the code's absolute frame kept (the corners left out are
+        ``ids`` -1). None when the result has no code's frame, too few corners stay, or a gate
+        fails, or when the corners left fix the tip more than ``max_sigma_ratio`` times worse than
+        all of them (cvs.tracking.tip_uncertainty). The tracker's state (ROIs, previous pose) is
+        not changed."""
+        code, m, s = res.code, res.match, self.settings
+        if not (res.ok and res.roll_known and code is not None and code.T_fit_abs is not None and m is not None):
+            return None
+        kl, kr = (m.index_left >= 0) & keep_left, (m.index_right >= 0) & keep_right
+        pairs = m.pairs[kl[m.pairs[:, 0]] & kr[m.pairs[:, 1]]]
+        if min(int(kl.sum()), int(kr.sum())) < s.min_corners or pairs.shape[0] < s.min_pairs:
+            return None
+        idx_l, ul = m.index_left[kl], res.corners_left[kl]
+        idx_r, ur = m.index_right[kr], res.corners_right[kr]
+        assert res.pose is not None
+        pose = self.solver.solve(idx_l, ul, idx_r, ur, res.pose.T_fit)
+        kept = (self._last_shift, self._last_fit_px)
+        sub = replace(m, index_left=np.where(kl, m.index_left, -1), index_right=np.where(kr, m.index_right, -1),
+                      pairs=pairs)
+        used_l, used_r = m.index_left >= 0, m.index_right >= 0
+        sigma = self._tip_sigma(pose, idx_l, idx_r)
+        bad = (not pose.rms_px <= s.max_rms_px or not self._faces_cameras(pose, idx_l, idx_r)
+               or sigma > s.max_tip_sigma_m
+               or sigma > max_sigma_ratio * self._tip_sigma(res.pose, m.index_left[used_l], m.index_right[used_r])
+               or self._single_view_shift(pose, idx_l, ul, idx_r, ur, sub) > s.max_single_view_shift_m)
+        self._last_shift, self._last_fit_px = kept
+        if bad:
+            return None
+        T = pose.T_fit @ code.T_fit_abs
+        tip_left, tip_world = self.solver._tips(T)
+        pose = replace(pose, T_left_marker=T, tip_left=tip_left, tip_world=tip_world)
+        n = self.marker.columns
+        return replace(res, tip_left=tip_left, tip_world=tip_world, T_left_marker=T, pose=pose, rms_px=pose.rms_px,
+                       match=sub, ids_left=code.absolute_ids(sub.index_left, n),
+                       ids_right=code.absolute_ids(sub.index_right, n))
+
     def _retry_with_gaps(self, res: TrackResult, t0: float) -> TrackResult:
         """A pair lost for too few corners: a highlight over the corner each camera sees best
         breaks the chain in two. One more try with the chains of each view's last search that

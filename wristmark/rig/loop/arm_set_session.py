@@ -14,15 +14,14 @@ the cycle (:class:`SharedFrameFeed`) and the one tracking of every sleeve in it
 Stops: an arm whose marker stays lost (rig ``max_lost_cycles``) is held and disabled alone, the
 others walk on; a camera that stalls, a box that stops answering, an emergency stop, a watchdog
 trip or Ctrl-C hold and disable every arm. A controller that probes its play (rig/loop/play_probe.py)
-probes it one arm at a time after the settle, the other boxes polled meanwhile from a thread
-(:class:`KeepAlive`), as the simulated bench does one arm at a time. No frame phase lock: one
-grid for every arm.
+probes it one arm at a time after the settle, as the simulated bench does; the other boxes are
+polled meanwhile from the probe's own cycles (:class:`FeedingLink`: no second thread touches a
+link). No frame phase lock: one grid for every arm.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import threading
 import time
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
@@ -40,7 +39,7 @@ from wristmark.models.actuation import psi_from_actuators
 from wristmark.models.arm_spec import Arm
 from wristmark.models.errors import ConfigError, InputError, WristmarkError
 from wristmark.models.limits import clamp_psi
-from wristmark.rig.link.serial_link import SerialLink
+from wristmark.rig.link.serial_link import KEEPALIVE_S, SerialLink
 from wristmark.rig.loop.arm_clearance import bodies_at, least_distance, model_bodies, model_offsets, set_obstacles
 from wristmark.rig.loop.arm_set_sensor import ArmSensorView, ArmSetSensor
 from wristmark.rig.loop.frame_feed import LatestFrameFeed
@@ -296,47 +295,91 @@ class _BudgetedView(ArmSensorView):
 
 @contextmanager
 def on_arm(name: str) -> Iterator[None]:
-    """An actuator box's error raised again naming its arm (the same type: the stop's cause)."""
+    """An actuator box's error raised again naming its arm (the same type: the stop's cause); one
+    that names its arm already (another box's, fed from this arm's cycles) passes unchanged."""
     from wristmark.rig.link.actuator_driver import ActuatorError
 
     try:
         yield
     except ActuatorError as e:
-        raise type(e)(f"arm '{name}': {e}") from None
+        if getattr(e, "arm", None) is not None:
+            raise
+        named = type(e)(f"arm '{name}': {e}")
+        named.arm = name  # type: ignore[attr-defined]
+        raise named from None
 
 
-class KeepAlive:
-    """Keeps boxes fed from a thread of its own (GET_STATE every ``period`` [s], under their 250 ms
-    watchdog) while the caller drives another arm alone; the first error (a box that stopped
-    answering, an emergency stop) is raised by :meth:`__exit__`. Only this thread may touch those
-    links meanwhile."""
+class FeedingLink:
+    """Arm ``name``'s link while its loop runs cycles alone (its play probe), feeding the other
+    boxes (``others``, by arm) from the same thread: whenever the probed arm's box is talked to
+    (its time run on, in steps of at most ``keepalive_s``; a command; an encoder reading; a hold),
+    every other box gets a GET_STATE right after, checked as a cycle's poll is (an emergency stop,
+    a fault or a watchdog trip raises at once, naming its arm). So no other box is ever silent
+    longer than the probed arm's own, and no second thread touches a link or waits for a reply
+    behind the loop's work (a keep-alive thread did: under load its replies were read late, and
+    a box was reported "not answering")."""
 
-    def __init__(self, links: Mapping[str, SerialLink], period: float = 0.1) -> None:
-        self.links, self.period = dict(links), float(period)
-        self.error: BaseException | None = None
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="keep-boxes-fed", daemon=True)
+    def __init__(self, link: Any, others: Mapping[str, SerialLink], keepalive_s: float = KEEPALIVE_S) -> None:
+        self.link = link
+        self.others = dict(others)
+        self.keepalive_s = float(keepalive_s)
 
-    def _run(self) -> None:
-        while not self._stop.wait(self.period):
-            for name, link in self.links.items():
-                try:
-                    with on_arm(name):
-                        link.measured_actuators()
-                except Exception as e:  # noqa: BLE001 - handed to the caller's thread
-                    self.error = self.error or e
+    @property
+    def wrapped(self) -> Any:
+        """The probed arm's own link (rig.link.actuator_link.box_actuators)."""
+        return self.link
 
-    def __enter__(self) -> KeepAlive:
-        if self.links:
-            self._thread.start()
-        return self
+    @property
+    def time(self) -> float:
+        """The probed arm's link's time [s]."""
+        return float(self.link.time)
 
-    def __exit__(self, *exc: object) -> None:
-        self._stop.set()
-        if self._thread.is_alive():
-            self._thread.join(2.0)
-        if self.error is not None and exc[0] is None:
-            raise self.error
+    def feed(self) -> None:
+        """One GET_STATE to every other box, checked (its time run on to now: no wait)."""
+        for name, other in self.others.items():
+            with on_arm(name):
+                other.advance_to(other.time)
+
+    def advance_to(self, t: float) -> None:
+        """Let time run to ``t`` [s] in steps of at most ``keepalive_s``, the others fed after each."""
+        while True:
+            step = min(t, self.link.time + self.keepalive_s)
+            self.link.advance_to(step)
+            self.feed()
+            if step >= t:
+                return
+
+    def send_target(self, actuators: Array) -> None:
+        """Command the probed arm, then feed the others."""
+        self.link.send_target(actuators)
+        self.feed()
+
+    def hold(self) -> None:
+        """Hold the probed arm, then feed the others."""
+        self.link.hold()
+        self.feed()
+
+    def measured_actuators(self) -> Array:
+        """The probed arm's encoders, then the others fed."""
+        out = np.asarray(self.link.measured_actuators(), float)
+        self.feed()
+        return out
+
+    def close(self) -> None:
+        """Close the probed arm's link."""
+        self.link.close()
+
+
+@contextmanager
+def feeding_others(loop: ServoLoop, others: Mapping[str, SerialLink]) -> Iterator[FeedingLink]:
+    """While the block runs ``loop`` alone, its link is a :class:`FeedingLink` feeding ``others``."""
+    own = loop.link
+    feeding = FeedingLink(own, others)
+    loop.link = feeding
+    try:
+        yield feeding
+    finally:
+        loop.link = own
 
 
 # -- the session --------------------------------------------------------------------------------
@@ -542,7 +585,7 @@ def _walk(loops: Mapping[str, ServoLoop], trajs: Mapping[str, Trajectory], sessi
             continue
         others = {m: session.links[m] for m in active if m != n}
         try:
-            with KeepAlive(others), session.feed.solo(), on_arm(n):
+            with feeding_others(loops[n], others), session.feed.solo(), on_arm(n):
                 loops[n].advance_to(time.monotonic())  # its cycles from now (an arm probed before took seconds)
                 settle[n] = loops[n].probe_play(trajs[n], "servo", run.outcomes[n].log, stats[n], memory[n],
                                                 settle[n])

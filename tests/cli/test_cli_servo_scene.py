@@ -1,7 +1,8 @@
 """`wristmark servo --scene SCENE --serial NAME=PORT ...`: bad input is refused in one line (exit 2)
 before any motion command: options that mean nothing with a scene, a missing, unknown or repeated
 arm, a port given twice, a box that does not answer, a bad --target NAME=SPEC (unknown or
-repeated arm, stdin for two arms, not loopback, a port taken)."""
+repeated arm, stdin for two arms, not loopback, a port taken), a --record that is not a new .mcap
+file."""
 
 from __future__ import annotations
 
@@ -57,6 +58,9 @@ def refused(capsys: pytest.CaptureFixture[str], *argv: str) -> str:
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--target", "a=tcp:0", "--hold", "a"], "also in --hold"),
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--view-hold", "2"], "--view-hold"),
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--hold", "c"], "--hold c: no such arm"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--record", "run_dir"], "must be an .mcap file"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--record", "/no/such/dir/run.mcap"], "does not exist"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--record-jpeg"], "--record-jpeg needs --record"),
 ])
 def test_bad_scene_input_is_refused_in_one_line_and_nothing_reaches_the_box(
         capsys: pytest.CaptureFixture[str], box_a: tuple[RecordingEmulator, str], extra: list[str],

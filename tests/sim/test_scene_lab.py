@@ -2,7 +2,8 @@
 one actuator box per arm on its own pty and one endoscope showing every arm; the hardware path
 `wristmark servo --scene SCENE --serial NAME=PORT ...` against it in another process (which never
 imports the simulated bench), each arm's true tip from the lab's truth CSV; one arm steered by
-live targets over TCP (`--target NAME=tcp:127.0.0.1:0`) while the other holds."""
+live targets over TCP (`--target NAME=tcp:127.0.0.1:0`) while the other holds, that run recorded
+(`--record`: one bag, each arm's topics) and its folder replayed as `wristmark view DIR` does."""
 
 from __future__ import annotations
 
@@ -20,7 +21,7 @@ import numpy as np
 import pytest
 
 from tests.cli.test_cli_servo_live import no_probe_controller
-from tests.sim.test_virtual_lab import NO_SIM, RT_HOST, RT_LAB, hardware_servo
+from tests.sim.test_virtual_lab import NO_SIM, RT_HOST, RT_LAB, bag_messages, hardware_servo
 from wristmark.cli.main import main
 from wristmark.cvs.calibration.load import load_calibration
 from wristmark.cvs.camera import scaled_stereo_camera
@@ -266,8 +267,10 @@ def test_servo_scene_arm_a_follows_its_live_targets_over_tcp_while_b_holds(
         [sys.executable, "-c", NO_SIM, "servo", "--scene", SCENE, "--serial", f"a={ptys['a']}", "--serial",
          f"b={ptys['b']}", "--camera", url, "--calib", str(calib), "--image-scale", str(SCALE), "--target",
          "a=tcp:127.0.0.1:0", "--hold", "b", "--duration", "3", "--settle", "0.3", "--target-timeout", "1",
-         "--controller-config", str(no_probe_controller(tmp_path)), "--out", str(out), "--no-progress", *RT_HOST],
+         "--controller-config", str(no_probe_controller(tmp_path)), "--out", str(out), "--no-progress",
+         "--record", str(tmp_path / "run.mcap"), "--record-jpeg", *RT_HOST],
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    clock_offset = time.time() - time.monotonic()  # the recorder's stamps: the host's monotonic clock + this
     assert host.stderr is not None
     first = host.stderr.readline()  # before any box opens
     m = re.fullmatch(r"wristmark servo: arm a taking targets on tcp:127\.0\.0\.1:(\d+)\n", first)
@@ -303,3 +306,64 @@ def test_servo_scene_arm_a_follows_its_live_targets_over_tcp_while_b_holds(
     assert err_b.size >= 30 and 1000 * np.median(err_b) < 1.0 and 1000 * err_b.max() < 3.0
     p_des_b = np.stack([np.asarray(read_log_csv(out / "log_b.csv")[f"p_des_{x}"], float) for x in "xyz"], axis=1)
     np.testing.assert_allclose(p_des_b, np.tile(centre["b"], (len(p_des_b), 1)), atol=1e-9)
+    check_scene_recording(tmp_path / "run.mcap", res, truth, clock_offset)
+    check_scene_replay(out, scene)
+
+
+def check_scene_recording(path: Path, res: dict, truth: Path, clock_offset: float) -> None:
+    """The scene run's bag (``--record``): the frames once, each arm's actuators (commanded and
+    measured) every cycle and its tip on its own topics, in the scene's {w} where the lab's true
+    arm of that name was (the stamps mapped back to the lab's monotonic clock)."""
+    by_topic = bag_messages(path, res)
+    rec = res["recording"]
+    left = by_topic["/stereo/left/image_raw"]
+    assert len(left) == len(by_topic["/stereo/right/image_raw"]) > 10 and left[0].format == "jpeg"
+    stamps = [m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for m in left]
+    assert len(set(stamps)) == len(stamps)  # a frame both arms used is recorded once
+    t, tips = read_scene_truth_csv(truth)
+    cycles = 0
+    for name in ("a", "b"):
+        joints = by_topic[f"/wristmark/{name}/actuators"]
+        assert [j.header.frame_id for j in joints[:2]] == ["commanded", "measured"]
+        assert list(joints[0].name) == ["phi", "d", "s1a", "s1b", "s2a", "s2b"]
+        assert np.all(np.isfinite(np.asarray(joints[-1].position)))
+        cycles += len(joints) // 2
+        world = [m for m in by_topic[f"/wristmark/{name}/tip"] if m.header.frame_id == "world"]
+        assert len(world) > 10
+        err = []
+        for m in world:
+            at = m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec - clock_offset
+            true = np.array([np.interp(at, t, tips[name][:, i]) for i in range(3)])
+            p = m.pose.position
+            err.append(np.linalg.norm(np.array([p.x, p.y, p.z]) - true))
+        assert np.median(err) < 1e-3, (name, np.median(err))  # this arm's tip, in the scene's {w}
+    assert cycles == rec["cycles"] >= sum(res["arms"][n]["closed_loop"]["cycles"] for n in ("a", "b"))
+
+
+def check_scene_replay(out: Path, scene: Scene) -> None:
+    """The run folder (``--out``) is what ``wristmark view DIR`` replays: every arm at its base,
+    every logged cycle a state, on the hardware's one clock."""
+    from tests.viz.test_arms_scene import transform_of
+    from wristmark.rig.recording.run_log import read_log_csv
+    from wristmark.viz.arms_scene import arm_root
+    from wristmark.viz.scene_replay import build_scene_replay, is_scene_run, load_scene_run
+    from wristmark.viz.snapshot import recording_visualizer
+
+    assert is_scene_run(out)
+    rep = load_scene_run(out)
+    assert rep.config.names == scene.names
+    for a in scene.arms:
+        np.testing.assert_allclose(rep.config.bases[a.name], a.base, atol=1e-12)
+        log = read_log_csv(out / f"log_{a.name}.csv")
+        states = rep.arms[a.name].states
+        assert len(states) == len(log["t"]) > 20 and np.all(np.diff(rep.arms[a.name].times) > 0)
+        np.testing.assert_allclose(states[-1].tips["desired"], [log[f"p_des_{x}"][-1] for x in "xyz"])
+        assert rep.summary[f"{a.name}: closed loop"].startswith("mean ")
+    t0 = {n: float(read_log_csv(out / f"log_{n}.csv")["t"][0]) for n in scene.names}  # one clock: the
+    start = min(t0.values())  # replay times are the logged instants from the first cycle of any arm
+    for n in scene.names:
+        assert abs(rep.arms[n].times[0] - (t0[n] - start)) < 1e-6
+    vis, window = recording_visualizer()
+    build_scene_replay(vis, rep, max_frames=20, play=False)
+    for a in scene.arms:
+        np.testing.assert_allclose(transform_of(window, arm_root(a.name)), a.base, atol=1e-12)

@@ -115,7 +115,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="with --camera: no frame for S seconds ends the camera's stream (default 2)")
     p.add_argument("--record", metavar="FILE.mcap",
                    help="with --serial: record the frames, marker poses and actuators (commanded and measured) "
-                        "as a ROS 2 bag")
+                        "as a ROS 2 bag; with --scene: the frames once, each arm's on /wristmark/NAME/...")
     p.add_argument("--record-jpeg", action="store_true", help="record images as JPEG (CompressedImage)")
     p.add_argument("--rt-priority", type=int_in(1, 99), metavar="N",
                    help="with --serial: run the loop (and its camera threads) under SCHED_FIFO at priority N, so a "

@@ -8,6 +8,10 @@ answer or does not fit its arm, a start out of reach or arms too close at their 
 output folder (``--out``) has config.json, log_<arm>.csv per arm and result.json (per arm the
 one-arm servo's fields, and the clearance); exit 3 when an arm stopped safely.
 
+``--record FILE.mcap`` (``--record-jpeg``): one ROS 2 bag of the run, the camera's frames once and
+each arm's marker pose, tip and actuators on its own topics (``/wristmark/NAME/...``;
+rig.recording.bag_recorder). The run folder ``--out DIR`` is what ``wristmark view DIR`` replays.
+
 ``--target NAME=SPEC`` (stdin for one arm at most, or ``tcp:127.0.0.1:PORT``): that arm follows
 live targets in its own {w} as the one-arm servo does (rig.targets.live_target: speed bound,
 workspace clamp, hold when silent, malformed lines dropped and counted; its counts in its
@@ -27,7 +31,7 @@ import numpy as np
 from wristmark.models.errors import InputError
 
 SCENE_REFUSED = ("robot", "marker", "plant", "model", "registration", "open_loop_on_lost", "point",
-                 "view", "record", "record_jpeg", "ros2", "actuator", "no_operating_state", "direct", "realtime",
+                 "view", "ros2", "actuator", "no_operating_state", "direct", "realtime",
                  "pace", "latency", "sensor", "host")
 
 
@@ -44,6 +48,22 @@ def check_scene_options(args: argparse.Namespace) -> None:
     if not args.serials or not args.camera or not args.calib:
         raise InputError("--scene on the hardware path needs --serial NAME=PORT for every arm, --camera SPEC and "
                          "--calib C (world_T_left in the scene's {w}: the virtual lab's --calib-out)")
+    if args.record_jpeg and not args.record:
+        raise InputError("--record-jpeg needs --record FILE.mcap")
+    if args.record is not None:
+        check_record_path(args.record, args.force)
+
+
+def check_record_path(path: str, force: bool = False) -> None:
+    """``--record FILE.mcap``: an .mcap file in an existing folder, not there yet (InputError)."""
+    rec = Path(path)
+    if rec.suffix.lower() != ".mcap":
+        raise InputError(f"--record {path}: a recording must be an .mcap file (a ROS 2 bag); the run folder "
+                         "(log_<arm>.csv, result.json: `wristmark view DIR`) is --out DIR")
+    if rec.exists():
+        raise InputError(f"--record {path}: exists already; not overwriting a recording (remove it or pick another)")
+    if not rec.parent.is_dir():
+        raise InputError(f"--record {path}: folder {rec.parent} does not exist")
 
 
 def run_scene(args: argparse.Namespace) -> int:
@@ -113,13 +133,14 @@ def run_scene(args: argparse.Namespace) -> int:
                 f"arm {n}'s targets", who=f"arm {n} ")
         session = open_arm_set_session(setups, ports, args.camera, scene_camera, options,
                                        camera_timeout=args.camera_timeout)
+        recorder = open_scene_recorder(args, setups, scene_camera, session)
         from wristmark.rig.loop.heap_freeze import freeze_heap
 
         freeze_heap()  # no full garbage collection of the start-up heap mid-run (rig.loop.heap_freeze)
         clearance = scene.clearance + scene.clearance_margin if scene.clearance > 0 else 0.0
         settle = next(iter(setups.values())).rig.settle_time
         with sigterm_as_interrupt():
-            run = run_arm_set(setups, trajs, session, psi0, bases, clearance, settle)
+            run = run_arm_set(setups, trajs, session, psi0, bases, clearance, settle, recorder=recorder)
     finally:
         for src in sources.values():
             if src is not None:
@@ -129,6 +150,9 @@ def run_scene(args: argparse.Namespace) -> int:
         src = sources[n]
         res["arms"][n]["targets"] = {"source": src.describe if src is not None else live[n][0],
                                      "max_speed_mps": args.max_speed, **store.report()}
+    if recorder is not None:
+        res["recording"] = {"path": args.record, "cycles": recorder.cycles, "dropped_cycles": recorder.dropped,
+                            "messages": recorder.bag.messages, "problem": recorder.error}
     write_scene_outputs(args, scene, setups, ports, run, res)
     for n, a in res["arms"].items():
         c = a["closed_loop"]
@@ -142,6 +166,21 @@ def run_scene(args: argparse.Namespace) -> int:
                      f"{'held and disabled' if not o.close_error else o.close_error})" for n, o in stopped.items())
     print(f"wristmark servo: error: stopped safely: {what}", file=sys.stderr)
     return 130 if any(o.cause == "interrupted" for o in stopped.values()) else 3
+
+
+def open_scene_recorder(args: argparse.Namespace, setups: dict[str, Any], scene_camera: Any, session: Any) -> Any:
+    """The ``--record`` bag of every arm (after the boxes and the camera opened, before any
+    motion; rig.recording.servo_recorder); closes the session when the bag cannot be written."""
+    if not args.record:
+        return None
+    from wristmark.rig.recording.servo_recorder import ServoRecorder
+
+    try:
+        return ServoRecorder(args.record, {n: s.params for n, s in setups.items()}, jpeg=args.record_jpeg,
+                             world_T_left=scene_camera.T_world_left)
+    except BaseException:
+        session.close()
+        raise
 
 
 def scene_result(args: argparse.Namespace, scene: Any, setups: dict[str, Any], trajs: dict[str, Any], session: Any,

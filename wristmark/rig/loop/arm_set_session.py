@@ -517,11 +517,13 @@ def start_gap(setups: Mapping[str, LoopSetup], psi0: Mapping[str, Array], bases:
 
 
 def run_arm_set(setups: Mapping[str, LoopSetup], trajs: Mapping[str, Trajectory], session: ArmSetSession,
-                psi0: Mapping[str, Array], bases: Mapping[str, Array], clearance: float, settle: float) -> ArmSetRun:
+                psi0: Mapping[str, Array], bases: Mapping[str, Array], clearance: float, settle: float,
+                recorder: Any = None) -> ArmSetRun:
     """Every arm to its start, then every trajectory closed loop in lockstep (module docstring);
     ``clearance`` [m] kept between the arms' bodies (0: none); ``settle`` [s] of holding the
-    starts before the walks. Closes the session (every box held and disabled). Safe stops are
-    reported in each arm's outcome, never raised."""
+    starts before the walks; ``recorder`` (rig.recording.servo_recorder.ServoRecorder of every
+    arm) records each arm's cycles and is closed at the end. Closes the session (every box held
+    and disabled). Safe stops are reported in each arm's outcome, never raised."""
     from wristmark.solvers.controller_registry import make_controller
 
     names = list(setups)
@@ -547,7 +549,7 @@ def run_arm_set(setups: Mapping[str, LoopSetup], trajs: Mapping[str, Trajectory]
             W = np.asarray(s.host_camera.T_world_left, float)
             loops[n] = ServoLoop(s.params, s.rig, session.links[n], frames=session.feed,
                                  sensor=session.sensor.view(n, W), controller=controllers[n], wall_clock=True,
-                                 frame_wait=s.rig.frame_wait)
+                                 frame_wait=s.rig.frame_wait, on_cycle=_recording(recorder, loops, session.links, n))
         _lockstep_start(loops, psi0, dt)
         _walk(loops, trajs, session, run, stats, bases, clearance, int(round(settle / dt)))
     except (WristmarkError, KeyboardInterrupt) as e:  # every arm held and disabled below
@@ -559,6 +561,8 @@ def run_arm_set(setups: Mapping[str, LoopSetup], trajs: Mapping[str, Trajectory]
                 outs[n].t_stop = loops[n].elapsed(t_now) if n in loops else float("nan")
     finally:
         session.close()
+        if recorder is not None:
+            recorder.close()
         for n in names:
             out = outs[n]
             _count(out, stats[n])
@@ -568,6 +572,18 @@ def run_arm_set(setups: Mapping[str, LoopSetup], trajs: Mapping[str, Trajectory]
                 out.ready_after_arrival_ms = list(loops[n].ready_after_arrival_ms)
                 out.play_probe = probe_report(loops[n].play_fits, loops[n].play_probe_note)
     return run
+
+
+def _recording(recorder: Any, loops: Mapping[str, ServoLoop], links: Mapping[str, SerialLink], name: str) -> Any:
+    """Arm ``name``'s per-cycle hook: its cycle recorded, with its box's latest reading (None
+    without a recorder)."""
+    if recorder is None:
+        return None
+
+    def hook(rec: Any) -> None:
+        recorder.record(rec, loops[name], links[name], arm=name)
+
+    return hook
 
 
 def _walk(loops: Mapping[str, ServoLoop], trajs: Mapping[str, Trajectory], session: ArmSetSession, run: ArmSetRun,
@@ -620,7 +636,11 @@ def _walk(loops: Mapping[str, ServoLoop], trajs: Mapping[str, Trajectory], sessi
             out = run.outcomes[n]
             try:
                 with on_arm(n):
-                    out.log.add(loops[n].step(targets[n], "servo", True, memory[n], stats[n]))
+                    rec = loops[n].step(targets[n], "servo", True, memory[n], stats[n])
+                out.log.add(rec)
+                hook = loops[n].on_cycle
+                if callable(hook):  # as the loop's own cycles (the settle, the probe) do
+                    hook(rec)
             except CameraStalledError:
                 raise
             except MarkerLostError as e:  # that arm held and disabled; the others walk on

@@ -61,6 +61,7 @@ def refused(capsys: pytest.CaptureFixture[str], *argv: str) -> str:
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--record", "run_dir"], "must be an .mcap file"),
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--record", "/no/such/dir/run.mcap"], "does not exist"),
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--record-jpeg"], "--record-jpeg needs --record"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--host", "0.0.0.0"], "--host serves the live view"),
 ])
 def test_bad_scene_input_is_refused_in_one_line_and_nothing_reaches_the_box(
         capsys: pytest.CaptureFixture[str], box_a: tuple[RecordingEmulator, str], extra: list[str],

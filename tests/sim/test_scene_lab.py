@@ -3,7 +3,8 @@ one actuator box per arm on its own pty and one endoscope showing every arm; the
 `wristmark servo --scene SCENE --serial NAME=PORT ...` against it in another process (which never
 imports the simulated bench), each arm's true tip from the lab's truth CSV; one arm steered by
 live targets over TCP (`--target NAME=tcp:127.0.0.1:0`) while the other holds, that run recorded
-(`--record`: one bag, each arm's topics) and its folder replayed as `wristmark view DIR` does."""
+(`--record`: one bag, each arm's topics), shown live (`--view`: every arm's cycles reach the
+Meshcat view) and its folder replayed as `wristmark view DIR` does."""
 
 from __future__ import annotations
 
@@ -268,13 +269,16 @@ def test_servo_scene_arm_a_follows_its_live_targets_over_tcp_while_b_holds(
          f"b={ptys['b']}", "--camera", url, "--calib", str(calib), "--image-scale", str(SCALE), "--target",
          "a=tcp:127.0.0.1:0", "--hold", "b", "--duration", "3", "--settle", "0.3", "--target-timeout", "1",
          "--controller-config", str(no_probe_controller(tmp_path)), "--out", str(out), "--no-progress",
-         "--record", str(tmp_path / "run.mcap"), "--record-jpeg", *RT_HOST],
+         "--record", str(tmp_path / "run.mcap"), "--record-jpeg", "--view", *RT_HOST],
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     clock_offset = time.time() - time.monotonic()  # the recorder's stamps: the host's monotonic clock + this
     assert host.stderr is not None
     first = host.stderr.readline()  # before any box opens
     m = re.fullmatch(r"wristmark servo: arm a taking targets on tcp:127\.0\.0\.1:(\d+)\n", first)
     assert m, first + host.communicate(timeout=60)[1]
+    second = host.stderr.readline()  # then the live view's URL (--view), still before any box opens
+    shown = re.fullmatch(r"live 3D view: open (http://127\.0\.0\.1:\d+/\S*)\n", second)
+    assert shown, second + host.communicate(timeout=60)[1]
     stop = threading.Event()
     sent: list[int] = []
     sender = threading.Thread(target=lambda: sent.append(send_targets(int(m.group(1)), lines, last, stop)))
@@ -308,6 +312,11 @@ def test_servo_scene_arm_a_follows_its_live_targets_over_tcp_while_b_holds(
     np.testing.assert_allclose(p_des_b, np.tile(centre["b"], (len(p_des_b), 1)), atol=1e-9)
     check_scene_recording(tmp_path / "run.mcap", res, truth, clock_offset)
     check_scene_replay(out, scene)
+    # --view: the live view served on loopback, its drawing process handed every cycle of every arm
+    view = res["view"]
+    assert view["url"] == shown.group(1)
+    rows = sum(len(read_log_csv(out / f"log_{n}.csv")["t"]) for n in scene.names)
+    assert view["problem"] == "" and view["sent"] == view["received"] == rows and view["frames"] >= 1
 
 
 def check_scene_recording(path: Path, res: dict, truth: Path, clock_offset: float) -> None:

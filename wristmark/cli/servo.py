@@ -165,7 +165,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_registration_argument(p)
     add_setup_arguments(p)
     add_model_arguments(p)
-    p.add_argument("--view", action="store_true", help="show the run live in the Meshcat view (paced)")
+    p.add_argument("--view", action="store_true",
+                   help="show the run live in the Meshcat view (paced); with --scene every arm")
     add_host_argument(p)
     p.add_argument("--view-hold", type=nonnegative_float(MAX_HOLD_S), default=0.0, metavar="S",
                    help="with --view: keep serving the view S seconds after the run (Ctrl-C ends it)")

@@ -11,6 +11,8 @@ one-arm servo's fields, and the clearance); exit 3 when an arm stopped safely.
 ``--record FILE.mcap`` (``--record-jpeg``): one ROS 2 bag of the run, the camera's frames once and
 each arm's marker pose, tip and actuators on its own topics (``/wristmark/NAME/...``;
 rig.recording.bag_recorder). The run folder ``--out DIR`` is what ``wristmark view DIR`` replays.
+``--view``: the live Meshcat view of every arm while the loops run (viz.live, as ``experiment cube
+--scene --view``; served on 127.0.0.1 unless ``--host``), its counts in result.json ``view``.
 
 ``--target NAME=SPEC`` (stdin for one arm at most, or ``tcp:127.0.0.1:PORT``): that arm follows
 live targets in its own {w} as the one-arm servo does (rig.targets.live_target: speed bound,
@@ -22,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import io
 import sys
 from pathlib import Path
 from typing import Any
@@ -31,8 +34,7 @@ import numpy as np
 from wristmark.models.errors import InputError
 
 SCENE_REFUSED = ("robot", "marker", "plant", "model", "registration", "open_loop_on_lost", "point",
-                 "view", "ros2", "actuator", "no_operating_state", "direct", "realtime",
-                 "pace", "latency", "sensor", "host")
+                 "ros2", "actuator", "no_operating_state", "direct", "realtime", "pace", "latency", "sensor")
 
 
 def check_scene_options(args: argparse.Namespace) -> None:
@@ -48,6 +50,8 @@ def check_scene_options(args: argparse.Namespace) -> None:
     if not args.serials or not args.camera or not args.calib:
         raise InputError("--scene on the hardware path needs --serial NAME=PORT for every arm, --camera SPEC and "
                          "--calib C (world_T_left in the scene's {w}: the virtual lab's --calib-out)")
+    if args.host and not args.view:
+        raise InputError("--host serves the live view on another address too: it needs --view")
     if args.record_jpeg and not args.record:
         raise InputError("--record-jpeg needs --record FILE.mcap")
     if args.record is not None:
@@ -121,16 +125,24 @@ def run_scene(args: argparse.Namespace) -> int:
     claim_outputs(dirs=[args.out], files=[args.json], force=args.force)  # after every option was validated
     warm_up()
     options = LinkOptions(kind="serial", port=None, baudrate=args.baud, timeout=args.timeout)
+    # the live view's server and drawing process first: they do not inherit the loop's priority
+    view, view_lines = start_scene_view(setups, scene_camera, bases, args.host) if args.view else (None, "")
     if args.rt_priority is not None:  # before any thread starts: the camera's threads inherit it
         from wristmark.rig.loop.realtime_priority import request_realtime_priority
 
-        request_realtime_priority(args.rt_priority)
+        try:
+            request_realtime_priority(args.rt_priority)
+        except BaseException:
+            if view is not None:
+                view.close()
+            raise
     stores, sources = {}, {}
     try:
         for n, (_, port) in live.items():  # each arm's own server (before any box opens: a port taken is exit 2)
             trajs[n], stores[n], sources[n] = open_live_targets(
                 lives[n], Workspace.around(centres[n], scene.cube_size), port, args.target_timeout, args.max_speed,
                 f"arm {n}'s targets", who=f"arm {n} ")
+        print(view_lines, end="", file=sys.stderr, flush=True)  # the view's URL after the targets' ports
         session = open_arm_set_session(setups, ports, args.camera, scene_camera, options,
                                        camera_timeout=args.camera_timeout)
         recorder = open_scene_recorder(args, setups, scene_camera, session)
@@ -140,16 +152,23 @@ def run_scene(args: argparse.Namespace) -> int:
         clearance = scene.clearance + scene.clearance_margin if scene.clearance > 0 else 0.0
         settle = next(iter(setups.values())).rig.settle_time
         with sigterm_as_interrupt():
-            run = run_arm_set(setups, trajs, session, psi0, bases, clearance, settle, recorder=recorder)
+            run = run_arm_set(setups, trajs, session, psi0, bases, clearance, settle, recorder=recorder,
+                              on_cycle=None if view is None else view.on_arm_cycle)
     finally:
         for src in sources.values():
             if src is not None:
                 src.close()
+        if view is not None:
+            view.close()
     res = scene_result(args, scene, setups, trajs, session, run, hold)
     for n, store in stores.items():
         src = sources[n]
         res["arms"][n]["targets"] = {"source": src.describe if src is not None else live[n][0],
                                      "max_speed_mps": args.max_speed, **store.report()}
+    if view is not None:
+        st = view.stats
+        res["view"] = {"url": view.url, "sent": st.sent, "dropped": st.dropped, "received": st.received,
+                       "frames": st.frames, "problem": st.error}
     if recorder is not None:
         res["recording"] = {"path": args.record, "cycles": recorder.cycles, "dropped_cycles": recorder.dropped,
                             "messages": recorder.bag.messages, "problem": recorder.error}
@@ -166,6 +185,39 @@ def run_scene(args: argparse.Namespace) -> int:
                      f"{'held and disabled' if not o.close_error else o.close_error})" for n, o in stopped.items())
     print(f"wristmark servo: error: stopped safely: {what}", file=sys.stderr)
     return 130 if any(o.cause == "interrupted" for o in stopped.values()) else 3
+
+
+@dataclasses.dataclass(frozen=True)
+class SceneArms:
+    """A hardware scene as the live view sees it (viz.arms_scene.ArmsSetup): each arm's loop setup,
+    its base pose in the scene's {w} and the scene camera (``world_T_left`` in the scene's {w})."""
+
+    arms: dict[str, Any]
+    camera: Any
+    bases: dict[str, Any]
+
+    @property
+    def names(self) -> list[str]:
+        """The arms' names, in the scene's order."""
+        return list(self.arms)
+
+    def base(self, name: str) -> Any:
+        """Arm ``name``'s {w} in the scene's {w} (4x4 [m])."""
+        return self.bases[name]
+
+
+def start_scene_view(setups: dict[str, Any], scene_camera: Any, bases: dict[str, Any], host: str | None
+                     ) -> tuple[Any, str]:
+    """``--view``: the Meshcat live view of every arm (viz.live.start_scene_live_view; loopback
+    only unless ``host``) and the lines it has for stderr (its URL), or a one-line error when it
+    cannot start."""
+    try:
+        from wristmark.viz.live import start_scene_live_view
+    except ImportError as e:
+        raise InputError(f"--view needs the Meshcat live view (viz/live.py), which is not available: {e}") from None
+    lines = io.StringIO()
+    view = start_scene_live_view(SceneArms(dict(setups), scene_camera, dict(bases)), host=host, stream=lines)
+    return view, lines.getvalue()
 
 
 def open_scene_recorder(args: argparse.Namespace, setups: dict[str, Any], scene_camera: Any, session: Any) -> Any:

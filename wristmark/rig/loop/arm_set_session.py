@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -518,12 +518,13 @@ def start_gap(setups: Mapping[str, LoopSetup], psi0: Mapping[str, Array], bases:
 
 def run_arm_set(setups: Mapping[str, LoopSetup], trajs: Mapping[str, Trajectory], session: ArmSetSession,
                 psi0: Mapping[str, Array], bases: Mapping[str, Array], clearance: float, settle: float,
-                recorder: Any = None) -> ArmSetRun:
+                recorder: Any = None, on_cycle: Callable[[str, Any], None] | None = None) -> ArmSetRun:
     """Every arm to its start, then every trajectory closed loop in lockstep (module docstring);
     ``clearance`` [m] kept between the arms' bodies (0: none); ``settle`` [s] of holding the
     starts before the walks; ``recorder`` (rig.recording.servo_recorder.ServoRecorder of every
-    arm) records each arm's cycles and is closed at the end. Closes the session (every box held
-    and disabled). Safe stops are reported in each arm's outcome, never raised."""
+    arm) records each arm's cycles and is closed at the end; ``on_cycle(arm, record)`` sees
+    every cycle of every arm (the live view's). Closes the session (every box held and
+    disabled). Safe stops are reported in each arm's outcome, never raised."""
     from wristmark.solvers.controller_registry import make_controller
 
     names = list(setups)
@@ -549,7 +550,8 @@ def run_arm_set(setups: Mapping[str, LoopSetup], trajs: Mapping[str, Trajectory]
             W = np.asarray(s.host_camera.T_world_left, float)
             loops[n] = ServoLoop(s.params, s.rig, session.links[n], frames=session.feed,
                                  sensor=session.sensor.view(n, W), controller=controllers[n], wall_clock=True,
-                                 frame_wait=s.rig.frame_wait, on_cycle=_recording(recorder, loops, session.links, n))
+                                 frame_wait=s.rig.frame_wait,
+                                 on_cycle=_cycle_hook(recorder, on_cycle, loops, session.links, n))
         _lockstep_start(loops, psi0, dt)
         _walk(loops, trajs, session, run, stats, bases, clearance, int(round(settle / dt)))
     except (WristmarkError, KeyboardInterrupt) as e:  # every arm held and disabled below
@@ -574,14 +576,18 @@ def run_arm_set(setups: Mapping[str, LoopSetup], trajs: Mapping[str, Trajectory]
     return run
 
 
-def _recording(recorder: Any, loops: Mapping[str, ServoLoop], links: Mapping[str, SerialLink], name: str) -> Any:
-    """Arm ``name``'s per-cycle hook: its cycle recorded, with its box's latest reading (None
-    without a recorder)."""
-    if recorder is None:
+def _cycle_hook(recorder: Any, on_cycle: Callable[[str, Any], None] | None, loops: Mapping[str, ServoLoop],
+                links: Mapping[str, SerialLink], name: str) -> Any:
+    """Arm ``name``'s per-cycle hook: its cycle recorded (with its box's latest reading) and
+    handed to ``on_cycle`` (None without either)."""
+    if recorder is None and on_cycle is None:
         return None
 
     def hook(rec: Any) -> None:
-        recorder.record(rec, loops[name], links[name], arm=name)
+        if recorder is not None:
+            recorder.record(rec, loops[name], links[name], arm=name)
+        if on_cycle is not None:
+            on_cycle(name, rec)
 
     return hook
 

@@ -4,7 +4,8 @@ one actuator box per arm on its own pty and one endoscope showing every arm; the
 imports the simulated bench), each arm's true tip from the lab's truth CSV; one arm steered by
 live targets over TCP (`--target NAME=tcp:127.0.0.1:0`) while the other holds, that run recorded
 (`--record`: one bag, each arm's topics), shown live (`--view`: every arm's cycles reach the
-Meshcat view) and its folder replayed as `wristmark view DIR` does."""
+Meshcat view), a through its identified model (`--model a=FILE`), and its folder replayed as
+`wristmark view DIR` does."""
 
 from __future__ import annotations
 
@@ -248,14 +249,19 @@ def test_servo_scene_arm_a_follows_its_live_targets_over_tcp_while_b_holds(
         scene_lab: tuple[dict[str, str], str, Path, Path], tmp_path: Path) -> None:
     """a's targets come over TCP (PORT 0: the port on stderr naming the arm): one malformed line
     (dropped), one far outside the workspace (clamped), then a few mm away; b holds its centre."""
+    from wristmark.models.actuation import actuators_from_psi
+    from wristmark.models.model_file import save_model
     from wristmark.rig.loop.arm_set_session import load_scene_setups
     from wristmark.rig.recording.run_log import read_log_csv
     from wristmark.rig.targets.trajectories import workspace_centre
+    from wristmark.sim.scene_setup import load_scene_setup
 
     ptys, url, truth, calib = scene_lab
     scene = Scene.load(SCENE)
     a, b = scene.arms
     setups, _ = load_scene_setups(scene, calib)
+    model_a = tmp_path / "a_model.yaml"  # a identified exactly: its loop commands the lab plant's inverse
+    save_model(model_a, load_scene_setup(SCENE).arms["a"].plant, {"rms_m": 0.0, "poses": 12})
     centre = {n: workspace_centre(s.params, scene.cube_size) for n, s in setups.items()}  # each in its arm's {w}
     goal = centre["a"] + np.array([0.003, 0.0, 0.003])
     steps = [centre["a"] + np.array([0.0015, 0.0, 0.0]), centre["a"] + np.array([0.003, 0.0, 0.0015])]
@@ -269,7 +275,7 @@ def test_servo_scene_arm_a_follows_its_live_targets_over_tcp_while_b_holds(
          f"b={ptys['b']}", "--camera", url, "--calib", str(calib), "--image-scale", str(SCALE), "--target",
          "a=tcp:127.0.0.1:0", "--hold", "b", "--duration", "3", "--settle", "0.3", "--target-timeout", "1",
          "--controller-config", str(no_probe_controller(tmp_path)), "--out", str(out), "--no-progress",
-         "--record", str(tmp_path / "run.mcap"), "--record-jpeg", "--view", *RT_HOST],
+         "--record", str(tmp_path / "run.mcap"), "--record-jpeg", "--view", "--model", f"a={model_a}", *RT_HOST],
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     clock_offset = time.time() - time.monotonic()  # the recorder's stamps: the host's monotonic clock + this
     assert host.stderr is not None
@@ -292,6 +298,14 @@ def test_servo_scene_arm_a_follows_its_live_targets_over_tcp_while_b_holds(
     res = json.loads((out / "result.json").read_text())
     arm_a, arm_b = res["arms"]["a"], res["arms"]["b"]
     assert (arm_a["walk"], arm_b["walk"]) == ("tcp", "hold") and "targets" not in arm_b
+    assert arm_a["model"] == str(model_a) and "model" not in arm_b  # --model a=FILE: a's loop alone through it
+    for name, gain in (("a", 1 / 0.945), ("b", 1.0)):  # a's box bent segment 2 by 1 / its identified gain 0.945
+        log = read_log_csv(out / f"log_{name}.csv")
+        last = slice(-10, None)  # holding still at the end: no lag inversion in the targets
+        box = np.hypot(np.asarray(log["act_cmd_s2a"], float), np.asarray(log["act_cmd_s2b"], float))[last]
+        psi = np.stack([np.asarray(log[f"psi_cmd_{i}"], float) for i in range(6)], axis=1)[last]
+        nominal = np.array([np.hypot(*actuators_from_psi(setups[name].params, q)[4:]) for q in psi])
+        assert abs(np.median(box / nominal) - gain) < 0.015, (name, np.median(box / nominal))
     tg = arm_a["targets"]
     assert tg["source"] == f"tcp:127.0.0.1:{m.group(1)}" and tg["dropped"] == 1 and tg["reasons"] == {"not JSON": 1}
     assert tg["clamped"] == 1 and tg["holds"] == 0 and len(lines) + 1 <= tg["received"] <= sent[0] - 1

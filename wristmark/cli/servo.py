@@ -164,7 +164,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_force_argument(p)
     add_registration_argument(p)
     add_setup_arguments(p)
-    add_model_arguments(p)
+    add_model_arguments(p, per_arm=True)
     p.add_argument("--view", action="store_true",
                    help="show the run live in the Meshcat view (paced); with --scene every arm")
     add_host_argument(p)

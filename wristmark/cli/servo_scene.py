@@ -31,9 +31,9 @@ from typing import Any
 
 import numpy as np
 
-from wristmark.models.errors import InputError
+from wristmark.models.errors import InputError, WristmarkError
 
-SCENE_REFUSED = ("robot", "marker", "plant", "model", "registration", "open_loop_on_lost", "point",
+SCENE_REFUSED = ("robot", "marker", "plant", "registration", "open_loop_on_lost", "point",
                  "ros2", "actuator", "no_operating_state", "direct", "realtime", "pace", "latency", "sensor")
 
 
@@ -102,6 +102,7 @@ def run_scene(args: argparse.Namespace) -> int:
     hold = tuple(args.hold or ())
     live = parse_target_specs(args.targets or (), scene.names, hold)  # {arm: (stdin | tcp, port)}
     setups, scene_camera = load_scene_setups(scene, args.calib, rig=args.rig, controller=args.controller_config)
+    models = load_scene_models(args.model or (), scene.names, setups)  # {arm: MODEL.yaml} of --model NAME=FILE
     for n, s in setups.items():  # the command line's overrides; one grid for every arm (rig.loop.arm_set_session)
         s = apply_overrides(s, args, settle_time=args.settle)
         setups[n] = s.with_changes(rig=dataclasses.replace(s.rig, frame_phase_lock="none"))
@@ -161,6 +162,8 @@ def run_scene(args: argparse.Namespace) -> int:
         if view is not None:
             view.close()
     res = scene_result(args, scene, setups, trajs, session, run, hold)
+    for n, path in models.items():  # the identified arm each such arm's loop commanded through
+        res["arms"][n]["model"] = path
     for n, store in stores.items():
         src = sources[n]
         res["arms"][n]["targets"] = {"source": src.describe if src is not None else live[n][0],
@@ -218,6 +221,26 @@ def start_scene_view(setups: dict[str, Any], scene_camera: Any, bases: dict[str,
     lines = io.StringIO()
     view = start_scene_live_view(SceneArms(dict(setups), scene_camera, dict(bases)), host=host, stream=lines)
     return view, lines.getvalue()
+
+
+def load_scene_models(specs: Any, names: list[str], setups: dict[str, Any]) -> dict[str, str]:
+    """``--model NAME=MODEL.yaml`` per arm (not every arm needs one): each arm's identified model
+    (models.model_file, checked against its arm's segments and actuators) put in its setup;
+    returns {arm: path}. InputError/ConfigError (one line) for a bad spec or file."""
+    from wristmark.models.arm_spec import ArmSpec, arm_size
+    from wristmark.models.model_file import load_model
+    from wristmark.rig.loop.arm_set_session import named_specs
+
+    paths = named_specs("--model", specs, names, "model is NAME=MODEL.yaml")
+    for n, path in paths.items():
+        params = setups[n].params
+        segments = len(params.segments) if isinstance(params, ArmSpec) else 2
+        try:
+            model = load_model(path).for_arm(segments, arm_size(params)[1], path)
+        except (InputError, WristmarkError) as e:
+            raise type(e)(f"--model {n}={path}: {e}") from None
+        setups[n] = setups[n].with_changes(model=model)
+    return paths
 
 
 def open_scene_recorder(args: argparse.Namespace, setups: dict[str, Any], scene_camera: Any, session: Any) -> Any:

@@ -315,11 +315,13 @@ class FeedingLink:
     (its time run on, in steps of at most ``keepalive_s``; a command; an encoder reading; a hold),
     every other box gets a GET_STATE right after, checked as a cycle's poll is (an emergency stop,
     a fault or a watchdog trip raises at once, naming its arm). So no other box is ever silent
-    longer than the probed arm's own, and no second thread touches a link or waits for a reply
-    behind the loop's work (a keep-alive thread did: under load its replies were read late, and
-    a box was reported "not answering")."""
+    longer than the probed arm's own (skipping boxes fed a few ms ago made them so: the probe's
+    last fits are ~200 ms without an exchange under load, and a box fed 40 ms before them
+    tripped its watchdog), and no second thread touches a link or waits for a reply behind the
+    loop's work (a keep-alive thread did: under load its replies were read late, and a box was
+    reported "not answering")."""
 
-    def __init__(self, link: Any, others: Mapping[str, SerialLink], keepalive_s: float = KEEPALIVE_S) -> None:
+    def __init__(self, link: Any, others: Mapping[str, Any], keepalive_s: float = KEEPALIVE_S) -> None:
         self.link = link
         self.others = dict(others)
         self.keepalive_s = float(keepalive_s)
@@ -371,7 +373,7 @@ class FeedingLink:
 
 
 @contextmanager
-def feeding_others(loop: ServoLoop, others: Mapping[str, SerialLink]) -> Iterator[FeedingLink]:
+def feeding_others(loop: ServoLoop, others: Mapping[str, Any]) -> Iterator[FeedingLink]:
     """While the block runs ``loop`` alone, its link is a :class:`FeedingLink` feeding ``others``."""
     own = loop.link
     feeding = FeedingLink(own, others)
@@ -548,7 +550,14 @@ def run_arm_set(setups: Mapping[str, LoopSetup], trajs: Mapping[str, Trajectory]
         session.start()
         for n, s in setups.items():
             W = np.asarray(s.host_camera.T_world_left, float)
-            loops[n] = ServoLoop(s.params, s.rig, session.links[n], frames=session.feed,
+            link: Any = session.links[n]
+            rig_n = s.rig
+            if s.model is not None:  # --model NAME=FILE: command the identified arm (rig.loop.model_loop)
+                from wristmark.rig.loop.model_loop import model_rig, use_model
+
+                link = use_model(link, s.params, s.model, controllers[n], rig_n.control_dt)
+                rig_n = model_rig(rig_n, s.model)
+            loops[n] = ServoLoop(s.params, rig_n, link, frames=session.feed,
                                  sensor=session.sensor.view(n, W), controller=controllers[n], wall_clock=True,
                                  frame_wait=s.rig.frame_wait,
                                  on_cycle=_cycle_hook(recorder, on_cycle, loops, session.links, n))
@@ -605,7 +614,7 @@ def _walk(loops: Mapping[str, ServoLoop], trajs: Mapping[str, Trajectory], sessi
         ctrl = loops[n].controller
         if ctrl is None or not ctrl.wants_play_probe:
             continue
-        others = {m: session.links[m] for m in active if m != n}
+        others = {m: loops[m].link for m in active if m != n}  # through an identified model's link, if any
         try:
             with feeding_others(loops[n], others), session.feed.solo(), on_arm(n):
                 loops[n].advance_to(time.monotonic())  # its cycles from now (an arm probed before took seconds)

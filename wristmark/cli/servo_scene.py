@@ -13,6 +13,8 @@ each arm's marker pose, tip and actuators on its own topics (``/wristmark/NAME/.
 rig.recording.bag_recorder). The run folder ``--out DIR`` is what ``wristmark view DIR`` replays.
 ``--view``: the live Meshcat view of every arm while the loops run (viz.live, as ``experiment cube
 --scene --view``; served on 127.0.0.1 unless ``--host``), its counts in result.json ``view``.
+``--model NAME=MODEL.yaml`` (repeatable): that arm's loop commands its identified arm, as the
+one-arm ``--model`` (rig.loop.model_loop); the file named in that arm's ``model`` of result.json.
 
 ``--target NAME=SPEC`` (stdin for one arm at most, or ``tcp:127.0.0.1:PORT``): that arm follows
 live targets in its own {w} as the one-arm servo does (rig.targets.live_target: speed bound,

@@ -1,7 +1,8 @@
 """`wristmark servo --scene SCENE --serial NAME=PORT ...`: bad input is refused in one line (exit 2)
 before any motion command: options that mean nothing with a scene, a missing, unknown or repeated
 arm, a port given twice, a box that does not answer, a bad --target NAME=SPEC (unknown or
-repeated arm, stdin for two arms, not loopback, a port taken)."""
+repeated arm, stdin for two arms, not loopback, a port taken), a --record that is not a new .mcap
+file, a --model that is not NAME=MODEL.yaml of an arm."""
 
 from __future__ import annotations
 
@@ -57,6 +58,14 @@ def refused(capsys: pytest.CaptureFixture[str], *argv: str) -> str:
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--target", "a=tcp:0", "--hold", "a"], "also in --hold"),
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--view-hold", "2"], "--view-hold"),
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--hold", "c"], "--hold c: no such arm"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--record", "run_dir"], "must be an .mcap file"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--record", "/no/such/dir/run.mcap"], "does not exist"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--record-jpeg"], "--record-jpeg needs --record"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--host", "0.0.0.0"], "--host serves the live view"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--model", "m.yaml"], "each model is NAME=MODEL.yaml"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--model", "c=m.yaml"], "no arm 'c' in the scene"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--model", "a=configs/plant.yaml"],
+     "--model a=configs/plant.yaml: configs/plant.yaml: not a model file"),
 ])
 def test_bad_scene_input_is_refused_in_one_line_and_nothing_reaches_the_box(
         capsys: pytest.CaptureFixture[str], box_a: tuple[RecordingEmulator, str], extra: list[str],
@@ -88,6 +97,7 @@ def test_without_a_camera_or_a_calibration_the_scene_is_refused(capsys: pytest.C
 
 def test_several_boxes_or_hold_need_a_scene(capsys: pytest.CaptureFixture[str]) -> None:
     assert "need --scene" in refused(capsys, "--serial", "/dev/pts/98", "--serial", "/dev/pts/99", *CAMERA)
+    assert "--model given 2 times" in refused(capsys, "--model", "a.yaml", "--model", "b.yaml")
     assert "--hold needs --scene" in refused(capsys, "--hold", "a")
     assert "targets need --scene" in refused(capsys, "--target", "stdin", "--target", "tcp:127.0.0.1:0")
 

@@ -156,8 +156,8 @@ def test_virtual_lab_reaches_the_in_process_accuracy(lab_process: tuple[str, str
     assert 0 < host["median_ms"] < 1000 * setup.rig.control_dt
 
 
-def check_recording(path: Path, res: dict) -> None:
-    """The servo run's bag: every cycle's actuators (commanded and measured), its frames and poses."""
+def bag_messages(path: Path, res: dict) -> dict[str, list]:
+    """A servo run's bag (``--record``), its messages by topic; the run says it wrote it whole."""
     from rosbags.highlevel import AnyReader
 
     from wristmark.cvs.sources.ros_image_msgs import typestore
@@ -168,6 +168,13 @@ def check_recording(path: Path, res: dict) -> None:
         by_topic: dict[str, list] = {}
         for conn, _, raw in reader.messages():
             by_topic.setdefault(conn.topic, []).append(reader.deserialize(raw, conn.msgtype))
+    return by_topic
+
+
+def check_recording(path: Path, res: dict) -> None:
+    """The servo run's bag: every cycle's actuators (commanded and measured), its frames and poses."""
+    by_topic = bag_messages(path, res)
+    rec = res["recording"]
     joints = by_topic["/wristmark/actuators"]
     assert len(joints) == 2 * rec["cycles"] and rec["cycles"] >= res["closed_loop"]["cycles"]
     assert [j.header.frame_id for j in joints[:2]] == ["commanded", "measured"]

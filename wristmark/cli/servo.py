@@ -115,7 +115,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="with --camera: no frame for S seconds ends the camera's stream (default 2)")
     p.add_argument("--record", metavar="FILE.mcap",
                    help="with --serial: record the frames, marker poses and actuators (commanded and measured) "
-                        "as a ROS 2 bag")
+                        "as a ROS 2 bag; with --scene: the frames once, each arm's on /wristmark/NAME/...")
     p.add_argument("--record-jpeg", action="store_true", help="record images as JPEG (CompressedImage)")
     p.add_argument("--rt-priority", type=int_in(1, 99), metavar="N",
                    help="with --serial: run the loop (and its camera threads) under SCHED_FIFO at priority N, so a "
@@ -164,8 +164,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_force_argument(p)
     add_registration_argument(p)
     add_setup_arguments(p)
-    add_model_arguments(p)
-    p.add_argument("--view", action="store_true", help="show the run live in the Meshcat view (paced)")
+    add_model_arguments(p, per_arm=True)
+    p.add_argument("--view", action="store_true",
+                   help="show the run live in the Meshcat view (paced); with --scene every arm")
     add_host_argument(p)
     p.add_argument("--view-hold", type=nonnegative_float(MAX_HOLD_S), default=0.0, metavar="S",
                    help="with --view: keep serving the view S seconds after the run (Ctrl-C ends it)")

@@ -8,6 +8,14 @@ answer or does not fit its arm, a start out of reach or arms too close at their 
 output folder (``--out``) has config.json, log_<arm>.csv per arm and result.json (per arm the
 one-arm servo's fields, and the clearance); exit 3 when an arm stopped safely.
 
+``--record FILE.mcap`` (``--record-jpeg``): one ROS 2 bag of the run, the camera's frames once and
+each arm's marker pose, tip and actuators on its own topics (``/wristmark/NAME/...``;
+rig.recording.bag_recorder). The run folder ``--out DIR`` is what ``wristmark view DIR`` replays.
+``--view``: the live Meshcat view of every arm while the loops run (viz.live, as ``experiment cube
+--scene --view``; served on 127.0.0.1 unless ``--host``), its counts in result.json ``view``.
+``--model NAME=MODEL.yaml`` (repeatable): that arm's loop commands its identified arm, as the
+one-arm ``--model`` (rig.loop.model_loop); the file named in that arm's ``model`` of result.json.
+
 ``--target NAME=SPEC`` (stdin for one arm at most, or ``tcp:127.0.0.1:PORT``): that arm follows
 live targets in its own {w} as the one-arm servo does (rig.targets.live_target: speed bound,
 workspace clamp, hold when silent, malformed lines dropped and counted; its counts in its
@@ -18,17 +26,17 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import io
 import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from wristmark.models.errors import InputError
+from wristmark.models.errors import InputError, WristmarkError
 
-SCENE_REFUSED = ("robot", "marker", "plant", "model", "registration", "open_loop_on_lost", "point",
-                 "view", "record", "record_jpeg", "ros2", "actuator", "no_operating_state", "direct", "realtime",
-                 "pace", "latency", "sensor", "host")
+SCENE_REFUSED = ("robot", "marker", "plant", "registration", "open_loop_on_lost", "point",
+                 "ros2", "actuator", "no_operating_state", "direct", "realtime", "pace", "latency", "sensor")
 
 
 def check_scene_options(args: argparse.Namespace) -> None:
@@ -44,6 +52,24 @@ def check_scene_options(args: argparse.Namespace) -> None:
     if not args.serials or not args.camera or not args.calib:
         raise InputError("--scene on the hardware path needs --serial NAME=PORT for every arm, --camera SPEC and "
                          "--calib C (world_T_left in the scene's {w}: the virtual lab's --calib-out)")
+    if args.host and not args.view:
+        raise InputError("--host serves the live view on another address too: it needs --view")
+    if args.record_jpeg and not args.record:
+        raise InputError("--record-jpeg needs --record FILE.mcap")
+    if args.record is not None:
+        check_record_path(args.record, args.force)
+
+
+def check_record_path(path: str, force: bool = False) -> None:
+    """``--record FILE.mcap``: an .mcap file in an existing folder, not there yet (InputError)."""
+    rec = Path(path)
+    if rec.suffix.lower() != ".mcap":
+        raise InputError(f"--record {path}: a recording must be an .mcap file (a ROS 2 bag); the run folder "
+                         "(log_<arm>.csv, result.json: `wristmark view DIR`) is --out DIR")
+    if rec.exists():
+        raise InputError(f"--record {path}: exists already; not overwriting a recording (remove it or pick another)")
+    if not rec.parent.is_dir():
+        raise InputError(f"--record {path}: folder {rec.parent} does not exist")
 
 
 def run_scene(args: argparse.Namespace) -> int:
@@ -78,6 +104,7 @@ def run_scene(args: argparse.Namespace) -> int:
     hold = tuple(args.hold or ())
     live = parse_target_specs(args.targets or (), scene.names, hold)  # {arm: (stdin | tcp, port)}
     setups, scene_camera = load_scene_setups(scene, args.calib, rig=args.rig, controller=args.controller_config)
+    models = load_scene_models(args.model or (), scene.names, setups)  # {arm: MODEL.yaml} of --model NAME=FILE
     for n, s in setups.items():  # the command line's overrides; one grid for every arm (rig.loop.arm_set_session)
         s = apply_overrides(s, args, settle_time=args.settle)
         setups[n] = s.with_changes(rig=dataclasses.replace(s.rig, frame_phase_lock="none"))
@@ -101,34 +128,55 @@ def run_scene(args: argparse.Namespace) -> int:
     claim_outputs(dirs=[args.out], files=[args.json], force=args.force)  # after every option was validated
     warm_up()
     options = LinkOptions(kind="serial", port=None, baudrate=args.baud, timeout=args.timeout)
+    # the live view's server and drawing process first: they do not inherit the loop's priority
+    view, view_lines = start_scene_view(setups, scene_camera, bases, args.host) if args.view else (None, "")
     if args.rt_priority is not None:  # before any thread starts: the camera's threads inherit it
         from wristmark.rig.loop.realtime_priority import request_realtime_priority
 
-        request_realtime_priority(args.rt_priority)
+        try:
+            request_realtime_priority(args.rt_priority)
+        except BaseException:
+            if view is not None:
+                view.close()
+            raise
     stores, sources = {}, {}
     try:
         for n, (_, port) in live.items():  # each arm's own server (before any box opens: a port taken is exit 2)
             trajs[n], stores[n], sources[n] = open_live_targets(
                 lives[n], Workspace.around(centres[n], scene.cube_size), port, args.target_timeout, args.max_speed,
                 f"arm {n}'s targets", who=f"arm {n} ")
+        print(view_lines, end="", file=sys.stderr, flush=True)  # the view's URL after the targets' ports
         session = open_arm_set_session(setups, ports, args.camera, scene_camera, options,
                                        camera_timeout=args.camera_timeout)
+        recorder = open_scene_recorder(args, setups, scene_camera, session)
         from wristmark.rig.loop.heap_freeze import freeze_heap
 
         freeze_heap()  # no full garbage collection of the start-up heap mid-run (rig.loop.heap_freeze)
         clearance = scene.clearance + scene.clearance_margin if scene.clearance > 0 else 0.0
         settle = next(iter(setups.values())).rig.settle_time
         with sigterm_as_interrupt():
-            run = run_arm_set(setups, trajs, session, psi0, bases, clearance, settle)
+            run = run_arm_set(setups, trajs, session, psi0, bases, clearance, settle, recorder=recorder,
+                              on_cycle=None if view is None else view.on_arm_cycle)
     finally:
         for src in sources.values():
             if src is not None:
                 src.close()
+        if view is not None:
+            view.close()
     res = scene_result(args, scene, setups, trajs, session, run, hold)
+    for n, path in models.items():  # the identified arm each such arm's loop commanded through
+        res["arms"][n]["model"] = path
     for n, store in stores.items():
         src = sources[n]
         res["arms"][n]["targets"] = {"source": src.describe if src is not None else live[n][0],
                                      "max_speed_mps": args.max_speed, **store.report()}
+    if view is not None:
+        st = view.stats
+        res["view"] = {"url": view.url, "sent": st.sent, "dropped": st.dropped, "received": st.received,
+                       "frames": st.frames, "problem": st.error}
+    if recorder is not None:
+        res["recording"] = {"path": args.record, "cycles": recorder.cycles, "dropped_cycles": recorder.dropped,
+                            "messages": recorder.bag.messages, "problem": recorder.error}
     write_scene_outputs(args, scene, setups, ports, run, res)
     for n, a in res["arms"].items():
         c = a["closed_loop"]
@@ -142,6 +190,74 @@ def run_scene(args: argparse.Namespace) -> int:
                      f"{'held and disabled' if not o.close_error else o.close_error})" for n, o in stopped.items())
     print(f"wristmark servo: error: stopped safely: {what}", file=sys.stderr)
     return 130 if any(o.cause == "interrupted" for o in stopped.values()) else 3
+
+
+@dataclasses.dataclass(frozen=True)
+class SceneArms:
+    """A hardware scene as the live view sees it (viz.arms_scene.ArmsSetup): each arm's loop setup,
+    its base pose in the scene's {w} and the scene camera (``world_T_left`` in the scene's {w})."""
+
+    arms: dict[str, Any]
+    camera: Any
+    bases: dict[str, Any]
+
+    @property
+    def names(self) -> list[str]:
+        """The arms' names, in the scene's order."""
+        return list(self.arms)
+
+    def base(self, name: str) -> Any:
+        """Arm ``name``'s {w} in the scene's {w} (4x4 [m])."""
+        return self.bases[name]
+
+
+def start_scene_view(setups: dict[str, Any], scene_camera: Any, bases: dict[str, Any], host: str | None
+                     ) -> tuple[Any, str]:
+    """``--view``: the Meshcat live view of every arm (viz.live.start_scene_live_view; loopback
+    only unless ``host``) and the lines it has for stderr (its URL), or a one-line error when it
+    cannot start."""
+    try:
+        from wristmark.viz.live import start_scene_live_view
+    except ImportError as e:
+        raise InputError(f"--view needs the Meshcat live view (viz/live.py), which is not available: {e}") from None
+    lines = io.StringIO()
+    view = start_scene_live_view(SceneArms(dict(setups), scene_camera, dict(bases)), host=host, stream=lines)
+    return view, lines.getvalue()
+
+
+def load_scene_models(specs: Any, names: list[str], setups: dict[str, Any]) -> dict[str, str]:
+    """``--model NAME=MODEL.yaml`` per arm (not every arm needs one): each arm's identified model
+    (models.model_file, checked against its arm's segments and actuators) put in its setup;
+    returns {arm: path}. InputError/ConfigError (one line) for a bad spec or file."""
+    from wristmark.models.arm_spec import ArmSpec, arm_size
+    from wristmark.models.model_file import load_model
+    from wristmark.rig.loop.arm_set_session import named_specs
+
+    paths = named_specs("--model", specs, names, "model is NAME=MODEL.yaml")
+    for n, path in paths.items():
+        params = setups[n].params
+        segments = len(params.segments) if isinstance(params, ArmSpec) else 2
+        try:
+            model = load_model(path).for_arm(segments, arm_size(params)[1], path)
+        except (InputError, WristmarkError) as e:
+            raise type(e)(f"--model {n}={path}: {e}") from None
+        setups[n] = setups[n].with_changes(model=model)
+    return paths
+
+
+def open_scene_recorder(args: argparse.Namespace, setups: dict[str, Any], scene_camera: Any, session: Any) -> Any:
+    """The ``--record`` bag of every arm (after the boxes and the camera opened, before any
+    motion; rig.recording.servo_recorder); closes the session when the bag cannot be written."""
+    if not args.record:
+        return None
+    from wristmark.rig.recording.servo_recorder import ServoRecorder
+
+    try:
+        return ServoRecorder(args.record, {n: s.params for n, s in setups.items()}, jpeg=args.record_jpeg,
+                             world_T_left=scene_camera.T_world_left)
+    except BaseException:
+        session.close()
+        raise
 
 
 def scene_result(args: argparse.Namespace, scene: Any, setups: dict[str, Any], trajs: dict[str, Any], session: Any,

@@ -50,11 +50,17 @@ def add_setup_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=seed_int(), help="random seed (noise, rendering, tracker)")
 
 
-def add_model_arguments(p: argparse.ArgumentParser) -> None:
-    """``--model MODEL.yaml`` (the identified arm the loop commands) and ``--open-loop-on-lost S``."""
-    p.add_argument("--model", metavar="MODEL.yaml",
-                   help="identified arm (wristmark identify): the loop commands its inverse, plays and lag "
-                        "(docs/identification.md)")
+def add_model_arguments(p: argparse.ArgumentParser, per_arm: bool = False) -> None:
+    """``--model MODEL.yaml`` (the identified arm the loop commands) and ``--open-loop-on-lost S``;
+    ``per_arm``: repeatable, ``NAME=MODEL.yaml`` per arm of a scene (``servo --scene``)."""
+    if per_arm:
+        p.add_argument("--model", metavar="MODEL.yaml", action="append",
+                       help="identified arm (wristmark identify): the loop commands its inverse, plays and lag "
+                            "(docs/identification.md); with --scene NAME=MODEL.yaml, repeatable (one per arm)")
+    else:
+        p.add_argument("--model", metavar="MODEL.yaml",
+                       help="identified arm (wristmark identify): the loop commands its inverse, plays and lag "
+                            "(docs/identification.md)")
     p.add_argument("--open-loop-on-lost", type=nonnegative_float(MAX_OPEN_ON_LOST_S), metavar="S",
                    help="with --model: while the marker is lost, walk on along the target open loop for S seconds, "
                         "then hold (default 0: hold at once; rig open_loop_on_lost)")
@@ -93,12 +99,22 @@ def setup_from_args(args: argparse.Namespace, simulated: bool = True, **rig_over
     if getattr(args, "model", None):  # --model (experiment, servo): docs/identification.md
         from wristmark.models.model_file import load_model
 
-        setup = setup.with_changes(model=load_model(args.model))
+        setup = setup.with_changes(model=load_model(one_model(args.model)))
     if getattr(args, "registration", None):
         from wristmark.cvs.calibration.registration_file import load_registration
 
         setup = setup.with_changes(registration=load_registration(args.registration).world_T_left)
     return apply_overrides(setup, args, **rig_overrides)
+
+
+def one_model(model: str | list[str]) -> str:
+    """The one arm's ``--model`` (servo's is repeatable, for the arms of a scene: once without)."""
+    if isinstance(model, str):
+        return model
+    if len(model) > 1:
+        raise InputError(f"--model given {len(model)} times: one identified model per arm needs --scene "
+                         "(--model NAME=MODEL.yaml for each)")
+    return model[0]
 
 
 SCENE_FILES = ("robot", "marker", "plant", "calib", "model", "registration", "open_loop_on_lost")

@@ -4,7 +4,6 @@ arm's walk, and one camera frame per cycle shared by every arm's loop."""
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -138,22 +137,44 @@ def test_every_arm_of_a_cycle_gets_the_one_frame_of_that_cycle() -> None:
 
 
 @pytest.mark.wallclock
-def test_keep_alive_feeds_a_box_that_would_trip_its_watchdog_otherwise() -> None:
-    """While one arm probes its play, the other boxes get GET_STATE from a thread: enabled and
-    silent for 0.6 s a box trips its 250 ms watchdog, kept alive it does not."""
-    from tests.rig.link.test_serial_link import open_bench
-    from wristmark.rig.loop.arm_set_session import KeepAlive
+def test_a_probed_arms_link_feeds_the_other_boxes_from_its_own_thread() -> None:
+    """While one arm probes its play alone, each time its time runs on (in steps under the 250 ms
+    watchdog) or it is commanded, the other boxes get a GET_STATE from the loop's own thread (no
+    keep-alive thread whose replies wait behind the loop's work): a box enabled and silent for
+    0.6 s trips its watchdog, fed so it does not; an emergency stop on a fed box raises at once,
+    naming its arm (not the probed one's)."""
+    import threading
 
-    kept, alone = open_bench(simulated=False), open_bench(simulated=False)
+    from tests.rig.link.test_serial_link import open_bench
+    from wristmark.rig.link import protocol as P
+    from wristmark.rig.link.actuator_driver import ActuatorEStopped
+    from wristmark.rig.loop.arm_set_session import FeedingLink, on_arm
+
+    probed, kept, alone = (open_bench(simulated=False) for _ in range(3))
+    threads: set[str] = set()
+    get_state = kept.link.driver.get_state
+
+    def spied() -> object:
+        threads.add(threading.current_thread().name)
+        return get_state()
+
+    kept.link.driver.get_state = spied  # type: ignore[method-assign]
     try:
-        with KeepAlive({"a": kept.link}) as keep:
-            time.sleep(0.6)
-        assert keep.error is None
+        link = FeedingLink(probed.link, {"b": kept.link})
+        before = kept.emulator.received.count("GetState")
+        t0 = link.time
+        link.advance_to(t0 + 0.6)  # one call: the others fed at least every 0.1 s of it
+        link.send_target(probed.link.measured_actuators())
+        assert link.time >= t0 + 0.6 and link.wrapped is probed.link
         assert not kept.emulator.watchdog_tripped and kept.emulator.enabled
-        assert kept.emulator.received.count("GetState") >= 4
-        time.sleep(0.6)
+        assert kept.emulator.received.count("GetState") - before >= 7  # 6 steps of 0.1 s, then the command
+        assert threads == {threading.current_thread().name}
         assert alone.emulator.watchdog_tripped and not alone.emulator.enabled
+        kept.emulator.receive(P.encode(P.EStop(seq=0)))  # the operator's button on b's box
+        with pytest.raises(ActuatorEStopped) as stop, on_arm("a"):  # during a's cycles: b's stop, named b's
+            link.advance_to(link.time + 0.01)
+        assert str(stop.value).startswith("arm 'b': ") and "arm 'a'" not in str(stop.value)
     finally:
-        for b in (kept, alone):
+        for b in (probed, kept, alone):
             b.link.close()
             b.emulator.stop()

@@ -14,17 +14,16 @@ the cycle (:class:`SharedFrameFeed`) and the one tracking of every sleeve in it
 Stops: an arm whose marker stays lost (rig ``max_lost_cycles``) is held and disabled alone, the
 others walk on; a camera that stalls, a box that stops answering, an emergency stop, a watchdog
 trip or Ctrl-C hold and disable every arm. A controller that probes its play (rig/loop/play_probe.py)
-probes it one arm at a time after the settle, the other boxes polled meanwhile from a thread
-(:class:`KeepAlive`), as the simulated bench does one arm at a time. No frame phase lock: one
-grid for every arm.
+probes it one arm at a time after the settle, as the simulated bench does; the other boxes are
+polled meanwhile from the probe's own cycles (:class:`FeedingLink`: no second thread touches a
+link). No frame phase lock: one grid for every arm.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import threading
 import time
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -40,7 +39,7 @@ from wristmark.models.actuation import psi_from_actuators
 from wristmark.models.arm_spec import Arm
 from wristmark.models.errors import ConfigError, InputError, WristmarkError
 from wristmark.models.limits import clamp_psi
-from wristmark.rig.link.serial_link import SerialLink
+from wristmark.rig.link.serial_link import KEEPALIVE_S, SerialLink
 from wristmark.rig.loop.arm_clearance import bodies_at, least_distance, model_bodies, model_offsets, set_obstacles
 from wristmark.rig.loop.arm_set_sensor import ArmSensorView, ArmSetSensor
 from wristmark.rig.loop.frame_feed import LatestFrameFeed
@@ -296,47 +295,93 @@ class _BudgetedView(ArmSensorView):
 
 @contextmanager
 def on_arm(name: str) -> Iterator[None]:
-    """An actuator box's error raised again naming its arm (the same type: the stop's cause)."""
+    """An actuator box's error raised again naming its arm (the same type: the stop's cause); one
+    that names its arm already (another box's, fed from this arm's cycles) passes unchanged."""
     from wristmark.rig.link.actuator_driver import ActuatorError
 
     try:
         yield
     except ActuatorError as e:
-        raise type(e)(f"arm '{name}': {e}") from None
+        if getattr(e, "arm", None) is not None:
+            raise
+        named = type(e)(f"arm '{name}': {e}")
+        named.arm = name  # type: ignore[attr-defined]
+        raise named from None
 
 
-class KeepAlive:
-    """Keeps boxes fed from a thread of its own (GET_STATE every ``period`` [s], under their 250 ms
-    watchdog) while the caller drives another arm alone; the first error (a box that stopped
-    answering, an emergency stop) is raised by :meth:`__exit__`. Only this thread may touch those
-    links meanwhile."""
+class FeedingLink:
+    """Arm ``name``'s link while its loop runs cycles alone (its play probe), feeding the other
+    boxes (``others``, by arm) from the same thread: whenever the probed arm's box is talked to
+    (its time run on, in steps of at most ``keepalive_s``; a command; an encoder reading; a hold),
+    every other box gets a GET_STATE right after, checked as a cycle's poll is (an emergency stop,
+    a fault or a watchdog trip raises at once, naming its arm). So no other box is ever silent
+    longer than the probed arm's own (skipping boxes fed a few ms ago made them so: the probe's
+    last fits are ~200 ms without an exchange under load, and a box fed 40 ms before them
+    tripped its watchdog), and no second thread touches a link or waits for a reply behind the
+    loop's work (a keep-alive thread did: under load its replies were read late, and a box was
+    reported "not answering")."""
 
-    def __init__(self, links: Mapping[str, SerialLink], period: float = 0.1) -> None:
-        self.links, self.period = dict(links), float(period)
-        self.error: BaseException | None = None
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="keep-boxes-fed", daemon=True)
+    def __init__(self, link: Any, others: Mapping[str, Any], keepalive_s: float = KEEPALIVE_S) -> None:
+        self.link = link
+        self.others = dict(others)
+        self.keepalive_s = float(keepalive_s)
 
-    def _run(self) -> None:
-        while not self._stop.wait(self.period):
-            for name, link in self.links.items():
-                try:
-                    with on_arm(name):
-                        link.measured_actuators()
-                except Exception as e:  # noqa: BLE001 - handed to the caller's thread
-                    self.error = self.error or e
+    @property
+    def wrapped(self) -> Any:
+        """The probed arm's own link (rig.link.actuator_link.box_actuators)."""
+        return self.link
 
-    def __enter__(self) -> KeepAlive:
-        if self.links:
-            self._thread.start()
-        return self
+    @property
+    def time(self) -> float:
+        """The probed arm's link's time [s]."""
+        return float(self.link.time)
 
-    def __exit__(self, *exc: object) -> None:
-        self._stop.set()
-        if self._thread.is_alive():
-            self._thread.join(2.0)
-        if self.error is not None and exc[0] is None:
-            raise self.error
+    def feed(self) -> None:
+        """One GET_STATE to every other box, checked (its time run on to now: no wait)."""
+        for name, other in self.others.items():
+            with on_arm(name):
+                other.advance_to(other.time)
+
+    def advance_to(self, t: float) -> None:
+        """Let time run to ``t`` [s] in steps of at most ``keepalive_s``, the others fed after each."""
+        while True:
+            step = min(t, self.link.time + self.keepalive_s)
+            self.link.advance_to(step)
+            self.feed()
+            if step >= t:
+                return
+
+    def send_target(self, actuators: Array) -> None:
+        """Command the probed arm, then feed the others."""
+        self.link.send_target(actuators)
+        self.feed()
+
+    def hold(self) -> None:
+        """Hold the probed arm, then feed the others."""
+        self.link.hold()
+        self.feed()
+
+    def measured_actuators(self) -> Array:
+        """The probed arm's encoders, then the others fed."""
+        out = np.asarray(self.link.measured_actuators(), float)
+        self.feed()
+        return out
+
+    def close(self) -> None:
+        """Close the probed arm's link."""
+        self.link.close()
+
+
+@contextmanager
+def feeding_others(loop: ServoLoop, others: Mapping[str, Any]) -> Iterator[FeedingLink]:
+    """While the block runs ``loop`` alone, its link is a :class:`FeedingLink` feeding ``others``."""
+    own = loop.link
+    feeding = FeedingLink(own, others)
+    loop.link = feeding
+    try:
+        yield feeding
+    finally:
+        loop.link = own
 
 
 # -- the session --------------------------------------------------------------------------------
@@ -474,11 +519,14 @@ def start_gap(setups: Mapping[str, LoopSetup], psi0: Mapping[str, Array], bases:
 
 
 def run_arm_set(setups: Mapping[str, LoopSetup], trajs: Mapping[str, Trajectory], session: ArmSetSession,
-                psi0: Mapping[str, Array], bases: Mapping[str, Array], clearance: float, settle: float) -> ArmSetRun:
+                psi0: Mapping[str, Array], bases: Mapping[str, Array], clearance: float, settle: float,
+                recorder: Any = None, on_cycle: Callable[[str, Any], None] | None = None) -> ArmSetRun:
     """Every arm to its start, then every trajectory closed loop in lockstep (module docstring);
     ``clearance`` [m] kept between the arms' bodies (0: none); ``settle`` [s] of holding the
-    starts before the walks. Closes the session (every box held and disabled). Safe stops are
-    reported in each arm's outcome, never raised."""
+    starts before the walks; ``recorder`` (rig.recording.servo_recorder.ServoRecorder of every
+    arm) records each arm's cycles and is closed at the end; ``on_cycle(arm, record)`` sees
+    every cycle of every arm (the live view's). Closes the session (every box held and
+    disabled). Safe stops are reported in each arm's outcome, never raised."""
     from wristmark.solvers.controller_registry import make_controller
 
     names = list(setups)
@@ -502,9 +550,17 @@ def run_arm_set(setups: Mapping[str, LoopSetup], trajs: Mapping[str, Trajectory]
         session.start()
         for n, s in setups.items():
             W = np.asarray(s.host_camera.T_world_left, float)
-            loops[n] = ServoLoop(s.params, s.rig, session.links[n], frames=session.feed,
+            link: Any = session.links[n]
+            rig_n = s.rig
+            if s.model is not None:  # --model NAME=FILE: command the identified arm (rig.loop.model_loop)
+                from wristmark.rig.loop.model_loop import model_rig, use_model
+
+                link = use_model(link, s.params, s.model, controllers[n], rig_n.control_dt)
+                rig_n = model_rig(rig_n, s.model)
+            loops[n] = ServoLoop(s.params, rig_n, link, frames=session.feed,
                                  sensor=session.sensor.view(n, W), controller=controllers[n], wall_clock=True,
-                                 frame_wait=s.rig.frame_wait)
+                                 frame_wait=s.rig.frame_wait,
+                                 on_cycle=_cycle_hook(recorder, on_cycle, loops, session.links, n))
         _lockstep_start(loops, psi0, dt)
         _walk(loops, trajs, session, run, stats, bases, clearance, int(round(settle / dt)))
     except (WristmarkError, KeyboardInterrupt) as e:  # every arm held and disabled below
@@ -516,6 +572,8 @@ def run_arm_set(setups: Mapping[str, LoopSetup], trajs: Mapping[str, Trajectory]
                 outs[n].t_stop = loops[n].elapsed(t_now) if n in loops else float("nan")
     finally:
         session.close()
+        if recorder is not None:
+            recorder.close()
         for n in names:
             out = outs[n]
             _count(out, stats[n])
@@ -525,6 +583,22 @@ def run_arm_set(setups: Mapping[str, LoopSetup], trajs: Mapping[str, Trajectory]
                 out.ready_after_arrival_ms = list(loops[n].ready_after_arrival_ms)
                 out.play_probe = probe_report(loops[n].play_fits, loops[n].play_probe_note)
     return run
+
+
+def _cycle_hook(recorder: Any, on_cycle: Callable[[str, Any], None] | None, loops: Mapping[str, ServoLoop],
+                links: Mapping[str, SerialLink], name: str) -> Any:
+    """Arm ``name``'s per-cycle hook: its cycle recorded (with its box's latest reading) and
+    handed to ``on_cycle`` (None without either)."""
+    if recorder is None and on_cycle is None:
+        return None
+
+    def hook(rec: Any) -> None:
+        if recorder is not None:
+            recorder.record(rec, loops[name], links[name], arm=name)
+        if on_cycle is not None:
+            on_cycle(name, rec)
+
+    return hook
 
 
 def _walk(loops: Mapping[str, ServoLoop], trajs: Mapping[str, Trajectory], session: ArmSetSession, run: ArmSetRun,
@@ -540,9 +614,9 @@ def _walk(loops: Mapping[str, ServoLoop], trajs: Mapping[str, Trajectory], sessi
         ctrl = loops[n].controller
         if ctrl is None or not ctrl.wants_play_probe:
             continue
-        others = {m: session.links[m] for m in active if m != n}
+        others = {m: loops[m].link for m in active if m != n}  # through an identified model's link, if any
         try:
-            with KeepAlive(others), session.feed.solo(), on_arm(n):
+            with feeding_others(loops[n], others), session.feed.solo(), on_arm(n):
                 loops[n].advance_to(time.monotonic())  # its cycles from now (an arm probed before took seconds)
                 settle[n] = loops[n].probe_play(trajs[n], "servo", run.outcomes[n].log, stats[n], memory[n],
                                                 settle[n])
@@ -577,7 +651,11 @@ def _walk(loops: Mapping[str, ServoLoop], trajs: Mapping[str, Trajectory], sessi
             out = run.outcomes[n]
             try:
                 with on_arm(n):
-                    out.log.add(loops[n].step(targets[n], "servo", True, memory[n], stats[n]))
+                    rec = loops[n].step(targets[n], "servo", True, memory[n], stats[n])
+                out.log.add(rec)
+                hook = loops[n].on_cycle
+                if callable(hook):  # as the loop's own cycles (the settle, the probe) do
+                    hook(rec)
             except CameraStalledError:
                 raise
             except MarkerLostError as e:  # that arm held and disabled; the others walk on

@@ -7,7 +7,10 @@ bgr8 or mono8, or ``sensor_msgs/msg/CompressedImage`` jpeg with ``jpeg=True``, f
 frame ``left_camera``; with a ``world_T_left`` a second message in frame ``world`` on the same
 topic); ``/wristmark/actuators`` (``sensor_msgs/msg/JointState``, names phi, d, s1a, s1b, s2a,
 s2b for the reference arm, the robot file's actuator names for another, positions in rad and m:
-one message with ``frame_id`` ``commanded`` and one ``measured``).
+one message with ``frame_id`` ``commanded`` and one ``measured``). Several arms in one view
+(``servo --scene --record``): the images once, and each arm's poses and actuators on its own
+topics ``/wristmark/NAME/marker_pose``, ``/wristmark/NAME/tip``, ``/wristmark/NAME/actuators``
+(``world``: the scene's {w}).
 
 Every message is stamped (header and log time) with the frame's capture time mapped from the
 host's ``time.monotonic()`` to the wall clock once, when the recorder opens:
@@ -23,6 +26,7 @@ from __future__ import annotations
 
 import shutil
 import time
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -41,19 +45,30 @@ ACTUATOR_NAMES = ("phi", "d", "s1a", "s1b", "s2a", "s2b")
 POSE_TYPE, JOINT_TYPE = "geometry_msgs/msg/PoseStamped", "sensor_msgs/msg/JointState"
 
 
+def arm_topics(arm: str | None) -> tuple[str, str, str]:
+    """(marker pose, tip, actuators) topics of arm ``arm`` of a scene (None: the one arm)."""
+    if arm is None:
+        return POSE_TOPIC, TIP_TOPIC, ACTUATOR_TOPIC
+    return f"/wristmark/{arm}/marker_pose", f"/wristmark/{arm}/tip", f"/wristmark/{arm}/actuators"
+
+
 class BagRecorder:
     """Writes the topics of the module docstring to ``path`` (must end in .mcap and not exist).
 
     jpeg: images as CompressedImage (JPEG at ``jpeg_quality``) instead of raw bgr8;
     world_T_left: 4x4 pose of {ll} in {w} [m] (poses are then also written in ``world``);
     actuator_names: the JointState names of the actuators, in the arm's order (the reference arm's
-    by default; any arm's from models.arm_spec.actuator_names)."""
+    by default; any arm's from models.arm_spec.actuator_names); arms: several arms' actuator names
+    by arm (their topics per arm, :func:`arm_topics`; ``world_T_left`` then in the scene's {w})."""
 
     def __init__(self, path: str | Path, jpeg: bool = False, jpeg_quality: int = 90,
-                 world_T_left: Array | None = None, actuator_names: tuple[str, ...] = ACTUATOR_NAMES) -> None:
+                 world_T_left: Array | None = None, actuator_names: tuple[str, ...] = ACTUATOR_NAMES,
+                 arms: Mapping[str, tuple[str, ...]] | None = None) -> None:
         from rosbags.rosbag2 import StoragePlugin, Writer
 
         self.actuator_names = tuple(actuator_names)
+        self.arm_actuators: dict[str | None, tuple[str, ...]] = (
+            {n: tuple(a) for n, a in arms.items()} if arms else {None: self.actuator_names})
         self.path = Path(path)
         if self.path.suffix.lower() != ".mcap":
             raise InputError(f"{self.path}: a recording must be an .mcap file")
@@ -74,8 +89,11 @@ class BagRecorder:
         self._writer.open()
         image_type = COMPRESSED if jpeg else IMAGE
         self._conn: dict[str, tuple[Any, str]] = {}
-        for topic, msgtype in ((LEFT_TOPIC, image_type), (RIGHT_TOPIC, image_type), (POSE_TOPIC, POSE_TYPE),
-                               (TIP_TOPIC, POSE_TYPE), (ACTUATOR_TOPIC, JOINT_TYPE)):
+        topics = [(LEFT_TOPIC, image_type), (RIGHT_TOPIC, image_type)]
+        for arm in self.arm_actuators:
+            pose, tip, actuators = arm_topics(arm)
+            topics += [(pose, POSE_TYPE), (tip, POSE_TYPE), (actuators, JOINT_TYPE)]
+        for topic, msgtype in topics:
             self._conn[topic] = (self._writer.add_connection(topic, msgtype, typestore=self._store), msgtype)
         self.messages = 0
         self._closed = False
@@ -104,10 +122,11 @@ class BagRecorder:
         )
         return types[POSE_TYPE](header=header_msg(self._store, t_ns, frame_id), pose=pose)
 
-    def write_pose(self, t_capture: float, T_left_marker: Array, tip_left: Array) -> None:
+    def write_pose(self, t_capture: float, T_left_marker: Array, tip_left: Array, arm: str | None = None) -> None:
         """The marker pose (4x4 of {wm} in {ll} [m]) and the tip (in {ll} [m], with {wm}'s
-        orientation) of the frame captured at ``t_capture`` [s, monotonic]."""
+        orientation) of the frame captured at ``t_capture`` [s, monotonic] (of arm ``arm``)."""
         t = self.stamp_ns(t_capture)
+        pose_topic, tip_topic, _ = arm_topics(arm)
         T_marker = np.asarray(T_left_marker, float).reshape(4, 4)
         T_tip = T_marker.copy()
         T_tip[:3, 3] = np.asarray(tip_left, float).reshape(3)
@@ -115,23 +134,24 @@ class BagRecorder:
         if self.world_T_left is not None:
             frames.append(("world", self.world_T_left))
         for frame_id, T_frame_left in frames:
-            self._write(POSE_TOPIC, self._pose(t, frame_id, T_frame_left @ T_marker), t)
-            self._write(TIP_TOPIC, self._pose(t, frame_id, T_frame_left @ T_tip), t)
+            self._write(pose_topic, self._pose(t, frame_id, T_frame_left @ T_marker), t)
+            self._write(tip_topic, self._pose(t, frame_id, T_frame_left @ T_tip), t)
 
-    def write_actuators(self, t: float, commanded: Array, measured: Array) -> None:
+    def write_actuators(self, t: float, commanded: Array, measured: Array, arm: str | None = None) -> None:
         """Commanded and measured actuator positions (the reference arm: phi [rad], d, s1a, s1b,
         s2a, s2b [m]; any arm: its ``actuator_names``, rad or m each) at host monotonic time ``t``
-        [s] (e.g. the capture time of the frame the command used)."""
+        [s] (e.g. the capture time of the frame the command used), of arm ``arm``."""
         t_ns = self.stamp_ns(t)
+        names = self.arm_actuators[arm]
         for frame_id, values in (("commanded", commanded), ("measured", measured)):
             q = np.asarray(values, float).reshape(-1)
-            if q.size != len(self.actuator_names):
-                raise InputError(f"expected {len(self.actuator_names)} actuator positions, got {q.size}")
+            if q.size != len(names):
+                raise InputError(f"expected {len(names)} actuator positions, got {q.size}")
             msg = self._store.types[JOINT_TYPE](
-                header=header_msg(self._store, t_ns, frame_id), name=list(self.actuator_names), position=q,
+                header=header_msg(self._store, t_ns, frame_id), name=list(names), position=q,
                 velocity=np.zeros(0), effort=np.zeros(0),
             )
-            self._write(ACTUATOR_TOPIC, msg, t_ns)
+            self._write(arm_topics(arm)[2], msg, t_ns)
 
     def close(self) -> None:
         """Finish the bag and move it to ``path`` (idempotent)."""

@@ -37,7 +37,10 @@ class AxisEvidenceSettings:
     as the sleeve, not a thin tool); step: half the width of the grey-level step (in r);
     max_reach: a band is skipped when an end face turned towards the camera hides it beyond this
     (in r); min_samples: least valid samples per offset; decide: least |score| that decides;
-    min_edge: least edge strength of the stronger side for a band to count [grey levels];
+    margin: a |score| from decide to decide + margin is marginal and decides only where the
+    tracker's default prior agrees (else the direction is ambiguous: a path-traced pair's lit
+    tool gave 0.145 the wrong way, docs/notes/highlight-stripe.md); min_edge: least edge
+    strength of the stronger side for a band to count [grey levels];
     decide_strict: least |far score| that decides in axis_evidence_strict; veto_strict: a near
     score this far the other way vetoes it.
     """
@@ -49,6 +52,7 @@ class AxisEvidenceSettings:
     step: float = 0.06
     min_samples: int = 4
     decide: float = 0.1
+    margin: float = 0.1
     decide_strict: float = 0.3
     veto_strict: float = 0.5
     min_edge: float = 30.0

@@ -64,7 +64,16 @@ class TrackerSettings:
     max_tip_sigma_m [m]: a fit whose tip has a standard deviation above max_tip_sigma_m at
     corner_sigma_px of noise on each corner coordinate is refused (three corners of one ring per
     view, small or steeply seen, fix the tilt poorly and can put the tip 2-9 mm off while
-    reprojecting to 0.05 px; cvs.tracking.tip_uncertainty, docs/notes/steep-views.md)."""
+    reprojecting to 0.05 px; cvs.tracking.tip_uncertainty, docs/notes/steep-views.md);
+    corner_contrast_noise [px x grey levels]: on images (``track``) each used corner's noise is
+    corner_sigma_px combined with corner_contrast_noise over the corner's contrast (grey-level
+    spread of its HTM window): dim or low-contrast corners fix the tip less well (0: corner_sigma_px
+    for all; cvs.tracking.tip_uncertainty.corner_sigmas, docs/notes/highlight-stripe.md);
+    clipped_sigma_px [px], clipped_level [grey level], clipped_radius [-]: ... and combined with
+    clipped_sigma_px where a pixel of clipped_level or more lies within clipped_radius times the
+    chain's spacing of the corner (beside a clipped highlight stripe the HTM fit's linear shading
+    is wrong: 0.1-1.6 px off; a pose that rests on such corners alone is refused by
+    max_tip_sigma_m; 0 disables)."""
 
     min_corners: int = 3
     min_pairs: int = 2
@@ -84,6 +93,10 @@ class TrackerSettings:
     magnify: float = 1.0
     corner_sigma_px: float = 0.1
     max_tip_sigma_m: float = 0.001
+    corner_contrast_noise: float = 0.0
+    clipped_sigma_px: float = 1.0
+    clipped_level: int = 250
+    clipped_radius: float = 0.25
     paper_detector: DetectorSettings = field(default_factory=DetectorSettings)
     magnify_below_px: float = 20.0
 

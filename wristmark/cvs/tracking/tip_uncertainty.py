@@ -16,20 +16,74 @@ from wristmark.cvs.camera import StereoCamera
 
 Array = NDArray[np.float64]
 
-__all__ = ["tip_sigma"]
+__all__ = ["corner_contrast", "corner_sigmas", "near_clipped", "tip_sigma"]
 
 
 def _skew(v: Array) -> Array:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
+def corner_contrast(view: NDArray[np.uint8], uv: Array, r: int = 4) -> Array:
+    """Each corner's contrast [grey levels]: the spread (90th - 10th percentile) of the grey
+    levels in the (2 r + 1)^2 window around it (the HTM fit's window, cvs.corners.subpixel);
+    0 where the window leaves the image."""
+    from wristmark.cvs.gray_image import to_gray
+
+    pts = np.rint(np.asarray(uv, float).reshape(-1, 2)).astype(int)
+    h, w = view.shape[:2]
+    out = np.zeros(pts.shape[0])
+    for k, (x, y) in enumerate(pts):
+        if r <= x < w - r and r <= y < h - r:
+            win = to_gray(np.ascontiguousarray(view[y - r:y + r + 1, x - r:x + r + 1])).astype(np.float64)
+            lo, hi = np.percentile(win, [10.0, 90.0])
+            out[k] = hi - lo
+    return out
+
+
+def near_clipped(view: NDArray[np.uint8], uv: Array, radius_px: float, level: int) -> NDArray[np.bool_]:
+    """Whether each corner has a pixel at or above ``level`` (a clipped highlight) within
+    ``radius_px`` [px] (a square window) of it."""
+    from wristmark.cvs.gray_image import to_gray
+
+    pts = np.asarray(uv, float).reshape(-1, 2)
+    h, w = view.shape[:2]
+    rad = max(float(radius_px), 1.0)
+    out = np.zeros(pts.shape[0], bool)
+    for k, (x, y) in enumerate(pts):
+        x0, x1 = max(int(x - rad), 0), min(int(x + rad) + 1, w)
+        y0, y1 = max(int(y - rad), 0), min(int(y + rad) + 1, h)
+        if x1 > x0 and y1 > y0:
+            out[k] = int(to_gray(np.ascontiguousarray(view[y0:y1, x0:x1])).max()) >= level
+    return out
+
+
+def corner_sigmas(view: NDArray[np.uint8], uv: Array, floor_px: float, contrast_noise: float,
+                  clipped_sigma_px: float = 0.0, clipped_level: int = 250, clipped_radius_px: float = 0.0) -> Array:
+    """Each corner's position noise [px]: ``floor_px`` combined with ``contrast_noise`` [px x grey
+    levels] over its contrast (corner_contrast): a corner's localisation noise grows as the image
+    noise over its contrast (path-traced 1080p pairs, seed 101: 0.24 px RMS at 20-40 grey levels,
+    0.18 at 40-80, 0.13 above; docs/notes/highlight-stripe.md); and with ``clipped_sigma_px``
+    for a corner with a pixel at ``clipped_level`` or more within ``clipped_radius_px``
+    (near_clipped): beside a highlight stripe the HTM fit's linear shading does not model the
+    light, and such corners were 0.1-1.6 px off on the same pairs."""
+    pts = np.asarray(uv, float).reshape(-1, 2)
+    var = np.full(pts.shape[0], floor_px**2)
+    if contrast_noise > 0:
+        var = var + (contrast_noise / np.maximum(corner_contrast(view, pts), 1.0)) ** 2
+    if clipped_sigma_px > 0 and clipped_radius_px > 0 and pts.shape[0]:
+        var = var + np.where(near_clipped(view, pts, clipped_radius_px, clipped_level), clipped_sigma_px**2, 0.0)
+    return np.asarray(np.sqrt(var), float)
+
+
 def tip_sigma(camera: StereoCamera, T_left_marker: Array, points_left: Array, points_right: Array,
-              tips_marker: Array, corner_sigma_px: float) -> float:
+              tips_marker: Array, corner_sigma_px: float,
+              sigmas_px: tuple[Array, Array] | None = None) -> float:
     """The largest 3D standard deviation [m] of the points ``tips_marker`` (K, 3) in {wm} [m]
     (e.g. the tip at either end of the sleeve) for the pose ``T_left_marker`` of {wm} in {ll}
     fitted to the corners ``points_left`` / ``points_right`` (N, 3) in {wm} [m] seen by each
-    camera, each pixel coordinate with noise ``corner_sigma_px`` [px]; inf when the corners do
-    not determine the pose."""
+    camera, each pixel coordinate with noise ``corner_sigma_px`` [px], or per corner
+    ``sigmas_px`` (left (N_l,), right (N_r,)) [px]; inf when the corners do not determine the
+    pose."""
     T = np.asarray(T_left_marker, float)
     R, t = T[:3, :3], T[:3, 3]
     Pl = np.asarray(points_left, float).reshape(-1, 3)
@@ -54,10 +108,17 @@ def tip_sigma(camera: StereoCamera, T_left_marker: Array, points_left: Array, po
         return float("inf")
     steps = np.array([h_rot] * 3 + [h_tr] * 3)
     J = ((uv[1:] - uv[0]) / steps[:, None]).T  # (2 N, 6)
+    if sigmas_px is None:
+        sig = np.full(J.shape[0], float(corner_sigma_px))
+    else:  # per corner, both coordinates (u, v rows of each corner in turn)
+        sig = np.repeat(np.concatenate([np.asarray(s, float).reshape(-1) for s in sigmas_px]), 2)
+        if sig.size != J.shape[0]:
+            raise ValueError("sigmas_px: one sigma per corner of points_left and points_right")
+    J = J / sig[:, None]  # whitened: pose covariance (J' J)^-1
     JtJ = J.T @ J
     if not np.all(np.isfinite(JtJ)) or np.linalg.cond(JtJ) > 1e14:
         return float("inf")
-    C = corner_sigma_px**2 * np.linalg.inv(JtJ)  # pose covariance: (rotation vector, translation)
+    C = np.linalg.inv(JtJ)  # pose covariance: (rotation vector, translation)
     worst = 0.0
     for c in np.asarray(tips_marker, float).reshape(-1, 3):
         Jt = np.hstack([-R @ _skew(c), np.eye(3)])  # d tip / d (w, v) for R exp([w]x), t + v

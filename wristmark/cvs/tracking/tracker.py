@@ -29,7 +29,10 @@ this fit is consistent with it (chains found in the previous ROIs, small motion:
 ``prior_max_move_m``, ``prior_max_turn_deg`` and ``prior_max_px``) and the image
 (cvs.tracking.axis) does not contradict it; else decisive image evidence (the arm's body
 continues behind the sleeve, nothing lies beyond the tip), and last the default prior
-``PoseSettings.axis_hint_left`` (+x: the arm enters from the left). With
+``PoseSettings.axis_hint_left`` (+x: the arm enters from the left). Marginal image evidence
+(``AxisEvidenceSettings.margin`` above ``decide``) decides only where the default prior agrees;
+where they disagree the result is ``ok=False``, "direction ambiguous" (a lit tool beside the
+sleeve gave a path-traced pair 0.145 the wrong way: docs/notes/highlight-stripe.md). With
 ``TrackerSettings.strict_direction`` the image evidence must hold in both of its bands
 (cvs.tracking.axis.axis_evidence_strict) and there is no default: otherwise the result is
 ``ok=False`` with reason "direction ambiguous" (never a guess; a distal tool as wide as the arm
@@ -60,7 +63,7 @@ from wristmark.cvs.tracking.settings import CornerDetector, TrackerSettings, mak
 from wristmark.cvs.tracking.sleeve_facing import corner_facing, turned_start
 from wristmark.cvs.tracking.stereo_match import StereoMatch, StereoRectifier, match_corners
 from wristmark.cvs.tracking.stereo_pose import MarkerPose, StereoPoseSolver
-from wristmark.cvs.tracking.tip_uncertainty import tip_sigma
+from wristmark.cvs.tracking.tip_uncertainty import corner_sigmas, tip_sigma
 from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
 
@@ -117,6 +120,7 @@ class MarkerTracker:
         self.decoder = None if marker.code is None else CodeDecoder(camera, marker, self.settings.code, family)
         self._second: tuple[CornerDetector, CornerDetector] | None = None
         self._misfits: list[tuple[Array, Array, Array | None, Array | None]] = []  # this pair's
+        self._views: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None  # the pair track() is on
         self._use_second = self.settings.detector == "auto" and type(self.detector_left).__name__ != (
             "SaddleCornerDetector")
         # each view's corners of the last good pair [px] (a lost pair's enlarged search looks there)
@@ -144,6 +148,15 @@ class MarkerTracker:
         self._misfits = []
         il = check_view(left_img, self.camera.image_size, "left")
         ir = check_view(right_img, self.camera.image_size, "right")
+        self._views = (il, ir)  # the tip-sigma gate looks at each used corner here
+        try:
+            return self._track_views(il, ir, t0, axis_hint_left, roi_only)
+        finally:
+            self._views = None
+
+    def _track_views(self, il: NDArray[np.uint8], ir: NDArray[np.uint8], t0: float, axis_hint_left: Array | None,
+                     roi_only: bool) -> TrackResult:
+        """``track``'s work on the checked views."""
         if roi_only and not self._tracking:
             return self._fail("no ROI to search (roi_only)", np.zeros((0, 2)), np.zeros((0, 2)), t0, {})
         res, full = self._track_in_rois(il, ir, t0, whole=not roi_only) if self._tracking else (None, (None, None))
@@ -382,8 +395,9 @@ class MarkerTracker:
                 hint: Array | None) -> TrackResult:
         """Fix the direction of z_wm (and, with a readable code, the roll) of a good fit: the
         code (coded sleeves), a caller's hint, else the previous pair's pose where this fit is
-        consistent with it and the image does not contradict it, else decisive image evidence,
-        else (not strict_direction) the default prior; otherwise ok false, 'direction ambiguous'."""
+        consistent with it and the image does not contradict it, else decisive image evidence
+        (marginal evidence only where the default prior agrees), else (not strict_direction) the
+        default prior; otherwise ok false, 'direction ambiguous'."""
         assert res.pose is not None
         pose, score = res.pose, float("nan")
         if self.decoder is not None:
@@ -413,13 +427,18 @@ class MarkerTracker:
             # with a consistent prior the image need only not contradict it: the left image suffices
             score = evidence(images, self.camera, self.marker, pose.T_left_marker, ax, left_only=prior is not None)
             decided = abs(score) >= (ax.decide_strict if strict else ax.decide)
+            default = None if strict or self.settings.pose.axis_hint_left is None else np.asarray(
+                self.settings.pose.axis_hint_left, float)
             if prior is not None:
                 if not decided or (score > 0) == (float(z @ prior) > 0):
                     want, source = prior, "previous"
-            elif decided:
+            elif decided and (strict or abs(score) >= ax.decide + ax.margin):
                 want, source = (z if score > 0 else -z), "image"
-            elif not strict and self.settings.pose.axis_hint_left is not None:
-                want, source = np.asarray(self.settings.pose.axis_hint_left, float), "default"
+            elif decided:  # marginal: only with the default prior's agreement, else ambiguous
+                if default is not None and (score > 0) == (float(z @ default) > 0):
+                    want, source = (z if score > 0 else -z), "image"
+            elif default is not None:
+                want, source = default, "default"
         if want is None:
             return replace(res, ok=False, reason="direction ambiguous", tip_left=None, tip_world=None,
                            T_left_marker=None, axis_source="", axis_score=score)
@@ -441,16 +460,27 @@ class MarkerTracker:
                 return False
         return True
 
-    def _tip_sigma(self, pose: MarkerPose, idx_l: IntArray, idx_r: IntArray) -> float:
-        """The fit's tip standard deviation [m] at ``settings.corner_sigma_px`` of corner noise
-        (cvs.tracking.tip_uncertainty), the larger of the sleeve's two ends (the direction of
-        z_wm is decided later)."""
+    def _tip_sigma(self, pose: MarkerPose, idx_l: IntArray, idx_r: IntArray,
+                   uv: tuple[Array, Array] | None = None) -> float:
+        """The fit's tip standard deviation [m] (cvs.tracking.tip_uncertainty), the larger of the
+        sleeve's two ends (the direction of z_wm is decided later), at each used corner's noise:
+        ``settings.corner_sigma_px``, and with the pair's images (``track``) and ``uv`` (the
+        corners' raw pixels of each view, as idx_l / idx_r) combined with
+        ``corner_contrast_noise`` / the corner's contrast and, beside clipped pixels,
+        ``clipped_sigma_px`` (cvs.tracking.tip_uncertainty.corner_sigmas)."""
         P = self.solver.marker_points
-        used_l = np.asarray(idx_l)[np.asarray(pose.inliers_left, bool)]
-        used_r = np.asarray(idx_r)[np.asarray(pose.inliers_right, bool)]
+        in_l, in_r = np.asarray(pose.inliers_left, bool), np.asarray(pose.inliers_right, bool)
+        used_l, used_r = np.asarray(idx_l)[in_l], np.asarray(idx_r)[in_r]
         tip = np.asarray(self.marker.tip(), float)
+        s = self.settings
+        sigmas: tuple[Array, Array] | None = None
+        if self._views is not None and uv is not None and (s.corner_contrast_noise > 0 or s.clipped_sigma_px > 0):
+            sl, sr = (corner_sigmas(view, c[used], s.corner_sigma_px, s.corner_contrast_noise, s.clipped_sigma_px,
+                                    s.clipped_level, s.clipped_radius * _median_spacing(c))
+                      for view, c, used in ((self._views[0], uv[0], in_l), (self._views[1], uv[1], in_r)))
+            sigmas = (sl, sr)
         return tip_sigma(self.camera, pose.T_fit, P(used_l), P(used_r), np.stack([tip, -tip]),
-                         self.settings.corner_sigma_px)
+                         s.corner_sigma_px, sigmas)
 
     def _consistent_prior(self, pose: MarkerPose) -> Array | None:
         """The previous pair's z_wm direction in {ll} if it may serve as a prior for this fit:
@@ -622,9 +652,9 @@ class MarkerTracker:
             doubt = f"reprojection RMS {best.rms_px:.2f} px above {s.max_rms_px} px: corners do not fit the marker"
         elif not best_facing:
             doubt = "the fit puts marker corners on the far side of the sleeve (too few corners to tell its tilt)"
-        elif (sigma := self._tip_sigma(best, idx_l, idx_r)) > s.max_tip_sigma_m:
-            doubt = (f"the tip is uncertain by {1e3 * sigma:.1f} mm at {s.corner_sigma_px} px of corner noise "
-                     "(too few corners, or seen too steeply, to fix the marker's tilt)")
+        elif (sigma := self._tip_sigma(best, idx_l, idx_r, (ul, ur))) > s.max_tip_sigma_m:
+            doubt = (f"the tip is uncertain by {1e3 * sigma:.2f} mm at the corners' noise "
+                     "(too few corners, seen too steeply or beside a highlight, to fix the marker's tilt)")
         elif (shift := self._single_view_shift(best, idx_l, ul, idx_r, ur, m)) > s.max_single_view_shift_m:
             doubt = f"the fit hinges on corners seen in one view only (the tip moves {1e3 * shift:.1f} mm without them)"
         if doubt:

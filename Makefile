@@ -64,10 +64,10 @@ pytest-fast: setup
 pytest: setup browser rtsp-server
 	@set -o pipefail; log=$$(mktemp); \
 	echo "== pytest on $(PYTEST_WORKERS) processes: all but the wallclock tests"; \
-	$(PY) -m pytest -n $(PYTEST_WORKERS) --dist loadfile -m "not wallclock" 2>&1 | tee $$log; first=$$?; \
+	$(PY) -m pytest -n $(PYTEST_WORKERS) --dist loadfile --durations=20 -m "not wallclock" 2>&1 | tee $$log; first=$$?; \
 	if [ $$first -eq 2 ] || [ $$first -eq 3 ] || [ $$first -eq 4 ]; then rm -f $$log; exit $$first; fi; \
 	echo "== pytest alone: the wallclock tests"; \
-	$(PY) -m pytest -p no:xdist -m wallclock; second=$$?; \
+	$(PY) -m pytest -p no:xdist --durations=10 -m wallclock; second=$$?; \
 	if [ $$first -ne 0 ]; then echo "== the first run (all but the wallclock tests) FAILED: $$(tail -n 1 $$log)"; fi; \
 	rm -f $$log; \
 	[ $$first -eq 0 ] && [ $$second -eq 0 ]

@@ -120,7 +120,7 @@ def test_servo_scene_drives_both_arms_through_their_boxes_on_one_camera(
     out = tmp_path / "run"
     t0 = time.monotonic()
     r = hardware_servo("--scene", SCENE, *[x for n, p in ptys.items() for x in ("--serial", f"{n}={p}")],
-                       "--camera", url, "--calib", str(calib), "--image-scale", str(SCALE), "--duration", "4",
+                       "--camera", url, "--calib", str(calib), "--image-scale", str(SCALE), "--duration", "6",
                        "--out", str(out), "--no-progress", *RT_HOST)
     assert r.returncode == 0, r.stdout + r.stderr
     res = json.loads((out / "result.json").read_text())

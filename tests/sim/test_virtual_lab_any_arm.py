@@ -6,6 +6,7 @@ and the real MJPEG stream; the true tip from --truth-dense-out."""
 
 from __future__ import annotations
 
+import csv
 import json
 import signal
 import subprocess
@@ -19,6 +20,7 @@ from tests.sim.test_virtual_lab import RT_HOST, RT_LAB, hardware_servo, read_lin
 from wristmark.cvs.calibration.load import load_calibration
 from wristmark.models.config_files import CONFIG_DIR, default_config
 from wristmark.rig.loop.metrics import error_stats
+from wristmark.rig.targets.trajectories import CUBE_SIZE, CUBE_SPEED
 from wristmark.sim.virtual_lab import true_tip_errors
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -74,7 +76,17 @@ def test_servo_walks_the_cube_on_the_virtual_lab_of_a_format2_arm(tmp_path: Path
           f"{stats.n} cycles; vision {c['mean_mm']:.3f} / {c['max_mm']:.3f} mm")
     assert stats.n == c["cycles"] >= 0.8 * CUBE_S / 0.06
     assert stats.mean_mm < mean_bound and stats.max_mm < max_bound
-    # converged: the walk's second half no worse than its first (no drift, no growing oscillation)
-    walk = err[np.isfinite(err)]
-    half = len(walk) // 2
-    assert float(np.mean(walk[half:])) < float(np.mean(walk[:half])) + 0.1e-3
+    # converged: along the cube's first edge (straight, 4 s), its second half no worse than its first
+    # (no drift, no growing oscillation). Not the window's halves: its second half holds the corner
+    # onto the y edge and the first none: planar's second half came 0.04-0.07 mm above its first in
+    # the 4 runs looked at, over 0.1 mm in 5 of 17 runs (2026-12-04); on the edge: -0.06 to +0.03 mm
+    t = np.array([float(row["t"]) for row in csv.DictReader(open(tmp_path / "run" / "log.csv"))
+                  if row["phase"] == "servo"])
+    assert t.size == err.size
+    t -= t[0]
+    edge = CUBE_SIZE[0] / CUBE_SPEED
+    assert CUBE_S > edge
+    first, second = err[t < edge / 2], err[(t >= edge / 2) & (t < edge)]
+    first, second = first[np.isfinite(first)], second[np.isfinite(second)]
+    assert first.size > 20 and second.size > 20
+    assert float(np.mean(second)) < float(np.mean(first)) + 0.1e-3

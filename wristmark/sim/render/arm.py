@@ -19,10 +19,9 @@ the ray map and the tile plan.
 
 from __future__ import annotations
 
-from collections import OrderedDict
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
-from threading import Lock
 
 import numpy as np
 from numpy.typing import NDArray
@@ -112,8 +111,6 @@ class RayMap:
         return (int(is_.min()) * TILE, int(js.min()) * TILE, (int(is_.max()) + 1) * TILE, (int(js.max()) + 1) * TILE)
 
 
-_RAY_MAPS: OrderedDict[tuple[bytes, bytes, tuple[int, int]], RayMap] = OrderedDict()
-_RAY_MAPS_LOCK = Lock()
 RAY_MAP_CACHE = 4  # ray maps kept per process (~85 MB each at 1080p): two stereo pairs
 
 
@@ -123,17 +120,12 @@ def ray_map(camera: Camera, image_size: tuple[int, int]) -> RayMap:
     camera (every run of a sweep, every experiment of a session) need the same map. Its arrays
     are read only by the renderer's kernels; do not write to them."""
     K, dist = np.ascontiguousarray(camera.K, np.float64), np.ascontiguousarray(camera.dist, np.float64)
-    key = (K.tobytes(), dist.tobytes(), (int(image_size[0]), int(image_size[1])))
-    with _RAY_MAPS_LOCK:
-        if key in _RAY_MAPS:
-            _RAY_MAPS.move_to_end(key)
-            return _RAY_MAPS[key]
-    built = RayMap(camera, image_size)  # outside the lock: the left and right maps build in parallel
-    with _RAY_MAPS_LOCK:
-        _RAY_MAPS[key] = built
-        while len(_RAY_MAPS) > RAY_MAP_CACHE:
-            _RAY_MAPS.popitem(last=False)
-    return built
+    return _cached_ray_map(K.tobytes(), dist.tobytes(), (int(image_size[0]), int(image_size[1])))
+
+
+@functools.lru_cache(maxsize=RAY_MAP_CACHE)
+def _cached_ray_map(K: bytes, dist: bytes, image_size: tuple[int, int]) -> RayMap:
+    return RayMap(Camera(np.frombuffer(K).reshape(3, 3), np.frombuffer(dist)), image_size)
 
 
 def pack_capsules(capsules: list[Capsule]) -> Array:

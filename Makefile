@@ -72,8 +72,20 @@ pytest: setup browser rtsp-server
 	rm -f $$log; \
 	[ $$first -eq 0 ] && [ $$second -eq 0 ]
 
-# The whole suite, as CI runs it (.ci/run): lint, types, then `pytest` above.
-test: lint typecheck pytest
+# The whole suite, as CI runs it (.ci/run): ruff and mypy while, beside them, numba compiles the
+# tracker's and the renderer's kernels into its disk cache (scripts/compile_kernels.py: once,
+# instead of in each test process that needs them first) and Chromium and the RTSP server are
+# installed when missing; then `pytest` above (whose own `browser rtsp-server` then find them).
+test: setup
+	@logs=$$(mktemp -d); \
+	$(PY) scripts/compile_kernels.py > $$logs/kernels 2>&1 & kernels=$$!; \
+	$(MAKE) --no-print-directory browser rtsp-server > $$logs/installs 2>&1 & installs=$$!; \
+	$(MAKE) --no-print-directory lint typecheck; checks=$$?; \
+	wait $$kernels; compiled=$$?; wait $$installs; installed=$$?; \
+	cat $$logs/kernels $$logs/installs; rm -rf $$logs; \
+	if [ $$compiled -ne 0 ]; then echo "== scripts/compile_kernels.py FAILED"; fi; \
+	if [ $$installed -ne 0 ]; then echo "== make browser rtsp-server FAILED"; fi; \
+	[ $$checks -eq 0 ] && [ $$compiled -eq 0 ] && [ $$installed -eq 0 ] && $(MAKE) --no-print-directory pytest
 
 # The examples of the public API (examples/*.py), each in its fast mode as CI runs them.
 examples: setup

@@ -158,3 +158,15 @@ def test_a_refit_keeps_the_code_and_refuses_too_few_corners() -> None:
     assert np.linalg.norm(less.tip_left - scene.arms[0].tip_left) < 2e-4
     kl[:] = False
     assert one.refit(res, kl, kr) is None
+
+
+def test_the_neighbour_check_leaves_arms_apart_as_they_were() -> None:
+    """Sleeves well apart (and tissue around them): no corner is left out, the poses are the ones
+    without the check, bit for bit."""
+    scene = _render([HOME, _b_at(0.2)])
+    trk = ArmSetTracker(CAM, SETUP.markers, threads=False)
+    res = trk.track(scene.left, scene.right)
+    plain = ArmSetTracker(CAM, SETUP.markers, threads=False, clear_px=0.0).track(scene.left, scene.right)
+    assert trk.stats["cleared"] == 0
+    for arm in ("a", "b"):
+        assert res[arm].ok and np.array_equal(res[arm].T_left_marker, plain[arm].T_left_marker)

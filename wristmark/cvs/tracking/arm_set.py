@@ -15,6 +15,7 @@ across the family (cvs.marker.family).
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
@@ -34,7 +35,19 @@ from wristmark.models.marker import MarkerModel, check_marker_set
 
 Box = tuple[int, int, int, int]  # (u0, v0, u1, v1) [px], end exclusive
 
-__all__ = ["ArmSetTracker", "identity", "sleeve_boxes"]
+__all__ = ["ArmSetTracker", "core_to_spare", "identity", "sleeve_boxes"]
+
+
+def core_to_spare() -> bool:
+    """Whether the machine's load (1-minute average, this process included) is below its cores
+    plus one. Above it the arms' threads only wait for each other and for the cores: two arms on
+    2 cores took 17.4 / 20.1 ms a pair in threads against 16.3 / 18.8 ms in one at load ~5 / ~7
+    (medians of 200 pairs, interleaved; docs/notes/several-arms.md "Time"); at load 1-2 the
+    threads cut the time by ~25 %."""
+    try:
+        return os.getloadavg()[0] < (os.cpu_count() or 1) + 1
+    except OSError:  # no load average on this system
+        return True
 
 
 def identity(res: TrackResult) -> str | None:
@@ -88,7 +101,8 @@ class ArmSetTracker:
                  threads: bool = True, search_every: int = 3, clear_px: float = 6.0, body_lengths: float = 1.0,
                  edge_ratio: float = 0.3, max_sigma_ratio: float = 1.6) -> None:
         """``names``: the marker files' names for the messages (default the arms'); ``threads``:
-        the arms' ROI searches run side by side in worker threads (results are the same);
+        the arms' ROI searches run side by side in worker threads while the machine has a core to
+        spare (:func:`core_to_spare`; results are the same either way);
         ``search_every``: an arm missing from pair to pair is searched for in the whole frames in
         every so many pairs (1: every pair)."""
         if int(search_every) < 1:
@@ -132,7 +146,7 @@ class ArmSetTracker:
         found: list[TrackResult] = []
         tracked = [a for a in self.arms if self.trackers[a].tracking]
         jobs = {a: self._pool.submit(self.trackers[a].track, il, ir, hints.get(a), True) for a in tracked[1:]} \
-            if self._pool is not None else {}
+            if self._pool is not None and len(tracked) > 1 and core_to_spare() else {}
         for arm in tracked:  # each arm that was tracked, in its own boxes only (one per thread)
             trk = self.trackers[arm]
             res = jobs[arm].result() if arm in jobs else trk.track(il, ir, axis_hint_left=hints.get(arm), roi_only=True)

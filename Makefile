@@ -6,9 +6,15 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: setup help run check test lint typecheck pytest pytest-fast bench results browser rtsp-server clean examples
+.PHONY: setup compiled help run check test lint typecheck pytest pytest-fast bench results browser rtsp-server clean examples
 
-setup: $(STAMP)
+setup: $(STAMP) compiled
+
+# The stereo pose solve compiled to C (cvs.tracking.compiled_function: the same results, faster, and
+# the arms' solves side by side): ~40 s once per source change, then found in ~/.cache/wristmark.
+# Without a C compiler the solvers evaluate with CasADi (slower).
+compiled: $(STAMP)
+	@$(PY) -m wristmark.cvs.tracking.compiled_pose || echo "the pose solve is not compiled: CasADi evaluates it"
 
 help:
 	@echo "make run          the cube experiment, open vs closed loop, on the simulated rig (runs/latest)"

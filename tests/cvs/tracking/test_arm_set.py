@@ -158,3 +158,36 @@ def test_a_refit_keeps_the_code_and_refuses_too_few_corners() -> None:
     assert np.linalg.norm(less.tip_left - scene.arms[0].tip_left) < 2e-4
     kl[:] = False
     assert one.refit(res, kl, kr) is None
+
+
+def test_the_neighbour_check_leaves_arms_apart_as_they_were() -> None:
+    """Sleeves well apart (and tissue around them): no corner is left out, the poses are the ones
+    without the check, bit for bit."""
+    scene = _render([HOME, _b_at(0.2)])
+    trk = ArmSetTracker(CAM, SETUP.markers, threads=False)
+    res = trk.track(scene.left, scene.right)
+    plain = ArmSetTracker(CAM, SETUP.markers, threads=False, clear_px=0.0).track(scene.left, scene.right)
+    assert trk.stats["cleared"] == 0
+    for arm in ("a", "b"):
+        assert res[arm].ok and np.array_equal(res[arm].T_left_marker, plain[arm].T_left_marker)
+
+
+def test_the_arms_run_in_threads_only_while_a_core_is_to_spare(monkeypatch: pytest.MonkeyPatch) -> None:
+    """On a loaded machine the arms' ROI searches run one after the other (threads only wait
+    there), on a quiet one side by side; the results are the same."""
+    import wristmark.cvs.tracking.arm_set as arm_set
+
+    scenes = [_render([HOME, _b_at(x)], seed=k) for k, x in enumerate((0.2, 0.199))]
+    out = {}
+    for load in (0.0, 50.0):
+        monkeypatch.setattr(arm_set.os, "getloadavg", lambda load=load: (load, load, load))
+        assert arm_set.core_to_spare() == (load == 0.0)
+        trk = ArmSetTracker(CAM, SETUP.markers)
+        assert trk._pool is not None
+        submitted = []
+        real = trk._pool.submit
+        monkeypatch.setattr(trk._pool, "submit", lambda *a, _s=submitted, _r=real, **k: _s.append(a) or _r(*a, **k))
+        res = [trk.track(s.left, s.right) for s in scenes]
+        assert (len(submitted) == 1) == (load == 0.0)  # the second pair's arm b in a thread, or not
+        out[load] = [r[a].T_left_marker for r in res for a in ("a", "b")]
+    assert all(np.array_equal(x, y) for x, y in zip(out[0.0], out[50.0]))

@@ -15,17 +15,18 @@ across the family (cvs.marker.family).
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from typing import Any
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera
-from wristmark.cvs.gray_image import check_view, to_gray
+from wristmark.cvs.gray_image import check_view
+from wristmark.cvs.tracking.neighbour_corners import outlines, reached
 from wristmark.cvs.tracking.result import Array, TrackResult
 from wristmark.cvs.tracking.settings import TrackerSettings
 from wristmark.cvs.tracking.tracker import MarkerTracker
@@ -34,7 +35,19 @@ from wristmark.models.marker import MarkerModel, check_marker_set
 
 Box = tuple[int, int, int, int]  # (u0, v0, u1, v1) [px], end exclusive
 
-__all__ = ["ArmSetTracker", "identity", "sleeve_boxes"]
+__all__ = ["ArmSetTracker", "core_to_spare", "identity", "sleeve_boxes"]
+
+
+def core_to_spare() -> bool:
+    """Whether the machine's load (1-minute average, this process included) is below its cores
+    plus one. Above it the arms' threads only wait for each other and for the cores: two arms on
+    2 cores took 17.4 / 20.1 ms a pair in threads against 16.3 / 18.8 ms in one at load ~5 / ~7
+    (medians of 200 pairs, interleaved; docs/notes/several-arms.md "Time"); at load 1-2 the
+    threads cut the time by ~25 %."""
+    try:
+        return os.getloadavg()[0] < (os.cpu_count() or 1) + 1
+    except OSError:  # no load average on this system
+        return True
 
 
 def identity(res: TrackResult) -> str | None:
@@ -68,51 +81,6 @@ def sleeve_boxes(camera: StereoCamera, marker: MarkerModel, T_left_marker: Array
     return out[0], out[1]
 
 
-def _outlines(camera: StereoCamera, marker: MarkerModel, T_left_marker: Array, z_lo: float, z_hi: float
-              ) -> list[tuple[NDArray[np.float32], Array, Array] | None]:
-    """Per view (left, right): the outline (convex hull [px], float32 for cv2.pointPolygonTest)
-    of the cylinder of the sleeve's radius from z_lo to z_hi along z_wm [m], and its axis's
-    pixels (n, 2) and depths (n,) [m]; None where it is behind the camera."""
-    ang = np.linspace(0.0, 2.0 * np.pi, 17)[:-1]
-    ring = np.column_stack([np.cos(ang), np.sin(ang), np.zeros_like(ang)]) * marker.radius
-    zs = np.linspace(z_lo, z_hi, 5)
-    pts = np.vstack([ring + [0.0, 0.0, z] for z in (z_lo, z_hi)] + [np.column_stack([0 * zs, 0 * zs, zs])])
-    P_left = pts @ T_left_marker[:3, :3].T + T_left_marker[:3, 3]
-    P_right = P_left @ np.asarray(camera.R, float).T + np.asarray(camera.T, float).reshape(3)
-    out: list[tuple[NDArray[np.float32], Array, Array] | None] = []
-    for cam, P in ((camera.left, P_left), (camera.right, P_right)):
-        if np.any(P[:, 2] <= 1e-3):
-            out.append(None)
-            continue
-        uv = cam.project(P)
-        hull = np.asarray(cv2.convexHull(uv[: 2 * ang.size].astype(np.float32)), np.float32)
-        out.append((hull, uv[2 * ang.size:], np.asarray(P[2 * ang.size:, 2], float)))
-    return out
-
-
-def _foreign_edge(img: NDArray[np.uint8], corner: Array, own: NDArray[np.float32], radius: float, ratio: float,
-                  margin_px: int = 2) -> bool:
-    """Whether the disc of ``radius`` [px] around ``corner`` holds an edge outside the arm's own
-    outline ``own`` (grown by ``margin_px``: its silhouette's own blurred edge) whose gradient is
-    at least ``ratio`` times the strongest inside it. Alone, what borders a sleeve is smooth
-    tissue; an edge there is another arm's (found or not)."""
-    R = int(np.ceil(radius)) + 2
-    u, v = int(round(float(corner[0]))), int(round(float(corner[1])))
-    h, w = img.shape[:2]
-    if u - R < 0 or v - R < 0 or u + R >= w or v + R >= h:
-        return False
-    patch = to_gray(np.ascontiguousarray(img[v - R:v + R + 1, u - R:u + R + 1])).astype(np.float32)
-    g = cv2.GaussianBlur(patch, (0, 0), 1.0)
-    mag = np.hypot(cv2.Sobel(g, cv2.CV_32F, 1, 0), cv2.Sobel(g, cv2.CV_32F, 0, 1))
-    inside = np.zeros(patch.shape, np.uint8)
-    cv2.fillConvexPoly(inside, np.round(own.reshape(-1, 2) - [u - R, v - R]).astype(np.int32), 1)
-    grown = cv2.dilate(inside, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * margin_px + 1,) * 2))
-    yy, xx = np.mgrid[-R:R + 1, -R:R + 1]
-    disc = xx ** 2 + yy ** 2 <= radius ** 2
-    outside, within = disc & (grown == 0), disc & (inside > 0)
-    return bool(outside.any() and within.any() and mag[outside].max() > ratio * mag[within].max())
-
-
 def _paint_out(img: NDArray[np.uint8], box: Box | None) -> None:
     """Fill ``box`` of ``img`` (in place) with the mean of its border: no edge crosses it."""
     if box is None:
@@ -133,7 +101,8 @@ class ArmSetTracker:
                  threads: bool = True, search_every: int = 3, clear_px: float = 6.0, body_lengths: float = 1.0,
                  edge_ratio: float = 0.3, max_sigma_ratio: float = 1.6) -> None:
         """``names``: the marker files' names for the messages (default the arms'); ``threads``:
-        the arms' ROI searches run side by side in worker threads (results are the same);
+        the arms' ROI searches run side by side in worker threads while the machine has a core to
+        spare (:func:`core_to_spare`; results are the same either way);
         ``search_every``: an arm missing from pair to pair is searched for in the whole frames in
         every so many pairs (1: every pair)."""
         if int(search_every) < 1:
@@ -177,7 +146,7 @@ class ArmSetTracker:
         found: list[TrackResult] = []
         tracked = [a for a in self.arms if self.trackers[a].tracking]
         jobs = {a: self._pool.submit(self.trackers[a].track, il, ir, hints.get(a), True) for a in tracked[1:]} \
-            if self._pool is not None else {}
+            if self._pool is not None and len(tracked) > 1 and core_to_spare() else {}
         for arm in tracked:  # each arm that was tracked, in its own boxes only (one per thread)
             trk = self.trackers[arm]
             res = jobs[arm].result() if arm in jobs else trk.track(il, ir, axis_hint_left=hints.get(arm), roi_only=True)
@@ -239,7 +208,7 @@ class ArmSetTracker:
         outline of an arm found in this pair that is nearer the camera (its sleeve, the tool out
         to the tip and ``body_lengths`` sleeve lengths of body behind it), or whose window
         (``clear_px``) holds an edge outside this arm's own outline (a sleeve behind it that is not
-        found, or found: ``_foreign_edge``). A result whose refit fails a gate (too few corners
+        found, or found: cvs.tracking.neighbour_corners). A result whose refit fails a gate (too few corners
         left) stays as it was. Not with one arm: an arm set of one is the one-arm tracker."""
         poses = {a: r.T_left_marker for a, r in results.items() if r.ok and r.T_left_marker is not None}
         good = [a for a in self.arms if a in poses]
@@ -248,32 +217,16 @@ class ArmSetTracker:
         marker = self.markers[good[0]]
         z_lo, z_hi = marker.z_extent
         z_back, z_tip = z_lo - self.body_lengths * (z_hi - z_lo), max(z_hi, float(marker.tip()[2]))
-        bodies = {a: _outlines(self.camera, marker, poses[a], z_back, z_tip) for a in good}
-        r = self.clear_px
+        bodies = outlines(self.camera, marker, poses, z_back, z_tip)
         out = dict(results)
         for a in good:
             res = results[a]
             keep = []
             for v, corners in enumerate((res.corners_left, res.corners_right)):
-                k = np.ones(len(corners), bool)
                 own = bodies[a][v]
-                if own is None:
-                    keep.append(k)
-                    continue
-                for i, c in enumerate(corners):
-                    pt = (float(c[0]), float(c[1]))
-                    z_own = float(own[2][int(np.argmin(np.hypot(*(own[1] - c).T)))])
-                    for b in good:
-                        other = bodies[b][v]
-                        if b == a or other is None or cv2.pointPolygonTest(other[0], pt, True) <= -r:
-                            continue
-                        if other[2][int(np.argmin(np.hypot(*(other[1] - c).T)))] < z_own:
-                            k[i] = False
-                    # (a window wholly inside the outline holds nothing outside it)
-                    if k[i] and cv2.pointPolygonTest(own[0], pt, True) < r and \
-                            _foreign_edge(images[v], c, own[0], r, self.edge_ratio):
-                        k[i] = False
-                keep.append(k)
+                others = [o for b in good if b != a and (o := bodies[b][v]) is not None]
+                keep.append(np.ones(len(corners), bool) if own is None else
+                            ~reached(images[v], corners, own, others, self.clear_px, self.edge_ratio))
             if all(k.all() for k in keep):
                 continue
             self.stats["cleared"] += 1

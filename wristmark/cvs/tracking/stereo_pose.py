@@ -22,14 +22,17 @@ decides it from the previous pair, a caller's hint or the image (cvs.tracking.ax
 
 from __future__ import annotations
 
+import hashlib
 import time
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.cvs.camera import Camera, StereoCamera
+from wristmark.cvs.tracking.compiled_function import load
 from wristmark.models.errors import ConfigError, InputError
 from wristmark.models.marker import MarkerModel
 
@@ -37,6 +40,7 @@ Array = NDArray[np.float64]
 _HEAD = 9 + 3 + 10 + 10 + 12  # pose start, two cameras, stereo extrinsics
 _SLOT = 6  # X, Y, Z, u, v, weight
 _MM = 1e-3  # translation increments are solved in millimetres [m/mm]
+_SOURCE = Path(__file__).read_bytes()  # what the pose function is built from
 HALF_TURN_X = np.diag([1.0, -1.0, -1.0, 1.0])  # the sleeve's symmetry: a half turn about x_wm
 
 
@@ -187,6 +191,12 @@ def build_pose_function(max_points: int, steps: int = 12, lm_lambda: float = 1e-
     return ca.Function("stereo_pose_lm", [x], [ca.densify(out)])
 
 
+def pose_function_key(max_points: int, steps: int, lm_lambda: float) -> str:
+    """A digest of what :func:`build_pose_function` builds from: its arguments and this module's
+    source (the compiled solve's cache key, cvs.tracking.compiled_function)."""
+    return hashlib.sha256(f"{max_points}|{steps}|{lm_lambda!r}|".encode() + _SOURCE).hexdigest()[:16]
+
+
 def _camera_head(cam: Camera) -> list[float]:
     K = np.asarray(cam.K, float)
     return [K[0, 0], K[1, 1], K[0, 2], K[1, 2], K[0, 1], *np.asarray(cam.dist, float).tolist()]
@@ -215,6 +225,12 @@ class StereoPoseSolver:
         self._buf, self._eval = self.function.buffer()
         self._buf.set_arg(0, memoryview(self._in))  # type: ignore[arg-type, call-arg]
         self._buf.set_res(0, memoryview(self._out))  # type: ignore[arg-type, call-arg]
+        # the same solve compiled (cvs.tracking.compiled_function: bit for bit the same outputs,
+        # faster, and without the interpreter lock) when it was built; else CasADi evaluates
+        key = pose_function_key(self.max_points, self.settings.steps, self.settings.lm_lambda)
+        self.compiled = load(self.function, key, self._in, self._out)
+        if self.compiled is not None:
+            self._eval = self.compiled
         self._corners = marker.corners()
 
     def marker_points(self, index: NDArray[np.int_]) -> Array:

@@ -42,10 +42,10 @@ browser:
 rtsp-server:
 	bash scripts/ensure-rtsp-server.sh
 
-lint: setup
+lint: $(STAMP)
 	$(VENV)/bin/ruff check wristmark wristmark_testing tests bench examples
 
-typecheck: setup
+typecheck: $(STAMP)
 	$(VENV)/bin/mypy wristmark
 
 # Test markers (pyproject.toml, docs/testing.md): slow, wallclock (times real events), browser
@@ -78,17 +78,19 @@ pytest: setup browser rtsp-server
 	rm -f $$log; \
 	[ $$first -eq 0 ] && [ $$second -eq 0 ]
 
-# The whole suite, as CI runs it (.ci/run): ruff and mypy while, beside them, numba compiles the
-# tracker's and the renderer's kernels into its disk cache (scripts/compile_kernels.py: once,
-# instead of in each test process that needs them first) and Chromium and the RTSP server are
-# installed when missing; then `pytest` above (whose own `browser rtsp-server` then find them).
-test: setup
+# The whole suite, as CI runs it (.ci/run): ruff and mypy (one core) while, beside them, the
+# stereo pose solve is compiled (`compiled`), numba compiles the tracker's and the renderer's
+# kernels into its disk cache (scripts/compile_kernels.py: once, instead of in each test process
+# that needs them first) and Chromium and the RTSP server are installed when missing; then
+# `pytest` above (whose own `setup browser rtsp-server` then find everything in place).
+test: $(STAMP)
 	@logs=$$(mktemp -d); \
+	$(MAKE) --no-print-directory compiled > $$logs/solve 2>&1 & solve=$$!; \
 	$(PY) scripts/compile_kernels.py > $$logs/kernels 2>&1 & kernels=$$!; \
 	$(MAKE) --no-print-directory browser rtsp-server > $$logs/installs 2>&1 & installs=$$!; \
 	$(MAKE) --no-print-directory lint typecheck; checks=$$?; \
-	wait $$kernels; compiled=$$?; wait $$installs; installed=$$?; \
-	cat $$logs/kernels $$logs/installs; rm -rf $$logs; \
+	wait $$solve; wait $$kernels; compiled=$$?; wait $$installs; installed=$$?; \
+	cat $$logs/solve $$logs/kernels $$logs/installs; rm -rf $$logs; \
 	if [ $$compiled -ne 0 ]; then echo "== scripts/compile_kernels.py FAILED"; fi; \
 	if [ $$installed -ne 0 ]; then echo "== make browser rtsp-server FAILED"; fi; \
 	[ $$checks -eq 0 ] && [ $$compiled -eq 0 ] && [ $$installed -eq 0 ] && $(MAKE) --no-print-directory pytest

@@ -33,7 +33,7 @@ from wristmark.models.marker import MarkerModel
 from wristmark.rig.link.actuator_driver import ActuatorDriver
 from wristmark.rig.loop.scene_file import Scene
 from wristmark.sim.scene_lab import read_scene_truth_csv, scene_true_tip_errors, scene_truth_header
-from wristmark_testing.lab_process import read_lines, stop
+from wristmark_testing.lab_process import read_lines, scene_lab_command, stop
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENE = "configs/scenes/two_arms.yaml"
@@ -51,10 +51,8 @@ def scene_lab(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[dict[s
     ({arm: pty}, url, truth CSV, calibration)."""
     folder = tmp_path_factory.mktemp("scene_lab")
     truth, calib = folder / "truth.csv", folder / "calib.yaml"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "wristmark", "emulator", "--scene", SCENE, "--pty", "--camera-port", "0",
-         "--fps", str(FPS), "--image-scale", str(SCALE), "--truth-out", str(truth), "--calib-out", str(calib),
-         *RT_LAB], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc = subprocess.Popen(scene_lab_command(SCENE, SCALE, FPS, str(truth), str(calib), *RT_LAB), cwd=ROOT,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         lines = read_lines(proc, 3, timeout=90)
         ptys = dict(line.split(" ", 1) for line in lines[:2])
@@ -157,10 +155,8 @@ def test_an_arm_whose_sleeve_is_out_of_view_is_held_and_disabled_alone(tmp_path:
         f"  - marker: {scenes / 'two_arms' / 'b.yaml'}\n"
         "    base: {xyz: [0.6, 0.0, 0.0], rpy: [0.0, 0.0, 3.141592653589793]}\n")
     truth, calib, out = tmp_path / "truth.csv", tmp_path / "calib.yaml", tmp_path / "run"
-    lab = subprocess.Popen(
-        [sys.executable, "-m", "wristmark", "emulator", "--scene", str(scene_file), "--pty", "--camera-port", "0",
-         "--fps", str(FPS), "--image-scale", str(ONE_ARM_VIEW_SCALE), "--truth-out", str(truth),
-         "--calib-out", str(calib), *RT_LAB], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    lab = subprocess.Popen(scene_lab_command(str(scene_file), ONE_ARM_VIEW_SCALE, FPS, str(truth), str(calib), *RT_LAB),
+                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         lines = read_lines(lab, 3, timeout=90)
         ptys = dict(line.split(" ", 1) for line in lines[:2])

@@ -41,14 +41,18 @@ import numpy as np
 from wristmark.models.errors import InputError, WristmarkError
 
 SCENE_REFUSED = ("robot", "marker", "plant", "registration", "open_loop_on_lost", "point",
-                 "actuator", "no_operating_state", "direct", "realtime", "pace", "latency", "sensor")
+                 "direct", "realtime", "pace", "latency", "sensor")
 
 
 def check_scene_options(args: argparse.Namespace) -> None:
     """The options ``--scene`` takes on the hardware path (InputError naming the others)."""
-    given = [f"--{k.replace('_', '-')}" for k in SCENE_REFUSED if getattr(args, k, None) not in (None, False)]
     if args.orientation != "none":
-        given.append("--orientation")
+        raise InputError(f"--orientation {args.orientation}: not with --scene yet (each arm's loop is position "
+                         "only; --orientation none)")
+    if getattr(args, "actuator", None) is not None or getattr(args, "no_operating_state", False):
+        raise InputError("--actuator ros2:NS: not with --scene yet (a scene's boxes are serial: --serial NAME=PORT "
+                         "per arm; --ros2 [NS] publishes every arm and --target NAME=ros2 steers one)")
+    given = [f"--{k.replace('_', '-')}" for k in SCENE_REFUSED if getattr(args, k, None) not in (None, False)]
     if args.view_hold:
         given.append("--view-hold")
     if given:

@@ -359,14 +359,9 @@ def open_targets(args: argparse.Namespace, setup: LoopSetup, traj: Trajectory, p
 
 def check_ros2(namespace: str, what: str = "--ros2") -> None:
     """``--ros2 NS``: a valid namespace and cyclonedds installed (InputError, one line)."""
-    from wristmark.rig.ros2.bridge import clean_namespace
-    from wristmark.rig.ros2.dds_config import require_cyclonedds
+    from wristmark.rig.ros2.bridge import check_namespace_option
 
-    try:
-        clean_namespace(namespace)
-    except ValueError as e:
-        raise InputError(f"{what}: {e}") from None
-    require_cyclonedds(what)
+    check_namespace_option(namespace, what)
 
 
 def cycle_hook(view: Any, bridge: Any, session: ServoSession) -> Any:

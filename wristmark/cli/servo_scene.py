@@ -68,9 +68,9 @@ def check_scene_options(args: argparse.Namespace) -> None:
     if args.record is not None:
         check_record_path(args.record, args.force)
     if args.ros2 is not None:
-        from wristmark.cli.servo import check_ros2
+        from wristmark.rig.ros2.bridge import check_namespace_option
 
-        check_ros2(args.ros2)
+        check_namespace_option(args.ros2)
 
 
 def check_record_path(path: str, force: bool = False) -> None:

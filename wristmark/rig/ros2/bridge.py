@@ -32,6 +32,7 @@ from scipy.spatial.transform import Rotation
 
 from wristmark.models.actuation import actuators_from_psi
 from wristmark.models.arm_spec import Arm, actuator_names
+from wristmark.models.errors import InputError
 from wristmark.rig.recording.run_log import CycleRecord
 from wristmark.rig.ros2.dds_config import open_participant, require_cyclonedds
 from wristmark.rig.targets.live_target import LiveTargets, rotation_of_quaternion
@@ -49,6 +50,15 @@ def clean_namespace(ns: str | None) -> str:
         raise ValueError(f"ROS 2 namespace {ns!r}: use letters, digits and _ between slashes, not starting "
                          "with a digit")
     return "/" + name
+
+
+def check_namespace_option(namespace: str, what: str = "--ros2") -> None:
+    """An option's ROS 2 namespace: valid, and cyclonedds installed (InputError naming ``what``, one line)."""
+    try:
+        clean_namespace(namespace)
+    except ValueError as e:
+        raise InputError(f"{what}: {e}") from None
+    require_cyclonedds(what)
 
 
 @dataclass

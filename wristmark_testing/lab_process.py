@@ -7,6 +7,7 @@ import os
 import select
 import signal
 import subprocess
+import sys
 import time
 
 
@@ -36,3 +37,11 @@ def stop(proc: subprocess.Popen[bytes], timeout: float = 20) -> tuple[int, str]:
         proc.kill()
         _, err = proc.communicate()
     return int(proc.returncode), err.decode(errors="replace")
+
+
+def scene_lab_command(scene: str, scale: float, fps: float, truth: str, calib: str, *extra: str) -> list[str]:
+    """The command line of a scene's virtual lab (`wristmark emulator --scene SCENE --pty
+    --camera-port 0`) at ``scale`` and ``fps``, its truth CSV and calibration written to ``truth``
+    and ``calib``; its stdout: one `NAME PTY` line per arm, then the stream URL."""
+    return [sys.executable, "-m", "wristmark", "emulator", "--scene", scene, "--pty", "--camera-port", "0",
+            "--fps", str(fps), "--image-scale", str(scale), "--truth-out", truth, "--calib-out", calib, *extra]

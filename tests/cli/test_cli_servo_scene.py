@@ -54,9 +54,22 @@ def refused(capsys: pytest.CaptureFixture[str], *argv: str) -> str:
      "stdin given for both 'a' and 'b'"),
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--target", "a=tcp:10.0.0.1:5000"], "loopback only"),
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--target", "a=tcp:127.0.0.1:http"], "PORT must be"),
-    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--target", "a=cube"], "stdin or tcp:127.0.0.1:PORT"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--target", "a=cube"],
+     "stdin, tcp:127.0.0.1:PORT or ros2"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--target", "a=ros2"], "--target a=ros2 needs --ros2"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--ros2", "9bad"], "--ros2: ROS 2 namespace"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--ros2", "x", "--target", "c=ros2"],
+     "no arm 'c' in the scene"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--ros2", "x", "--target", "a=ros2", "--target", "a=ros2"],
+     "arm 'a' given twice"),
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--target", "a=tcp:0", "--hold", "a"], "also in --hold"),
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--view-hold", "2"], "--view-hold"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--orientation", "hold"],
+     "--orientation hold: not with --scene yet"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--orientation", "follow", "--ros2", "x"],
+     "--orientation follow: not with --scene yet"),
+    (["--actuator", "ros2:/lab"], "--actuator ros2:NS: not with --scene yet"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--no-operating-state"], "--actuator ros2:NS: not with"),
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--hold", "c"], "--hold c: no such arm"),
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--record", "run_dir"], "must be an .mcap file"),
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--record", "/no/such/dir/run.mcap"], "does not exist"),
@@ -116,3 +129,13 @@ def test_a_box_that_does_not_answer_is_refused_naming_its_arm_and_no_box_is_enab
     assert "Ping" in em.received  # a was asked who it is ...
     assert "Enable" not in em.received and "SetTarget" not in em.received  # ... and never enabled nor moved
     assert not em.enabled
+
+
+def test_an_arm_name_that_cannot_be_a_ros2_namespace_is_refused_in_one_line() -> None:
+    from wristmark.cli.servo_scene import scene_namespaces
+    from wristmark.models.errors import InputError
+
+    assert scene_namespaces("/lab/", ["a", "b"]) == {"a": "/lab/a", "b": "/lab/b"}
+    with pytest.raises(InputError) as e:
+        scene_namespaces("lab", ["a", "9b"])
+    assert "arm '9b' cannot name a ROS 2 namespace" in str(e.value) and "\n" not in str(e.value)

@@ -18,6 +18,7 @@ import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -33,7 +34,7 @@ from wristmark.models.marker import MarkerModel
 from wristmark.rig.link.actuator_driver import ActuatorDriver
 from wristmark.rig.loop.scene_file import Scene
 from wristmark.sim.scene_lab import read_scene_truth_csv, scene_true_tip_errors, scene_truth_header
-from wristmark_testing.lab_process import read_lines, stop
+from wristmark_testing.lab_process import read_lines, scene_lab_command, stop
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENE = "configs/scenes/two_arms.yaml"
@@ -51,10 +52,8 @@ def scene_lab(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[dict[s
     ({arm: pty}, url, truth CSV, calibration)."""
     folder = tmp_path_factory.mktemp("scene_lab")
     truth, calib = folder / "truth.csv", folder / "calib.yaml"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "wristmark", "emulator", "--scene", SCENE, "--pty", "--camera-port", "0",
-         "--fps", str(FPS), "--image-scale", str(SCALE), "--truth-out", str(truth), "--calib-out", str(calib),
-         *RT_LAB], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc = subprocess.Popen(scene_lab_command(SCENE, SCALE, FPS, str(truth), str(calib), *RT_LAB), cwd=ROOT,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         lines = read_lines(proc, 3, timeout=90)
         ptys = dict(line.split(" ", 1) for line in lines[:2])
@@ -68,6 +67,10 @@ def scene_lab(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[dict[s
     (["--pty", "--camera-port", "0", "--robot", "configs/robot.yaml"], "--robot"),
     (["--pty", "--camera-port", "0", "--psi0", "0", "0", "0", "0", "0", "0"], "--psi0"),
     (["--pty"], "needs --pty and --camera-port"),
+    (["--ros2", "lab", "--pty"], "--ros2 serves the arm and the endoscope over ROS 2: no --pty"),
+    (["--ros2", "lab", "--rt-priority", "10"], "no --pty, --camera-port, --truth-dense-out, --rt-priority"),
+    (["--ros2", "9lab"], "--ros2: ROS 2 namespace"),
+    (["--ros2", "lab", "--robot", "configs/robot.yaml"], "--robot"),
 ])
 def test_emulator_scene_refuses_what_means_nothing_with_a_scene(capsys: pytest.CaptureFixture[str],
                                                                extra: list[str], cause: str) -> None:
@@ -98,17 +101,23 @@ def test_one_box_per_arm_and_one_stream_showing_every_sleeve(scene_lab: tuple[di
         frame = source.read()
     finally:
         source.close()
+    assert open(truth).readline().strip() == scene_truth_header(["a", "b"])
+    check_sleeves_at_truth(tracker, cam, frame, truth)
+
+
+def check_sleeves_at_truth(tracker: ArmSetTracker, cam: Any, frame: Any, truth: Path) -> None:
+    """Each sleeve in ``frame`` found as its own arm, within 1 mm of where the lab's truth CSV has
+    that arm (scene {w}) at the frame's capture; the arms apart (two arms, not one seen twice)."""
     assert frame is not None and frame.left.shape[:2] == (cam.image_size[1], cam.image_size[0])
     res = tracker.track(frame.left, frame.right)
-    assert open(truth).readline().strip() == scene_truth_header(["a", "b"])
     t, tips = read_scene_truth_csv(truth)
     W = np.asarray(cam.T_world_left, float)
-    for name in scene.names:  # each sleeve found as its own arm, where the lab's true arm is (scene {w})
+    for name in tips:
         assert res[name].ok, res[name].reason
         seen = W[:3, :3] @ res[name].tip_left + W[:3, 3]
         true = np.array([np.interp(frame.t_capture, t, tips[name][:, i]) for i in range(3)])
         assert np.linalg.norm(seen - true) < 1e-3, (name, seen, true)
-    assert np.linalg.norm(tips["a"][-1] - tips["b"][-1]) > 0.02  # two arms, not one seen twice
+    assert np.linalg.norm(tips["a"][-1] - tips["b"][-1]) > 0.02
 
 
 @pytest.mark.slow
@@ -157,10 +166,8 @@ def test_an_arm_whose_sleeve_is_out_of_view_is_held_and_disabled_alone(tmp_path:
         f"  - marker: {scenes / 'two_arms' / 'b.yaml'}\n"
         "    base: {xyz: [0.6, 0.0, 0.0], rpy: [0.0, 0.0, 3.141592653589793]}\n")
     truth, calib, out = tmp_path / "truth.csv", tmp_path / "calib.yaml", tmp_path / "run"
-    lab = subprocess.Popen(
-        [sys.executable, "-m", "wristmark", "emulator", "--scene", str(scene_file), "--pty", "--camera-port", "0",
-         "--fps", str(FPS), "--image-scale", str(ONE_ARM_VIEW_SCALE), "--truth-out", str(truth),
-         "--calib-out", str(calib), *RT_LAB], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    lab = subprocess.Popen(scene_lab_command(str(scene_file), ONE_ARM_VIEW_SCALE, FPS, str(truth), str(calib), *RT_LAB),
+                           cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         lines = read_lines(lab, 3, timeout=90)
         ptys = dict(line.split(" ", 1) for line in lines[:2])

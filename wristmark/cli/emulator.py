@@ -42,13 +42,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ros2", nargs="?", const="lab", metavar="NS",
                    help="instead of --pty: the virtual lab over ROS 2 (NS/servo_jp, NS/crtk_command, NS/measured_js, "
                         "and the endoscope on NS/{left,right}/image_raw/compressed; loopback unless CYCLONEDDS_URI "
-                        "says otherwise; default NS lab; docs/ros2.md)")
+                        "says otherwise; default NS lab; docs/ros2.md); with --scene each arm under NS/NAME, one "
+                        "endoscope under NS")
     add_config_option(p, "--plant")
     add_config_option(p, "--robot")
     p.add_argument("--scene", metavar="SCENE.yaml",
                    help="several arms in one view (a scene file, e.g. configs/scenes/two_arms.yaml): one actuator "
                         "box per arm, each on its own new pty, and one endoscope rendering them all; with --pty "
-                        "--camera-port; stdout: one line 'NAME PTY' per arm in the scene's order, then the stream URL")
+                        "--camera-port (stdout: one line 'NAME PTY' per arm in the scene's order, then the stream URL) "
+                        "or --ros2 [NS] (one line 'NAME ros2:/NS/NAME' per arm, then the camera's ros2:LEFT,RIGHT)")
     p.add_argument("--watchdog", type=positive_float(MAX_TIMEOUT_S), default=0.25, metavar="S",
                    help="watchdog timeout [s] (default 0.25, as protocol v1 specifies)")
     p.add_argument("--psi0", nargs="+", type=float_in(-PSI_ABS_MAX, PSI_ABS_MAX), metavar="X",
@@ -108,10 +110,7 @@ def run(args: argparse.Namespace) -> int:
     if args.scene is not None:
         return _run_scene(args)
     if args.ros2 is not None:
-        if args.pty or args.camera_port is not None or args.truth_dense_out or args.rt_priority is not None \
-                or args.loads_from_stdin:
-            raise InputError("--ros2 serves the arm and the endoscope over ROS 2: no --pty, --camera-port, "
-                             "--truth-dense-out, --rt-priority or --loads-from-stdin")
+        _check_ros2_options(args)
     elif not args.pty:
         raise InputError("pass --pty (the actuator box on a pseudo-terminal) or --ros2 [NS] (the lab over ROS 2)")
     if not args.watchdog > 0:
@@ -275,7 +274,15 @@ def _serve_ros2_lab(args: argparse.Namespace, params: Arm, plant: object, psi0: 
     return 0
 
 
-SCENE_REFUSED = (("--ros2", "ros2"), ("--robot", "robot"), ("--plant", "plant"), ("--marker", "marker"),
+def _check_ros2_options(args: argparse.Namespace) -> None:
+    """``--ros2``: none of the pty lab's options (InputError, one line)."""
+    if args.pty or args.camera_port is not None or args.truth_dense_out or args.rt_priority is not None \
+            or args.loads_from_stdin or args.render_normal_priority:
+        raise InputError("--ros2 serves the arm and the endoscope over ROS 2: no --pty, --camera-port, "
+                         "--truth-dense-out, --rt-priority, --render-normal-priority or --loads-from-stdin")
+
+
+SCENE_REFUSED = (("--robot", "robot"), ("--plant", "plant"), ("--marker", "marker"),
                  ("--calib", "calib"), ("--psi0", "psi0"), ("--truth-dense-out", "truth_dense_out"),
                  ("--loads-from-stdin", "loads_from_stdin"))
 
@@ -287,11 +294,14 @@ def _run_scene(args: argparse.Namespace) -> int:
     if given:
         raise InputError(f"{', '.join(given)}: not with --scene (each arm's robot, plant and marker files are named in "
                          "the scene file; the endoscope is the scene's)")
+    if args.ros2 is not None:
+        _check_ros2_options(args)
+        return _serve_ros2_scene(args)
     if not args.pty or args.camera_port is None:
-        raise InputError("--scene needs --pty and --camera-port PORT: one box per arm on its own pty, one endoscope")
+        raise InputError("--scene needs --pty and --camera-port PORT (one box per arm on its own pty, one endoscope) "
+                         "or --ros2 [NS] (each arm and the endoscope over ROS 2)")
     if args.render_normal_priority and args.rt_priority is None:
         raise InputError("--render-normal-priority needs --rt-priority N")
-    from wristmark.cvs.calibration.load import save_calibration
     from wristmark.rig.loop.heap_freeze import freeze_heap
     from wristmark.rig.recording.output_dir import claim_outputs
     from wristmark.sim.scene_lab import SceneLab
@@ -304,11 +314,7 @@ def _run_scene(args: argparse.Namespace) -> int:
                        port=args.camera_port)
     lab = SceneLab(setup, camera, watchdog_s=args.watchdog, truth_out=args.truth_out, rt_priority=args.rt_priority,
                    render_rt=not args.render_normal_priority)
-    if args.calib_out:  # the endoscope as the lab placed it, world_T_left in the scene's {w}: the host's --calib
-        save_calibration(args.calib_out, setup.camera)
-    else:
-        print("wristmark emulator: the scene's endoscope is placed to frame every arm: --calib-out FILE writes its "
-              "calibration for the host's --calib", file=sys.stderr, flush=True)
+    _write_scene_calibration(args, setup)
     done = _stop_on_signals()
     try:
         ptys, url = lab.start()
@@ -324,6 +330,56 @@ def _run_scene(args: argparse.Namespace) -> int:
         return _serve_until_done(lab, done)
     finally:
         _stop_and_report(lab)
+
+
+def _write_scene_calibration(args: argparse.Namespace, setup: Any) -> None:
+    """``--calib-out``: the endoscope as the scene's lab placed it (world_T_left in the scene's {w},
+    the host's ``--calib``); without it a line on stderr saying so."""
+    from wristmark.cvs.calibration.load import save_calibration
+
+    if args.calib_out:
+        save_calibration(args.calib_out, setup.camera)
+    else:
+        print("wristmark emulator: the scene's endoscope is placed to frame every arm: --calib-out FILE writes its "
+              "calibration for the host's --calib", file=sys.stderr, flush=True)
+
+
+def _serve_ros2_scene(args: argparse.Namespace) -> int:
+    """``--scene --ros2 [NS]``: the scene's virtual lab over ROS 2 (sim.ros2_scene_lab); stdout one
+    line ``NAME ros2:/NS/NAME`` per arm in the scene's order (its ``--actuator`` SPEC), then the
+    ``--camera`` SPEC (``ros2:LEFT,RIGHT``), each flushed at once."""
+    from wristmark.rig.recording.output_dir import claim_outputs
+    from wristmark.rig.ros2.bridge import check_namespace_option
+    from wristmark.sim.ros2_scene_lab import Ros2SceneLab
+    from wristmark.sim.scene_setup import load_scene_setup
+
+    check_namespace_option(args.ros2)
+    claim_outputs(files=[args.truth_out, args.calib_out], force=args.force)  # before anything is served
+    setup = load_scene_setup(args.scene)
+    try:
+        lab = Ros2SceneLab(setup, namespace=args.ros2, fps=args.fps, image_scale=args.image_scale, seed=args.seed,
+                           jpeg_quality=args.jpeg_quality, watchdog_s=args.watchdog, truth_out=args.truth_out)
+    except ValueError as e:  # an arm's name that is no ROS 2 name
+        raise InputError(f"--ros2: {e}") from None
+    _write_scene_calibration(args, setup)
+    done = _stop_on_signals()
+    try:
+        lab.start()
+        specs = lab.topics()
+        for n in lab.names:
+            print(f"{n} {specs[n]}", flush=True)
+        print(specs["camera"], flush=True)
+        w, h = lab.camera.image_size
+        print(f"virtual lab of {setup.scene.source} over ROS 2: each arm on {lab.namespace}/NAME/servo_jp, "
+              f"crtk_command, measured_js, operating_state; stereo endoscope {w}x{h} at up to {args.fps:g} fps on "
+              f"{lab.namespace}/{{left,right}}/image_raw/compressed; Ctrl-C to stop", file=sys.stderr, flush=True)
+        code = _serve_until_done(lab, done)
+    finally:
+        lab.stop()
+    print(f"virtual lab over ROS 2: {lab.endoscope.frames} frames, {lab.count('targets')} targets, "
+          f"{lab.count('watchdog_trips')} watchdog trips, {lab.count('malformed')} malformed messages",
+          file=sys.stderr, flush=True)
+    return code
 
 
 def _read_loads(lines: Iterable[str], hang: Callable[[np.ndarray], None]) -> None:

@@ -136,13 +136,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "tcp:127.0.0.1:PORT (JSON lines {\"t\": s, \"p\": [x, y, z], \"q\": [qx, qy, qz, qw]}, p in "
                         "{w} in metres, q optional; PORT 0: any free port, printed on stderr) | ros2 (NS/servo_cp, "
                         "needs --ros2); live targets: clamped to the workspace, speed bounded, held when silent. "
-                        "With --scene: NAME=SPEC (stdin for one arm at most, or tcp:127.0.0.1:PORT), repeatable; "
-                        "the other arms follow --trajectory or --hold")
+                        "With --scene: NAME=SPEC (stdin for one arm at most, tcp:127.0.0.1:PORT, or ros2: "
+                        "NS/NAME/servo_cp, needs --ros2), repeatable; the other arms follow --trajectory or --hold")
     p.set_defaults(targets=None)
     p.add_argument("--ros2", nargs="?", const="wristmark", metavar="NS",
                    help="join the ROS 2 graph (Cyclone DDS, no ROS needed; loopback only unless CYCLONEDDS_URI "
                         "says otherwise): publish NS/measured_cp, NS/measured_js, NS/setpoint_js; with --target "
-                        "ros2 follow NS/servo_cp (default NS: wristmark; docs/ros2.md)")
+                        "ros2 follow NS/servo_cp (default NS: wristmark; docs/ros2.md). With --scene: each arm's "
+                        "under NS/NAME, one participant")
     p.add_argument("--target-timeout", type=positive_float(MAX_TIMEOUT_S), default=TARGET_TIMEOUT_S, metavar="S",
                    help=f"live targets: a stream silent for S seconds holds the arm (default {TARGET_TIMEOUT_S:g})")
     p.add_argument("--max-speed", type=positive_float(0.1), default=MAX_SPEED, metavar="M/S",
@@ -358,14 +359,9 @@ def open_targets(args: argparse.Namespace, setup: LoopSetup, traj: Trajectory, p
 
 def check_ros2(namespace: str, what: str = "--ros2") -> None:
     """``--ros2 NS``: a valid namespace and cyclonedds installed (InputError, one line)."""
-    from wristmark.rig.ros2.bridge import clean_namespace
-    from wristmark.rig.ros2.dds_config import require_cyclonedds
+    from wristmark.rig.ros2.bridge import check_namespace_option
 
-    try:
-        clean_namespace(namespace)
-    except ValueError as e:
-        raise InputError(f"{what}: {e}") from None
-    require_cyclonedds(what)
+    check_namespace_option(namespace, what)
 
 
 def cycle_hook(view: Any, bridge: Any, session: ServoSession) -> Any:

@@ -20,6 +20,11 @@ one-arm ``--model`` (rig.loop.model_loop); the file named in that arm's ``model`
 live targets in its own {w} as the one-arm servo does (rig.targets.live_target: speed bound,
 workspace clamp, hold when silent, malformed lines dropped and counted; its counts in its
 ``targets`` of result.json); the others walk ``--trajectory`` or ``--hold``.
+
+``--ros2 [NS]``: every arm on one ROS 2 graph (rig.ros2.scene_bridge: one participant, each arm's
+``NS/NAME/measured_cp``, ``marker/measured_cp``, ``measured_js``, ``setpoint_js`` in the scene's
+{w}); ``--target NAME=ros2`` follows ``NS/NAME/servo_cp``. Its topics and counts in the arm's
+``ros2`` of result.json.
 """
 
 from __future__ import annotations
@@ -36,14 +41,18 @@ import numpy as np
 from wristmark.models.errors import InputError, WristmarkError
 
 SCENE_REFUSED = ("robot", "marker", "plant", "registration", "open_loop_on_lost", "point",
-                 "ros2", "actuator", "no_operating_state", "direct", "realtime", "pace", "latency", "sensor")
+                 "direct", "realtime", "pace", "latency", "sensor")
 
 
 def check_scene_options(args: argparse.Namespace) -> None:
     """The options ``--scene`` takes on the hardware path (InputError naming the others)."""
-    given = [f"--{k.replace('_', '-')}" for k in SCENE_REFUSED if getattr(args, k, None) not in (None, False)]
     if args.orientation != "none":
-        given.append("--orientation")
+        raise InputError(f"--orientation {args.orientation}: not with --scene yet (each arm's loop is position "
+                         "only; --orientation none)")
+    if getattr(args, "actuator", None) is not None or getattr(args, "no_operating_state", False):
+        raise InputError("--actuator ros2:NS: not with --scene yet (a scene's boxes are serial: --serial NAME=PORT "
+                         "per arm; --ros2 [NS] publishes every arm and --target NAME=ros2 steers one)")
+    given = [f"--{k.replace('_', '-')}" for k in SCENE_REFUSED if getattr(args, k, None) not in (None, False)]
     if args.view_hold:
         given.append("--view-hold")
     if given:
@@ -58,6 +67,10 @@ def check_scene_options(args: argparse.Namespace) -> None:
         raise InputError("--record-jpeg needs --record FILE.mcap")
     if args.record is not None:
         check_record_path(args.record, args.force)
+    if args.ros2 is not None:
+        from wristmark.rig.ros2.bridge import check_namespace_option
+
+        check_namespace_option(args.ros2)
 
 
 def check_record_path(path: str, force: bool = False) -> None:
@@ -102,7 +115,9 @@ def run_scene(args: argparse.Namespace) -> int:
     scene = Scene.load(args.scene)
     ports = parse_serial_specs(args.serials, scene.names)
     hold = tuple(args.hold or ())
-    live = parse_target_specs(args.targets or (), scene.names, hold)  # {arm: (stdin | tcp, port)}
+    live = parse_target_specs(args.targets or (), scene.names, hold, ros2=args.ros2 is not None)
+    if args.ros2 is not None:  # every arm's namespace a valid ROS 2 name
+        scene_namespaces(args.ros2, scene.names)
     setups, scene_camera = load_scene_setups(scene, args.calib, rig=args.rig, controller=args.controller_config)
     models = load_scene_models(args.model or (), scene.names, setups)  # {arm: MODEL.yaml} of --model NAME=FILE
     for n, s in setups.items():  # the command line's overrides; one grid for every arm (rig.loop.arm_set_session)
@@ -140,14 +155,22 @@ def run_scene(args: argparse.Namespace) -> int:
                 view.close()
             raise
     stores, sources = {}, {}
+    bridges = None
     try:
         for n, (_, port) in live.items():  # each arm's own server (before any box opens: a port taken is exit 2)
             trajs[n], stores[n], sources[n] = open_live_targets(
                 lives[n], Workspace.around(centres[n], scene.cube_size), port, args.target_timeout, args.max_speed,
                 f"arm {n}'s targets", who=f"arm {n} ")
         print(view_lines, end="", file=sys.stderr, flush=True)  # the view's URL after the targets' ports
+        if args.ros2 is not None:  # before any box opens: servo_cp heard from the start
+            from wristmark.rig.ros2.scene_bridge import SceneBridges
+
+            bridges = SceneBridges(args.ros2, {n: s.params for n, s in setups.items()}, bases,
+                                   {n: stores[n] for n, (kind, _) in live.items() if kind == "ros2"})
         session = open_arm_set_session(setups, ports, args.camera, scene_camera, options,
                                        camera_timeout=args.camera_timeout)
+        if bridges is not None:
+            bridges.links = dict(session.links)
         recorder = open_scene_recorder(args, setups, scene_camera, session)
         from wristmark.rig.loop.heap_freeze import freeze_heap
 
@@ -156,13 +179,15 @@ def run_scene(args: argparse.Namespace) -> int:
         settle = next(iter(setups.values())).rig.settle_time
         with sigterm_as_interrupt():
             run = run_arm_set(setups, trajs, session, psi0, bases, clearance, settle, recorder=recorder,
-                              on_cycle=None if view is None else view.on_arm_cycle)
+                              on_cycle=arm_cycle_hook(view, bridges))
     finally:
         for src in sources.values():
             if src is not None:
                 src.close()
         if view is not None:
             view.close()
+        if bridges is not None:
+            bridges.close()
     res = scene_result(args, scene, setups, trajs, session, run, hold)
     for n, path in models.items():  # the identified arm each such arm's loop commanded through
         res["arms"][n]["model"] = path
@@ -170,6 +195,9 @@ def run_scene(args: argparse.Namespace) -> int:
         src = sources[n]
         res["arms"][n]["targets"] = {"source": src.describe if src is not None else live[n][0],
                                      "max_speed_mps": args.max_speed, **store.report()}
+    if bridges is not None:
+        for n, r in bridges.report().items():
+            res["arms"][n]["ros2"] = r
     if view is not None:
         st = view.stats
         res["view"] = {"url": view.url, "sent": st.sent, "dropped": st.dropped, "received": st.received,
@@ -190,6 +218,34 @@ def run_scene(args: argparse.Namespace) -> int:
                      f"{'held and disabled' if not o.close_error else o.close_error})" for n, o in stopped.items())
     print(f"wristmark servo: error: stopped safely: {what}", file=sys.stderr)
     return 130 if any(o.cause == "interrupted" for o in stopped.values()) else 3
+
+
+def scene_namespaces(namespace: str, names: list[str]) -> dict[str, str]:
+    """``--ros2 NS``: each arm's ROS 2 namespace ``/NS/NAME`` (InputError, one line, for an arm name
+    ROS 2 refuses)."""
+    from wristmark.rig.ros2.scene_bridge import arm_namespace
+
+    out = {}
+    for n in names:
+        try:
+            out[n] = arm_namespace(namespace, n)
+        except ValueError as e:
+            raise InputError(f"--ros2: arm '{n}' cannot name a ROS 2 namespace: {e}") from None
+    return out
+
+
+def arm_cycle_hook(view: Any, bridges: Any) -> Any:
+    """The scene loop's ``on_cycle(arm, record)``: the live view's and the ROS 2 bridges' (None: neither)."""
+    hooks = [h for h in (None if view is None else view.on_arm_cycle,
+                         None if bridges is None else bridges.on_cycle) if h is not None]
+    if len(hooks) <= 1:
+        return hooks[0] if hooks else None
+
+    def hook(arm: str, rec: Any) -> None:
+        for h in hooks:
+            h(arm, rec)
+
+    return hook
 
 
 @dataclasses.dataclass(frozen=True)

@@ -48,6 +48,7 @@ def test_each_arm_named_gets_its_own_live_target_source() -> None:
     assert parse_target_specs(["b=tcp:127.0.0.1:0", "a=stdin"], NAMES) == {"b": ("tcp", 0), "a": ("stdin", None)}
     assert parse_target_specs(["a=tcp:5000"], NAMES, hold=("b",)) == {"a": ("tcp", 5000)}
     assert parse_target_specs([], NAMES) == {}
+    assert parse_target_specs(["a=ros2", "b=tcp:0"], NAMES, ros2=True) == {"a": ("ros2", None), "b": ("tcp", 0)}
 
 
 @pytest.mark.parametrize(("specs", "hold", "cause"), [
@@ -57,7 +58,8 @@ def test_each_arm_named_gets_its_own_live_target_source() -> None:
     (["a=stdin", "b=stdin"], (), "stdin given for both 'a' and 'b'"),
     (["a=tcp:192.168.1.2:5000"], (), "loopback only"),
     (["a=tcp:127.0.0.1:70000"], (), "PORT must be an integer"),
-    (["a=ros2"], (), "stdin or tcp:127.0.0.1:PORT"),
+    (["a=ros2"], (), "--target a=ros2 needs --ros2 [NS]: arm a's targets come from NS/a/servo_cp"),
+    (["a=cube"], (), "stdin, tcp:127.0.0.1:PORT or ros2"),
     (["a=spline"], (), "--target must be"),
     (["b=tcp:0"], ("b",), "also in --hold"),
 ])

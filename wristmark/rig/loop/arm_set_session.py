@@ -127,17 +127,21 @@ def parse_serial_specs(specs: Sequence[str], names: Sequence[str]) -> dict[str, 
     return {n: ports[n] for n in names}
 
 
-def parse_target_specs(specs: Sequence[str], names: Sequence[str], hold: Sequence[str] = ()
+def parse_target_specs(specs: Sequence[str], names: Sequence[str], hold: Sequence[str] = (), ros2: bool = False
                        ) -> dict[str, tuple[str, int | None]]:
-    """``--target NAME=SPEC`` -> {arm: (kind, TCP port)}, kind stdin (one arm at most) or tcp
-    (``tcp:127.0.0.1:PORT``, loopback only; PORT 0: any free port); InputError (one line) for a
-    bad spec, an unknown arm, an arm given twice or also held, stdin for two arms."""
+    """``--target NAME=SPEC`` -> {arm: (kind, TCP port)}, kind stdin (one arm at most), tcp
+    (``tcp:127.0.0.1:PORT``, loopback only; PORT 0: any free port) or ros2 (``NS/NAME/servo_cp``,
+    only with ``ros2``: the scene on a ROS 2 graph); InputError (one line) for a bad spec, an
+    unknown arm, an arm given twice or also held, stdin for two arms, ros2 without ``ros2``."""
     out: dict[str, tuple[str, int | None]] = {}
     for name, spec in named_specs("--target", specs, names, "arm's targets are NAME=SPEC").items():
         kind, _, port = parse_target_spec(spec)
-        if kind not in ("stdin", "tcp"):
-            raise InputError(f"--target {name}={spec}: with --scene an arm's targets come from stdin or "
-                             "tcp:127.0.0.1:PORT (the others walk --trajectory or --hold)")
+        if kind not in ("stdin", "tcp", "ros2"):
+            raise InputError(f"--target {name}={spec}: with --scene an arm's targets come from stdin, "
+                             "tcp:127.0.0.1:PORT or ros2 (the others walk --trajectory or --hold)")
+        if kind == "ros2" and not ros2:
+            raise InputError(f"--target {name}=ros2 needs --ros2 [NS]: arm {name}'s targets come from "
+                             f"NS/{name}/servo_cp")
         if kind == "stdin" and any(k == "stdin" for k, _ in out.values()):
             other = next(n for n, (k, _) in out.items() if k == "stdin")
             raise InputError(f"--target: stdin given for both '{other}' and '{name}' (one arm at most)")

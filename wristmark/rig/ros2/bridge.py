@@ -32,6 +32,7 @@ from scipy.spatial.transform import Rotation
 
 from wristmark.models.actuation import actuators_from_psi
 from wristmark.models.arm_spec import Arm, actuator_names
+from wristmark.models.errors import InputError
 from wristmark.rig.recording.run_log import CycleRecord
 from wristmark.rig.ros2.dds_config import open_participant, require_cyclonedds
 from wristmark.rig.targets.live_target import LiveTargets, rotation_of_quaternion
@@ -49,6 +50,15 @@ def clean_namespace(ns: str | None) -> str:
         raise ValueError(f"ROS 2 namespace {ns!r}: use letters, digits and _ between slashes, not starting "
                          "with a digit")
     return "/" + name
+
+
+def check_namespace_option(namespace: str, what: str = "--ros2") -> None:
+    """An option's ROS 2 namespace: valid, and cyclonedds installed (InputError naming ``what``, one line)."""
+    try:
+        clean_namespace(namespace)
+    except ValueError as e:
+        raise InputError(f"{what}: {e}") from None
+    require_cyclonedds(what)
 
 
 @dataclass
@@ -69,7 +79,11 @@ class Ros2Bridge:
     """Publishes the loop's cycles and (with ``targets``) feeds ``servo_cp`` into them."""
 
     def __init__(self, namespace: str | None, params: Arm, targets: LiveTargets | None = None,
-                 frame_id: str = WORLD_FRAME, wall_clock: bool = False) -> None:
+                 frame_id: str = WORLD_FRAME, wall_clock: bool = False, participant: Any = None,
+                 base: Array | None = None) -> None:
+        """``participant``: a Cyclone DDS participant to share (None: its own, loopback unless
+        ``CYCLONEDDS_URI`` says otherwise); ``base``: the arm's {w} in the frame ``frame_id`` names
+        (4x4 [m]; None: the same frame), what goes out is moved into it and ``servo_cp`` out of it."""
         require_cyclonedds()
         from cyclonedds.core import Listener, Policy, Qos
         from cyclonedds.pub import DataWriter
@@ -89,7 +103,8 @@ class Ros2Bridge:
         self.publish_errors = 0
         self.hook_s: list[float] = []  # the loop thread's time in :meth:`on_cycle` per cycle [s]
         self._epoch_minus_mono = time.time() - time.monotonic()
-        self.participant = open_participant()
+        self.participant = open_participant() if participant is None else participant
+        self.base = np.eye(4) if base is None else np.asarray(base, float)
         out_qos = Qos(Policy.Reliability.Reliable(duration_ms(100)), Policy.History.KeepLast(10),
                       Policy.Durability.Volatile)
 
@@ -160,12 +175,15 @@ class Ros2Bridge:
     def _publish(self, s: CycleSnapshot) -> None:
         M = self.M
         header = M.Header(M.Time.of_seconds(s.stamp), self.frame_id)
+        B = self.base
         if s.p is not None:
-            q = Rotation.from_matrix(s.R).as_quat() if s.R is not None else np.array([0.0, 0.0, 0.0, 1.0])
-            self._cp.write(M.PoseStamped(header, M.Pose(M.Point(*map(float, s.p)), M.Quaternion(*map(float, q)))))
+            q = Rotation.from_matrix(B[:3, :3] @ s.R).as_quat() if s.R is not None else np.array([0.0, 0.0, 0.0, 1.0])
+            p = B[:3, :3] @ s.p + B[:3, 3]
+            self._cp.write(M.PoseStamped(header, M.Pose(M.Point(*map(float, p)), M.Quaternion(*map(float, q)))))
             if s.T_marker is not None:
-                qm = Rotation.from_matrix(s.T_marker[:3, :3]).as_quat()
-                self._marker.write(M.PoseStamped(header, M.Pose(M.Point(*map(float, s.T_marker[:3, 3])),
+                T = B @ s.T_marker
+                qm = Rotation.from_matrix(T[:3, :3]).as_quat()
+                self._marker.write(M.PoseStamped(header, M.Pose(M.Point(*map(float, T[:3, 3])),
                                                                 M.Quaternion(*map(float, qm)))))
         names = list(actuator_names(self.params))
         setpoint = actuators_from_psi(self.params, s.psi_cmd)
@@ -203,6 +221,8 @@ class Ros2Bridge:
         except ValueError as e:
             self.targets.drop(f"servo_cp {e}")
             return False
+        Rb = self.base[:3, :3]  # into the arm's own {w}
+        p, R = Rb.T @ (p - self.base[:3, 3]), Rb.T @ R
         stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
         return self.targets.offer(p, R, stamp if stamp > 0 else float("nan"))
 

@@ -59,11 +59,13 @@ def require_cyclonedds(what: str = "--ros2") -> None:
                          f"{INSTALL_HINT}") from None
 
 
-def open_participant(environ: MutableMapping[str, str] | None = None) -> Any:
+def open_participant() -> Any:
     """A Cyclone DDS participant on ``ROS_DOMAIN_ID``, loopback only unless ``CYCLONEDDS_URI``
-    says otherwise (:func:`ensure_loopback` first)."""
+    says otherwise (:func:`ensure_loopback` first). It reads this process's environment only:
+    Cyclone DDS reads its configuration from ``os.environ``, so a participant opened after
+    writing the loopback configuration anywhere else would not be loopback only."""
     require_cyclonedds()
-    ensure_loopback(environ)
+    ensure_loopback()
     from cyclonedds.domain import DomainParticipant
 
-    return DomainParticipant(domain_id(environ))
+    return DomainParticipant(domain_id())

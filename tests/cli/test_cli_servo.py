@@ -56,8 +56,7 @@ LAB_SCALE = 0.25  # the virtual lab's image scale in these tests (fast)
 RT_HOST = ["--rt-priority", "20"] if realtime_priority_allowed(20) else []  # see test_virtual_lab
 
 
-@pytest.fixture
-def lab(setup: SimSetup) -> Iterator[VirtualLab]:
+def started_lab(setup: SimSetup) -> Iterator[VirtualLab]:
     """A virtual lab (actuator box on a pty, endoscope on an MJPEG stream, wall clock) served
     from this process, for `--serial PTY --camera URL` subprocesses (like hardware)."""
     vl = VirtualLab(PARAMS, PLANT, setup.camera, setup.marker, LabCamera(fps=30.0, image_scale=LAB_SCALE),
@@ -65,6 +64,18 @@ def lab(setup: SimSetup) -> Iterator[VirtualLab]:
     vl.start()
     yield vl
     vl.stop()
+
+
+@pytest.fixture
+def lab(setup: SimSetup) -> Iterator[VirtualLab]:
+    """A virtual lab of the test's own."""
+    yield from started_lab(setup)
+
+
+@pytest.fixture(scope="module")
+def untouched_lab(setup: SimSetup) -> Iterator[VirtualLab]:
+    """One virtual lab for the tests whose command must never open its box (each checks that)."""
+    yield from started_lab(setup)
 
 
 def hardware_args(lab: VirtualLab) -> list[str]:
@@ -286,7 +297,9 @@ def test_ctrl_c_holds_and_disables_the_device(lab: VirtualLab) -> None:
         (["--camera-timeout", "0"], ["--camera-timeout"]),
     ],
 )
-def test_bad_options_fail_before_any_motion(lab: VirtualLab, args: list[str], words: list[str]) -> None:
+def test_bad_options_fail_before_any_motion(untouched_lab: VirtualLab, args: list[str], words: list[str]) -> None:
+    lab = untouched_lab
+    assert lab.emulator.received == []  # no earlier command opened it either
     r = wristmark("servo", *hardware_args(lab), *args)
     assert r.returncode == 2
     line = one_line(r.stderr)

@@ -1,8 +1,9 @@
-"""`wristmark servo --scene SCENE --serial NAME=PORT ...`: bad input is refused in one line (exit 2)
-before any motion command: options that mean nothing with a scene, a missing, unknown or repeated
-arm, a port given twice, a box that does not answer, a bad --target NAME=SPEC (unknown or
-repeated arm, stdin for two arms, not loopback, a port taken), a --record that is not a new .mcap
-file, a --model that is not NAME=MODEL.yaml of an arm."""
+"""`wristmark servo --scene SCENE --serial NAME=PORT ...` (or `--actuator NAME=ros2:NS ...`): bad
+input is refused in one line (exit 2) before any motion command: options that mean nothing with a
+scene, a missing, unknown or repeated arm, a port or namespace given twice, serial and ROS 2 boxes
+mixed, an --actuator namespace that --ros2 would publish on, a box that does not answer, a bad
+--target NAME=SPEC (unknown or repeated arm, stdin for two arms, not loopback, a port taken), a
+--record that is not a new .mcap file, a --model that is not NAME=MODEL.yaml of an arm."""
 
 from __future__ import annotations
 
@@ -68,8 +69,19 @@ def refused(capsys: pytest.CaptureFixture[str], *argv: str) -> str:
      "--orientation hold: not with --scene yet"),
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--orientation", "follow", "--ros2", "x"],
      "--orientation follow: not with --scene yet"),
-    (["--actuator", "ros2:/lab"], "--actuator ros2:NS: not with --scene yet"),
-    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--no-operating-state"], "--actuator ros2:NS: not with"),
+    (["--actuator", "ros2:/lab"], "with --scene each arm is NAME=ros2:NS"),
+    (["--actuator", "a=ros2:/lab/a"], "no arm driver for arm 'b'"),
+    (["--actuator", "a=ros2:/lab/a", "--actuator", "c=ros2:/lab/c"], "no arm 'c' in the scene"),
+    (["--actuator", "a=ros2:/lab/a", "--actuator", "a=ros2:/lab/b"], "--actuator: arm 'a' given twice"),
+    (["--actuator", "a=ros2:/lab/x", "--actuator", "b=ros2:/lab/x"], "namespace /lab/x given for both 'a' and 'b'"),
+    (["--actuator", "a={A}", "--actuator", "b=ros2:/lab/b"], "each arm is NAME=ros2:NS"),
+    (["--actuator", "a=ros2:9bad", "--actuator", "b=ros2:/lab/b"], "--actuator a=ros2:9bad:"),
+    (["--actuator", "a=ros2:/lab/a", "--actuator", "b=ros2:/lab/b", "--ros2", "lab"],
+     "arm 'a' would publish on /lab/a, arm 'a''s --actuator namespace"),
+    (["--actuator", "a=ros2:/lab/a", "--actuator", "b=ros2:/lab/b", "--no-operating-state"],
+     "--no-operating-state: not with --scene"),
+    (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--no-operating-state"],
+     "--no-operating-state: not with --scene"),
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--hold", "c"], "--hold c: no such arm"),
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--record", "run_dir"], "must be an .mcap file"),
     (["--serial", "a={A}", "--serial", "b=/dev/pts/99", "--record", "/no/such/dir/run.mcap"], "does not exist"),
@@ -113,6 +125,19 @@ def test_several_boxes_or_hold_need_a_scene(capsys: pytest.CaptureFixture[str]) 
     assert "--model given 2 times" in refused(capsys, "--model", "a.yaml", "--model", "b.yaml")
     assert "--hold needs --scene" in refused(capsys, "--hold", "a")
     assert "targets need --scene" in refused(capsys, "--target", "stdin", "--target", "tcp:127.0.0.1:0")
+    assert "--actuator given 2 times: several arms need --scene" in refused(
+        capsys, "--actuator", "ros2:/lab/a", "--actuator", "ros2:/lab/b", *CAMERA)
+
+
+def test_serial_and_ros2_boxes_in_one_scene_are_refused_in_one_line(
+        capsys: pytest.CaptureFixture[str], box_a: tuple[RecordingEmulator, str]) -> None:
+    em, path = box_a
+    with pytest.raises(SystemExit) as e:  # argparse's one line: --serial and --actuator are exclusive
+        main(["servo", "--scene", SCENE, "--serial", f"a={path}", "--actuator", "b=ros2:/lab/b", *CAMERA])
+    err = capsys.readouterr().err.strip()
+    assert e.value.code == 2 and "\n" not in err, err
+    assert "argument --actuator: not allowed with argument --serial" in err
+    assert em.received == []
 
 
 def test_a_box_that_does_not_answer_is_refused_naming_its_arm_and_no_box_is_enabled(

@@ -95,17 +95,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                            "NAME=PORT, once per arm")
     link.add_argument("--direct", action="store_true",
                       help="in-process plant without serial bytes (the reference for the serial path)")
-    link.add_argument("--actuator", metavar="ros2:NS",
+    link.add_argument("--actuator", metavar="ros2:NS", action=SerialPorts,
                       help="hardware path: an arm driven over ROS 2 (NS/servo_jp, NS/crtk_command out, "
-                           "NS/measured_js, NS/operating_state in; real time; needs --camera; docs/ros2.md)")
+                           "NS/measured_js, NS/operating_state in; real time; needs --camera; docs/ros2.md). With "
+                           "--scene: NAME=ros2:NS, once per arm (every arm on ROS 2, or every arm on --serial)")
     p.add_argument("--no-operating-state", action="store_true",
                    help="UNSAFE, with --actuator ros2:NS: drive an arm that publishes no NS/operating_state (its "
                         "watchdog or an operator disabling it then goes unnoticed; docs/ros2.md)")
-    p.set_defaults(serials=None)
+    p.set_defaults(serials=None, actuators=None)
     p.add_argument("--scene", metavar="SCENE.yaml",
                    help="hardware path, several arms in one view (a scene file): one box per arm (--serial NAME=PORT "
-                        "each), one --camera, --calib with world_T_left in the scene's {w}; each arm walks its own "
-                        "cube (or --trajectory point: holds its centre); docs/hardware.md")
+                        "each, or --actuator NAME=ros2:NS each), one --camera, --calib with world_T_left in the "
+                        "scene's {w}; each arm walks its own cube (or --trajectory point: holds its centre); "
+                        "docs/hardware.md")
     p.add_argument("--hold", action="append", metavar="NAME",
                    help="with --scene: this arm holds its workspace centre while the others walk (repeatable)")
     p.add_argument("--camera", metavar="SPEC",
@@ -180,8 +182,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 class SerialPorts(argparse.Action):
-    """``--serial PORT`` (``--target SPEC``), repeatable for ``--scene`` (``NAME=PORT``,
-    ``NAME=SPEC``): every value in ``serials`` (``targets``), the first in ``serial`` (``target``)."""
+    """``--serial PORT`` (``--target SPEC``, ``--actuator ros2:NS``), repeatable for ``--scene``
+    (``NAME=PORT``, ``NAME=SPEC``, ``NAME=ros2:NS``): every value in ``serials`` (``targets``,
+    ``actuators``), the first in ``serial`` (``target``, ``actuator``)."""
 
     def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: Any,
                  option_string: str | None = None) -> None:
@@ -387,6 +390,9 @@ def run(args: argparse.Namespace) -> int:
     if args.serials and len(args.serials) > 1:
         raise InputError(f"--serial given {len(args.serials)} times: several actuator boxes need --scene SCENE "
                          "(--serial NAME=PORT per arm)")
+    if args.actuators and len(args.actuators) > 1:
+        raise InputError(f"--actuator given {len(args.actuators)} times: several arms need --scene SCENE "
+                         "(--actuator NAME=ros2:NS per arm)")
     if args.targets and len(args.targets) > 1:
         raise InputError(f"--target given {len(args.targets)} times: several arms' targets need --scene SCENE "
                          "(--target NAME=SPEC per arm)")

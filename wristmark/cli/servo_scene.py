@@ -2,9 +2,15 @@
 on the hardware path, one process, one camera, one actuator box per arm (rig.loop.arm_set_session;
 docs/hardware.md "Several arms"). Imports nothing of the simulated bench.
 
+``--actuator NAME=ros2:NS`` per arm instead of ``--serial``: each arm's driver on a ROS 2 graph
+(rig.ros2.actuator_link; every arm, never mixed with serial boxes), one DDS participant for the
+process shared by the links, a ``ros2:`` camera and the ``--ros2`` bridges; an arm disabled or
+silent is a safe stop of every arm, as a box's emergency stop (docs/ros2.md "Several arms").
+
 Bad input is refused in one line (exit 2) before any motion command: an option that has no
-meaning with a scene, a missing, unknown or repeated arm, a port given twice, a box that does not
-answer or does not fit its arm, a start out of reach or arms too close at their starts. The
+meaning with a scene, a missing, unknown or repeated arm, a port or namespace given twice, a
+``--ros2 NS`` that would publish on an arm driver's namespace, a box that does not answer or does
+not fit its arm, a start out of reach or arms too close at their starts. The
 output folder (``--out``) has config.json, log_<arm>.csv per arm and result.json (per arm the
 one-arm servo's fields, and the clearance); exit 3 when an arm stopped safely.
 
@@ -49,18 +55,19 @@ def check_scene_options(args: argparse.Namespace) -> None:
     if args.orientation != "none":
         raise InputError(f"--orientation {args.orientation}: not with --scene yet (each arm's loop is position "
                          "only; --orientation none)")
-    if getattr(args, "actuator", None) is not None or getattr(args, "no_operating_state", False):
-        raise InputError("--actuator ros2:NS: not with --scene yet (a scene's boxes are serial: --serial NAME=PORT "
-                         "per arm; --ros2 [NS] publishes every arm and --target NAME=ros2 steers one)")
+    if getattr(args, "no_operating_state", False):
+        raise InputError("--no-operating-state: not with --scene (every arm's driver must publish its "
+                         "NS/operating_state: a disabled arm stops every arm)")
     given = [f"--{k.replace('_', '-')}" for k in SCENE_REFUSED if getattr(args, k, None) not in (None, False)]
     if args.view_hold:
         given.append("--view-hold")
     if given:
         raise InputError(f"{', '.join(given)}: not with --scene (each arm's files are named in the scene file; "
                          "each arm walks its own cube, holds its centre or follows --target NAME=SPEC; position only)")
-    if not args.serials or not args.camera or not args.calib:
-        raise InputError("--scene on the hardware path needs --serial NAME=PORT for every arm, --camera SPEC and "
-                         "--calib C (world_T_left in the scene's {w}: the virtual lab's --calib-out)")
+    if not (args.serials or getattr(args, "actuators", None)) or not args.camera or not args.calib:
+        raise InputError("--scene on the hardware path needs --serial NAME=PORT (or --actuator NAME=ros2:NS) for "
+                         "every arm, --camera SPEC and --calib C (world_T_left in the scene's {w}: the virtual lab's "
+                         "--calib-out)")
     if args.host and not args.view:
         raise InputError("--host serves the live view on another address too: it needs --view")
     if args.record_jpeg and not args.record:
@@ -95,6 +102,7 @@ def run_scene(args: argparse.Namespace) -> int:
         arm_trajectories,
         load_scene_setups,
         open_arm_set_session,
+        parse_actuator_specs,
         parse_serial_specs,
         parse_target_specs,
         run_arm_set,
@@ -113,11 +121,15 @@ def run_scene(args: argparse.Namespace) -> int:
 
     check_scene_options(args)
     scene = Scene.load(args.scene)
-    ports = parse_serial_specs(args.serials, scene.names)
+    kind = "ros2" if getattr(args, "actuators", None) else "serial"  # argparse refuses --serial with --actuator
+    ports = (parse_actuator_specs(args.actuators, scene.names) if kind == "ros2"
+             else parse_serial_specs(args.serials, scene.names))  # {arm: port or ROS 2 namespace}
     hold = tuple(args.hold or ())
     live = parse_target_specs(args.targets or (), scene.names, hold, ros2=args.ros2 is not None)
-    if args.ros2 is not None:  # every arm's namespace a valid ROS 2 name
-        scene_namespaces(args.ros2, scene.names)
+    if args.ros2 is not None:  # every arm's namespace a valid ROS 2 name, none an arm driver's
+        published = scene_namespaces(args.ros2, scene.names)
+        if kind == "ros2":
+            check_own_topics(published, ports)
     setups, scene_camera = load_scene_setups(scene, args.calib, rig=args.rig, controller=args.controller_config)
     models = load_scene_models(args.model or (), scene.names, setups)  # {arm: MODEL.yaml} of --model NAME=FILE
     for n, s in setups.items():  # the command line's overrides; one grid for every arm (rig.loop.arm_set_session)
@@ -142,7 +154,7 @@ def run_scene(args: argparse.Namespace) -> int:
                           f"paths, under the clearance {1000 * scene.clearance:.1f} mm")
     claim_outputs(dirs=[args.out], files=[args.json], force=args.force)  # after every option was validated
     warm_up()
-    options = LinkOptions(kind="serial", port=None, baudrate=args.baud, timeout=args.timeout)
+    options = LinkOptions(kind=kind, port=None, baudrate=args.baud, timeout=args.timeout)
     # the live view's server and drawing process first: they do not inherit the loop's priority
     view, view_lines = start_scene_view(setups, scene_camera, bases, args.host) if args.view else (None, "")
     if args.rt_priority is not None:  # before any thread starts: the camera's threads inherit it
@@ -156,7 +168,13 @@ def run_scene(args: argparse.Namespace) -> int:
             raise
     stores, sources = {}, {}
     bridges = None
+    participant = None  # one DDS participant for the process: the arms' links, a ros2: camera, the bridges
     try:
+        if kind == "ros2" or args.ros2 is not None:
+            from wristmark.rig.ros2.dds_config import open_participant, require_cyclonedds
+
+            require_cyclonedds("--actuator NAME=ros2:NS" if kind == "ros2" else "--ros2")
+            participant = open_participant()
         for n, (_, port) in live.items():  # each arm's own server (before any box opens: a port taken is exit 2)
             trajs[n], stores[n], sources[n] = open_live_targets(
                 lives[n], Workspace.around(centres[n], scene.cube_size), port, args.target_timeout, args.max_speed,
@@ -166,9 +184,10 @@ def run_scene(args: argparse.Namespace) -> int:
             from wristmark.rig.ros2.scene_bridge import SceneBridges
 
             bridges = SceneBridges(args.ros2, {n: s.params for n, s in setups.items()}, bases,
-                                   {n: stores[n] for n, (kind, _) in live.items() if kind == "ros2"})
+                                   {n: stores[n] for n, (how, _) in live.items() if how == "ros2"},
+                                   participant=participant)
         session = open_arm_set_session(setups, ports, args.camera, scene_camera, options,
-                                       camera_timeout=args.camera_timeout)
+                                       camera_timeout=args.camera_timeout, participant=participant)
         if bridges is not None:
             bridges.links = dict(session.links)
         recorder = open_scene_recorder(args, setups, scene_camera, session)
@@ -195,6 +214,9 @@ def run_scene(args: argparse.Namespace) -> int:
         src = sources[n]
         res["arms"][n]["targets"] = {"source": src.describe if src is not None else live[n][0],
                                      "max_speed_mps": args.max_speed, **store.report()}
+    if kind == "ros2":  # each arm's targets sent, malformed measured_js (rig/ros2/actuator_link.py)
+        for n, link in session.links.items():
+            res["arms"][n]["link"].update(link.stats())
     if bridges is not None:
         for n, r in bridges.report().items():
             res["arms"][n]["ros2"] = r
@@ -205,12 +227,13 @@ def run_scene(args: argparse.Namespace) -> int:
     if recorder is not None:
         res["recording"] = {"path": args.record, "cycles": recorder.cycles, "dropped_cycles": recorder.dropped,
                             "messages": recorder.bag.messages, "problem": recorder.error}
-    write_scene_outputs(args, scene, setups, ports, run, res)
+    link_of = {n: f"ros2:{ns}" if kind == "ros2" else ns for n, ns in ports.items()}
+    write_scene_outputs(args, scene, setups, link_of, run, res)
     for n, a in res["arms"].items():
         c = a["closed_loop"]
         errors = (f"tip error mean {c['mean_mm']:.3f} mm, max {c['max_mm']:.3f} mm over {c['cycles']} cycles "
                   f"({c['errors_from']} vs desired)" if c["cycles"] else "no trajectory cycle ran")
-        print(f"servo --scene arm {n} ({a['walk']}, {trajs[n].duration:.1f} s, link serial {ports[n]}): {errors}")
+        print(f"servo --scene arm {n} ({a['walk']}, {trajs[n].duration:.1f} s, link {kind} {link_of[n]}): {errors}")
     stopped = {n: o for n, o in run.outcomes.items() if o.stopped}
     if not stopped:
         return 0
@@ -232,6 +255,16 @@ def scene_namespaces(namespace: str, names: list[str]) -> dict[str, str]:
         except ValueError as e:
             raise InputError(f"--ros2: arm '{n}' cannot name a ROS 2 namespace: {e}") from None
     return out
+
+
+def check_own_topics(published: dict[str, str], drivers: dict[str, str]) -> None:
+    """``--ros2 NS`` with ``--actuator NAME=ros2:NS``: no arm's published namespace is an arm
+    driver's (the loop would read its own measured_js back as the arm's; InputError, one line)."""
+    for n, ns in published.items():
+        other = next((m for m, d in drivers.items() if d == ns), None)
+        if other is not None:
+            raise InputError(f"--ros2: arm '{n}' would publish on {ns}, arm '{other}''s --actuator namespace (the loop "
+                             "would read its own measured_js back as the arm's): pick another --ros2 NS")
 
 
 def arm_cycle_hook(view: Any, bridges: Any) -> Any:
@@ -350,7 +383,9 @@ def write_scene_outputs(args: argparse.Namespace, scene: Any, setups: dict[str, 
         out_dir.mkdir(parents=True, exist_ok=True)
         write_json(out_dir / "config.json", {
             "command": "servo", "scene": scene.source, "camera": args.camera,
-            "arms": {a.name: {"base": a.base.tolist(), "serial": ports[a.name], **setups[a.name].describe()}
+            "arms": {a.name: {"base": a.base.tolist(),
+                              ("actuator" if ports[a.name].startswith("ros2:") else "serial"): ports[a.name],
+                              **setups[a.name].describe()}
                      for a in scene.arms}})
         for n, out in run.outcomes.items():
             out.log.write_csv(out_dir / f"log_{n}.csv")

@@ -1,5 +1,6 @@
 """Several arms on the hardware path: ``wristmark servo --scene SCENE --serial NAME=PORT ...
---camera SPEC --calib C`` (docs/hardware.md "Several arms"). Nothing here imports the simulated
+--camera SPEC --calib C`` (docs/hardware.md "Several arms"), or ``--actuator NAME=ros2:NS ...``
+(each arm a rig.ros2.actuator_link.Ros2ActuatorLink on one shared participant). Nothing here imports the simulated
 bench: the scene file is read by :mod:`rig.loop.scene_file`.
 
 One process, one camera, one actuator box per arm (each its own :class:`rig.link.serial_link.SerialLink`,
@@ -72,7 +73,7 @@ Array = NDArray[np.float64]
 SETTLE_AT_START_S = 2.0  # [s] every arm rests at its start after the ramp there (as ServoLoop.start_at)
 
 __all__ = ["ArmSetSession", "BudgetedArmSetSensor", "SharedFrameFeed", "arm_trajectories", "load_scene_setups",
-           "open_arm_set_session", "parse_serial_specs", "parse_target_specs", "run_arm_set"]
+           "open_arm_set_session", "parse_actuator_specs", "parse_serial_specs", "parse_target_specs", "run_arm_set"]
 
 
 # -- configuration ---------------------------------------------------------------------------
@@ -114,17 +115,42 @@ def named_specs(option: str, specs: Sequence[str], names: Sequence[str], what: s
 def parse_serial_specs(specs: Sequence[str], names: Sequence[str]) -> dict[str, str]:
     """``NAME=PORT`` per arm -> {arm: port} in the scene's order; InputError (one line) for a
     malformed spec, an unknown arm, an arm given twice, a port given twice or an arm missing."""
-    ports: dict[str, str] = {}
-    for name, port in named_specs("--serial", specs, names, "box is NAME=PORT").items():
-        if port in ports.values():
-            other = next(n for n, p in ports.items() if p == port)
-            raise InputError(f"--serial: port {port} given for both '{other}' and '{name}'")
-        ports[name] = port
-    missing = [n for n in names if n not in ports]
+    return one_per_arm("--serial", named_specs("--serial", specs, names, "box is NAME=PORT"), names, "port",
+                       "box", "PORT")
+
+
+def one_per_arm(option: str, given: Mapping[str, str], names: Sequence[str], what: str, thing: str, form: str
+                ) -> dict[str, str]:
+    """``given`` ({arm: port or namespace}) in the scene's order; InputError (one line) for a value
+    given for two arms or an arm without one (``thing``: what each arm needs, ``form``: its spec)."""
+    seen: dict[str, str] = {}
+    for name, value in given.items():
+        if value in seen:
+            raise InputError(f"{option}: {what} {value} given for both '{seen[value]}' and '{name}'")
+        seen[value] = name
+    missing = [n for n in names if n not in given]
     if missing:
-        raise InputError(f"--serial: no box for arm '{missing[0]}' (give --serial {missing[0]}=PORT for each of "
-                         f"{', '.join(names)})")
-    return {n: ports[n] for n in names}
+        raise InputError(f"{option}: no {thing} for arm '{missing[0]}' (give {option} {missing[0]}={form} for each "
+                         f"of {', '.join(names)})")
+    return {n: given[n] for n in names}
+
+
+def parse_actuator_specs(specs: Sequence[str], names: Sequence[str]) -> dict[str, str]:
+    """``NAME=ros2:NS`` per arm (``--actuator``: the arm's driver on a ROS 2 graph) -> {arm:
+    namespace} in the scene's order; InputError (one line) for a malformed spec or namespace, an
+    unknown arm, an arm given twice, a namespace given twice or an arm missing."""
+    from wristmark.rig.ros2.bridge import clean_namespace
+
+    out: dict[str, str] = {}
+    for name, value in named_specs("--actuator", specs, names, "arm is NAME=ros2:NS").items():
+        if not value.startswith("ros2:"):
+            raise InputError(f"--actuator {name}={value}: with --scene each arm is NAME=ros2:NS (an arm on a ROS 2 "
+                             "graph; serial boxes are --serial NAME=PORT)")
+        try:
+            out[name] = clean_namespace(value[len("ros2:"):] or "-")
+        except ValueError as e:
+            raise InputError(f"--actuator {name}={value}: {e}") from None
+    return one_per_arm("--actuator", out, names, "namespace", "arm driver", "ros2:NS")
 
 
 def parse_target_specs(specs: Sequence[str], names: Sequence[str], hold: Sequence[str] = (), ros2: bool = False
@@ -391,11 +417,12 @@ def feeding_others(loop: ServoLoop, others: Mapping[str, Any]) -> Iterator[Feedi
 # -- the session --------------------------------------------------------------------------------
 @dataclass
 class ArmSetSession:
-    """Every arm's open box (``links``, by arm in the scene's order, with their ``ports``), the
-    shared camera feed and sensor; ``closed`` arms were held and disabled (their close problems
-    in ``close_errors``)."""
+    """Every arm's open box (``links``, by arm in the scene's order, with their ``ports``: a
+    SerialLink each, or with ``options.kind`` ros2 a rig.ros2.actuator_link.Ros2ActuatorLink each,
+    ``ports`` then their namespaces), the shared camera feed and sensor; ``closed`` arms were held
+    and disabled (their close problems in ``close_errors``)."""
 
-    links: dict[str, SerialLink]
+    links: dict[str, Any]
     ports: dict[str, str]
     feed: SharedFrameFeed
     sensor: BudgetedArmSetSensor
@@ -431,35 +458,47 @@ class ArmSetSession:
 
     def arm_session(self, name: str, sensor: Any) -> ServoSession:
         """Arm ``name``'s view as a :class:`rig.loop.servo_session.ServoSession` (for its summary)."""
-        return ServoSession(self.links[name], self.options, self.feed, sensor, port=self.ports[name],
+        link = self.links[name]
+        return ServoSession(link, self.options, self.feed, sensor, port=getattr(link, "port", self.ports[name]),
                             camera=self.camera, wall_clock=True)
 
 
 def open_arm_set_session(setups: Mapping[str, LoopSetup], ports: Mapping[str, str], camera: str,
-                         scene_camera: StereoCamera, options: LinkOptions, camera_timeout: float = 2.0
-                         ) -> ArmSetSession:
+                         scene_camera: StereoCamera, options: LinkOptions, camera_timeout: float = 2.0,
+                         participant: Any = None) -> ArmSetSession:
     """Open every arm's box (PING, GET_STATE: nothing enabled, nothing moved; a box that does not
     answer or does not fit its arm: one line naming the arm and the port) and the camera; check
     its first frame's size against ``scene_camera`` (at the rig's image scale) and track every
-    sleeve in it once, before any motion."""
+    sleeve in it once, before any motion. ``options.kind`` ros2: ``ports`` are the arms' ROS 2
+    namespaces, each arm's driver reached by a rig.ros2.actuator_link.Ros2ActuatorLink on
+    ``participant`` (one of dds_config.open_participant for the process; its first measured_js
+    awaited, nothing enabled); a ``ros2:LEFT,RIGHT`` camera on that participant too."""
     from wristmark.cvs.sources.open_source import SourceOptions
     from wristmark.rig.link.actuator_driver import ActuatorDriver, ActuatorError
     from wristmark.rig.loop.hardware_session import first_frame
     from wristmark.rig.loop.servo_session import HW_TIMEOUT_S
     from wristmark.rig.ros2.image_source import open_frame_source
 
-    links: dict[str, SerialLink] = {}
+    links: dict[str, Any] = {}
     first_setup = next(iter(setups.values()))
     timeout = options.timeout if options.timeout is not None else HW_TIMEOUT_S
     try:
         for name, setup in setups.items():
             try:
-                driver = ActuatorDriver(ports[name], options.baudrate, timeout, options.retries, params=setup.params)
-                links[name] = SerialLink(driver)
+                if options.kind == "ros2":  # the arm's driver on a ROS 2 graph (rig/ros2/actuator_link.py)
+                    from wristmark.models.arm_spec import actuator_names
+                    from wristmark.rig.ros2.actuator_link import Ros2ActuatorLink
+
+                    links[name] = Ros2ActuatorLink(ports[name], require_operating_state=options.operating_state,
+                                                   names=actuator_names(setup.params), participant=participant)
+                else:
+                    driver = ActuatorDriver(ports[name], options.baudrate, timeout, options.retries,
+                                            params=setup.params)
+                    links[name] = SerialLink(driver)
                 links[name].probe()
             except ActuatorError as e:
                 raise type(e)(f"arm '{name}' on {ports[name]}: {e}") from None
-        source = open_frame_source(camera, SourceOptions(timeout=camera_timeout))
+        source = open_frame_source(camera, SourceOptions(timeout=camera_timeout), participant=participant)
     except BaseException:
         for link in links.values():
             link.close()
@@ -590,7 +629,7 @@ def run_arm_set(setups: Mapping[str, LoopSetup], trajs: Mapping[str, Trajectory]
 
 
 def _cycle_hook(recorder: Any, on_cycle: Callable[[str, Any], None] | None, loops: Mapping[str, ServoLoop],
-                links: Mapping[str, SerialLink], name: str) -> Any:
+                links: Mapping[str, Any], name: str) -> Any:
     """Arm ``name``'s per-cycle hook: its cycle recorded (with its box's latest reading) and
     handed to ``on_cycle`` (None without either)."""
     if recorder is None and on_cycle is None:

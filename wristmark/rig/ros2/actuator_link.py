@@ -66,9 +66,10 @@ class Ros2ActuatorLink:
     simulated = False
 
     def __init__(self, namespace: str, timeout: float = ARM_TIMEOUT_S, require_operating_state: bool = True,
-                 names: tuple[str, ...] = ACTUATOR_NAMES) -> None:
+                 names: tuple[str, ...] = ACTUATOR_NAMES, participant: Any = None) -> None:
         """names: the arm's actuator names, in its order (models.arm_spec.actuator_names; default
-        the reference arm's six)."""
+        the reference arm's six); participant: a participant of dds_config.open_participant shared
+        with the process's other links and bridges (None: its own)."""
         require_cyclonedds("--actuator ros2:NS")
         from cyclonedds.core import Listener, Policy, Qos
         from cyclonedds.pub import DataWriter
@@ -97,7 +98,7 @@ class Ros2ActuatorLink:
         self._closed = False
         self._lock = threading.Lock()
         self._got_state = threading.Event()
-        self.participant = open_participant()
+        self.participant = participant if participant is not None else open_participant()
         out_qos = Qos(Policy.Reliability.Reliable(100_000_000), Policy.History.KeepLast(1),
                       Policy.Durability.Volatile)
         in_qos = Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(1), Policy.Durability.Volatile)

@@ -152,7 +152,10 @@ def decode(msg: Any, compressed: bool, where: str) -> np.ndarray:
 class Ros2StereoSource:
     """``ros2:LEFT,RIGHT``: a live stereo source from two ROS 2 image topics (module docstring)."""
 
-    def __init__(self, spec: str, timeout: float = 5.0, tolerance: float = PAIR_TOLERANCE_S) -> None:
+    def __init__(self, spec: str, timeout: float = 5.0, tolerance: float = PAIR_TOLERANCE_S,
+                 participant: Any = None) -> None:
+        """participant: one of dds_config.open_participant shared with the process's other ROS 2
+        parts (None: its own)."""
         require_cyclonedds(f"--source {spec}")
         self.topics = parse_ros2_spec(spec)
         self.name = spec
@@ -168,7 +171,7 @@ class Ros2StereoSource:
         from wristmark.rig.ros2.messages import CompressedImage, Image, topic_name
 
         self.compressed = tuple(t.rstrip("/").endswith("/compressed") for t in self.topics)
-        self.participant = open_participant()
+        self.participant = participant if participant is not None else open_participant()
         qos = Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(2), Policy.Durability.Volatile)
         self._readers = []
         for side, topic, comp in zip(("left", "right"), self.topics, self.compressed):
@@ -231,16 +234,17 @@ class Ros2StereoSource:
         self.participant = None
 
 
-def open_frame_source(spec: Any, options: Any = None) -> StereoSource:
+def open_frame_source(spec: Any, options: Any = None, participant: Any = None) -> StereoSource:
     """``cvs.sources.open_source.open_stereo_source`` that also opens ``ros2:LEFT,RIGHT`` (with its
-    size check and grey conversion from ``options``)."""
+    size check and grey conversion from ``options``; on ``participant`` when given, one of
+    dds_config.open_participant, else its own)."""
     from wristmark.cvs.sources.open_source import CheckedSource, SourceOptions, open_stereo_source
 
     if not is_ros2_spec(spec):
         return open_stereo_source(spec, options)
     o = options or SourceOptions()
     o.validate()
-    source: StereoSource = Ros2StereoSource(spec, timeout=o.timeout)
+    source: StereoSource = Ros2StereoSource(spec, timeout=o.timeout, participant=participant)
     if o.image_size is None and not o.grayscale:
         return source
     size = None if o.image_size is None else (int(o.image_size[0]), int(o.image_size[1]))

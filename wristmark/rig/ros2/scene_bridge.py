@@ -32,13 +32,15 @@ class SceneBridges:
     """Every arm's bridge on one participant; :meth:`on_cycle` is the scene loop's ``on_cycle(arm, record)``."""
 
     def __init__(self, namespace: str | None, params: Mapping[str, Arm], bases: Mapping[str, Array],
-                 targets: Mapping[str, LiveTargets] | None = None, links: Mapping[str, Any] | None = None) -> None:
+                 targets: Mapping[str, LiveTargets] | None = None, links: Mapping[str, Any] | None = None,
+                 participant: Any = None) -> None:
         """``params`` and ``bases`` (4x4 [m], the arm's {w} in the scene's) by arm; ``targets``: the
         store of each arm that follows its ``servo_cp``; ``links`` (set once the boxes are open):
-        each arm's link, whose last state gives its measured actuators."""
+        each arm's link, whose last state gives its measured actuators; ``participant``: one of
+        dds_config.open_participant shared with the arms' ROS 2 links (None: its own)."""
         self.namespace = clean_namespace(namespace)
         self.links: dict[str, Any] = dict(links or {})
-        self.participant = open_participant()
+        self.participant = participant if participant is not None else open_participant()
         self.bridges: dict[str, Ros2Bridge] = {}
         try:
             for n, p in params.items():

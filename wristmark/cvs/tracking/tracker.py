@@ -58,7 +58,7 @@ from wristmark.cvs.marker.decode import CodeDecoder
 from wristmark.cvs.tracking.axis import axis_evidence, axis_evidence_strict
 from wristmark.cvs.tracking.homography_init import homography_pose
 from wristmark.cvs.tracking.result import Array, IntArray, TrackResult
-from wristmark.cvs.tracking.rigid_fit import kabsch, roll_about_z
+from wristmark.cvs.tracking.rigid_fit import chord_starts, kabsch, roll_about_z
 from wristmark.cvs.tracking.settings import CornerDetector, TrackerSettings, make_detector
 from wristmark.cvs.tracking.sleeve_facing import corner_facing, turned_start
 from wristmark.cvs.tracking.stereo_match import StereoMatch, StereoRectifier, match_corners
@@ -529,7 +529,8 @@ class MarkerTracker:
         """Start poses, most likely first, each computed only when the ones before it did not
         give a good fit: the previous pair's pose (tracking), the homography of the camera with
         more corners (paper eq. 14-15), both planar solutions of cv2 IPPE (the homography's
-        mirror-tilt ambiguity) and triangulation + Kabsch."""
+        mirror-tilt ambiguity) and triangulation + Kabsch; with only two stereo pairs (and at
+        least four corners in all), their chord turned in 12 steps (rigid_fit ``chord_starts``)."""
         self._last_shift, self._last_fit_px = 0, float("inf")
         if self._continuous and self._last_pose is not None:
             yield self._previous_start(idx_l, ul)
@@ -563,6 +564,14 @@ class MarkerTracker:
             )
             X = (X[:3] / X[3]).T @ np.asarray(self.rectifier.R1)  # rectified-left -> {ll}
             yield kabsch(pts(m.index_left[m.pairs[:, 0]]), X)
+        elif m.n_pairs == 2 and idx.size < 4 and np.union1d(idx_l, idx_r).size >= 4:
+            # two stereo pairs and single-view corners (a stripe over a corner in each view): the
+            # pairs fix a chord, its turn is left to the solve from each of a few starts
+            X = cv2.triangulatePoints(
+                self.rectifier.P1, self.rectifier.P2, m.rect_left[m.pairs[:, 0]].T, m.rect_right[m.pairs[:, 1]].T
+            )
+            X = (X[:3] / X[3]).T @ np.asarray(self.rectifier.R1)
+            yield from chord_starts(pts(m.index_left[m.pairs[:, 0]]), X)
 
     def _previous_start(self, idx: IntArray, uv: Array) -> Array:
         """The previous pair's fitted pose in this pair's relative indices. The chain's first

@@ -21,7 +21,9 @@ import argparse
 import json
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -58,15 +60,16 @@ class _Pair:
     T_left_marker: np.ndarray
 
 
-def _rendered(cache: str | None, i: int, renderer: Any, shape: Any) -> Any:
-    """Pair ``i``: from ``cache`` where it was kept, else rendered (and kept there)."""
+def _rendered(cache: str | None, i: int, renderer: Callable[[], Any], shape: Any) -> Any:
+    """Pair ``i``: from ``cache`` where it was kept, else rendered by a renderer that ``renderer``
+    builds (and kept there); a cached pair builds no renderer (no Mitsuba scene set-up)."""
     if cache is None:
-        return renderer.render(shape)
+        return renderer().render(shape)
     path = Path(cache) / f"pair_{i}.npz"
     if path.is_file():
         with np.load(path) as z:
             return _Pair(z["left"], z["right"], z["tip_left"], z["T_left_marker"])
-    pair = renderer.render(shape)
+    pair = renderer().render(shape)
     path.parent.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(path, left=pair.left, right=pair.right, tip_left=pair.tip_left,
                         T_left_marker=pair.T_left_marker)
@@ -110,8 +113,9 @@ def main() -> int:
                                                                                                np.log(0.3)))),
                           light_offset=float(rng.uniform(0, 0.003)), aperture_radius=float(rng.uniform(0, 4e-4)),
                           focus_distance=float(rng.uniform(0.06, 0.1)))
-        renderer = PbrStereoRenderer(cam, m, noise_preset("default", jpeg_quality=90), pbr, seed=a.seed * 1000 + i)
-        pair = _rendered(a.cache, i, renderer, arm_shape(P, q))
+        seed = a.seed * 1000 + i
+        pair = _rendered(a.cache, i, partial(PbrStereoRenderer, cam, m, noise_preset("default", jpeg_quality=90), pbr,
+                                             seed=seed), arm_shape(P, q))
         row: dict = {"sleeve": name, "roughness": pbr.sleeve_roughness, "light_offset": pbr.light_offset,
                      "aperture": pbr.aperture_radius, "focus": pbr.focus_distance,
                      "tilt_deg": _tilt_deg(pair.T_left_marker)}

@@ -51,3 +51,53 @@ def test_a_washed_out_corner_breaks_the_chain_unless_it_may_step_over_it(gaps: i
 
 def test_no_search_no_retry() -> None:
     assert MarkerCornerDetector().retry_with_gaps().corners.shape[0] == 0
+
+
+def _strip_dim_beyond(washed_corner: int) -> np.ndarray:
+    """A two-row checker strip of 7 columns (6 X-corners 30 px apart on a vertical line at
+    x = 69.5), clipped over corner ``washed_corner``, the corners beyond it of less contrast."""
+    img = np.full((200, 360), 120, np.uint8)
+    s = 30
+    for c in range(7):
+        lo, hi = (25, 230) if c <= washed_corner else (65, 190)
+        for r in range(2):
+            img[40 + r * s : 40 + (r + 1) * s, 30 + c * s : 30 + (c + 1) * s] = hi if (c + r) % 2 else lo
+    img = cv2.GaussianBlur(img, (0, 0), 1.0)
+    x = 60 + washed_corner * s
+    cv2.rectangle(img, (x - 7, 20), (x + 7, 120), 255, -1)
+    return np.ascontiguousarray(cv2.GaussianBlur(img, (0, 0), 0.8).T)
+
+
+def test_a_step_over_that_finds_nothing_at_one_end_leaves_the_other_end_its_own() -> None:
+    """The chain seeded beside the gap grows away from it first: the step over nothing at that
+    end must not use up the one step over the washed-out corner at the other."""
+    det = MarkerCornerDetector(DetectorSettings(max_gaps=1))
+    assert det.detect(_strip_dim_beyond(2)).corners.shape[0] == 3  # the paper's chain: one side only
+    c = det.retry_with_gaps()
+    want = np.array([[69.5, y] for y in (59.5, 89.5, 149.5, 179.5, 209.5)])
+    np.testing.assert_allclose(c.corners, want, atol=0.2)
+
+
+def _strip_turned_before_gap() -> np.ndarray:
+    """A two-row checker strip of 5 columns (4 X-corners 30 px apart on a line at x = 69.5),
+    clipped over the third corner; the row boundary wiggles through the first two (1.5 px sine):
+    their edges along the chain lean 10 deg either way, the corners stay on the line (as a limb
+    corner's edge leans beside the stripe on a path-traced sleeve)."""
+    yy, xx = np.mgrid[0:200, 0:300].astype(float) + 0.5
+    s, u0, vb = 30.0, 60.0, 70.0
+    b = np.where((xx > u0 - 15) & (xx < u0 + s + 15), 1.5 * np.sin(np.pi * (xx - u0) / s), 0.0)
+    col, row = np.floor((xx - u0 + s) / s), (yy > vb + b).astype(int)
+    inside = (xx >= u0 - s) & (xx < u0 + 4 * s) & (yy > vb - s) & (yy < vb + s)
+    img = cv2.GaussianBlur(np.where(inside, np.where((col + row) % 2 == 1, 230.0, 25.0), 120.0).astype(np.float32),
+                           (0, 0), 1.0)
+    cv2.rectangle(img, (int(u0 + 2 * s) - 7, 50), (int(u0 + 2 * s) + 7, 90), 255, -1)
+    return np.ascontiguousarray(np.clip(cv2.GaussianBlur(img, (0, 0), 0.8), 0, 255).astype(np.uint8).T)
+
+
+def test_a_step_over_also_goes_straight_where_the_extrapolated_turn_misses() -> None:
+    """The edge turn from the first corner to the second, extrapolated over two spacings, points
+    20 deg off the line: the step over the gap is searched along the last step too."""
+    det = MarkerCornerDetector(DetectorSettings(max_gaps=1))
+    assert det.detect(_strip_turned_before_gap()).corners.shape[0] == 0
+    c = det.retry_with_gaps()
+    np.testing.assert_allclose(c.corners, [[69.5, 59.5], [69.5, 89.5], [69.5, 149.5]], atol=0.2)

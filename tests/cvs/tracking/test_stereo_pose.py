@@ -153,3 +153,38 @@ def test_bad_input(solver: StereoPoseSolver) -> None:
         solver.solve(np.array([0, 1]), np.zeros((3, 2)), np.array([0, 1]), np.zeros((2, 2)), np.eye(4))
     with pytest.raises(InputError, match="finite"):
         solver.solve(np.arange(3), np.full((3, 2), np.nan), np.arange(3), np.zeros((3, 2)), np.eye(4))
+
+
+def test_equal_sigmas_are_the_unweighted_solve(solver: StereoPoseSolver) -> None:
+    rng = np.random.default_rng(21)
+    T = _truth(rng)
+    il, ul, ir, ur = _observe(T, rng, 0.1)
+    S = _near(T, rng)
+    a = solver.solve(il, ul, ir, ur, S)
+    b = solver.solve(il, ul, ir, ur, S, (np.full(il.size, 0.3), np.full(ir.size, 0.3)))
+    np.testing.assert_array_equal(a.T_fit, b.T_fit)
+    assert a.rms_px == b.rms_px
+
+
+def test_a_noisy_corner_given_its_sigma_counts_less(solver: StereoPoseSolver) -> None:
+    """One corner 0.5 px off (under the outlier test): with its 1 px sigma the tip moves a
+    fraction as far, and rms_px stays in pixels (the unweighted residuals of the weighted fit)."""
+    rng = np.random.default_rng(22)
+    T = _truth(rng)
+    il, ul, ir, ur = _observe(T, rng, 0.0)
+    ul = ul.copy()
+    ul[0] += [0.5, 0.0]
+    S = _near(T, rng)
+    tip = T[:3, :3] @ MARKER.tip() + T[:3, 3]
+    plain = solver.solve(il, ul, ir, ur, S)
+    sl = np.full(il.size, 0.1)
+    sl[0] = 1.0
+    w = solver.solve(il, ul, ir, ur, S, (sl, np.full(ir.size, 0.1)))
+    assert plain.inliers_left.all() and w.inliers_left.all()
+    assert np.linalg.norm(w.tip_left - tip) < 0.2 * np.linalg.norm(plain.tip_left - tip)
+    P = MARKER.corners()
+    e = np.concatenate([np.linalg.norm(CAM.project_left(P[il] @ w.T_fit[:3, :3].T + w.T_fit[:3, 3]) - ul, axis=1),
+                        np.linalg.norm(CAM.project_right(P[ir] @ w.T_fit[:3, :3].T + w.T_fit[:3, 3]) - ur, axis=1)])
+    assert w.rms_px == pytest.approx(float(np.sqrt(np.mean(e**2))), rel=1e-6)
+    with pytest.raises(InputError):
+        solver.solve(il, ul, ir, ur, S, (sl[1:], np.full(ir.size, 0.1)))

@@ -10,8 +10,10 @@ last spacing. Consecutive corners alternate in polarity, taken relative to the c
 deg). ``find_chain(..., gaps=k)``: a
 chain that stops may step, up to k times, over one missed corner: the next corner of the *same*
 polarity between 1.5 and ``gap_ratio`` times the last spacing along the same direction (a
-specular highlight washing out the corner the camera sees best, docs/notes/highlight-stripe.md);
-the stereo match then indexes it two steps on (repeated polarity).
+specular highlight washing out the corner the camera sees best, docs/notes/highlight-stripe.md),
+searched along the extrapolated turn and, where that finds nothing, along the last step; a step
+over that finds nothing does not count against k. The stereo match then indexes it two steps on
+(repeated polarity).
 
 A window search moves the paper's 10x10 square (widened across the step to 20% of the distance
 so that a curved corner circle stays inside it) in half-window steps and takes the first window
@@ -203,7 +205,9 @@ def _grow(c: Any, im: Any, prm: Any, seed: int, out: Any) -> int:  # pragma: no 
             k = _search(c, im, prm, cur, ex, ey, prm[6] * dist, used)
             if k < 0 and gaps < prm[10]:  # beyond one missed corner (a highlight over it): same polarity
                 k = _search(c, im, prm, cur, ex, ey, prm[11] * dist, used, True, 1.5 * dist)
-                gaps += 1
+                if k < 0:  # over two spacings the turn extrapolated from a limb corner can overshoot
+                    k = _search(c, im, prm, cur, ux, uy, prm[11] * dist, used, True, 1.5 * dist)
+                gaps += k >= 0  # a step over that finds nothing leaves the other end its own
             if k < 0:
                 break
             used[k] = True

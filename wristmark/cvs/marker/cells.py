@@ -79,13 +79,11 @@ def sample_sleeve(img: NDArray[np.uint8], points: Array, normals: Array, T_cam_m
 
 
 @numba.njit(cache=True, nogil=True)
-def _mean_of(v: Any, i: int, j: int) -> float:  # pragma: no cover
+def _mean_of(v: Any, i: int, j: int, k: int) -> float:  # pragma: no cover
     a, b = v[i], v[j]
     if np.isfinite(a) and np.isfinite(b):
         return 0.5 * (a + b)
-    if np.isfinite(a):
-        return a
-    return b
+    return v[k]  # one neighbour alone is biased by the cylinder's shading: the fallback (module doc)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -97,8 +95,9 @@ def _darkness(vs: Any, n_cells: int, dark_ref: Any, white_ref: Any, min_contrast
     pos = neg = 0
     for c in range(ncam):
         for i in range(n_cells):
-            B[c, i] = _mean_of(vs[c], n_cells + dark_ref[i, 0], n_cells + dark_ref[i, 1])
-            W[c, i] = _mean_of(vs[c], n_cells + white_ref[i, 0], n_cells + white_ref[i, 1])
+            B[c, i] = _mean_of(vs[c], n_cells + dark_ref[i, 0], n_cells + dark_ref[i, 1], n_cells + dark_ref[i, 2])
+            W[c, i] = _mean_of(vs[c], n_cells + white_ref[i, 0], n_cells + white_ref[i, 1],
+                               n_cells + white_ref[i, 2])
             d = W[c, i] - B[c, i]
             if d > 0:
                 pos += 1
@@ -124,7 +123,8 @@ def cell_darkness(samples: Array, n_cells: int, dark_ref: NDArray[np.int_], whit
                   min_contrast: float) -> tuple[Array, int]:
     """Darkness of each cell from the grey levels (cameras, n_cells + references) of
     ``sample_sleeve``: (W - v) / (W - B) against the mean of its dark and white references
-    (reference indices (n_cells, 2) each), weighted by contrast over the cameras; NaN where no
+    (reference indices (n_cells, 3) each: the mean of the first two where both are sampled, else
+    the third), weighted by contrast over the cameras; NaN where no
     camera has references of at least ``min_contrast``. And the checker's phase: 0 when the
     'dark' references are the darker ones (as the model says), 1 when they are the lighter ones
     (then swapped), -1 when more than 10% disagree (then all NaN)."""

@@ -6,10 +6,14 @@ projects every code cell's centre (column centre angle, band centre height, on t
 both cameras along ``T_fit``, keeps the cells facing the camera (cos_view >= ``min_cos_view``)
 and samples the grey level there (bilinear). Each cell's darkness is measured against local
 references, the neighbouring checker patches of the same column on the same side (the dark and
-the white one(s) among columns j - 1, j, j + 1 of the nearer checker row; which of them are
+the white one(s) among columns j - 1, j, j + 1 of the nearer checker row; where one of the two
+neighbours is not seen, column j's patch of that colour in the other row instead, as one
+neighbour alone, nearer the light, is shaded unlike the cell; which of them are
 dark, the checker's phase in the fit's relative columns, is measured from all references, and
 fixes the parity of the shift):
 ``d = (W - v) / (W - B)`` (1 black, 0 white), averaged over the cameras weighted by contrast.
+A column whose two checker patches both clip in a camera lies under the coaxial light's stripe
+(docs/notes/highlight-stripe.md): in that camera neither its patches nor its cells are read.
 
 Decision: each hypothesis' log-likelihood over the cells read (cell dark with probability
 clip(d)), the best one; then a Hamming test on the confidently read cells (d > ``dark`` or
@@ -50,13 +54,16 @@ class CodeReadSettings:
     """min_cos_view: cells (and references) seen more obliquely are not read [-]; dark, light:
     darkness above / below which a cell reads dark / white (between: not read) [-];
     min_contrast: least white - black reference difference [grey levels]; min_cells: least
-    confidently read cells for a decision [-]."""
+    confidently read cells for a decision [-]; clipped_level: a column whose two checker patches
+    both reach this grey level lies under a clipped highlight, and neither they nor its cells are
+    read in that camera [grey levels]."""
 
     min_cos_view: float = 0.3
     dark: float = 0.65
     light: float = 0.35
     min_contrast: float = 25.0
     min_cells: int = 6
+    clipped_level: float = 250.0
 
     def validate(self) -> None:
         """Raise ConfigError naming the offending key."""
@@ -133,8 +140,10 @@ class CodeDecoder:
         row0 = np.where(upper, 0, n)  # reference row offset of each cell
         dark_upper = (col % 2 == 0)  # upper-row patch j is black for even j (relative indices)
         own_dark = np.where(upper, dark_upper, ~dark_upper)
-        nb_idx = np.column_stack([(col - 1) % n, (col + 1) % n]) + row0[:, None]
-        own = np.column_stack([col, col]) + row0[:, None]
+        # the neighbours in the nearer row, then the same colour in the cell's own column of the other
+        # row (used only when a neighbour is not seen: one neighbour alone is shaded differently)
+        nb_idx = np.column_stack([(col - 1) % n + row0, (col + 1) % n + row0, col + n - row0])
+        own = np.column_stack([col, col, col]) + row0[:, None]
         self._dark_ref = np.where(own_dark[:, None], own, nb_idx)
         self._white_ref = np.where(own_dark[:, None], nb_idx, own)
         preds, shifts, dirs, member = [], [], [], []
@@ -162,6 +171,12 @@ class CodeDecoder:
         s = self.settings
         vs = np.array([sample_sleeve(img, self._points, self._normals, T, K, dist, s.min_cos_view)
                        for img, (K, dist), T in zip(images, self._cams, (T_fit, self._T_rl @ T_fit))])
+        n, nc = self.marker.columns, self._n_cells
+        with np.errstate(invalid="ignore"):
+            lit = np.minimum(vs[:, nc:nc + n], vs[:, nc + n:]) >= s.clipped_level  # (cameras, columns)
+        if lit.any():  # a highlight along the sleeve: both colours clip, the column tells nothing
+            vs[:, nc:] = np.where(np.tile(lit, 2), np.nan, vs[:, nc:])
+            vs[:, :nc] = np.where(np.repeat(lit, nc // n, axis=1), np.nan, vs[:, :nc])
         return cell_darkness(vs, self._n_cells, self._dark_ref, self._white_ref, s.min_contrast)
 
     def read(self, images: tuple[NDArray[np.uint8], NDArray[np.uint8]], T_fit: Array) -> CodeReading:

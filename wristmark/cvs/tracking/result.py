@@ -28,7 +28,9 @@ class TrackResult:
     returned direction (NaN when the image was not asked); roll_known: a coded sleeve's code
     was read, T_left_marker is the absolute pose (roll included) and ids_left / ids_right the
     absolute corner ids of corners_left / right (-1: not used); otherwise roll is known modulo
-    one column and ids are None; code: the code reading (coded sleeves).
+    one column and ids are None; code: the code reading (coded sleeves); corner_sigmas: the
+    noise [px] of each matched corner (left, right: as corners_*[match.index_* >= 0]) that
+    weighted the pose solve (TrackerSettings.solve_contrast_noise), None when unweighted.
     """
 
     ok: bool
@@ -49,3 +51,4 @@ class TrackResult:
     ids_left: IntArray | None = None
     ids_right: IntArray | None = None
     code: CodeReading | None = None
+    corner_sigmas: tuple[Array, Array] | None = None

@@ -24,3 +24,24 @@ def kabsch(P_model: Array, P_obs: Array) -> Array:
     T = np.eye(4)
     T[:3, :3], T[:3, 3] = R, co - R @ cm
     return T
+
+
+def chord_starts(P_model: Array, P_obs: Array, n: int = 12) -> list[Array]:
+    """4x4 rigid transforms that put two model points (2, 3) on two observed ones (2, 3) along
+    their chord (least squares: the chords' midpoints coincide), turned about it by k 2 pi / n, k
+    = 0..n-1: a start pose from two stereo pairs, whose turn about the chord they leave open."""
+    a, b = P_model[1] - P_model[0], P_obs[1] - P_obs[0]
+    a, b = a / np.linalg.norm(a), b / np.linalg.norm(b)
+    v, c = np.cross(a, b), float(a @ b)
+    K = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    R0 = np.eye(3) + K + K @ K / (1.0 + c) if c > -1.0 + 1e-9 else (
+        2.0 * np.outer(p := np.linalg.svd(a[None, :])[2][1], p) - np.eye(3))  # a half turn about a normal of a
+    Kb = np.array([[0, -b[2], b[1]], [b[2], 0, -b[0]], [-b[1], b[0], 0]])
+    out = []
+    for k in range(n):
+        phi = 2.0 * np.pi * k / n
+        R = (np.eye(3) + np.sin(phi) * Kb + (1.0 - np.cos(phi)) * Kb @ Kb) @ R0
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = R, P_obs.mean(axis=0) - R @ P_model.mean(axis=0)
+        out.append(T)
+    return out

@@ -73,7 +73,9 @@ class TrackerSettings:
     clipped_sigma_px where a pixel of clipped_level or more lies within clipped_radius times the
     chain's spacing of the corner (beside a clipped highlight stripe the HTM fit's linear shading
     is wrong: 0.1-1.6 px off; a pose that rests on such corners alone is refused by
-    max_tip_sigma_m; 0 disables)."""
+    max_tip_sigma_m; 0 disables); solve_contrast_noise [px x grey levels]: on images the pose
+    solve weights each corner by its noise, corner_sigma_px combined with solve_contrast_noise
+    over its contrast (7: the relation measured on the path-traced 1080p pairs; 0: unweighted)."""
 
     min_corners: int = 3
     min_pairs: int = 2
@@ -94,6 +96,7 @@ class TrackerSettings:
     corner_sigma_px: float = 0.1
     max_tip_sigma_m: float = 0.001
     corner_contrast_noise: float = 0.0
+    solve_contrast_noise: float = 7.0
     clipped_sigma_px: float = 1.0
     clipped_level: int = 250
     clipped_radius: float = 0.25

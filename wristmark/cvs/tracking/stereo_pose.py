@@ -266,12 +266,15 @@ class StereoPoseSolver:
         index_right: NDArray[np.int_],
         uv_right: Array,
         T_left_marker_init: Array,
+        sigmas: tuple[Array, Array] | None = None,
     ) -> MarkerPose:
         """Refine the pose from relative corner indices and raw pixels of each camera.
 
         index_*: (n,) relative marker corner indices (consistent between the cameras, unique per
         camera, n <= columns); uv_*: (n, 2) raw pixels; T_left_marker_init: 4x4 start (e.g. the
-        homography pose). Raises InputError on malformed input or fewer than 4 corners in all.
+        homography pose); sigmas: optional per-corner noise (left (n_l,), right (n_r,)) [px],
+        each corner weighted by (least sigma / its sigma)^2 (the outlier test and rms_px stay in
+        unweighted pixels). Raises InputError on malformed input or fewer than 4 corners in all.
         """
         t_start = time.perf_counter()
         il, ir = np.asarray(index_left, int).reshape(-1), np.asarray(index_right, int).reshape(-1)
@@ -290,7 +293,16 @@ class StereoPoseSolver:
             raise InputError("T_left_marker_init must be a finite 4x4 transform")
         P_l, P_r = self.marker_points(il), self.marker_points(ir)
         w_l, w_r = np.ones(il.size), np.ones(ir.size)
+        scale_l, scale_r = np.ones(il.size), np.ones(ir.size)  # weighted -> pixel residuals
+        if sigmas is not None:
+            sg_l, sg_r = (np.asarray(v, float).reshape(-1) for v in sigmas)
+            if sg_l.size != il.size or sg_r.size != ir.size or not np.all(np.concatenate([sg_l, sg_r]) > 0):
+                raise InputError("sigmas need one positive value per corner of each camera")
+            least = float(np.concatenate([sg_l, sg_r]).min())
+            scale_l, scale_r = sg_l / least, sg_r / least
+            w_l, w_r = scale_l**-2, scale_r**-2
         T, e_l, e_r = self._run(T0, P_l, ul, w_l, P_r, ur, w_r)
+        e_l, e_r = e_l * scale_l, e_r * scale_r
         s = self.settings
         for _ in range(s.max_rounds):
             e = np.concatenate([e_l[w_l > 0], e_r[w_r > 0]])
@@ -300,6 +312,7 @@ class StereoPoseSolver:
                 break
             w_l[bad_l], w_r[bad_r] = 0.0, 0.0
             T, e_l, e_r = self._run(T, P_l, ul, w_l, P_r, ur, w_r)
+            e_l, e_r = e_l * scale_l, e_r * scale_r
         e = np.concatenate([e_l[w_l > 0], e_r[w_r > 0]])
         rms = float(np.sqrt(np.mean(e**2))) if e.size else float("nan")
         return self._result(T, rms, w_l > 0, w_r > 0, t_start)

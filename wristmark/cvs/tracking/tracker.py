@@ -58,7 +58,7 @@ from wristmark.cvs.marker.decode import CodeDecoder
 from wristmark.cvs.tracking.axis import axis_evidence, axis_evidence_strict
 from wristmark.cvs.tracking.homography_init import homography_pose
 from wristmark.cvs.tracking.result import Array, IntArray, TrackResult
-from wristmark.cvs.tracking.rigid_fit import kabsch, roll_about_z
+from wristmark.cvs.tracking.rigid_fit import chord_starts, kabsch, roll_about_z
 from wristmark.cvs.tracking.settings import CornerDetector, TrackerSettings, make_detector
 from wristmark.cvs.tracking.sleeve_facing import corner_facing, turned_start
 from wristmark.cvs.tracking.stereo_match import StereoMatch, StereoRectifier, match_corners
@@ -200,6 +200,8 @@ class MarkerTracker:
             t3 = time.perf_counter()
             res = self._orient(res, (il, ir), axis_hint_left)
             res.timings["axis"] = 1e3 * (time.perf_counter() - t3)
+            if res.ok and self.settings.solve_contrast_noise > 0:
+                res = self._contrast_weighted(res, (il, ir))
             res = replace(res, time_ms=1e3 * (time.perf_counter() - t0))
         self._tracking = found  # an ambiguous direction keeps the corners' ROIs
         self._last_pose = res.pose if found else None
@@ -225,7 +227,9 @@ class MarkerTracker:
         idx_l, ul = m.index_left[kl], res.corners_left[kl]
         idx_r, ur = m.index_right[kr], res.corners_right[kr]
         assert res.pose is not None
-        pose = self.solver.solve(idx_l, ul, idx_r, ur, res.pose.T_fit)
+        sig = None if res.corner_sigmas is None else (  # the result's own weights, of the corners kept
+            res.corner_sigmas[0][keep_left[m.index_left >= 0]], res.corner_sigmas[1][keep_right[m.index_right >= 0]])
+        pose = self.solver.solve(idx_l, ul, idx_r, ur, res.pose.T_fit, sig)
         kept = (self._last_shift, self._last_fit_px)
         sub = replace(m, index_left=np.where(kl, m.index_left, -1), index_right=np.where(kr, m.index_right, -1),
                       pairs=pairs)
@@ -245,6 +249,33 @@ class MarkerTracker:
         return replace(res, tip_left=tip_left, tip_world=tip_world, T_left_marker=T, pose=pose, rms_px=pose.rms_px,
                        match=sub, ids_left=code.absolute_ids(sub.index_left, n),
                        ids_right=code.absolute_ids(sub.index_right, n))
+
+    def _contrast_weighted(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]]) -> TrackResult:
+        """A good, oriented result solved once more from its own fit with each corner weighted by
+        its noise (``corner_sigma_px`` combined with ``solve_contrast_noise`` over its contrast,
+        cvs.tracking.tip_uncertainty.corner_sigmas): dim corners count less. The direction, the
+        roll and every gate are those of the unweighted fit (the weights move it by a fraction
+        of its noise, but a marginal direction score must not flip with them); the weighted fit
+        replaces it only where it keeps the same corners and reprojects within ``max_rms_px``."""
+        m, pose, s = res.match, res.pose, self.settings
+        if m is None or pose is None or res.T_left_marker is None:
+            return res
+        kl, kr = m.index_left >= 0, m.index_right >= 0
+        ul, ur = res.corners_left[kl], res.corners_right[kr]
+        t = time.perf_counter()
+        sig = (corner_sigmas(views[0], ul, s.corner_sigma_px, s.solve_contrast_noise),
+               corner_sigmas(views[1], ur, s.corner_sigma_px, s.solve_contrast_noise))
+        w = self.solver.solve(m.index_left[kl], ul, m.index_right[kr], ur, pose.T_fit, sig)
+        res.timings["weighted"] = 1e3 * (time.perf_counter() - t)
+        same = (np.array_equal(w.inliers_left, pose.inliers_left)
+                and np.array_equal(w.inliers_right, pose.inliers_right))
+        if not (same and w.rms_px <= s.max_rms_px):
+            return res
+        T = w.T_fit @ np.linalg.inv(pose.T_fit) @ res.T_left_marker  # the same direction and roll
+        tip_left, tip_world = self.solver._tips(T)
+        pose = replace(w, T_left_marker=T, tip_left=tip_left, tip_world=tip_world)
+        return replace(res, pose=pose, T_left_marker=T, tip_left=tip_left, tip_world=tip_world, rms_px=w.rms_px,
+                       corner_sigmas=sig)
 
     def _retry_with_gaps(self, res: TrackResult, t0: float) -> TrackResult:
         """A pair lost for too few corners: a highlight over the corner each camera sees best
@@ -529,7 +560,8 @@ class MarkerTracker:
         """Start poses, most likely first, each computed only when the ones before it did not
         give a good fit: the previous pair's pose (tracking), the homography of the camera with
         more corners (paper eq. 14-15), both planar solutions of cv2 IPPE (the homography's
-        mirror-tilt ambiguity) and triangulation + Kabsch."""
+        mirror-tilt ambiguity) and triangulation + Kabsch; with only two stereo pairs (and at
+        least four corners in all), their chord turned in 12 steps (rigid_fit ``chord_starts``)."""
         self._last_shift, self._last_fit_px = 0, float("inf")
         if self._continuous and self._last_pose is not None:
             yield self._previous_start(idx_l, ul)
@@ -563,6 +595,14 @@ class MarkerTracker:
             )
             X = (X[:3] / X[3]).T @ np.asarray(self.rectifier.R1)  # rectified-left -> {ll}
             yield kabsch(pts(m.index_left[m.pairs[:, 0]]), X)
+        elif m.n_pairs == 2 and idx.size < 4 and np.union1d(idx_l, idx_r).size >= 4:
+            # two stereo pairs and single-view corners (a stripe over a corner in each view): the
+            # pairs fix a chord, its turn is left to the solve from each of a few starts
+            X = cv2.triangulatePoints(
+                self.rectifier.P1, self.rectifier.P2, m.rect_left[m.pairs[:, 0]].T, m.rect_right[m.pairs[:, 1]].T
+            )
+            X = (X[:3] / X[3]).T @ np.asarray(self.rectifier.R1)
+            yield from chord_starts(pts(m.index_left[m.pairs[:, 0]]), X)
 
     def _previous_start(self, idx: IntArray, uv: Array) -> Array:
         """The previous pair's fitted pose in this pair's relative indices. The chain's first

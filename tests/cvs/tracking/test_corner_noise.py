@@ -56,6 +56,25 @@ def test_a_dim_corner_and_one_beside_clipped_pixels_are_noisier() -> None:
     assert corner_sigmas(img, c, 0.1, 7.0, 1.0, 250, 5.0)[0] == pytest.approx(bright)  # not within 5 px
 
 
+@pytest.mark.parametrize("shape", [(60, 80), (60, 80, 3), (60, 80, 4)])
+def test_corner_contrast_is_each_windows_percentile_spread_and_zero_off_the_image(shape: tuple[int, ...]) -> None:
+    import cv2
+
+    rng = np.random.default_rng(len(shape))
+    img = cv2.GaussianBlur(rng.integers(0, 256, shape, dtype=np.uint8), (5, 5), 1.0)
+    uv = np.column_stack([rng.uniform(-6, 86, 40), rng.uniform(-6, 66, 40)])
+    grey = img if img.ndim == 2 else cv2.cvtColor(img, cv2.COLOR_BGR2GRAY if shape[2] == 3 else cv2.COLOR_BGRA2GRAY)
+    for r in (4, 2):
+        want = np.zeros(len(uv))
+        for k, (x, y) in enumerate(np.rint(uv).astype(int)):  # one window at a time, as defined
+            if r <= x < shape[1] - r and r <= y < shape[0] - r:
+                lo, hi = np.percentile(grey[y - r:y + r + 1, x - r:x + r + 1].astype(float), [10.0, 90.0])
+                want[k] = hi - lo
+        got = corner_contrast(img, uv, r)
+        assert np.array_equal(got, want) and (want == 0).sum() > 3 and (want > 0).sum() > 20
+    assert corner_contrast(img, np.zeros((0, 2))).shape == (0,)
+
+
 @pytest.fixture(scope="module")
 def frame() -> RenderedPair:
     params, rng = RobotParams(), np.random.default_rng(7)

@@ -32,11 +32,16 @@ def corner_contrast(view: NDArray[np.uint8], uv: Array, r: int = 4) -> Array:
     pts = np.rint(np.asarray(uv, float).reshape(-1, 2)).astype(int)
     h, w = view.shape[:2]
     out = np.zeros(pts.shape[0])
-    for k, (x, y) in enumerate(pts):
-        if r <= x < w - r and r <= y < h - r:
-            win = to_gray(np.ascontiguousarray(view[y - r:y + r + 1, x - r:x + r + 1])).astype(np.float64)
-            lo, hi = np.percentile(win, [10.0, 90.0])
-            out[k] = hi - lo
+    inside = (pts[:, 0] >= r) & (pts[:, 0] < w - r) & (pts[:, 1] >= r) & (pts[:, 1] < h - r)
+    if inside.any():  # every window at once: row k holds corner k's (2 r + 1)^2 pixels
+        d = np.arange(-r, r + 1)
+        ys = pts[inside, 1][:, None, None] + d[None, :, None]
+        xs = pts[inside, 0][:, None, None] + d[None, None, :]
+        windows = np.ascontiguousarray(view[ys, xs])  # (K, 2r+1, 2r+1[, channels])
+        k = windows.shape[0]
+        grey = to_gray(windows.reshape(k, (2 * r + 1) ** 2, *windows.shape[3:])).astype(np.float64)
+        lo, hi = np.percentile(grey, [10.0, 90.0], axis=1)
+        out[inside] = hi - lo
     return out
 
 

@@ -17,6 +17,8 @@ ran under runs/results/, and rewrites
     .venv/bin/python bench/results.py --collect-only  # rewrite the docs from runs/results/ alone
 
 A command that fails or runs out of time leaves its block as it was (and says so on stderr).
+With ``--only`` only those results' blocks and README rows are rewritten: the others keep their
+text even where an older result is kept under runs/results/.
 Timings are medians of the machine's run; on a shared machine compare the ratios a bench prints
 against its own same-run baseline, not the absolute times.
 """
@@ -595,8 +597,25 @@ def rewrite_readme(text: str, table: list[str]) -> str:
     return text[: i + len(README_START)] + "\n" + "\n".join(table) + "\n" + text[j:]
 
 
-def write_docs() -> None:
-    stored = {n: s for n in BY_NAME if (s := _stored(n)) is not None}
+def merged_table(old: str, table: list[str]) -> list[str]:
+    """``table`` with the rows of the README's current table (``old``: the README) that it has no
+    row for kept, in the current order: a row is known by its first cell (what it measures)."""
+    i, j = old.find(README_START), old.find(README_END)
+    current = [ln for ln in old[i + len(README_START):j].splitlines() if ln.startswith("|")] if 0 <= i < j else []
+
+    def label(row: str) -> str:
+        return row.split("|")[1].strip()
+
+    new = {label(r): r for r in table[2:]}
+    rows = [new.pop(label(r), r) for r in current[2:]] + list(new.values())  # current[:2]: header, rule
+    return [*table[:2], *rows[:6]]
+
+
+def write_docs(only: list[str] | None = None) -> None:
+    """Rewrite docs/results.md's generated blocks, and the README's rows, from the results kept
+    under runs/results/: only those of ``only`` when given (a block or row whose result was not
+    run now keeps its text, even where an older result is kept)."""
+    stored = {n: s for n in BY_NAME if (only is None or n in only) and (s := _stored(n)) is not None}
     bodies = {n: block_text(BY_NAME[n], *s) for n, s in stored.items()}
     text, done = rewrite_blocks(RESULTS_MD.read_text(), bodies)
     RESULTS_MD.write_text(text)
@@ -605,7 +624,9 @@ def write_docs() -> None:
           + (f"; no block for {', '.join(missing)}" if missing else ""), file=sys.stderr)
     table = readme_table(stored)
     if table is not None:
-        README.write_text(rewrite_readme(README.read_text(), table))
+        readme = README.read_text()
+        table = merged_table(readme, table)
+        README.write_text(rewrite_readme(readme, table))
         print(f"README.md: results table, {len(table) - 2} rows", file=sys.stderr)
 
 
@@ -615,7 +636,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="run only this result (repeatable); see --list")
     ap.add_argument("--list", action="store_true", help="print the names, time limits and commands, run nothing")
     ap.add_argument("--collect-only", action="store_true",
-                    help="run nothing: rewrite the docs from the results kept under runs/results/")
+                    help="run nothing: rewrite every block of the docs from the results kept under runs/results/ "
+                         "(with --only: the docs' blocks of those results only)")
     a = ap.parse_args(argv)
     if a.list:
         for e in ENTRIES:
@@ -626,7 +648,7 @@ def main(argv: list[str] | None = None) -> int:
         for e in ENTRIES:
             if (a.only is None or e.name in a.only) and not run_entry(e):
                 failed.append(e.name)
-    write_docs()
+    write_docs(a.only)
     if failed:
         print(f"not regenerated: {', '.join(failed)}", file=sys.stderr)
     return 1 if failed else 0

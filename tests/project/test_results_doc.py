@@ -85,6 +85,34 @@ def test_the_script_rewrites_only_the_blocks() -> None:
     assert script.rewrite_readme(readme, ["| new |"]) == readme.replace("| old |", "| new |")
 
 
+def test_the_readme_table_keeps_the_rows_it_has_no_new_result_for() -> None:
+    script = _results_script()
+    readme = ("a\n<!-- results-table:start -->\n| | paper | wristmark | command |\n|---|---|---|---|\n"
+              "| cube, closed loop | 0.82 | 0.141 | `make run` |\n| tip accuracy | 0.67 | 0.096 | `x` |\n"
+              "<!-- results-table:end -->\nb\n")
+    cube = "| cube, closed loop | 0.82 | 0.140 | `make run` |"
+    table = ["| | paper | wristmark | command |", "|---|---|---|---|", cube, "| new row | - | 1 | `y` |"]
+    assert script.merged_table(readme, table) == [*table[:2], cube, "| tip accuracy | 0.67 | 0.096 | `x` |",
+                                                  "| new row | - | 1 | `y` |"]
+
+
+def test_only_the_results_run_are_written(tmp_path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    script = _results_script()
+    results, readme = tmp_path / "results.md", tmp_path / "README.md"
+    results.write_text("<!-- generated:cube:start -->\nold cube\n<!-- generated:cube:end -->\n"
+                       "<!-- generated:tracking:start -->\nold tracking\n<!-- generated:tracking:end -->\n")
+    readme.write_text("<!-- results-table:start -->\n<!-- results-table:end -->\n")
+    monkeypatch.setattr(script, "RESULTS_MD", results)
+    monkeypatch.setattr(script, "README", readme)
+    monkeypatch.setattr(script, "_stored", lambda name: ({"n": name}, {}))  # every result kept
+    monkeypatch.setattr(script, "block_text", lambda e, data, meta: f"new {data['n']}")
+    monkeypatch.setattr(script, "readme_table", lambda stored: None)
+    script.write_docs(["tracking"])
+    assert "old cube" in results.read_text() and "new tracking" in results.read_text()
+    script.write_docs(None)
+    assert "new cube" in results.read_text()
+
+
 def test_a_command_runs_under_its_time_limit_and_keeps_its_json(tmp_path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
     script = _results_script()
     monkeypatch.setattr(script, "OUT", tmp_path)  # ROOT / an absolute path is that path

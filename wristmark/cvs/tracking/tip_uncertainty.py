@@ -26,6 +26,22 @@ def _skew(v: Array) -> Array:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
+def _unit(i: int, h: float) -> Array:
+    """h along axis i (the other two components 0)."""
+    v = np.zeros(3)
+    v[i] = h
+    return v
+
+
+# tip_sigma's finite-difference steps [rad], [m], and the perturbations they give (built once)
+_H_ROT, _H_TR = 1e-6, 1e-7
+_TURNS = tuple(np.eye(3) + _skew(_unit(i, _H_ROT)) for i in range(3))  # first order: exp([w]x) ~ I + [w]x
+_SHIFTS = tuple(_unit(i, _H_TR) for i in range(3))
+_STEPS = np.array([_H_ROT] * 3 + [_H_TR] * 3)
+for _a in (*_TURNS, *_SHIFTS, _STEPS):
+    _a.setflags(write=False)
+
+
 def _exact_ranks(n: int, q: tuple[float, ...]) -> tuple[int, ...] | None:
     """The sorted positions on which numpy's (linear) percentiles ``q`` [%] of ``n`` values fall
     exactly, or None when one of them falls between two positions (then only np.percentile gives
@@ -126,24 +142,14 @@ def tip_sigma(camera: StereoCamera, T_left_marker: Array, points_left: Array, po
     Pr = np.asarray(points_right, float).reshape(-1, 3)
 
     # the pose and its six perturbations (R exp([w]x), t + v), projected in one call per camera
-    h_rot, h_tr = 1e-6, 1e-7  # [rad], [m]
-    poses = [(R, t)]
-    for i in range(3):
-        w = np.zeros(3)
-        w[i] = h_rot
-        poses.append((R @ (np.eye(3) + _skew(w)), t))  # first order in h_rot: exp([w]x) ~ I + [w]x
-    for i in range(3):
-        v = np.zeros(3)
-        v[i] = h_tr
-        poses.append((R, t + v))
+    poses = [(R, t), *((R @ turn, t) for turn in _TURNS), *((R, t + v) for v in _SHIFTS)]
     k = len(poses)
     views = [(camera.project_left, Pl), (camera.project_right, Pr)]
     uv = np.hstack([project(np.concatenate([P @ Rx.T + tx for Rx, tx in poses])).reshape(k, -1) if len(P)
                     else np.zeros((k, 0)) for project, P in views])
     if uv.shape[1] < 6:
         return float("inf")
-    steps = np.array([h_rot] * 3 + [h_tr] * 3)
-    J = ((uv[1:] - uv[0]) / steps[:, None]).T  # (2 N, 6)
+    J = ((uv[1:] - uv[0]) / _STEPS[:, None]).T  # (2 N, 6)
     if sigmas_px is None:
         sig = np.full(J.shape[0], float(corner_sigma_px))
     else:  # per corner, both coordinates (u, v rows of each corner in turn)

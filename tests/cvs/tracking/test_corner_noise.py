@@ -75,6 +75,65 @@ def test_corner_contrast_is_each_windows_percentile_spread_and_zero_off_the_imag
     assert corner_contrast(img, np.zeros((0, 2))).shape == (0,)
 
 
+@pytest.mark.parametrize("shape", [(60, 80), (60, 80, 3), (60, 80, 4)])
+def test_corner_contrast_of_wider_windows_is_the_percentile_spread_too(shape: tuple[int, ...]) -> None:
+    import cv2
+
+    rng = np.random.default_rng(10 + len(shape))
+    img = cv2.GaussianBlur(rng.integers(0, 256, shape, dtype=np.uint8), (3, 3), 0.6)
+    uv = np.column_stack([rng.uniform(5, 75, 30), rng.uniform(5, 55, 30)])
+    grey = img if img.ndim == 2 else cv2.cvtColor(img, cv2.COLOR_BGR2GRAY if shape[2] == 3 else cv2.COLOR_BGRA2GRAY)
+    for r in (3, 5, 6):  # r = 5 by one partition (as r = 4), r = 3 and 6 by np.percentile
+        want = np.zeros(len(uv))
+        for k, (x, y) in enumerate(np.rint(uv).astype(int)):
+            if r <= x < shape[1] - r and r <= y < shape[0] - r:
+                lo, hi = np.percentile(grey[y - r:y + r + 1, x - r:x + r + 1].astype(float), [10.0, 90.0])
+                want[k] = hi - lo
+        assert np.array_equal(corner_contrast(img, uv, r), want)
+
+
+def test_exact_ranks_are_where_the_percentile_is_a_sorted_value() -> None:
+    from wristmark.cvs.tracking.tip_uncertainty import _exact_ranks
+
+    assert _exact_ranks(81, (10.0, 90.0)) == (8, 72) and _exact_ranks(121, (10.0, 90.0)) == (12, 108)
+    assert _exact_ranks(25, (10.0, 90.0)) is None and _exact_ranks(49, (10.0, 90.0)) is None
+    rng = np.random.default_rng(3)
+    g = rng.integers(0, 256, (500, 81)).astype(float)
+    assert np.array_equal(np.percentile(g, [10.0, 90.0], axis=1), np.sort(g, axis=1)[:, [8, 72]].T)
+
+
+@pytest.mark.parametrize("shape", [(60, 80), (60, 80, 3), (60, 80, 4)])
+def test_near_clipped_is_each_windows_maximum_as_defined_one_window_at_a_time(shape: tuple[int, ...]) -> None:
+    import cv2
+
+    from wristmark.cvs.gray_image import to_gray
+
+    rng = np.random.default_rng(20 + len(shape))
+    img = rng.integers(0, 240, shape, dtype=np.uint8)
+    spots = rng.integers(0, [shape[0], shape[1]], (12, 2))
+    img[spots[:, 0], spots[:, 1]] = 255  # clipped pixels, in every channel
+    grey = img if img.ndim == 2 else cv2.cvtColor(img, cv2.COLOR_BGR2GRAY if shape[2] == 3 else cv2.COLOR_BGRA2GRAY)
+    assert grey.max() >= 250
+    uv = np.column_stack([rng.uniform(-12, 92, 200), rng.uniform(-12, 72, 200)])
+    uv[:8] = np.rint(uv[:8]) + [0.0, -0.5]  # on integer and half pixels too
+    h, w = shape[:2]
+    for radius in (0.2, 1.0, 2.5, 3.0, 4.7, 9.0):
+        rad = max(radius, 1.0)
+        want, meets = np.zeros(len(uv), bool), np.zeros(len(uv), bool)
+        for k, (x, y) in enumerate(uv):  # one window at a time, as defined
+            x0, x1 = max(int(x - rad), 0), min(int(x + rad) + 1, w)
+            y0, y1 = max(int(y - rad), 0), min(int(y + rad) + 1, h)
+            if x1 > x0 and y1 > y0:
+                meets[k] = True
+                want[k] = int(to_gray(np.ascontiguousarray(img[y0:y1, x0:x1])).max()) >= 250
+        got = near_clipped(img, uv, radius, 250)
+        assert got.dtype == bool and np.array_equal(got, want)
+        assert want.sum() > 0 and (~want & meets).sum() > 0 and (~meets).sum() > 0
+        assert np.array_equal(near_clipped(img, uv, radius, 0), meets)  # level 0: every window in the image
+    assert near_clipped(img, np.zeros((0, 2)), 3.0, 250).shape == (0,)
+    assert not near_clipped(img, np.array([[-30.0, -30.0], [200.0, 10.0]]), 3.0, 250).any()
+
+
 @pytest.fixture(scope="module")
 def frame() -> RenderedPair:
     params, rng = RobotParams(), np.random.default_rng(7)

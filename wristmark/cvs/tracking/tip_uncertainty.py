@@ -9,10 +9,13 @@ noise, where well seen sleeves give 0.1-0.3 mm (docs/notes/steep-views.md).
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera
+from wristmark.cvs.tracking.window_max import bright_windows
 
 Array = NDArray[np.float64]
 
@@ -23,10 +26,50 @@ def _skew(v: Array) -> Array:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
+def _unit(i: int, h: float) -> Array:
+    """h along axis i (the other two components 0)."""
+    v = np.zeros(3)
+    v[i] = h
+    return v
+
+
+# tip_sigma's finite-difference steps [rad], [m], and the perturbations they give (built once)
+_H_ROT, _H_TR = 1e-6, 1e-7
+_TURNS = tuple(np.eye(3) + _skew(_unit(i, _H_ROT)) for i in range(3))  # first order: exp([w]x) ~ I + [w]x
+_SHIFTS = tuple(_unit(i, _H_TR) for i in range(3))
+_STEPS = np.array([_H_ROT] * 3 + [_H_TR] * 3)
+for _a in (*_TURNS, *_SHIFTS, _STEPS):
+    _a.setflags(write=False)
+
+
+def _exact_ranks(n: int, q: tuple[float, ...]) -> tuple[int, ...] | None:
+    """The sorted positions on which numpy's (linear) percentiles ``q`` [%] of ``n`` values fall
+    exactly, or None when one of them falls between two positions (then only np.percentile gives
+    its bits). Probed with step values: the percentile is the i-th smallest of any values only
+    when it is 0 where the values after position i are 1 and the rest 0, and 1 where the values
+    from position i on are 1."""
+    return _ranks(int(n), tuple(float(x) for x in q))
+
+
+@lru_cache(maxsize=32)
+def _ranks(n: int, q: tuple[float, ...]) -> tuple[int, ...] | None:
+    out = []
+    pos = np.arange(n)
+    for x in q:
+        i = int(np.floor(float(np.percentile(pos.astype(np.float64), x)) + 0.5))
+        after, from_i = (pos > i).astype(np.float64), (pos >= i).astype(np.float64)
+        if not (0 <= i < n and float(np.percentile(after, x)) == 0.0 and float(np.percentile(from_i, x)) == 1.0):
+            return None
+        out.append(i)
+    return tuple(out)
+
+
 def corner_contrast(view: NDArray[np.uint8], uv: Array, r: int = 4) -> Array:
     """Each corner's contrast [grey levels]: the spread (90th - 10th percentile) of the grey
     levels in the (2 r + 1)^2 window around it (the HTM fit's window, cvs.corners.subpixel);
-    0 where the window leaves the image."""
+    0 where the window leaves the image. Where both percentiles fall on a sorted position (r = 4
+    or 5: :func:`_exact_ranks`) they are taken by one partition of the grey levels, to the bit
+    np.percentile's, at a fraction of its cost."""
     from wristmark.cvs.gray_image import to_gray
 
     pts = np.rint(np.asarray(uv, float).reshape(-1, 2)).astype(int)
@@ -38,27 +81,31 @@ def corner_contrast(view: NDArray[np.uint8], uv: Array, r: int = 4) -> Array:
         ys = pts[inside, 1][:, None, None] + d[None, :, None]
         xs = pts[inside, 0][:, None, None] + d[None, None, :]
         windows = np.ascontiguousarray(view[ys, xs])  # (K, 2r+1, 2r+1[, channels])
-        k = windows.shape[0]
-        grey = to_gray(windows.reshape(k, (2 * r + 1) ** 2, *windows.shape[3:])).astype(np.float64)
-        lo, hi = np.percentile(grey, [10.0, 90.0], axis=1)
-        out[inside] = hi - lo
+        k, n = windows.shape[0], (2 * r + 1) ** 2
+        grey = to_gray(windows.reshape(k, n, *windows.shape[3:]))
+        ranks = _exact_ranks(n, (10.0, 90.0))
+        if ranks is not None:  # uint8 order statistics: the same integers as the float percentiles
+            part = np.partition(grey, ranks, axis=1)
+            out[inside] = part[:, ranks[1]].astype(np.float64) - part[:, ranks[0]].astype(np.float64)
+        else:
+            lo, hi = np.percentile(grey.astype(np.float64), [10.0, 90.0], axis=1)
+            out[inside] = hi - lo
     return out
 
 
 def near_clipped(view: NDArray[np.uint8], uv: Array, radius_px: float, level: int) -> NDArray[np.bool_]:
-    """Whether each corner has a pixel at or above ``level`` (a clipped highlight) within
-    ``radius_px`` [px] (a square window) of it."""
+    """Whether each corner (x, y) [px] has a pixel whose grey level is at or above ``level`` (a
+    clipped highlight) in its square window: columns int(x - r) to int(x + r), rows likewise
+    (r = ``radius_px``, at least 1 px; int() towards zero), clipped to the image. One kernel call
+    rules out every window without a colour channel that bright (cvs.tracking.window_max); the
+    rest are tested on their grey levels, one window at a time."""
     from wristmark.cvs.gray_image import to_gray
 
-    pts = np.asarray(uv, float).reshape(-1, 2)
-    h, w = view.shape[:2]
-    rad = max(float(radius_px), 1.0)
-    out = np.zeros(pts.shape[0], bool)
-    for k, (x, y) in enumerate(pts):
-        x0, x1 = max(int(x - rad), 0), min(int(x + rad) + 1, w)
-        y0, y1 = max(int(y - rad), 0), min(int(y + rad) + 1, h)
-        if x1 > x0 and y1 > y0:
-            out[k] = int(to_gray(np.ascontiguousarray(view[y0:y1, x0:x1])).max()) >= level
+    bright, box = bright_windows(view, np.asarray(uv, float).reshape(-1, 2), max(float(radius_px), 1.0), level)
+    out = np.zeros(bright.shape[0], bool)
+    for k in np.flatnonzero(bright):
+        u0, v0, u1, v1 = (int(b) for b in box[k])
+        out[k] = int(to_gray(np.ascontiguousarray(view[v0:v1, u0:u1])).max()) >= level
     return out
 
 
@@ -95,24 +142,14 @@ def tip_sigma(camera: StereoCamera, T_left_marker: Array, points_left: Array, po
     Pr = np.asarray(points_right, float).reshape(-1, 3)
 
     # the pose and its six perturbations (R exp([w]x), t + v), projected in one call per camera
-    h_rot, h_tr = 1e-6, 1e-7  # [rad], [m]
-    poses = [(R, t)]
-    for i in range(3):
-        w = np.zeros(3)
-        w[i] = h_rot
-        poses.append((R @ (np.eye(3) + _skew(w)), t))  # first order in h_rot: exp([w]x) ~ I + [w]x
-    for i in range(3):
-        v = np.zeros(3)
-        v[i] = h_tr
-        poses.append((R, t + v))
+    poses = [(R, t), *((R @ turn, t) for turn in _TURNS), *((R, t + v) for v in _SHIFTS)]
     k = len(poses)
     views = [(camera.project_left, Pl), (camera.project_right, Pr)]
     uv = np.hstack([project(np.concatenate([P @ Rx.T + tx for Rx, tx in poses])).reshape(k, -1) if len(P)
                     else np.zeros((k, 0)) for project, P in views])
     if uv.shape[1] < 6:
         return float("inf")
-    steps = np.array([h_rot] * 3 + [h_tr] * 3)
-    J = ((uv[1:] - uv[0]) / steps[:, None]).T  # (2 N, 6)
+    J = ((uv[1:] - uv[0]) / _STEPS[:, None]).T  # (2 N, 6)
     if sigmas_px is None:
         sig = np.full(J.shape[0], float(corner_sigma_px))
     else:  # per corner, both coordinates (u, v rows of each corner in turn)

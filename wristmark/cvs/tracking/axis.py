@@ -35,7 +35,7 @@ class AxisEvidenceSettings:
     near: distances beyond the sleeve's ends (in r); far: distances beyond the tip's distance
     (in r); offsets: lateral offsets searched for a silhouette edge (in r: an arm about as wide
     as the sleeve, not a thin tool); step: half the width of the grey-level step (in r);
-    max_reach: a band is skipped when an end face turned towards the camera hides it beyond this
+    max_reach: a band is skipped when a sleeve end (its face or its rim) hides it beyond this
     (in r); min_samples: least valid samples per offset; decide: least |score| that decides;
     margin: a |score| from decide to decide + margin is marginal and decides only where the
     tracker's default prior agrees (else the direction is ambiguous: a path-traced pair's lit
@@ -156,13 +156,16 @@ def axis_evidence_strict(images: tuple[NDArray[np.uint8], NDArray[np.uint8]], ca
 
 
 def _face_reach(T_cam_marker: Array, side: float, z_face: float, s: AxisEvidenceSettings) -> float:
-    """How far (in marker radii, along the axis) the end face at z = side * z_face, if it faces
-    the camera, covers the flank samples beyond it in the image: sqrt(1 - o^2) / tan(alpha) for
-    the innermost flank offset o and the angle alpha between the line of sight and the axis."""
+    """How far (in marker radii, along the axis) the sleeve's end at z = side * z_face covers the
+    flank samples beyond it in the image: sqrt(1 - o^2) / tan(alpha) for the innermost flank
+    offset o and the angle alpha between the line of sight and the axis. The rim projects to an
+    ellipse about the end's centre, so this holds whichever way the face turns: a face turned
+    towards the camera shows itself there, one turned away the near half of its rim (counted as
+    object on that side before: seed 202 pair 18 of bench/pbr_tracking.py, the half turn)."""
     ez, t = T_cam_marker[:3, 2], T_cam_marker[:3, 3]
     centre = t + side * z_face * ez
     to_cam = -centre / np.linalg.norm(centre)
-    c = float(side * ez @ to_cam)  # > 0: the face is turned towards the camera
+    c = abs(float(side * ez @ to_cam))  # > 0 turned towards the camera, < 0 away: the same reach
     if c <= 1e-6:
         return 0.0
     tan_a = np.sqrt(max(1.0 - c * c, 0.0)) / c

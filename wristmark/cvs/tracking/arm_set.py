@@ -168,18 +168,29 @@ class ArmSetTracker:
         self._missing_last = set(pending)  # what the whole-frame search below does not find stays missing
         masked: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None
         failures: list[str] = []
-        for _ in range(2 * len(self.arms)):  # each search finds one sleeve (or none: done)
+        hidden: list[tuple[int, Box]] = []  # one view's chain of two sleeves, hidden until a sleeve is found
+        for _ in range(2 * len(self.arms) + 2):  # each search finds one sleeve (or none: done)
             if not pending:
                 break
             if masked is None:
                 masked = (il.copy(), ir.copy())
                 for r in found:
                     self._paint(masked, r)
+                for v, box in hidden:
+                    _paint_out(masked[v], box)
             searcher = self.trackers[pending[0]]
             searcher.reset()
             res = searcher.track(masked[0], masked[1], axis_hint_left=hints.get(pending[0]))
+            if len(hidden) < 2 and (chain := self._two_sleeves(res, len(hidden) % 2)) is not None:
+                # each view's chain on another sleeve: painting both out would lose both sleeves
+                hidden.append(chain)
+                masked = None
+                continue
             if not self._paint(masked, res):
                 break  # nothing more in view
+            found.append(res)  # painted out of a rebuilt mask too
+            if hidden and res.T_left_marker is not None:  # a sleeve found: the hidden chain's back
+                hidden, masked = [], None
             who = identity(res)
             if who in pending:
                 if self.trackers[who] is not searcher:
@@ -249,6 +260,24 @@ class ArmSetTracker:
     def _missing(self, reason: str) -> TrackResult:
         empty = np.zeros((0, 2))
         return TrackResult(False, reason, None, None, None, empty, empty, float("nan"), 0.0, {})
+
+    def _two_sleeves(self, res: TrackResult, view: int) -> tuple[int, Box] | None:
+        """Where a whole-frame search chained a different sleeve in each view (enough corners in
+        both, no stereo pairs between them): the box of ``view``'s chain, to hide from the next
+        search so that both views chain the same sleeve (bench/several_arms.py three arms seed
+        3, sequence 9: arm a lost for 6 pairs in a row); None otherwise."""
+        n = self.trackers[self.arms[0]].settings
+        m = res.match
+        if res.ok or res.pose is not None or m is None or m.n_pairs >= n.min_pairs:
+            return None
+        chains = (res.corners_left, res.corners_right)
+        if min(len(chains[0]), len(chains[1])) < n.min_corners:
+            return None
+        c = chains[view]
+        gap = float(np.median(np.hypot(*np.diff(c, axis=0).T)))
+        lo, hi = c.min(axis=0) - gap, c.max(axis=0) + gap
+        w, h = self.camera.image_size
+        return view, (max(0, int(lo[0])), max(0, int(lo[1])), min(w, int(hi[0]) + 1), min(h, int(hi[1]) + 1))
 
     def _paint(self, images: tuple[NDArray[np.uint8], NDArray[np.uint8]], res: TrackResult) -> bool:
         """Paint a result's sleeve out of both (copied) images: the whole sleeve where a pose was

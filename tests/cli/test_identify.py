@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 import yaml
 
+from tests.sim.test_virtual_lab import RT_HOST, RT_LAB
 from wristmark_testing.lab_process import read_lines, stop
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -60,6 +61,9 @@ def test_identify_on_the_bench_then_offline_from_its_record(tmp_path: Path) -> N
     (("--serial", "/dev/null", "--camera", "0"), "need --calib CALIB"),
     (("--serial", "/dev/no-such-port", "--camera", "0", "--calib", "wristmark/configs/camera.yaml"),
      "/dev/no-such-port"),
+    (("--rt-priority", "20"), "--rt-priority is for the hardware path"),
+    (("--serial", "/dev/null", "--camera", "0", "--calib", "wristmark/configs/camera.yaml", "--rt-priority", "0"),
+     "--rt-priority"),
 ])
 def test_bad_input_is_one_line_and_exit_2(tmp_path: Path, args: tuple[str, ...], cause: str) -> None:
     r = wristmark("identify", *args, "--out", str(tmp_path / "m.yaml"), timeout=60)
@@ -174,7 +178,7 @@ def lab() -> Iterator[Lab]:
     """The virtual lab with the unseen plant as its true arm, its own process."""
     proc = subprocess.Popen([sys.executable, "-m", "wristmark", "emulator", "--pty", "--camera-port", "0",
                              "--fps", "30", "--image-scale", str(LAB_SCALE), "--jpeg-quality", "95",
-                             "--plant", UNSEEN, "--loads-from-stdin"], cwd=ROOT, stdin=subprocess.PIPE,
+                             "--plant", UNSEEN, "--loads-from-stdin", *RT_LAB], cwd=ROOT, stdin=subprocess.PIPE,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         pty, url = read_lines(proc, 2, timeout=60)
@@ -212,7 +216,7 @@ def test_identify_on_the_virtual_lab_finds_the_lab_arm_and_a_known_loads_stiffne
     out = tmp_path / "m.yaml"
     proc = subprocess.Popen([sys.executable, "-m", "wristmark", "identify", "--serial", lab.pty, "--camera", lab.url,
                              "--calib", "wristmark/configs/camera.yaml", "--image-scale", str(LAB_SCALE), "--poses",
-                             "16", "--load", "0.3", "--out", str(out), "--no-progress"],
+                             "16", "--load", "0.3", "--out", str(out), "--no-progress", *RT_HOST],
                             cwd=ROOT, stdin=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     assert proc.stdin is not None and proc.stderr is not None
     asked = []

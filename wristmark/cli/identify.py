@@ -53,6 +53,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=seed_int(), help="pose choice and render noise seed (default the rig's)")
     p.add_argument("--serial", metavar="PORT", help="hardware / virtual lab: the actuator box's serial port")
     p.add_argument("--camera", metavar="SPEC", help="hardware / virtual lab: the stereo frame source")
+    p.add_argument("--rt-priority", type=int_in(1, 99), metavar="N",
+                   help="with --serial: run the excitation (and its camera threads) under SCHED_FIFO at priority N, "
+                        "so a loaded host keeps feeding the box's watchdog (as servo --rt-priority; needs root or "
+                        "CAP_SYS_NICE)")
     p.add_argument("--image-scale", type=float_in(MIN_IMAGE_SCALE, MAX_IMAGE_SCALE), metavar="F",
                    help="images at F x the calibrated size (simulated bench: rendered so; a camera: delivers so)")
     p.add_argument("--from-log", metavar="DIR", help=f"identify offline from DIR/{LOG_FILE} (written by --log) or "
@@ -77,6 +81,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _check(args: argparse.Namespace) -> None:
+    if args.rt_priority is not None and not args.serial:
+        raise InputError("--rt-priority is for the hardware path (--serial); the simulated bench runs in "
+                         "simulated time")
     if args.serial or args.camera:
         if not (args.serial and args.camera):
             raise InputError("hardware / the virtual lab needs both --serial PORT and --camera SPEC")
@@ -147,11 +154,12 @@ FRAME_WAIT_S = 0.08  # [s] longest wait for a fresh frame at a pose (+ tracking 
 
 
 def excite_on_hardware(setup: Any, port: str, camera: str, poses: int, progress: bool,
-                       force: Any = None) -> Any:
+                       force: Any = None, rt_priority: int | None = None) -> Any:
     """Open the actuator box and the camera as ``wristmark servo --serial --camera`` does, run the
     excitation on the wall clock and close (hold, DISABLE) whatever happens. ``force`` [N] in {w}:
     a known weight for the second half of the poses, hung by the person at the bench when asked
-    (rig/loop/known_load.py)."""
+    (rig/loop/known_load.py). ``rt_priority``: SCHED_FIFO priority of this thread and the camera's
+    (None: normal scheduling)."""
     from tqdm import tqdm
 
     from wristmark.cvs.tracking.warmup import warm_up
@@ -167,6 +175,10 @@ def excite_on_hardware(setup: Any, port: str, camera: str, poses: int, progress:
         plan = with_known_load(plan, force, block=True)
     plan.duration(setup.rig.control_dt, setup.params)  # the ramps' first (slow) calls before the box is enabled
     warm_up()
+    if rt_priority is not None:  # before any thread starts: the camera's threads inherit it
+        from wristmark.rig.loop.realtime_priority import request_realtime_priority
+
+        request_realtime_priority(rt_priority)
     with open_hardware_session(setup, LinkOptions(kind="serial", port=port), camera) as session:
         freeze_heap()  # no full garbage collection of the start-up heap mid-run (as servo: a silent host trips the box)
         session.start()
@@ -194,7 +206,8 @@ def run(args: argparse.Namespace) -> int:
         force = _load(args)
         claim_outputs(files=_outputs(args), dirs=[], force=args.force)
         setup = _hardware_setup(args)
-        data = excite_on_hardware(setup, args.serial, args.camera, args.poses, not args.no_progress, force)
+        data = excite_on_hardware(setup, args.serial, args.camera, args.poses, not args.no_progress, force,
+                                  args.rt_priority)
         return _fit_and_write(args, setup, data, f"port {args.serial}, camera {args.camera}")
 
     from wristmark.sim.identify_bench import bench_plan, excite_on_bench

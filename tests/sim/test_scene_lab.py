@@ -255,7 +255,8 @@ def send_targets(port: int, lines: list[bytes], last: bytes, stop: threading.Eve
 def test_servo_scene_arm_a_follows_its_live_targets_over_tcp_while_b_holds(
         scene_lab: tuple[dict[str, str], str, Path, Path], tmp_path: Path) -> None:
     """a's targets come over TCP (PORT 0: the port on stderr naming the arm): one malformed line
-    (dropped), one far outside the workspace (clamped), then a few mm away; b holds its centre."""
+    (dropped), one far outside the workspace (clamped), then a few mm away; b holds its centre;
+    both hold their tip frame's orientation (--orientation hold)."""
     from wristmark.models.actuation import actuators_from_psi
     from wristmark.models.model_file import save_model
     from wristmark.rig.loop.arm_set_session import load_scene_setups
@@ -282,7 +283,8 @@ def test_servo_scene_arm_a_follows_its_live_targets_over_tcp_while_b_holds(
          f"b={ptys['b']}", "--camera", url, "--calib", str(calib), "--image-scale", str(SCALE), "--target",
          "a=tcp:127.0.0.1:0", "--hold", "b", "--duration", "3", "--settle", "0.3", "--target-timeout", "1",
          "--controller-config", str(no_probe_controller(tmp_path)), "--out", str(out), "--no-progress",
-         "--record", str(tmp_path / "run.mcap"), "--record-jpeg", "--view", "--model", f"a={model_a}", *RT_HOST],
+         "--record", str(tmp_path / "run.mcap"), "--record-jpeg", "--view", "--model", f"a={model_a}",
+         "--orientation", "hold", *RT_HOST],
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     clock_offset = time.time() - time.monotonic()  # the recorder's stamps: the host's monotonic clock + this
     assert host.stderr is not None
@@ -305,6 +307,10 @@ def test_servo_scene_arm_a_follows_its_live_targets_over_tcp_while_b_holds(
     res = json.loads((out / "result.json").read_text())
     arm_a, arm_b = res["arms"]["a"], res["arms"]["b"]
     assert (arm_a["walk"], arm_b["walk"]) == ("tcp", "hold") and "targets" not in arm_b
+    for arm in (arm_a, arm_b):  # --orientation hold: each arm's tip frame held from its own sleeve's pose
+        c = arm["closed_loop"]
+        print(f"orientation {c['orientation_mean_deg']:.3f} / {c['orientation_max_deg']:.3f} deg (mean / max)")
+        assert c["orientation_from"] == "vision estimate" and c["orientation_mean_deg"] < 1.0
     assert arm_a["model"] == str(model_a) and "model" not in arm_b  # --model a=FILE: a's loop alone through it
     for name, gain in (("a", 1 / 0.945), ("b", 1.0)):  # a's box bent segment 2 by 1 / its identified gain 0.945
         log = read_log_csv(out / f"log_{name}.csv")

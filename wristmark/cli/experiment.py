@@ -94,14 +94,12 @@ def check_scene_args(args: argparse.Namespace) -> Any:
 
     if args.name != "cube":
         raise ConfigError("--scene needs the cube experiment")
-    if args.orientation != "none":
-        raise ConfigError("--orientation: not with --scene (each arm's cube is position only)")
     if args.duration is not None and not args.duration > 0:
         raise ConfigError(f"--duration must be > 0 s, got {args.duration}")
     setup = scene_setup_from_args(args)
     from wristmark.sim.scene_experiments import scene_trajectories
 
-    scene_trajectories(setup, args.duration, tuple(args.hold or ()))  # --hold names arms of the scene
+    scene_trajectories(setup, args.duration, tuple(args.hold or ()), args.orientation)  # --hold names arms of the scene
     return setup
 
 
@@ -123,7 +121,7 @@ def run_scene(args: argparse.Namespace) -> int:
               file=sys.stderr, flush=True)
     try:
         res = run_scene_cube(setup, out, duration=args.duration, hold=tuple(args.hold or ()),
-                             on_cycle=None if view is None else view.on_arm_cycle)
+                             on_cycle=None if view is None else view.on_arm_cycle, orientation=args.orientation)
     finally:
         if view is not None:
             _close_view(view, out)

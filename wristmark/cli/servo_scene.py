@@ -52,9 +52,8 @@ SCENE_REFUSED = ("robot", "marker", "plant", "registration", "open_loop_on_lost"
 
 def check_scene_options(args: argparse.Namespace) -> None:
     """The options ``--scene`` takes on the hardware path (InputError naming the others)."""
-    if args.orientation != "none":
-        raise InputError(f"--orientation {args.orientation}: not with --scene yet (each arm's loop is position "
-                         "only; --orientation none)")
+    if args.orientation == "follow" and args.targets:
+        raise InputError("live targets take --orientation none or hold (q of each target turns the tip)")
     if getattr(args, "no_operating_state", False):
         raise InputError("--no-operating-state: not with --scene (every arm's driver must publish its "
                          "NS/operating_state: a disabled arm stops every arm)")
@@ -100,6 +99,7 @@ def run_scene(args: argparse.Namespace) -> int:
     from wristmark.models.errors import ConfigError
     from wristmark.rig.loop.arm_set_session import (
         arm_trajectories,
+        check_arm_orientation,
         load_scene_setups,
         open_arm_set_session,
         parse_actuator_specs,
@@ -135,11 +135,14 @@ def run_scene(args: argparse.Namespace) -> int:
     for n, s in setups.items():  # the command line's overrides; one grid for every arm (rig.loop.arm_set_session)
         s = apply_overrides(s, args, settle_time=args.settle)
         setups[n] = s.with_changes(rig=dataclasses.replace(s.rig, frame_phase_lock="none"))
+    check_arm_orientation(args.orientation, {n: s.controller.kind for n, s in setups.items()})
     trajs = arm_trajectories({n: s.params for n, s in setups.items()}, scene.cube_size,
-                             args.trajectory or "cube", args.duration, hold)
+                             args.trajectory or "cube", args.duration, hold, args.orientation)
     centres = {n: workspace_centre(setups[n].params, scene.cube_size) for n in live}
     length = args.duration if args.duration is not None else LIVE_DURATION_S
     lives = {n: live_trajectory(centres[n], length, kind) for n, (kind, _) in live.items()}  # in its own {w}
+    if args.orientation != "none":  # hold: the tip frame's orientation at the centre (q of a target turns it)
+        lives = {n: t.with_orientation(args.orientation, setups[n].params) for n, t in lives.items()}
     trajs.update(lives)  # waiting at its centre for its targets
     psi0 = {}
     for n, s in setups.items():

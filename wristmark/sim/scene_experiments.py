@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from wristmark.rig.loop.arm_set_session import arm_trajectories
+from wristmark.rig.loop.arm_set_session import arm_trajectories, check_arm_orientation
 from wristmark.rig.recording.run_log import CycleRecord, RunLog, write_json
 from wristmark.rig.targets.trajectories import Trajectory, workspace_centre
 from wristmark.sim.scene_setup import SceneSetup
@@ -25,20 +25,26 @@ __all__ = ["run_scene_cube", "scene_table"]
 
 
 def scene_trajectories(setup: SceneSetup, duration: float | None = None,
-                       hold: tuple[str, ...] = ()) -> dict[str, Trajectory]:
+                       hold: tuple[str, ...] = (), orientation: str = "none") -> dict[str, Trajectory]:
     """Each arm's cube (or, for the arms in ``hold``, its workspace centre held as long as the
-    cubes take), in its own {w}; ``duration`` [s] cuts the walks short (rig.loop.arm_set_session.arm_trajectories,
-    shared with the hardware path)."""
+    cubes take), in its own {w}; ``duration`` [s] cuts the walks short; ``orientation`` (none |
+    hold | follow) the tip frame's orientation each path asks for (ConfigError when an arm's
+    controller is position-only; rig.loop.arm_set_session.arm_trajectories, shared with the
+    hardware path)."""
+    check_arm_orientation(orientation, {n: s.controller.kind for n, s in setup.arms.items()})
     return arm_trajectories({n: s.params for n, s in setup.arms.items()}, setup.scene.cube_size, "cube", duration,
-                            hold)
+                            hold, orientation)
 
 
 def run_scene_cube(setup: SceneSetup, out_dir: Path, duration: float | None = None,
                    hold: tuple[str, ...] = (), seed: int | None = None,
-                   on_cycle: Callable[[str, CycleRecord], None] | None = None) -> dict[str, Any]:
+                   on_cycle: Callable[[str, CycleRecord], None] | None = None,
+                   orientation: str = "none") -> dict[str, Any]:
     """Every arm's cube, open loop then closed loop on fresh arms, all at once; writes the run
-    folder. ``on_cycle(arm, record)`` is called after every cycle of every arm (a live view's)."""
-    trajs = scene_trajectories(setup, duration, hold)
+    folder. ``on_cycle(arm, record)`` is called after every cycle of every arm (a live view's);
+    ``orientation`` (none | hold | follow): the tip frame's orientation every arm's path asks for
+    (its errors in result.json, as the one-arm experiment's)."""
+    trajs = scene_trajectories(setup, duration, hold, orientation)
     out_dir.mkdir(parents=True, exist_ok=True)
     write_json(out_dir / "config.json", {"experiment": "cube", **setup.describe()})
     logs = {n: RunLog.for_arm(s.params) for n, s in setup.arms.items()}
@@ -62,6 +68,7 @@ def run_scene_cube(setup: SceneSetup, out_dir: Path, duration: float | None = No
         "experiment": "cube",
         "scene": setup.scene.source,
         "controller": next(iter(setup.arms.values())).controller.kind,
+        "orientation": orientation,
         "control_dt_s": rig.control_dt,
         "sensor": rig.sensor,
         "cube_size_m": list(setup.scene.cube_size),
@@ -91,6 +98,10 @@ def scene_table(res: dict[str, Any]) -> str:
         o, c = a["open_loop"], a["closed_loop"]
         lines.append(f"| {n} | {a['walk']} | {o['mean_mm']:.2f} | {o['max_mm']:.2f} | {c['mean_mm']:.3f} | "
                      f"{c['max_mm']:.3f} | {100 * a['ratio']:.1f} % | {c['lost']} | {c['stopped'] or '-'} |")
+    if res.get("orientation", "none") != "none":
+        lines += ["", f"Orientation ({res['orientation']}), tip frame vs desired, closed loop: " + "; ".join(
+            f"{n} mean {a['closed_loop']['orientation_mean_deg']:.2f} deg, max "
+            f"{a['closed_loop']['orientation_max_deg']:.2f} deg" for n, a in res["arms"].items()) + "."]
     cl = res["clearance"]
     lines += ["", f"Least distance between the arms' true bodies: {cl['least_true_mm']['closed_loop']:.1f} mm closed "
               f"loop (clearance {cl['required_mm']:.1f} mm: {'kept' if cl['kept'] else 'VIOLATED'}), "

@@ -72,7 +72,8 @@ from wristmark.rig.targets.trajectories import CUBE_SPEED, Trajectory, cube_traj
 Array = NDArray[np.float64]
 SETTLE_AT_START_S = 2.0  # [s] every arm rests at its start after the ramp there (as ServoLoop.start_at)
 
-__all__ = ["ArmSetSession", "BudgetedArmSetSensor", "SharedFrameFeed", "arm_trajectories", "load_scene_setups",
+__all__ = ["ArmSetSession", "BudgetedArmSetSensor", "SharedFrameFeed", "arm_trajectories", "check_arm_orientation",
+           "load_scene_setups",
            "open_arm_set_session", "parse_actuator_specs", "parse_serial_specs", "parse_target_specs", "run_arm_set"]
 
 
@@ -177,12 +178,28 @@ def parse_target_specs(specs: Sequence[str], names: Sequence[str], hold: Sequenc
     return out
 
 
+def check_arm_orientation(mode: str, controller_kinds: Mapping[str, str]) -> str:
+    """``mode`` (none | hold | follow) if every arm's controller can control it; ConfigError naming
+    the first arm whose controller cannot (the paper's is position-only)."""
+    from wristmark.rig.targets.orientation_path import check_orientation_mode
+
+    for n, kind in controller_kinds.items():
+        try:
+            check_orientation_mode(mode, kind)
+        except ConfigError as e:
+            raise ConfigError(f"arm '{n}': {e}") from None
+    return mode
+
+
 def arm_trajectories(params: Mapping[str, Arm], cube_size: tuple[float, float, float], kind: str = "cube",
-                     duration: float | None = None, hold: Sequence[str] = ()) -> dict[str, Trajectory]:
+                     duration: float | None = None, hold: Sequence[str] = (),
+                     orientation: str = "none") -> dict[str, Trajectory]:
     """Each arm's cube (``cube_size`` [m] around its workspace centre, at the paper's speed) or,
     for ``kind`` point, its workspace centre held (``duration``, default POINT_HOLD_S), in its own
     {w}; the arms in ``hold`` hold their centre as long as the others walk. ``duration`` [s]
-    cuts the walks short. ConfigError for an unknown arm in ``hold`` or every arm held."""
+    cuts the walks short; ``orientation`` (none | hold | follow, rig.targets.orientation_path):
+    the tip frame's orientation each path asks for, from its own arm (check the controllers with
+    :func:`check_arm_orientation`). ConfigError for an unknown arm in ``hold`` or every arm held."""
     names = list(params)
     unknown = [h for h in hold if h not in params]
     if unknown:
@@ -192,7 +209,9 @@ def arm_trajectories(params: Mapping[str, Arm], cube_size: tuple[float, float, f
     centres = {n: workspace_centre(p, cube_size) for n, p in params.items()}
     if kind == "point":
         length = duration if duration is not None else POINT_HOLD_S
-        return {n: PointHold(np.array([c]), 1.0, hold=length) for n, c in centres.items()}
+        points: dict[str, Trajectory] = {n: PointHold(np.array([c]), 1.0, hold=length) for n, c in centres.items()}
+        return points if orientation == "none" else {n: t.with_orientation(orientation, params[n])
+                                                     for n, t in points.items()}
     cubes = {n: cube_trajectory(c, cube_size, CUBE_SPEED) for n, c in centres.items()}
     if duration is not None:
         cubes = {n: c.truncated(duration) for n, c in cubes.items()}
@@ -200,6 +219,8 @@ def arm_trajectories(params: Mapping[str, Arm], cube_size: tuple[float, float, f
     out: dict[str, Trajectory] = {}
     for n in names:
         out[n] = PointHold(np.array([centres[n]]), 1.0, hold=longest) if n in hold else cubes[n]
+    if orientation != "none":
+        out = {n: t.with_orientation(orientation, params[n]) for n, t in out.items()}
     return out
 
 

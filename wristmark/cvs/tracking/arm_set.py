@@ -29,7 +29,6 @@ from wristmark.cvs.gray_image import check_view
 from wristmark.cvs.tracking.neighbour_corners import outlines, reached
 from wristmark.cvs.tracking.result import Array, TrackResult
 from wristmark.cvs.tracking.settings import TrackerSettings
-from wristmark.cvs.tracking.tip_uncertainty import corner_sigmas, tip_sigma
 from wristmark.cvs.tracking.tracker import MarkerTracker
 from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel, check_marker_set
@@ -100,13 +99,16 @@ class ArmSetTracker:
     def __init__(self, camera: StereoCamera, markers: Sequence[MarkerModel],
                  settings: TrackerSettings | None = None, names: Sequence[str] | None = None,
                  threads: bool = True, search_every: int = 3, clear_px: float = 6.0, body_lengths: float = 1.0,
-                 edge_ratio: float = 0.3, max_sigma_ratio: float = 1.6, contrast_noise: float = 7.0,
-                 max_tip_sigma_m: float = 0.5e-3) -> None:
+                 edge_ratio: float = 0.3, max_sigma_ratio: float = 1.6, contrast_noise: float | None = None,
+                 max_tip_sigma_m: float | None = None) -> None:
         """``names``: the marker files' names for the messages (default the arms'); ``threads``:
         the arms' ROI searches run side by side in worker threads while the machine has a core to
         spare (:func:`core_to_spare`; results are the same either way);
         ``search_every``: an arm missing from pair to pair is searched for in the whole frames in
-        every so many pairs (1: every pair)."""
+        every so many pairs (1: every pair); ``contrast_noise`` [px x grey levels],
+        ``max_tip_sigma_m`` [m]: the gate on each arm's tip sigma at its corners' contrast noise
+        (MarkerTracker.contrast_gate, after clearing; default the settings'
+        ``gate_contrast_noise`` and ``max_contrast_tip_sigma_m``)."""
         if int(search_every) < 1:
             raise InputError(f"search_every must be >= 1, got {search_every}")
         markers = list(markers)
@@ -122,7 +124,7 @@ class ArmSetTracker:
         self.search_every = int(search_every)
         self.clear_px, self.body_lengths, self.edge_ratio = float(clear_px), float(body_lengths), float(edge_ratio)
         self.max_sigma_ratio = float(max_sigma_ratio)
-        self.contrast_noise, self.max_tip_sigma_m = float(contrast_noise), float(max_tip_sigma_m)
+        self.contrast_noise, self.max_tip_sigma_m = contrast_noise, max_tip_sigma_m
         self.stats = {"cleared": 0, "refit": 0, "kept": 0}
         self._missing_last: set[str] = set()
         self._pairs_missing = 0
@@ -148,11 +150,12 @@ class ArmSetTracker:
         results: dict[str, TrackResult] = {}
         found: list[TrackResult] = []
         tracked = [a for a in self.arms if self.trackers[a].tracking]
-        jobs = {a: self._pool.submit(self.trackers[a].track, il, ir, hints.get(a), True) for a in tracked[1:]} \
+        jobs = {a: self._pool.submit(self.trackers[a].track, il, ir, hints.get(a), True, False) for a in tracked[1:]} \
             if self._pool is not None and len(tracked) > 1 and core_to_spare() else {}
         for arm in tracked:  # each arm that was tracked, in its own boxes only (one per thread)
             trk = self.trackers[arm]
-            res = jobs[arm].result() if arm in jobs else trk.track(il, ir, axis_hint_left=hints.get(arm), roi_only=True)
+            res = jobs[arm].result() if arm in jobs else trk.track(il, ir, axis_hint_left=hints.get(arm), roi_only=True,
+                                                                   contrast_gate=False)
             who = identity(res)
             if who == arm:
                 results[arm] = res
@@ -166,8 +169,9 @@ class ArmSetTracker:
         still = bool(pending) and set(pending) <= self._missing_last
         self._pairs_missing = self._pairs_missing + 1 if still else 0
         if still and self._pairs_missing > 1 and self._pairs_missing % self.search_every:
-            return self._clear({a: self._own(a, results[a]) if a in results else self._missing(
-                "not in view (searched for " f"every {self.search_every} pairs)") for a in self.arms}, (il, ir))
+            return self._gated(self._clear({a: self._own(a, results[a]) if a in results else self._missing(
+                "not in view (searched for " f"every {self.search_every} pairs)") for a in self.arms}, (il, ir)),
+                (il, ir))
         self._missing_last = set(pending)  # what the whole-frame search below does not find stays missing
         masked: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None
         failures: list[str] = []
@@ -183,7 +187,7 @@ class ArmSetTracker:
                     _paint_out(masked[v], box)
             searcher = self.trackers[pending[0]]
             searcher.reset()
-            res = searcher.track(masked[0], masked[1], axis_hint_left=hints.get(pending[0]))
+            res = searcher.track(masked[0], masked[1], axis_hint_left=hints.get(pending[0]), contrast_gate=False)
             if len(hidden) < 2 and (chain := self._two_sleeves(res, len(hidden) % 2)) is not None:
                 # each view's chain on another sleeve: painting both out would lose both sleeves
                 hidden.append(chain)
@@ -213,7 +217,7 @@ class ArmSetTracker:
         self._missing_last = set(pending)
         for arm in pending:
             results[arm] = self._missing("not found; " + "; ".join(failures) if failures else "not in view")
-        return self._clear({a: self._own(a, results[a]) for a in self.arms}, (il, ir))
+        return self._gated(self._clear({a: self._own(a, results[a]) for a in self.arms}, (il, ir)), (il, ir))
 
     def _clear(self, results: dict[str, TrackResult], images: tuple[Any, Any]) -> dict[str, TrackResult]:
         """Each arm's pose solved again without its corners another arm's edges may reach (a
@@ -250,35 +254,16 @@ class ArmSetTracker:
                 self.stats["refit"] += 1
             else:
                 self.stats["kept"] += 1
-        for a in good:  # a tip the corners fix too loosely at their own noise is not reported
-            if (sigma := self._tip_sigma(out[a], images)) > self.max_tip_sigma_m:
-                out[a] = replace(out[a], ok=False, tip_left=None, tip_world=None, T_left_marker=None, reason=(
-                    f"the tip is uncertain by {1e3 * sigma:.2f} mm at the corners' contrast noise"))
         return out
 
-    def _tip_sigma(self, res: TrackResult, images: tuple[Any, Any]) -> float:
-        """The tip's standard deviation [m] of a good result at each used corner's own noise:
-        ``corner_sigma_px`` combined with ``contrast_noise`` over its contrast (cvs.tracking.
-        tip_uncertainty.corner_sigmas; the one-arm gate takes 0.1 px for every corner). In a scene
-        the camera stands back, and a small, dark sleeve near the image's edge has 3-4 corners a
-        view of 0.25-0.35 px noise: three arms seed 2, sequence 8, arm c, 4 + 4 corners, 0.72 mm off
-        at 0.19 mm of one-arm sigma, 0.56 mm at their contrast (docs/notes/several-arms.md)."""
-        m, pose = res.match, res.pose
-        if self.contrast_noise <= 0 or m is None or pose is None:
-            return 0.0
-        trk = next(iter(self.trackers.values()))
-        s = trk.settings
-        kl, kr = m.index_left >= 0, m.index_right >= 0
-        in_l, in_r = np.asarray(pose.inliers_left, bool), np.asarray(pose.inliers_right, bool)
-        ul, ur = res.corners_left[kl][in_l], res.corners_right[kr][in_r]
-        sig = (corner_sigmas(check_view(images[0], self.camera.image_size, "left"), ul, s.corner_sigma_px,
-                             self.contrast_noise),
-               corner_sigmas(check_view(images[1], self.camera.image_size, "right"), ur, s.corner_sigma_px,
-                             self.contrast_noise))
-        tip = np.asarray(trk.marker.tip(), float)
-        P = trk.solver.marker_points
-        return tip_sigma(self.camera, pose.T_fit, P(m.index_left[kl][in_l]), P(m.index_right[kr][in_r]),
-                         np.stack([tip, -tip]), s.corner_sigma_px, sig)
+    def _gated(self, results: dict[str, TrackResult], images: tuple[Any, Any]) -> dict[str, TrackResult]:
+        """Each good result through its tracker's gate on the tip sigma at the corners' contrast
+        noise and residuals (MarkerTracker.contrast_gate; after clearing, on the corners the pose
+        uses): a small, dark sleeve near the image's edge has 3-4 corners a view of 0.25-0.35 px
+        noise (three arms seed 2, sequence 8, arm c, 4 + 4 corners, 0.72 mm off at 0.19 mm of sigma
+        at 0.1 px, 0.56 mm at their contrast; docs/notes/several-arms.md)."""
+        return {a: self.trackers[a].contrast_gate(r, images, self.contrast_noise, self.max_tip_sigma_m)
+                for a, r in results.items()}
 
     def _own(self, arm: str, res: TrackResult) -> TrackResult:
         """``res`` as arm ``arm``'s result: a pose only when its code says it is that arm."""

@@ -75,7 +75,20 @@ class TrackerSettings:
     is wrong: 0.1-1.6 px off; a pose that rests on such corners alone is refused by
     max_tip_sigma_m; 0 disables); solve_contrast_noise [px x grey levels]: on images the pose
     solve weights each corner by its noise, corner_sigma_px combined with solve_contrast_noise
-    over its contrast (7: the relation measured on the path-traced 1080p pairs; 0: unweighted)."""
+    over its contrast (7: the relation measured on the path-traced 1080p pairs; 0: unweighted);
+    gate_contrast_noise [px x grey levels], max_contrast_tip_sigma_m [m], gate_min_spacing_px
+    [px]: a good, oriented result (the pose reported, after the contrast-weighted solve) is
+    refused when its tip's standard deviation at each used corner's contrast noise
+    (corner_sigma_px combined with gate_contrast_noise over its contrast), multiplied by the fit's
+    residual over that noise where the residual is the larger (sqrt(chi^2 / (2 N - 6)) for N used
+    corners, at least 1), is above max_contrast_tip_sigma_m: a dark sleeve's 3-4 corners a view
+    (0.25-0.35 px of noise: 0.53-0.57 mm off at 0.2 mm of sigma at 0.1 px) and a fit whose
+    residual exceeds its corners' noise (3 stereo pairs at 0.31 px: 0.76 mm off) were reported
+    under every other gate; the corners' ROIs are kept (docs/notes/highlight-stripe.md). Not
+    where the chains' median spacing is under gate_min_spacing_px (the contrast relation was
+    measured on corners 23-80 px apart; a quarter-size sleeve's 8 px corners keep the gate at
+    corner_sigma_px alone). gate_contrast_noise 0 or max_contrast_tip_sigma_m inf disables
+    (cvs.tracking.arm_set applies the same gate after clearing each arm's corners)."""
 
     min_corners: int = 3
     min_pairs: int = 2
@@ -100,8 +113,20 @@ class TrackerSettings:
     clipped_sigma_px: float = 1.0
     clipped_level: int = 250
     clipped_radius: float = 0.25
+    gate_contrast_noise: float = 7.0
+    max_contrast_tip_sigma_m: float = 0.5e-3
+    gate_min_spacing_px: float = 16.0
     paper_detector: DetectorSettings = field(default_factory=DetectorSettings)
     magnify_below_px: float = 20.0
+
+    def __post_init__(self) -> None:
+        for name in ("gate_contrast_noise", "gate_min_spacing_px"):
+            v = float(getattr(self, name))
+            if not v >= 0:  # NaN too
+                raise InputError(f"TrackerSettings.{name} must be >= 0, got {v}")
+        if not float(self.max_contrast_tip_sigma_m) > 0:
+            raise InputError(f"TrackerSettings.max_contrast_tip_sigma_m must be > 0 (inf: off), "
+                             f"got {self.max_contrast_tip_sigma_m}")
 
 
 def make_detector(kind: str, settings: DetectorSettings | None = None) -> CornerDetector:

@@ -18,7 +18,11 @@ pair whose corners fit no pose (RMS above ``max_rms_px``) gets one more with one
 a view's chain left out (an X-like corner at the sleeve's silhouette that extends a chain). A
 pair still lost for too few corners, where both views saw the marker before, has each view's
 box around its last good corners searched enlarged (``TrackerSettings.magnify``: a small or
-steeply seen sleeve's squares a few pixels wide; docs/notes/steep-views.md).
+steeply seen sleeve's squares a few pixels wide; docs/notes/steep-views.md). Last, a good,
+oriented result is refused when its tip's standard deviation at its corners' contrast noise,
+scaled up by the fit's residual where that exceeds the noise, is above
+``max_contrast_tip_sigma_m`` (:meth:`MarkerTracker.contrast_gate`: a dark sleeve's dim corners,
+or corners that fit worse than their contrast says; the corners' ROIs are kept).
 ``track_corners`` takes corners directly (controller loops, baselines, tests).
 
 The sleeve looks the same after a half turn about x_wm, so which way z_wm (distal) points is
@@ -145,14 +149,16 @@ class MarkerTracker:
         )
 
     def track(self, left_img: Any, right_img: Any, axis_hint_left: Array | None = None,
-              roi_only: bool = False) -> TrackResult:
+              roi_only: bool = False, contrast_gate: bool = True) -> TrackResult:
         """Track the marker in one stereo pair (grayscale or BGR uint8 images of the calibrated
         size). In ROI tracking only the boxes around the previous corners are converted to grey
         and searched; whole frames are converted once, when a whole-frame search is needed.
         ``axis_hint_left``: expected direction of z_wm (distal) in {ll}, if the caller knows it.
         ``roi_only``: search only the boxes of ROI tracking, never the whole frames (``ok=False``
         when they lose the marker, or when there are none: cvs.tracking.arm_set searches the whole
-        frames itself, with the other arms' sleeves painted out)."""
+        frames itself, with the other arms' sleeves painted out). ``contrast_gate``: the result
+        passes :meth:`contrast_gate` (False: the caller applies it, as cvs.tracking.arm_set does
+        after clearing each arm's corners)."""
         t0 = time.perf_counter()
         self._continuous = False
         self._misfits = []
@@ -160,12 +166,12 @@ class MarkerTracker:
         ir = check_view(right_img, self.camera.image_size, "right")
         self._views = (il, ir)  # the tip-sigma gate looks at each used corner here
         try:
-            return self._track_views(il, ir, t0, axis_hint_left, roi_only)
+            return self._track_views(il, ir, t0, axis_hint_left, roi_only, contrast_gate)
         finally:
             self._views = None
 
     def _track_views(self, il: NDArray[np.uint8], ir: NDArray[np.uint8], t0: float, axis_hint_left: Array | None,
-                     roi_only: bool) -> TrackResult:
+                     roi_only: bool, gate: bool = True) -> TrackResult:
         """``track``'s work on the checked views."""
         if roi_only and not self._tracking:
             return self._fail("no ROI to search (roi_only)", np.zeros((0, 2)), np.zeros((0, 2)), t0, {})
@@ -212,6 +218,8 @@ class MarkerTracker:
             res.timings["axis"] = 1e3 * (time.perf_counter() - t3)
             if res.ok and self.settings.solve_contrast_noise > 0:
                 res = self._contrast_weighted(res, (il, ir))
+            if res.ok and gate:  # refused here, the corners' ROIs stay (as for an ambiguous direction)
+                res = self.contrast_gate(res, (il, ir))
             res = replace(res, time_ms=1e3 * (time.perf_counter() - t0))
         self._tracking = found  # an ambiguous direction keeps the corners' ROIs
         self._last_pose = res.pose if found else None
@@ -286,6 +294,61 @@ class MarkerTracker:
         pose = replace(w, T_left_marker=T, tip_left=tip_left, tip_world=tip_world)
         return replace(res, pose=pose, T_left_marker=T, tip_left=tip_left, tip_world=tip_world, rms_px=w.rms_px,
                        corner_sigmas=sig)
+
+    def contrast_tip_sigma(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],
+                           contrast_noise: float | None = None) -> float:
+        """The tip's standard deviation [m] of a result's fit (the larger of the sleeve's two ends)
+        at each used corner's contrast noise, ``corner_sigma_px`` combined with ``contrast_noise``
+        (default ``settings.gate_contrast_noise``) over its contrast in ``views``
+        (cvs.tracking.tip_uncertainty.corner_sigmas), multiplied by the fit's residual over that
+        noise where the residual is the larger: sqrt(chi^2 / (2 N - 6)) over the N used corners'
+        pixel residuals, at least 1. 0 where the gate does not apply: no fit, no contrast noise, or
+        the chains' median spacing under ``settings.gate_min_spacing_px``."""
+        m, pose, s = res.match, res.pose, self.settings
+        noise = s.gate_contrast_noise if contrast_noise is None else float(contrast_noise)
+        if m is None or pose is None or noise <= 0:
+            return 0.0
+        if _median_spacing(res.corners_left, res.corners_right) < s.gate_min_spacing_px:
+            return 0.0
+        kl, kr = m.index_left >= 0, m.index_right >= 0
+        in_l, in_r = np.asarray(pose.inliers_left, bool), np.asarray(pose.inliers_right, bool)
+        idx_l, idx_r = m.index_left[kl][in_l], m.index_right[kr][in_r]
+        ul, ur = res.corners_left[kl][in_l], res.corners_right[kr][in_r]
+        own = res.corner_sigmas  # the weighted solve's, of every matched corner, at solve_contrast_noise
+        if own is not None and noise == s.solve_contrast_noise and (own[0].size, own[1].size) == (in_l.size, in_r.size):
+            sig = (own[0][in_l], own[1][in_r])
+        else:
+            sig = (corner_sigmas(views[0], ul, s.corner_sigma_px, noise),
+                   corner_sigmas(views[1], ur, s.corner_sigma_px, noise))
+        P, T = self.solver.marker_points, pose.T_fit
+        chi2 = 0.0
+        for project, idx, uv, sg in ((self.camera.project_left, idx_l, ul, sig[0]),
+                                     (self.camera.project_right, idx_r, ur, sig[1])):
+            if idx.size:
+                e = np.asarray(project(P(idx) @ T[:3, :3].T + T[:3, 3]), float).reshape(-1, 2) - uv
+                chi2 += float(((e / sg[:, None]) ** 2).sum())
+        dof = 2 * (idx_l.size + idx_r.size) - 6
+        factor = max(1.0, float(np.sqrt(chi2 / dof))) if dof > 0 else 1.0
+        tip = np.asarray(self.marker.tip(), float)
+        return factor * tip_sigma(self.camera, T, P(idx_l), P(idx_r), np.stack([tip, -tip]), s.corner_sigma_px, sig)
+
+    def contrast_gate(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],
+                      contrast_noise: float | None = None, max_sigma_m: float | None = None) -> TrackResult:
+        """``res`` when it is not ok or its :meth:`contrast_tip_sigma` is at most ``max_sigma_m``
+        (default ``settings.max_contrast_tip_sigma_m``); else the same result ok false, without
+        its tip and pose (``pose`` and ``match`` kept), the reason saying by how much the tip is
+        uncertain (docs/notes/highlight-stripe.md, docs/notes/several-arms.md)."""
+        bound = self.settings.max_contrast_tip_sigma_m if max_sigma_m is None else float(max_sigma_m)
+        if not res.ok or not np.isfinite(bound):
+            return res
+        t = time.perf_counter()
+        sigma = self.contrast_tip_sigma(res, views, contrast_noise)
+        res.timings["contrast_gate"] = 1e3 * (time.perf_counter() - t)
+        if sigma <= bound:
+            return res
+        return replace(res, ok=False, tip_left=None, tip_world=None, T_left_marker=None, reason=(
+            f"the tip is uncertain by {1e3 * sigma:.2f} mm at the corners' contrast noise and residuals "
+            "(dim corners, or corners that fit worse than their contrast says)"))
 
     def _retry_with_gaps(self, res: TrackResult, t0: float) -> TrackResult:
         """A pair lost for too few corners: a highlight over the corner each camera sees best

@@ -1,0 +1,84 @@
+"""The one-arm tracker's gate on the tip sigma at the corners' contrast noise and residuals
+(MarkerTracker.contrast_gate, TrackerSettings.max_contrast_tip_sigma_m): a dark sleeve at the
+image's edge (the three-arm scene's arm c in bench/several_arms.py seed 2, sequence 8, pair 4,
+rendered alone) is refused where every other gate passes it, a well seen sleeve keeps its pose,
+and corners that fit worse than their contrast says raise the sigma with their residual."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from wristmark.cvs.tracking.tracker import MarkerTracker, TrackerSettings
+from wristmark.models.arm_shape import arm_shape, transformed
+from wristmark.models.errors import InputError
+from wristmark.sim.render.settings import RenderSettings
+from wristmark.sim.render.stereo_renderer import RenderedPair, StereoRenderer
+from wristmark.sim.scene_setup import load_scene_setup
+
+THREE = load_scene_setup("scenes/three_arms.yaml")
+# seed 2, sequence 8, pair 4 of `bench/several_arms.py --scene configs/scenes/three_arms.yaml`
+PSI = {"a": [0.03353, 0.02539, 0.56062, 0.10917, 0.89485, 0.05114],
+       "c": [-0.08474, 0.04016, 0.78748, -0.01478, 0.90331, -0.00653]}
+SHIFT = {"a": [0.0, 0.0, 0.0], "c": [0.0876, 0.0119, -0.00583]}
+
+
+def _alone(arm: str) -> tuple[RenderedPair, MarkerTracker, MarkerTracker]:
+    """The arm rendered alone at 1080p (renderer seed 0), a default tracker and one without the gate."""
+    i = THREE.names.index(arm)
+    base = THREE.base(arm).copy()
+    base[:3, 3] += SHIFT[arm]
+    shape = transformed(arm_shape(THREE.arms[arm].params, np.array(PSI[arm])), base)
+    pair = StereoRenderer(THREE.camera, THREE.markers[i], RenderSettings(), seed=0).render(shape)
+    marker = THREE.markers[i]
+    return (pair, MarkerTracker(THREE.camera, marker, family=THREE.markers),
+            MarkerTracker(THREE.camera, marker, TrackerSettings(max_contrast_tip_sigma_m=np.inf), family=THREE.markers))
+
+
+def test_a_dark_sleeve_at_the_edge_is_refused_and_keeps_its_rois() -> None:
+    pair, gated, open_ = _alone("c")
+    free = open_.track(pair.left, pair.right)
+    assert free.ok, free.reason  # every other gate passes it (0.1 px: well under max_tip_sigma_m)
+    sigma = gated.contrast_tip_sigma(free, (pair.left, pair.right))
+    assert sigma > 0.6e-3  # 0.66 mm: 3-4 corners a view at 20-25 grey levels of contrast
+    res = gated.track(pair.left, pair.right)
+    assert not res.ok and "contrast noise" in res.reason, res.reason
+    assert res.tip_left is None and res.T_left_marker is None and res.pose is not None
+    assert gated.tracking  # the corners are the marker's: the next pair searches their boxes
+
+
+def test_a_well_seen_sleeve_keeps_its_pose() -> None:
+    pair, gated, _ = _alone("a")
+    res = gated.track(pair.left, pair.right)
+    assert res.ok, res.reason
+    assert res.tip_left is not None and np.linalg.norm(res.tip_left - pair.tip_left) < 1e-4
+    assert gated.contrast_tip_sigma(res, (pair.left, pair.right)) < 0.25e-3
+
+
+def test_corners_that_fit_worse_than_their_contrast_raise_the_sigma() -> None:
+    """The same corners, each view's shifted across the ring by +-amp px in turn (a residual no
+    pose removes; the tip stays): within their noise the sigma is the clean one's, at 0.6 px it
+    grows with the residual beyond the bound and the gate refuses the fit."""
+    pair, gated, _ = _alone("a")
+    views = (pair.left, pair.right)
+    clean = gated.track(pair.left, pair.right)
+    assert clean.ok
+    sigmas = {}
+    for amp in (0.0, 0.05, 0.6):
+        cl, cr = clean.corners_left.copy(), clean.corners_right.copy()
+        cl[:, 1] += amp * (-1.0) ** np.arange(len(cl))
+        cr[:, 1] -= amp * (-1.0) ** np.arange(len(cr))
+        gated.reset()
+        fit = gated.track_corners(cl, cr)
+        assert fit.ok, (amp, fit.reason)
+        sigmas[amp] = gated.contrast_tip_sigma(fit, views)
+        refused = gated.contrast_gate(fit, views)
+        assert refused.ok == (amp < 0.6), (amp, refused.reason)
+    assert sigmas[0.05] == pytest.approx(sigmas[0.0], rel=0.02)
+    assert sigmas[0.6] > 3.0 * sigmas[0.0] and sigmas[0.6] > 0.5e-3
+
+
+def test_the_gate_settings_are_checked() -> None:
+    for bad in ({"max_contrast_tip_sigma_m": 0.0}, {"gate_contrast_noise": -1.0}, {"gate_min_spacing_px": np.nan}):
+        with pytest.raises(InputError):
+            TrackerSettings(**bad)  # type: ignore[arg-type]

@@ -64,18 +64,20 @@ pytest-fast: setup
 
 # The whole suite in two pytest runs at once: the wallclock tests (virtual labs and timed
 # streams: real time, about one core busy) in one process at normal priority, and every other
-# test on $(PYTEST_WORKERS) processes under `nice -n 19`, which take what the timed tests leave of
-# the cores and never delay them (Linux gives a nice-19 process ~1.5 % of a nice-0 one's share
-# of a core; the labs' loops and boxes also run SCHED_FIFO where allowed). docs/testing.md.
+# test on $(PYTEST_WORKERS) processes under Linux's SCHED_IDLE (`chrt --idle 0`; `nice -n 19`
+# where chrt is missing), which run only on what the timed tests leave of the cores and give way
+# the moment one of them wakes (the labs' loops and boxes also run SCHED_FIFO where allowed).
+# docs/testing.md.
 # Both always run; the exit status is non-zero if either failed. The niced run's log follows
 # the timed run's output, and a failed run's summary line is repeated at the end.
 pytest: setup browser rtsp-server
 	@log=$$(mktemp); \
-	echo "== pytest: the wallclock tests here, and every other test at once on $(PYTEST_WORKERS) processes at nice 19 (its log after)"; \
-	nice -n 19 $(PY) -m pytest -n $(PYTEST_WORKERS) --dist loadfile --durations=20 -m "not wallclock" > $$log 2>&1 & rest=$$!; \
+	idle=$$(command -v chrt >/dev/null && echo "chrt --idle 0"); \
+	echo "== pytest: the wallclock tests here, and every other test at once on $(PYTEST_WORKERS) processes at idle priority (its log after)"; \
+	$$idle nice -n 19 $(PY) -m pytest -n $(PYTEST_WORKERS) --dist loadfile --durations=20 -m "not wallclock" > $$log 2>&1 & rest=$$!; \
 	$(PY) -m pytest -p no:xdist --durations=10 -m wallclock; timed=$$?; \
 	wait $$rest; first=$$?; \
-	echo "== pytest on $(PYTEST_WORKERS) processes at nice 19: all but the wallclock tests"; cat $$log; \
+	echo "== pytest on $(PYTEST_WORKERS) processes at idle priority: all but the wallclock tests"; cat $$log; \
 	if [ $$timed -ne 0 ]; then echo "== the wallclock tests FAILED (their summary is above this run's log)"; fi; \
 	if [ $$first -ne 0 ]; then echo "== the run of all but the wallclock tests FAILED: $$(tail -n 1 $$log)"; fi; \
 	rm -f $$log; \

@@ -61,6 +61,16 @@ def test_roi_tracking_on_the_same_pair_again(tracker: MarkerTracker, frames: lis
     warm = tracker.track(f.left, f.right)
     assert cold.ok and warm.ok
     assert np.linalg.norm(warm.tip_left - f.tip_left) < 0.2e-3  # type: ignore[operator]
+
+
+@pytest.mark.wallclock
+def test_roi_detection_takes_less_time_than_the_whole_frames(tracker: MarkerTracker,
+                                                             frames: list[RenderedPair]) -> None:
+    tracker.reset()
+    f = frames[1]
+    cold = tracker.track(f.left, f.right)
+    warm = tracker.track(f.left, f.right)
+    assert cold.ok and warm.ok
     assert warm.timings["detect"] < cold.timings["detect"]
 
 

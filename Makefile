@@ -62,26 +62,21 @@ check: lint typecheck pytest-fast
 pytest-fast: setup
 	$(PY) -m pytest -m "$(FAST_TESTS)"
 
-# The whole suite in two pytest runs at once: the wallclock tests (virtual labs and timed
-# streams: real time, about one core busy) in one process at normal priority, and every other
-# test on $(PYTEST_WORKERS) processes under Linux's SCHED_IDLE (`chrt --idle 0`; `nice -n 19`
-# where chrt is missing), which run only on what the timed tests leave of the cores and give way
-# the moment one of them wakes (the labs' loops and boxes also run SCHED_FIFO where allowed).
-# docs/testing.md.
-# Both always run; the exit status is non-zero if either failed. The niced run's log follows
-# the timed run's output, and a failed run's summary line is repeated at the end.
+# The whole suite in two pytest runs: every test but the wallclock ones on $(PYTEST_WORKERS)
+# processes, then the wallclock ones alone, so that their timing asserts do not compete with the
+# rest of the suite for the cores.
+# Both always run (unless the first was interrupted); the exit status is non-zero if either
+# failed, and a failed first run's summary line is repeated at the end.
 pytest: setup browser rtsp-server
-	@log=$$(mktemp); \
-	idle=$$(command -v chrt >/dev/null && echo "chrt --idle 0"); \
-	echo "== pytest: the wallclock tests here, and every other test at once on $(PYTEST_WORKERS) processes at idle priority (its log after)"; \
-	$$idle nice -n 19 $(PY) -m pytest -n $(PYTEST_WORKERS) --dist loadfile --durations=20 -m "not wallclock" > $$log 2>&1 & rest=$$!; \
-	$(PY) -m pytest -p no:xdist --durations=10 -m wallclock; timed=$$?; \
-	wait $$rest; first=$$?; \
-	echo "== pytest on $(PYTEST_WORKERS) processes at idle priority: all but the wallclock tests"; cat $$log; \
-	if [ $$timed -ne 0 ]; then echo "== the wallclock tests FAILED (their summary is above this run's log)"; fi; \
-	if [ $$first -ne 0 ]; then echo "== the run of all but the wallclock tests FAILED: $$(tail -n 1 $$log)"; fi; \
+	@set -o pipefail; log=$$(mktemp); \
+	echo "== pytest on $(PYTEST_WORKERS) processes: all but the wallclock tests"; \
+	$(PY) -m pytest -n $(PYTEST_WORKERS) --dist loadfile --durations=20 -m "not wallclock" 2>&1 | tee $$log; first=$$?; \
+	if [ $$first -eq 2 ] || [ $$first -eq 3 ] || [ $$first -eq 4 ]; then rm -f $$log; exit $$first; fi; \
+	echo "== pytest alone: the wallclock tests"; \
+	$(PY) -m pytest -p no:xdist --durations=10 -m wallclock; second=$$?; \
+	if [ $$first -ne 0 ]; then echo "== the first run (all but the wallclock tests) FAILED: $$(tail -n 1 $$log)"; fi; \
 	rm -f $$log; \
-	[ $$first -eq 0 ] && [ $$timed -eq 0 ]
+	[ $$first -eq 0 ] && [ $$second -eq 0 ]
 
 # The whole suite, as CI runs it (.ci/run): ruff and mypy (one core) while, beside them, the
 # stereo pose solve is compiled (`compiled`), numba compiles the tracker's and the renderer's

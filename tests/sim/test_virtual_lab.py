@@ -299,7 +299,7 @@ def test_the_box_runs_above_the_lab_and_rendering_can_stay_at_normal_priority(se
         with pytest.raises(InputError, match="real-time priority"):
             VirtualLab(PARAMS, PLANT, setup.camera, setup.marker, LabCamera(image_scale=0.25), rt_priority=10)
         return
-    caller = os.sched_getscheduler(0)  # SCHED_OTHER, or SCHED_IDLE under `make test` (docs/testing.md)
+    caller = os.sched_getscheduler(0)  # the policy this process was started with (SCHED_OTHER, or an idle one)
     lab = VirtualLab(PARAMS, PLANT, setup.camera, setup.marker, LabCamera(fps=10.0, image_scale=0.25),
                      rt_priority=10, render_rt=render_rt)
     lab.start()

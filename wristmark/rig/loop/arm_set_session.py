@@ -207,18 +207,17 @@ def arm_trajectories(params: Mapping[str, Arm], cube_size: tuple[float, float, f
     if len(set(hold)) == len(names):
         raise ConfigError("--hold: every arm would hold still; leave at least one to walk its cube")
     centres = {n: workspace_centre(p, cube_size) for n, p in params.items()}
+    out: dict[str, Trajectory] = {}
     if kind == "point":
         length = duration if duration is not None else POINT_HOLD_S
-        points: dict[str, Trajectory] = {n: PointHold(np.array([c]), 1.0, hold=length) for n, c in centres.items()}
-        return points if orientation == "none" else {n: t.with_orientation(orientation, params[n])
-                                                     for n, t in points.items()}
-    cubes = {n: cube_trajectory(c, cube_size, CUBE_SPEED) for n, c in centres.items()}
-    if duration is not None:
-        cubes = {n: c.truncated(duration) for n, c in cubes.items()}
-    longest = max(c.duration for c in cubes.values())
-    out: dict[str, Trajectory] = {}
-    for n in names:
-        out[n] = PointHold(np.array([centres[n]]), 1.0, hold=longest) if n in hold else cubes[n]
+        out = {n: PointHold(np.array([c]), 1.0, hold=length) for n, c in centres.items()}
+    else:
+        cubes = {n: cube_trajectory(c, cube_size, CUBE_SPEED) for n, c in centres.items()}
+        if duration is not None:
+            cubes = {n: c.truncated(duration) for n, c in cubes.items()}
+        longest = max(c.duration for c in cubes.values())
+        for n in names:
+            out[n] = PointHold(np.array([centres[n]]), 1.0, hold=longest) if n in hold else cubes[n]
     if orientation != "none":
         out = {n: t.with_orientation(orientation, params[n]) for n, t in out.items()}
     return out

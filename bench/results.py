@@ -349,10 +349,11 @@ def render_sweep(r: dict[str, Any]) -> list[str]:
 
 def render_several_arms(r: dict[str, Any]) -> list[str]:
     t = r.get("time_ms", {})
+    same = ", on the scene's own background and noise" if r.get("alone_background") == "same" else ""
     lines = [
         f"{r['pairs']} rendered {r['image_size'][0]}x{r['image_size'][1]} stereo pairs of {len(r['arms'])} arms "
         f"({r['scene']}) in random poses, half the sequences crossing; each pair also rendered with each arm "
-        "alone (the one-arm figure). Identity swaps: poses reported for an arm that lie nearer another arm's "
+        f"alone (the one-arm figure{same}). Identity swaps: poses reported for an arm that lie nearer another arm's "
         f"truth: **{r['identity_swaps']}**; wrong (over 0.5 mm off): **{r['wrong']}** (the same arms alone: "
         f"{r.get('wrong_alone', '-')}).",
         "",

@@ -1,7 +1,8 @@
 """Benchmark: several sleeves tracked in one stereo pair (cvs.tracking.arm_set) against each arm alone.
 
 Usage: .venv/bin/python bench/several_arms.py [--scene configs/scenes/two_arms.yaml] [--sequences 20]
-       [--pairs 10] [--scale 1.0] [--seed 0] [--spread 0.06] [--by-pair FILE.jsonl] [--save DIR]
+       [--pairs 10] [--scale 1.0] [--seed 0] [--spread 0.06] [--alone-background same|other]
+       [--by-pair FILE.jsonl] [--save DIR]
 
 Rendered scenes (sim.render, 1080p at --scale 1) of the scene's arms in random poses: each
 sequence draws, per arm, a random configuration (its tip in a box 1.5 times the scene's cube
@@ -10,8 +11,9 @@ the other over ``--pairs`` pairs (ROI tracking from pair to pair, as in a loop);
 every arm but the first also has its base moved at random: in half the sequences 50-90 mm
 towards the first arm and 10-22 mm in front of or behind it (the arms cross and hide one
 another's sleeves), else by up to ``--spread`` [m] along x and 0.02 m along y (depth) and z. Per pair the same
-arms are also rendered alone (one arm, one sleeve: the one-arm figure) and tracked by a
-one-arm MarkerTracker each. Prints JSON:
+arms are also rendered alone (one arm, one sleeve: the one-arm figure), on the scene's own
+background and sensor noise (``--alone-background same``; ``other``: each on another renderer
+seed's, as the bench did before 5 December 2026), and tracked by a one-arm MarkerTracker each. Prints JSON:
 
 - ``identity_swaps``: poses reported for an arm that lie nearer another arm's truth (must be 0);
   ``wrong``: reported tips off their own truth by over 0.5 mm (``wrong_alone``: the same for the
@@ -53,6 +55,9 @@ def main() -> None:
     ap.add_argument("--scale", type=float, default=1.0)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--spread", type=float, default=0.06)
+    ap.add_argument("--alone-background", choices=("same", "other"), default="same",
+                    help="the arms alone on the scene's background and noise (same, default) or on another "
+                         "renderer seed's each (other: the bench before 5 December 2026)")
     ap.add_argument("--by-pair", default="", help="write one JSON line per pair and arm to this file (sequence, "
                     "pair, tracked, tip errors together / alone [mm], hidden corners)")
     ap.add_argument("--save", default="", help="save the scene images and truths of each sequence with a pose "
@@ -64,7 +69,10 @@ def main() -> None:
     cam = scaled_stereo_camera(setup.camera, args.scale) if args.scale != 1.0 else setup.camera
     markers = setup.markers
     together_r = StereoRenderer(cam, markers, RenderSettings(), seed=args.seed)
-    alone_r = [StereoRenderer(cam, m, RenderSettings(), seed=args.seed + 1 + i) for i, m in enumerate(markers)]
+    # 'same': each arm alone on the scene's own background and sensor noise (its renderer's seed and
+    # call count are the scene renderer's), so that together and alone differ by the other arms only
+    alone_seeds = [args.seed if args.alone_background == "same" else args.seed + 1 + i for i in range(len(markers))]
+    alone_r = [StereoRenderer(cam, m, RenderSettings(), seed=sd) for m, sd in zip(markers, alone_seeds)]
     rng = np.random.default_rng(args.seed)
     stats: dict[str, dict[str, Any]] = {n: {"together": [], "alone": [], "hidden": [], "occluded_pairs": 0, "n": 0,
                                             "tracked_together": 0, "tracked_alone": 0} for n in names}
@@ -138,7 +146,7 @@ def main() -> None:
             _save(f"{args.save}/seq_{seq:02d}.npz", saved)
     out: dict[str, Any] = {"scene": args.scene, "pairs": args.sequences * args.pairs, "scale": args.scale,
                            "image_size": list(cam.image_size), "identity_swaps": swaps, "wrong": wrong,
-                           "wrong_alone": wrong_alone, "arms": {}}
+                           "wrong_alone": wrong_alone, "alone_background": args.alone_background, "arms": {}}
     for n, st in stats.items():
         tg, al = np.array(st["together"]) * 1000, np.array(st["alone"]) * 1000
         hid = np.array(st["hidden"], bool)

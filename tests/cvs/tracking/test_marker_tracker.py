@@ -380,3 +380,37 @@ def test_a_corner_beside_the_chain_end_does_not_lose_the_pair() -> None:
     now = MarkerTracker(setup.tracking_camera, setup.marker).track(pair.left, pair.right)
     assert now.ok and "chain_end" not in now.timings and now.corners_right.shape[0] >= 4, now.reason
     assert now.tip_left is not None and np.linalg.norm(now.tip_left - pair.tip_left) < 1e-4
+
+
+def test_a_sleeve_the_second_detector_finds_in_the_whole_frames_gets_the_first_detectors_corners() -> None:
+    """Three coded sleeves at 1080p (bench/several_arms.py three arms, seed 4, sequence 4, pair 0):
+    the paper detector's whole-frame chain is another sleeve, so arm c is found by the saddle
+    detector, whose corners give its tip 0.2-0.27 mm off. Its chains are then searched again by the
+    paper detector in their boxes (as the next pair's ROI search would), and that fit is the one
+    reported: the same sleeve, its tip within 0.1 mm."""
+    from wristmark.cvs.tracking.settings import make_detector
+    from wristmark.models.arm_shape import transformed
+    from wristmark.sim.scene_setup import load_scene_setup
+
+    three = load_scene_setup("scenes/three_arms.yaml")
+    psi = {"a": [0.12679, 0.042, 0.56615, 0.05001, 0.89634, 0.0231],
+           "b": [-0.07755, 0.04255, 0.64667, -0.12643, 0.89878, -0.05868],
+           "c": [-0.10367, 0.05839, 0.82225, -0.03535, 0.90295, -0.0161]}
+    shift = {"a": [0.0, 0.0, 0.0], "b": [0.04183, -0.00634, 0.00992], "c": [0.00304, 0.00519, -0.00061]}
+    shapes = []
+    for n in three.names:
+        base = three.base(n).copy()
+        base[:3, 3] += shift[n]
+        shapes.append(transformed(arm_shape(three.arms[n].params, np.array(psi[n])), base))
+    scene = StereoRenderer(three.camera, three.markers, RenderSettings(), seed=0).render_arms(shapes)
+    truth = scene.arms[2].tip_left
+    trk = MarkerTracker(three.camera, three.markers[2], family=three.markers)
+    res = trk.track(scene.left, scene.right)
+    assert res.ok and res.code is not None and res.code.arm == "c", res.reason
+    assert "second_detector" in res.timings and "first_detector_boxes" in res.timings
+    assert np.linalg.norm(res.tip_left - truth) < 1e-4
+    saddle = (make_detector("saddle").detect(scene.left), make_detector("saddle").detect(scene.right))
+    alone = MarkerTracker(three.camera, three.markers[2], family=three.markers)
+    fit = alone.track_corners(saddle[0].corners, saddle[1].corners, saddle[0].polarity, saddle[1].polarity)
+    assert fit.ok  # the same sleeve (within 0.5 mm), but loose
+    assert 2 * np.linalg.norm(res.tip_left - truth) < np.linalg.norm(fit.tip_left - truth) < 5e-4

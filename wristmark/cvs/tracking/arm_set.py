@@ -26,6 +26,13 @@ from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera
 from wristmark.cvs.gray_image import check_view
+from wristmark.cvs.tracking.arm_worker import (
+    CALL_TIMEOUT_S,
+    ArmWorkerError,
+    RemoteTracker,
+    SharedFrames,
+    start_remote_trackers,
+)
 from wristmark.cvs.tracking.neighbour_corners import outlines, reached
 from wristmark.cvs.tracking.result import Array, TrackResult
 from wristmark.cvs.tracking.settings import TrackerSettings
@@ -35,7 +42,7 @@ from wristmark.models.marker import MarkerModel, check_marker_set
 
 Box = tuple[int, int, int, int]  # (u0, v0, u1, v1) [px], end exclusive
 
-__all__ = ["ArmSetTracker", "core_to_spare", "identity", "sleeve_boxes"]
+__all__ = ["ArmSetTracker", "ArmWorkerError", "core_to_spare", "identity", "sleeve_boxes"]
 
 
 def core_to_spare() -> bool:
@@ -100,10 +107,15 @@ class ArmSetTracker:
                  settings: TrackerSettings | None = None, names: Sequence[str] | None = None,
                  threads: bool = True, search_every: int = 3, clear_px: float = 6.0, body_lengths: float = 1.0,
                  edge_ratio: float = 0.3, max_sigma_ratio: float = 1.6, contrast_noise: float | None = None,
-                 max_tip_sigma_m: float | None = None) -> None:
+                 max_tip_sigma_m: float | None = None, processes: bool = False,
+                 worker_timeout_s: float = CALL_TIMEOUT_S) -> None:
         """``names``: the marker files' names for the messages (default the arms'); ``threads``:
         the arms' ROI searches run side by side in worker threads while the machine has a core to
-        spare (:func:`core_to_spare`; results are the same either way);
+        spare (:func:`core_to_spare`; results are the same either way); ``processes``: every arm
+        but the first is tracked in a worker process of its own instead (cvs.tracking.arm_worker:
+        started here, ~2-3 s, waited for; reused until :meth:`close`; the same results to the bit;
+        ``threads`` then unused), a worker that ends or does not answer within
+        ``worker_timeout_s`` [s] raising ``ArmWorkerError``;
         ``search_every``: an arm missing from pair to pair is searched for in the whole frames in
         every so many pairs (1: every pair); ``contrast_noise`` [px x grey levels],
         ``max_tip_sigma_m`` [m]: the gate on each arm's tip sigma at its corners' contrast noise
@@ -120,7 +132,14 @@ class ArmSetTracker:
         self.camera = camera
         self.markers = {str(m.arm): m for m in markers}
         self.arms = list(self.markers)
-        self.trackers = {a: MarkerTracker(camera, m, settings, family=markers) for a, m in self.markers.items()}
+        self.trackers: dict[str, MarkerTracker | RemoteTracker] = {}
+        self._frames: SharedFrames | None = None
+        if processes and len(markers) > 1:
+            self._frames, remotes = start_remote_trackers(camera, markers[1:], settings, markers, worker_timeout_s)
+            self.trackers = {self.arms[0]: MarkerTracker(camera, markers[0], settings, family=markers)}
+            self.trackers.update(zip(self.arms[1:], remotes))
+        else:
+            self.trackers = {a: MarkerTracker(camera, m, settings, family=markers) for a, m in self.markers.items()}
         self.search_every = int(search_every)
         self.clear_px, self.body_lengths, self.edge_ratio = float(clear_px), float(body_lengths), float(edge_ratio)
         self.max_sigma_ratio = float(max_sigma_ratio)
@@ -130,7 +149,24 @@ class ArmSetTracker:
         self._pairs_missing = 0
         # the arms' ROI searches side by side (OpenCV, numba and the solver release the GIL)
         self._pool = ThreadPoolExecutor(max_workers=len(markers) - 1, thread_name_prefix="arm-set") \
-            if threads and len(markers) > 1 else None
+            if threads and len(markers) > 1 and self._frames is None else None
+
+    def close(self) -> None:
+        """Stop the worker processes (``processes``) and threads; idempotent. The arm set tracks
+        no more pairs after it (a worker's arm would raise ArmWorkerError)."""
+        for t in self.trackers.values():
+            if isinstance(t, RemoteTracker):
+                t.close()
+        if self._frames is not None:
+            self._frames.close()
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+
+    def __enter__(self) -> ArmSetTracker:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
     def reset(self) -> None:
         """Forget every arm's ROI state (the next pair searches the whole frames for every arm)."""
@@ -150,9 +186,8 @@ class ArmSetTracker:
         results: dict[str, TrackResult] = {}
         found: list[TrackResult] = []
         tracked = [a for a in self.arms if self.trackers[a].tracking]
-        jobs = {a: self._pool.submit(self.trackers[a].track, il, ir, hints.get(a), True, False) for a in tracked[1:]} \
-            if self._pool is not None and len(tracked) > 1 and core_to_spare() else {}
-        for arm in tracked:  # each arm that was tracked, in its own boxes only (one per thread)
+        jobs = self._start_rois(tracked, il, ir, hints)
+        for arm in tracked:  # each arm that was tracked, in its own boxes only (one per thread or process)
             trk = self.trackers[arm]
             res = jobs[arm].result() if arm in jobs else trk.track(il, ir, axis_hint_left=hints.get(arm), roi_only=True,
                                                                    contrast_gate=False)
@@ -218,6 +253,23 @@ class ArmSetTracker:
         for arm in pending:
             results[arm] = self._missing("not found; " + "; ".join(failures) if failures else "not in view")
         return self._gated(self._clear({a: self._own(a, results[a]) for a in self.arms}, (il, ir)), (il, ir))
+
+    def _start_rois(self, tracked: list[str], il: NDArray[np.uint8], ir: NDArray[np.uint8],
+                    hints: Mapping[str, Array]) -> dict[str, Any]:
+        """Phase one's ROI searches started elsewhere (each with ``.result()``): every tracked arm
+        of a worker process (the pair copied once into the buffer they share), or every tracked
+        arm but the first in threads while a core is to spare; the others run in this thread."""
+        remote = {a: t for a in tracked if isinstance(t := self.trackers[a], RemoteTracker)}
+        if remote and self._frames is not None:
+            for w in self.trackers.values():
+                if isinstance(w, RemoteTracker):
+                    w.settle()  # nothing reads the buffer while it is written
+            shapes = self._frames.put(il, ir)
+            return {a: t.submit(shapes, hints.get(a), True, False) for a, t in remote.items()}
+        if self._pool is not None and len(tracked) > 1 and core_to_spare():
+            return {a: self._pool.submit(self.trackers[a].track, il, ir, hints.get(a), True, False)
+                    for a in tracked[1:]}
+        return {}
 
     def _clear(self, results: dict[str, TrackResult], images: tuple[Any, Any]) -> dict[str, TrackResult]:
         """Each arm's pose solved again without its corners another arm's edges may reach (a

@@ -2,8 +2,11 @@
 
 Each arm has its own :class:`MarkerTracker` (ROI tracking per arm). Per pair, first every arm
 that was tracked is searched in its own boxes only (``roi_only``; the arms side by side in
-worker threads); then the arms still missing are searched in whole frames in which the sleeves
-already found in this pair are painted out (the search finds one chain, the longest: a second
+worker threads, or with ``processes=True`` every arm but the first in a worker process of its
+own: cvs.tracking.arm_worker; each result's gate at its corners' contrast noise is computed
+while the others are searched, and used where clearing leaves the result as it was); then
+the arms still missing are searched in whole frames in which the sleeves already found in this
+pair are painted out (the search finds one chain, the longest: a second
 sleeve is found only once the first is gone); an arm missing from pair to pair is searched for
 again in the next pair, then in every ``search_every``-th pair only (a whole-frame search costs
 several ROI searches). A pose counts for an arm only when the sleeve's code says it is that arm (``res.code.arm``): a
@@ -16,9 +19,10 @@ across the family (cvs.marker.family).
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -29,6 +33,7 @@ from wristmark.cvs.gray_image import check_view
 from wristmark.cvs.tracking.arm_worker import (
     CALL_TIMEOUT_S,
     ArmWorkerError,
+    PendingTrack,
     RemoteTracker,
     SharedFrames,
     start_remote_trackers,
@@ -86,6 +91,10 @@ def sleeve_boxes(camera: StereoCamera, marker: MarkerModel, T_left_marker: Array
                min(w, int(np.ceil(hi[0])) + 1), min(h, int(np.ceil(hi[1])) + 1))
         out.append(box if box[0] < box[2] and box[1] < box[3] else None)
     return out[0], out[1]
+
+
+def _given(res: TrackResult) -> TrackResult:
+    return res
 
 
 def _paint_out(img: NDArray[np.uint8], box: Box | None) -> None:
@@ -187,14 +196,21 @@ class ArmSetTracker:
         found: list[TrackResult] = []
         tracked = [a for a in self.arms if self.trackers[a].tracking]
         jobs = self._start_rois(tracked, il, ir, hints)
+        early: dict[str, tuple[TrackResult, Callable[[], TrackResult]]] = {}  # gates of phase one's results
         for arm in tracked:  # each arm that was tracked, in its own boxes only (one per thread or process)
             trk = self.trackers[arm]
-            res = jobs[arm].result() if arm in jobs else trk.track(il, ir, axis_hint_left=hints.get(arm), roi_only=True,
-                                                                   contrast_gate=False)
+            job = jobs.get(arm)
+            res = job.result() if job is not None else trk.track(il, ir, axis_hint_left=hints.get(arm), roi_only=True,
+                                                                 contrast_gate=False)
             who = identity(res)
             if who == arm:
                 results[arm] = res
                 found.append(res)
+                if isinstance(job, PendingTrack):  # gated in the worker meanwhile
+                    early[arm] = (res, job.gated)
+                elif job is None and jobs:  # gated now, while the other arms' searches run elsewhere
+                    early[arm] = (res, partial(_given, trk.contrast_gate(res, (il, ir), self.contrast_noise,
+                                                                         self.max_tip_sigma_m)))
             else:  # lost, or its boxes caught another sleeve: searched again below
                 trk.reset()
         pending = [a for a in self.arms if a not in results]
@@ -206,7 +222,7 @@ class ArmSetTracker:
         if still and self._pairs_missing > 1 and self._pairs_missing % self.search_every:
             return self._gated(self._clear({a: self._own(a, results[a]) if a in results else self._missing(
                 "not in view (searched for " f"every {self.search_every} pairs)") for a in self.arms}, (il, ir)),
-                (il, ir))
+                (il, ir), early)
         self._missing_last = set(pending)  # what the whole-frame search below does not find stays missing
         masked: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None
         failures: list[str] = []
@@ -252,7 +268,7 @@ class ArmSetTracker:
         self._missing_last = set(pending)
         for arm in pending:
             results[arm] = self._missing("not found; " + "; ".join(failures) if failures else "not in view")
-        return self._gated(self._clear({a: self._own(a, results[a]) for a in self.arms}, (il, ir)), (il, ir))
+        return self._gated(self._clear({a: self._own(a, results[a]) for a in self.arms}, (il, ir)), (il, ir), early)
 
     def _start_rois(self, tracked: list[str], il: NDArray[np.uint8], ir: NDArray[np.uint8],
                     hints: Mapping[str, Array]) -> dict[str, Any]:
@@ -261,11 +277,9 @@ class ArmSetTracker:
         arm but the first in threads while a core is to spare; the others run in this thread."""
         remote = {a: t for a in tracked if isinstance(t := self.trackers[a], RemoteTracker)}
         if remote and self._frames is not None:
-            for w in self.trackers.values():
-                if isinstance(w, RemoteTracker):
-                    w.settle()  # nothing reads the buffer while it is written
             shapes = self._frames.put(il, ir)
-            return {a: t.submit(shapes, hints.get(a), True, False) for a, t in remote.items()}
+            after = (self.contrast_noise, self.max_tip_sigma_m)
+            return {a: t.submit(shapes, hints.get(a), True, False, after) for a, t in remote.items()}
         if self._pool is not None and len(tracked) > 1 and core_to_spare():
             return {a: self._pool.submit(self.trackers[a].track, il, ir, hints.get(a), True, False)
                     for a in tracked[1:]}
@@ -308,13 +322,17 @@ class ArmSetTracker:
                 self.stats["kept"] += 1
         return out
 
-    def _gated(self, results: dict[str, TrackResult], images: tuple[Any, Any]) -> dict[str, TrackResult]:
+    def _gated(self, results: dict[str, TrackResult], images: tuple[Any, Any],
+               early: Mapping[str, tuple[TrackResult, Callable[[], TrackResult]]]) -> dict[str, TrackResult]:
         """Each good result through its tracker's gate on the tip sigma at the corners' contrast
         noise and residuals (MarkerTracker.contrast_gate; after clearing, on the corners the pose
         uses): a small, dark sleeve near the image's edge has 3-4 corners a view of 0.25-0.35 px
         noise (three arms seed 2, sequence 8, arm c, 4 + 4 corners, 0.72 mm off at 0.19 mm of sigma
-        at 0.1 px, 0.56 mm at their contrast; docs/notes/several-arms.md)."""
-        return {a: self.trackers[a].contrast_gate(r, images, self.contrast_noise, self.max_tip_sigma_m)
+        at 0.1 px, 0.56 mm at their contrast; docs/notes/several-arms.md). ``early``: per arm, a
+        result of phase one and its gate, computed while other arms were searched (a function of
+        the result and the images only): used where clearing left that result as it was."""
+        return {a: early[a][1]() if a in early and early[a][0] is r else
+                self.trackers[a].contrast_gate(r, images, self.contrast_noise, self.max_tip_sigma_m)
                 for a, r in results.items()}
 
     def _own(self, arm: str, res: TrackResult) -> TrackResult:

@@ -13,7 +13,10 @@ mostly Python holding the interpreter lock, so threads of one process overlap li
   them is raised by the next call that waits). ``tracking`` is mirrored here from the answers
   (a track's result says it; reset clears it, adopt sets it). ``contrast_gate`` and ``settings``
   read no state (the settings, the camera and the marker's points): they run here, on a twin
-  tracker built from the same arguments, so that no image crosses for them.
+  tracker built from the same arguments, so that no image crosses for them. A phase-one track
+  may also ask the worker to gate its result once it has sent it (``gate_after``): the arm set
+  clears and gates its own arm meanwhile, and takes the worker's gate where clearing left that
+  result as it was (a function of the result and the pair only: the same bits).
 - **Frames cross through shared memory.** One :class:`SharedFrames` buffer per arm set
   (``multiprocessing.shared_memory``, two views of up to 4 channels at the calibrated size) holds
   the pair a worker tracks: the parent copies the pair into it (~0.5 ms for two 1080p BGR views),
@@ -76,11 +79,15 @@ class SharedFrames:
         self.capacity = h * w * 4  # bytes per view
         self.shm = SharedMemory(name=name, create=name is None, size=2 * self.capacity if name is None else 0)
         self.name = self.shm.name
+        self.readers: list[RemoteTracker] = []  # put() waits for their owed answers first
         # the creator frees it when closed, collected or at the interpreter's exit
         self._finalizer = weakref.finalize(self, _release, self.shm, name is None)
 
     def put(self, left: NDArray[np.uint8], right: NDArray[np.uint8]) -> tuple[Shape, Shape]:
-        """Copy a pair into the buffer; the views' shapes (for :meth:`views`)."""
+        """Copy a pair into the buffer once no worker reads it (every answer owed received); the
+        views' shapes (for :meth:`views`)."""
+        for r in self.readers:
+            r.settle()
         for k, img in enumerate((left, right)):
             if img.dtype != np.uint8 or img.nbytes > self.capacity:
                 raise InputError(f"a view of {img.dtype} {img.shape} does not fit the shared frame buffer")
@@ -111,18 +118,27 @@ def _release(shm: SharedMemory, unlink: bool) -> None:
             pass
 
 
-class _Pending:
-    """A track sent to a worker, its result not yet received (:meth:`result` waits for it)."""
+class PendingTrack:
+    """A track sent to a worker, its answers not yet received: :meth:`result` waits for the
+    result, :meth:`gated` for the worker's contrast gate of it (asked with ``gate_after``)."""
 
     def __init__(self, remote: RemoteTracker) -> None:
         self.remote = remote
         self.value: TrackResult | None = None
+        self.gate: tuple[TrackResult | None] | None = None  # (the gated result, or None: not ok)
 
     def result(self) -> TrackResult:
         """The track's result (the worker's answers are received in the order of the calls)."""
         while self.value is None:
-            self.remote._receive_track()
+            self.remote._receive_next()
         return self.value
+
+    def gated(self) -> TrackResult:
+        """MarkerTracker.contrast_gate of :meth:`result`, computed in the worker (``gate_after``)."""
+        res = self.result()
+        while self.gate is None:
+            self.remote._receive_next()
+        return res if self.gate[0] is None else self.gate[0]
 
 
 class RemoteTracker:
@@ -139,7 +155,7 @@ class RemoteTracker:
         self._twin = MarkerTracker(camera, marker, settings, family=family)  # stateless calls, here
         self.settings, self.marker, self.camera = self._twin.settings, marker, camera
         self._tracking = False
-        self._pending: list[_Pending] = []  # tracks sent, their answers not yet received (in order)
+        self._owed: list[tuple[PendingTrack, str]] = []  # answers not yet received, in order: 'track' or 'gate'
         self._ready = False
         self._broken: ArmWorkerError | None = None
         ctx = get_context("spawn")
@@ -150,6 +166,7 @@ class RemoteTracker:
         self.process.start()
         child.close()  # the worker's end: ours closed, so its death reads as the pipe's end
         self._finalizer = weakref.finalize(self, _stop, self.process, self._conn)
+        frames.readers.append(self)
 
     # -- the MarkerTracker interface ------------------------------------------------------------
 
@@ -161,24 +178,28 @@ class RemoteTracker:
     def track(self, left_img: Any, right_img: Any, axis_hint_left: Array | None = None,
               roi_only: bool = False, contrast_gate: bool = True) -> TrackResult:
         """MarkerTracker.track in the worker: the pair copied into the shared buffer, then tracked."""
-        self.settle()
         shapes = self.frames.put(np.asarray(left_img), np.asarray(right_img))
         return self.submit(shapes, axis_hint_left, roi_only, contrast_gate).result()
 
     def submit(self, shapes: tuple[Shape, Shape], axis_hint_left: Array | None = None, roi_only: bool = False,
-               contrast_gate: bool = True) -> _Pending:
+               contrast_gate: bool = True, gate_after: tuple[float | None, float | None] | None = None) -> PendingTrack:
         """Start MarkerTracker.track in the worker on the pair already in the shared buffer
-        (``shapes``: :meth:`SharedFrames.put`'s); the buffer must not change until ``result()``."""
-        self._send("track", (shapes, axis_hint_left, bool(roi_only), bool(contrast_gate)))
-        pending = _Pending(self)
-        self._pending.append(pending)
+        (``shapes``: :meth:`SharedFrames.put`'s; :meth:`SharedFrames.put` waits for every answer
+        owed first). ``gate_after``: (contrast_noise, max_sigma_m) of a :meth:`contrast_gate` the
+        worker applies to the result once it has sent it (``gated()``), while this process goes on."""
+        self._send("track", (shapes, axis_hint_left, bool(roi_only), bool(contrast_gate), gate_after))
+        pending = PendingTrack(self)
+        self._owed.append((pending, "track"))
+        if gate_after is not None:
+            self._owed.append((pending, "gate"))
         return pending
 
     def settle(self) -> None:
-        """Receive every track's answer still owed (a caller that raised between a submit and its
-        result), so that the next call's answer is its own and the shared buffer is free."""
-        while self._pending:
-            self._receive_track()
+        """Receive every answer still owed (a caller that raised between a submit and its result,
+        or a gate not asked for), so that the next call's answer is its own and the shared buffer
+        is free."""
+        while self._owed:
+            self._receive_next()
 
     def reset(self) -> None:
         """MarkerTracker.reset in the worker (not waited for)."""
@@ -216,6 +237,7 @@ class RemoteTracker:
 
     def close(self, timeout_s: float = 5.0) -> None:
         """Stop the worker (asked; terminated or killed after ``timeout_s``). Idempotent."""
+        self._owed = []
         if self._finalizer.alive:
             self._finalizer.detach()
             _stop(self.process, self._conn, timeout_s)
@@ -231,10 +253,19 @@ class RemoteTracker:
         except (BrokenPipeError, ConnectionError, OSError):
             self._fail(self._ended())
 
-    def _receive_track(self) -> None:
-        """The oldest owed track's answer, into its :class:`_Pending` (and the mirrored ``tracking``)."""
-        pending = self._pending.pop(0)
-        res, tracking = self._receive()
+    def _receive_next(self) -> None:
+        """The oldest owed answer, into its :class:`PendingTrack` (a track's also the mirrored ``tracking``)."""
+        pending, kind = self._owed.pop(0)
+        if kind == "gate":
+            gated = self._receive()
+            pending.gate = (None if gated is None else _result(gated),)
+            return
+        try:
+            res, tracking = self._receive()
+        except Exception:
+            if self._owed and self._owed[0] == (pending, "gate"):
+                self._owed.pop(0)  # a track that raised in the worker is not gated there
+            raise
         self._tracking = bool(tracking)
         pending.value = _result(res)
 
@@ -270,6 +301,7 @@ class RemoteTracker:
     def _fail(self, message: str) -> None:
         """Stop the worker at once (it is dead or stuck: no polite stop) and raise ``message``."""
         self._broken = ArmWorkerError(message)
+        self._owed = []
         if self._finalizer.alive:
             self._finalizer.detach()
             if self.process.is_alive():
@@ -359,11 +391,14 @@ def _serve(conn: Connection, shm_name: str, camera: StereoCamera, marker: Marker
                 err, deferred = deferred, None
                 raise err
             elif op == "track":
-                shapes, hint, roi_only, gate = payload
+                shapes, hint, roi_only, gate, after = payload
                 il, ir = frames.views(shapes)
                 res = tracker.track(il, ir, axis_hint_left=hint, roi_only=roi_only, contrast_gate=gate)
-                del il, ir
                 conn.send(("ok", (res, tracker.tracking)))
+                if after is not None:  # the parent goes on meanwhile; the same bits as its own gate
+                    op = "gate"
+                    conn.send(("ok", tracker.contrast_gate(res, (il, ir), *after) if res.ok else None))
+                del il, ir
             elif op == "refit":
                 conn.send(("ok", tracker.refit(*payload)))
             else:

@@ -22,11 +22,15 @@ mostly Python holding the interpreter lock, so threads of one process overlap li
   the pair a worker tracks: the parent copies the pair into it (~0.5 ms for two 1080p BGR views),
   sends each worker the views' shapes, tracks its own arm meanwhile and then receives each
   worker's result (pickled: corners, pose, match, code; floats keep every bit). The parent
-  writes the buffer only while no worker reads it (every submitted track is received first).
+  writes the buffer only while no worker reads it (every answer owed is received first).
+- **Only with a core to spare.** With another process busy on one of two cores, the parent and
+  its worker share the other, and the copy and the messages (~1 ms a pair) come on top: slower
+  than threads (docs/notes/several-arms.md "Time"). So it is opt-in.
 - **Lifetime.** Workers start with ``spawn`` (the parent has threads and numba's; ``fork``
-  would copy their locks), once per arm set: the worker imports the tracker, loads numba's
-  kernels (``warm_up``, with the parent's number of OpenCV threads) and says it is ready
-  (~2-3 s on the 2-core machine; the constructor waits, ``start_timeout_s``). ``reset`` keeps
+  would copy their locks; the worker imports the parent's main script, which therefore needs
+  the ``if __name__ == "__main__":`` guard), once per arm set: the worker imports the tracker,
+  loads numba's kernels (``warm_up``, with the parent's number of OpenCV threads) and says it is
+  ready (~2 s on the 2-core machine; the constructor waits, ``start_timeout_s``). ``reset`` keeps
   the workers. :meth:`RemoteTracker.close` stops a worker (asked, then terminated, then
   killed); a finalizer does it when the proxy is collected or at the interpreter's exit, the
   workers are daemons, and a worker whose parent is gone (its pipe closed, or the parent
@@ -288,7 +292,8 @@ class RemoteTracker:
             except (EOFError, OSError):
                 pass
         elif not ready:
-            self._fail(f"arm '{self.arm}': its worker process did not {what} within {timeout_s:g} s (stopped)")
+            self._fail(f"arm '{self.arm}': its worker process did not {what} within {timeout_s:g} s (killed); "
+                       "build the arm set again")
         self._fail(self._ended())
         raise AssertionError  # not reached
 

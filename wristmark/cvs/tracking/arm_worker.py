@@ -63,7 +63,7 @@ from wristmark.cvs.tracking.tracker import MarkerTracker
 from wristmark.models.errors import InputError, WristmarkError
 from wristmark.models.marker import MarkerModel
 
-__all__ = ["ArmWorkerError", "RemoteTracker", "SharedFrames", "start_remote_trackers"]
+__all__ = ["ArmWorkerError", "PendingTrack", "RemoteTracker", "SharedFrames", "start_remote_trackers"]
 
 Shape = tuple[int, ...]
 START_TIMEOUT_S = 120.0  # spawn, imports and numba's kernels (compiled on the first run after an install: ~30 s)

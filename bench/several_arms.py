@@ -2,7 +2,7 @@
 
 Usage: .venv/bin/python bench/several_arms.py [--scene configs/scenes/two_arms.yaml] [--sequences 20]
        [--pairs 10] [--scale 1.0] [--seed 0] [--spread 0.06] [--alone-background same|other]
-       [--by-pair FILE.jsonl] [--save DIR]
+       [--by-pair FILE.jsonl] [--save DIR] [--processes]
 
 Rendered scenes (sim.render, 1080p at --scale 1) of the scene's arms in random poses: each
 sequence draws, per arm, a random configuration (its tip in a box 1.5 times the scene's cube
@@ -23,6 +23,12 @@ seed's, as the bench did before 5 December 2026), and tracked by a one-arm Marke
   the tip error means split into the pairs with and without hidden corners);
 - ``time_ms``: median tracking time per pair for all sleeves together, the one-arm median per arm
   alone, and their ratio.
+
+One arm-set tracker serves every sequence (``reset()`` between them: a new sequence starts cold),
+so that ``--processes`` (every arm but the first in a worker process of its own,
+cvs.tracking.arm_set) starts its workers once; without it the arms run in threads of this
+process as the arm set decides. The results are the same either way, to the bit; only the times
+differ.
 """
 
 from __future__ import annotations
@@ -60,6 +66,8 @@ def main() -> None:
                          "renderer seed's each (other: the bench before 5 December 2026)")
     ap.add_argument("--by-pair", default="", help="write one JSON line per pair and arm to this file (sequence, "
                     "pair, tracked, tip errors together / alone [mm], hidden corners)")
+    ap.add_argument("--processes", action="store_true", help="track every arm but the first in a worker process "
+                    "of its own (ArmSetTracker(processes=True)) instead of threads")
     ap.add_argument("--save", default="", help="save the scene images and truths of each sequence with a pose "
                     "over 0.5 mm off or 0.1 mm worse than alone to DIR/seq_NN.npz (to replay them)")
     args = ap.parse_args()
@@ -80,8 +88,9 @@ def main() -> None:
     t_together: list[float] = []
     t_alone: list[float] = []
     rows: list[dict[str, Any]] = []
+    scene_trk = ArmSetTracker(cam, markers, processes=args.processes)  # closed below (or at exit)
     for seq in range(args.sequences):
-        scene_trk = ArmSetTracker(cam, markers)
+        scene_trk.reset()
         alone_trk = [MarkerTracker(cam, m, family=markers) for m in markers]
         bases = []
         for i, n in enumerate(names):
@@ -144,6 +153,7 @@ def main() -> None:
                 r["tip_mm_together"] > 1000 * WRONG_M or r["tip_mm_together"] > (r["tip_mm_alone"] or 0.0) + 0.1)
                 for r in rows):
             _save(f"{args.save}/seq_{seq:02d}.npz", saved)
+    scene_trk.close()
     out: dict[str, Any] = {"scene": args.scene, "pairs": args.sequences * args.pairs, "scale": args.scale,
                            "image_size": list(cam.image_size), "identity_swaps": swaps, "wrong": wrong,
                            "wrong_alone": wrong_alone, "alone_background": args.alone_background, "arms": {}}

@@ -76,3 +76,27 @@ def test_confusable_marker_sets_are_one_line(tmp_path: Path, capsys: pytest.Capt
     rc = main(["track", "--calib", "configs/camera.yaml", "--marker", a, "--marker", other, *map(str, images)])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and cause in err and len(err.splitlines()) == 1
+
+
+@pytest.mark.slow
+def test_arm_processes_give_the_same_lines(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``--arm-processes`` (arm b in a worker process of its own): every line the one of one
+    process but the time."""
+    out = tmp_path / "two"
+    assert main(["render", "--scene", "configs/scenes/two_arms.yaml", "--out", str(out), "--pairs", "3",
+                 "--image-scale", "0.75", "--seed", "4"]) == 0
+    pairs = [str(out / f"pair_{i:02d}_{s}.png") for i in range(3) for s in ("left", "right")]
+    base = ["track", "--calib", str(out / "calib.yaml"), "--marker", str(out / "marker_a.yaml"),
+            "--marker", str(out / "marker_b.yaml"), *pairs, "--json"]
+    lines = []
+    for extra in ([], ["--arm-processes"]):
+        capsys.readouterr()
+        assert main(base + extra) == 0
+        lines.append([json.loads(x) | {"time_ms": None} for x in capsys.readouterr().out.splitlines()])
+    assert len(lines[0]) == 6 and all(x["ok"] for x in lines[0]) and lines[1] == lines[0]
+
+
+def test_arm_processes_need_several_markers(capsys: pytest.CaptureFixture[str]) -> None:
+    rc = main(["track", "--calib", "configs/camera.yaml", "--arm-processes", "a.png", "b.png"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and "--arm-processes needs several --marker files" in err and len(err.splitlines()) == 1

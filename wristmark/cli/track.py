@@ -69,6 +69,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_config_option(p, "--marker", repeat=True,
                       note="repeat it for several arms (coded sleeves of one family, each naming its 'arm': "
                            "one JSON object per marker file and pair, with \"arm\"; image pairs only)")
+    p.add_argument("--arm-processes", action="store_true",
+                   help="with several --marker files: track every arm but the first in a worker process of its own "
+                        "(both cores at once; the same results; ~2-3 s to start, so for many pairs)")
     add_config_option(p, "--registration", note="the JSON then also has tip_world, in {w} and metres")
     p.add_argument("images", nargs="*", metavar="LEFT RIGHT", help="stereo pairs: left and right image paths")
     p.add_argument("--source", metavar="SPEC", help="frame source instead of image pairs: DIR, VIDEO, LEFT,RIGHT, "
@@ -235,6 +238,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--rt-priority needs --source SPEC (a live or paced source)")
     if args.record_jpeg and not args.record:
         raise InputError("--record-jpeg needs --record FILE.mcap")
+    if args.arm_processes and len(args.marker or []) < 2:
+        raise InputError("--arm-processes needs several --marker files (one worker per arm but the first)")
     if args.ros2 is not None:
         check_ros2(args.ros2)  # a valid namespace and cyclonedds installed, before anything is opened
     hint = None
@@ -284,8 +289,14 @@ def _track_arms(args: argparse.Namespace, camera: Any, markers: list[Any], hint:
 
     warm_up()
     tracker = ArmSetTracker(camera, markers, _settings(args), names=[str(f) for f in args.marker],
-                            search_every=1)  # image pairs: each pair may show any arm anywhere
+                            search_every=1, processes=args.arm_processes)  # image pairs: any arm anywhere
     hints = {m.arm: hint for m in markers} if hint is not None else None
+    with tracker:
+        return _print_arms(args, tracker, source, hints, fields)
+
+
+def _print_arms(args: argparse.Namespace, tracker: Any, source: Any, hints: Any, fields: Any) -> int:
+    """Each pair of ``source`` tracked by the arm set, one line per arm and pair."""
     for frame in iter(source.read, None):
         try:
             results = tracker.track(frame.left, frame.right, axis_hints_left=hints)

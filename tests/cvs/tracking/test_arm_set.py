@@ -231,3 +231,22 @@ def test_a_tip_its_corners_fix_loosely_at_their_contrast_noise_is_not_reported()
     strict = ArmSetTracker(THREE.camera, THREE.markers, threads=False, max_tip_sigma_m=1e-5)
     for r in strict.track(scene.left, scene.right).values():
         assert not r.ok and "uncertain" in r.reason and r.tip_left is None and r.T_left_marker is None
+
+
+def test_a_gate_computed_while_the_other_arms_are_searched_is_used_only_for_the_result_it_gated(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """In threads (or processes) an arm's result is gated while the other arms' ROI searches run;
+    where clearing then solves that arm again (here arm a, a neighbour's edge in a corner's
+    window), the new result is gated instead: the same results as in one thread, to the bit."""
+    import wristmark.cvs.tracking.arm_set as arm_set
+
+    monkeypatch.setattr(arm_set, "core_to_spare", lambda: True)
+    scene = _three_arm_scene()
+    one = ArmSetTracker(THREE.camera, THREE.markers, threads=False)
+    threads = ArmSetTracker(THREE.camera, THREE.markers)
+    for _ in range(2):  # the second pair in each arm's boxes: phase one in threads
+        want, got = one.track(scene.left, scene.right), threads.track(scene.left, scene.right)
+        for arm in THREE.names:
+            assert want[arm].ok == got[arm].ok and want[arm].reason == got[arm].reason
+            assert np.array_equal(want[arm].T_left_marker, got[arm].T_left_marker) or want[arm].T_left_marker is None
+    assert threads.stats == one.stats and threads.stats["refit"] >= 2

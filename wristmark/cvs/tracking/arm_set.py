@@ -2,8 +2,11 @@
 
 Each arm has its own :class:`MarkerTracker` (ROI tracking per arm). Per pair, first every arm
 that was tracked is searched in its own boxes only (``roi_only``; the arms side by side in
-worker threads); then the arms still missing are searched in whole frames in which the sleeves
-already found in this pair are painted out (the search finds one chain, the longest: a second
+worker threads, or with ``processes=True`` every arm but the first in a worker process of its
+own: cvs.tracking.arm_worker; each result's gate at its corners' contrast noise is computed
+while the others are searched, and used where clearing leaves the result as it was); then
+the arms still missing are searched in whole frames in which the sleeves already found in this
+pair are painted out (the search finds one chain, the longest: a second
 sleeve is found only once the first is gone); an arm missing from pair to pair is searched for
 again in the next pair, then in every ``search_every``-th pair only (a whole-frame search costs
 several ROI searches). A pose counts for an arm only when the sleeve's code says it is that arm (``res.code.arm``): a
@@ -16,9 +19,10 @@ across the family (cvs.marker.family).
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -26,6 +30,14 @@ from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera
 from wristmark.cvs.gray_image import check_view
+from wristmark.cvs.tracking.arm_worker import (
+    CALL_TIMEOUT_S,
+    ArmWorkerError,
+    PendingTrack,
+    RemoteTracker,
+    SharedFrames,
+    start_remote_trackers,
+)
 from wristmark.cvs.tracking.neighbour_corners import outlines, reached
 from wristmark.cvs.tracking.result import Array, TrackResult
 from wristmark.cvs.tracking.settings import TrackerSettings
@@ -35,7 +47,7 @@ from wristmark.models.marker import MarkerModel, check_marker_set
 
 Box = tuple[int, int, int, int]  # (u0, v0, u1, v1) [px], end exclusive
 
-__all__ = ["ArmSetTracker", "core_to_spare", "identity", "sleeve_boxes"]
+__all__ = ["ArmSetTracker", "ArmWorkerError", "core_to_spare", "identity", "sleeve_boxes"]
 
 
 def core_to_spare() -> bool:
@@ -81,6 +93,10 @@ def sleeve_boxes(camera: StereoCamera, marker: MarkerModel, T_left_marker: Array
     return out[0], out[1]
 
 
+def _given(res: TrackResult) -> TrackResult:
+    return res
+
+
 def _paint_out(img: NDArray[np.uint8], box: Box | None) -> None:
     """Fill ``box`` of ``img`` (in place) with the mean of its border: no edge crosses it."""
     if box is None:
@@ -100,10 +116,15 @@ class ArmSetTracker:
                  settings: TrackerSettings | None = None, names: Sequence[str] | None = None,
                  threads: bool = True, search_every: int = 3, clear_px: float = 6.0, body_lengths: float = 1.0,
                  edge_ratio: float = 0.3, max_sigma_ratio: float = 1.6, contrast_noise: float | None = None,
-                 max_tip_sigma_m: float | None = None) -> None:
+                 max_tip_sigma_m: float | None = None, processes: bool = False,
+                 worker_timeout_s: float = CALL_TIMEOUT_S) -> None:
         """``names``: the marker files' names for the messages (default the arms'); ``threads``:
         the arms' ROI searches run side by side in worker threads while the machine has a core to
-        spare (:func:`core_to_spare`; results are the same either way);
+        spare (:func:`core_to_spare`; results are the same either way); ``processes``: every arm
+        but the first is tracked in a worker process of its own instead (cvs.tracking.arm_worker:
+        started here, ~2-3 s, waited for; reused until :meth:`close`; the same results to the bit;
+        ``threads`` then unused), a worker that ends or does not answer within
+        ``worker_timeout_s`` [s] raising ``ArmWorkerError``;
         ``search_every``: an arm missing from pair to pair is searched for in the whole frames in
         every so many pairs (1: every pair); ``contrast_noise`` [px x grey levels],
         ``max_tip_sigma_m`` [m]: the gate on each arm's tip sigma at its corners' contrast noise
@@ -120,7 +141,14 @@ class ArmSetTracker:
         self.camera = camera
         self.markers = {str(m.arm): m for m in markers}
         self.arms = list(self.markers)
-        self.trackers = {a: MarkerTracker(camera, m, settings, family=markers) for a, m in self.markers.items()}
+        self.trackers: dict[str, MarkerTracker | RemoteTracker] = {}
+        self._frames: SharedFrames | None = None
+        if processes and len(markers) > 1:
+            self._frames, remotes = start_remote_trackers(camera, markers[1:], settings, markers, worker_timeout_s)
+            self.trackers = {self.arms[0]: MarkerTracker(camera, markers[0], settings, family=markers)}
+            self.trackers.update(zip(self.arms[1:], remotes))
+        else:
+            self.trackers = {a: MarkerTracker(camera, m, settings, family=markers) for a, m in self.markers.items()}
         self.search_every = int(search_every)
         self.clear_px, self.body_lengths, self.edge_ratio = float(clear_px), float(body_lengths), float(edge_ratio)
         self.max_sigma_ratio = float(max_sigma_ratio)
@@ -130,7 +158,24 @@ class ArmSetTracker:
         self._pairs_missing = 0
         # the arms' ROI searches side by side (OpenCV, numba and the solver release the GIL)
         self._pool = ThreadPoolExecutor(max_workers=len(markers) - 1, thread_name_prefix="arm-set") \
-            if threads and len(markers) > 1 else None
+            if threads and len(markers) > 1 and self._frames is None else None
+
+    def close(self) -> None:
+        """Stop the worker processes (``processes``) and threads; idempotent. The arm set tracks
+        no more pairs after it (a worker's arm would raise ArmWorkerError)."""
+        for t in self.trackers.values():
+            if isinstance(t, RemoteTracker):
+                t.close()
+        if self._frames is not None:
+            self._frames.close()
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+
+    def __enter__(self) -> ArmSetTracker:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
     def reset(self) -> None:
         """Forget every arm's ROI state (the next pair searches the whole frames for every arm)."""
@@ -150,16 +195,22 @@ class ArmSetTracker:
         results: dict[str, TrackResult] = {}
         found: list[TrackResult] = []
         tracked = [a for a in self.arms if self.trackers[a].tracking]
-        jobs = {a: self._pool.submit(self.trackers[a].track, il, ir, hints.get(a), True, False) for a in tracked[1:]} \
-            if self._pool is not None and len(tracked) > 1 and core_to_spare() else {}
-        for arm in tracked:  # each arm that was tracked, in its own boxes only (one per thread)
+        jobs = self._start_rois(tracked, il, ir, hints)
+        early: dict[str, tuple[TrackResult, Callable[[], TrackResult]]] = {}  # gates of phase one's results
+        for arm in tracked:  # each arm that was tracked, in its own boxes only (one per thread or process)
             trk = self.trackers[arm]
-            res = jobs[arm].result() if arm in jobs else trk.track(il, ir, axis_hint_left=hints.get(arm), roi_only=True,
-                                                                   contrast_gate=False)
+            job = jobs.get(arm)
+            res = job.result() if job is not None else trk.track(il, ir, axis_hint_left=hints.get(arm), roi_only=True,
+                                                                 contrast_gate=False)
             who = identity(res)
             if who == arm:
                 results[arm] = res
                 found.append(res)
+                if isinstance(job, PendingTrack):  # gated in the worker meanwhile
+                    early[arm] = (res, job.gated)
+                elif job is None and jobs:  # gated now, while the other arms' searches run elsewhere
+                    early[arm] = (res, partial(_given, trk.contrast_gate(res, (il, ir), self.contrast_noise,
+                                                                         self.max_tip_sigma_m)))
             else:  # lost, or its boxes caught another sleeve: searched again below
                 trk.reset()
         pending = [a for a in self.arms if a not in results]
@@ -171,7 +222,7 @@ class ArmSetTracker:
         if still and self._pairs_missing > 1 and self._pairs_missing % self.search_every:
             return self._gated(self._clear({a: self._own(a, results[a]) if a in results else self._missing(
                 "not in view (searched for " f"every {self.search_every} pairs)") for a in self.arms}, (il, ir)),
-                (il, ir))
+                (il, ir), early)
         self._missing_last = set(pending)  # what the whole-frame search below does not find stays missing
         masked: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None
         failures: list[str] = []
@@ -217,7 +268,22 @@ class ArmSetTracker:
         self._missing_last = set(pending)
         for arm in pending:
             results[arm] = self._missing("not found; " + "; ".join(failures) if failures else "not in view")
-        return self._gated(self._clear({a: self._own(a, results[a]) for a in self.arms}, (il, ir)), (il, ir))
+        return self._gated(self._clear({a: self._own(a, results[a]) for a in self.arms}, (il, ir)), (il, ir), early)
+
+    def _start_rois(self, tracked: list[str], il: NDArray[np.uint8], ir: NDArray[np.uint8],
+                    hints: Mapping[str, Array]) -> dict[str, Any]:
+        """Phase one's ROI searches started elsewhere (each with ``.result()``): every tracked arm
+        of a worker process (the pair copied once into the buffer they share), or every tracked
+        arm but the first in threads while a core is to spare; the others run in this thread."""
+        remote = {a: t for a in tracked if isinstance(t := self.trackers[a], RemoteTracker)}
+        if remote and self._frames is not None:
+            shapes = self._frames.put(il, ir)
+            after = (self.contrast_noise, self.max_tip_sigma_m)
+            return {a: t.submit(shapes, hints.get(a), True, False, after) for a, t in remote.items()}
+        if self._pool is not None and len(tracked) > 1 and core_to_spare():
+            return {a: self._pool.submit(self.trackers[a].track, il, ir, hints.get(a), True, False)
+                    for a in tracked[1:]}
+        return {}
 
     def _clear(self, results: dict[str, TrackResult], images: tuple[Any, Any]) -> dict[str, TrackResult]:
         """Each arm's pose solved again without its corners another arm's edges may reach (a
@@ -256,13 +322,17 @@ class ArmSetTracker:
                 self.stats["kept"] += 1
         return out
 
-    def _gated(self, results: dict[str, TrackResult], images: tuple[Any, Any]) -> dict[str, TrackResult]:
+    def _gated(self, results: dict[str, TrackResult], images: tuple[Any, Any],
+               early: Mapping[str, tuple[TrackResult, Callable[[], TrackResult]]]) -> dict[str, TrackResult]:
         """Each good result through its tracker's gate on the tip sigma at the corners' contrast
         noise and residuals (MarkerTracker.contrast_gate; after clearing, on the corners the pose
         uses): a small, dark sleeve near the image's edge has 3-4 corners a view of 0.25-0.35 px
         noise (three arms seed 2, sequence 8, arm c, 4 + 4 corners, 0.72 mm off at 0.19 mm of sigma
-        at 0.1 px, 0.56 mm at their contrast; docs/notes/several-arms.md)."""
-        return {a: self.trackers[a].contrast_gate(r, images, self.contrast_noise, self.max_tip_sigma_m)
+        at 0.1 px, 0.56 mm at their contrast; docs/notes/several-arms.md). ``early``: per arm, a
+        result of phase one and its gate, computed while other arms were searched (a function of
+        the result and the images only): used where clearing left that result as it was."""
+        return {a: early[a][1]() if a in early and early[a][0] is r else
+                self.trackers[a].contrast_gate(r, images, self.contrast_noise, self.max_tip_sigma_m)
                 for a, r in results.items()}
 
     def _own(self, arm: str, res: TrackResult) -> TrackResult:

@@ -101,7 +101,7 @@ def test_a_refit_in_the_worker_is_the_one_of_this_process(remote_set: ArmSetTrac
     res = local.track(scene.left, scene.right)["b"]
     _same(res, remote_set.track(scene.left, scene.right)["b"])
     kl, kr = np.ones(len(res.corners_left), bool), np.ones(len(res.corners_right), bool)
-    kl[np.flatnonzero(res.match.index_left >= 0)[0]] = False
+    kr[np.flatnonzero(res.match.index_right >= 0)[0]] = False  # the right view has a corner to spare
     want = local.trackers["b"].refit(res, kl, kr)
     assert isinstance(want, TrackResult) and want.ok
     _same(want, remote_set.trackers["b"].refit(res, kl, kr))

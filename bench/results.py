@@ -369,7 +369,9 @@ def render_several_arms(r: dict[str, Any]) -> list[str]:
                      f"{_f(a['tip_mean_mm_alone'], 3)} | {_f(a['tip_max_mm_together'], 3)} / "
                      f"{_f(a['tip_max_mm_alone'], 3)} | {_f(h.get('tip_mean_mm_together'), 3)} / "
                      f"{_f(h.get('tip_mean_mm_alone'), 3)} ({h.get('pairs', '-')} pairs) |")
-    return [*lines, "", f"Tracking time per pair (medians of this run): all sleeves together "
+    how = ("every arm but the first in a worker process of its own" if r.get("processes")
+           else "the arms in threads as the arm set decides")
+    return [*lines, "", f"Tracking time per pair (medians of this run; {how}): all sleeves together "
             f"{_f(t.get('together_median'), 1)} ms, one arm alone {_f(t.get('one_arm_median'), 1)} ms, ratio "
             f"{_f(t.get('ratio'))}."]
 
@@ -427,11 +429,11 @@ ENTRIES: tuple[Entry, ...] = (
     Entry("chessboard", "Calibration corners on real chessboard photographs",
           (PY, "bench/real_chessboard.py"), 300, render_chessboard),
     Entry("several_arms", "Several sleeves in one pair: two arms",
-          (PY, "bench/several_arms.py", "--sequences", "20", "--pairs", "10", "--seed", "1"), 600,
+          (PY, "bench/several_arms.py", "--sequences", "20", "--pairs", "10", "--seed", "1", "--processes"), 600,
           render_several_arms),
     Entry("several_arms_three", "Several sleeves in one pair: three arms",
           (PY, "bench/several_arms.py", "--scene", "configs/scenes/three_arms.yaml", "--sequences", "20",
-           "--pairs", "10", "--seed", "1"), 900, render_several_arms),
+           "--pairs", "10", "--seed", "1", "--processes"), 900, render_several_arms),
     Entry("scene_cube", "Two arms each walking a cube in one view",
           ("wristmark", "experiment", "cube", "--scene", "configs/scenes/two_arms.yaml", "--no-progress", "--force",
            "--out", f"{OUT}/scene_cube", "--json", f"{OUT}/scene_cube.json"), 1800, render_scene_cube,

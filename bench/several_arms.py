@@ -156,7 +156,8 @@ def main() -> None:
     scene_trk.close()
     out: dict[str, Any] = {"scene": args.scene, "pairs": args.sequences * args.pairs, "scale": args.scale,
                            "image_size": list(cam.image_size), "identity_swaps": swaps, "wrong": wrong,
-                           "wrong_alone": wrong_alone, "alone_background": args.alone_background, "arms": {}}
+                           "wrong_alone": wrong_alone, "alone_background": args.alone_background,
+                           "processes": bool(args.processes), "arms": {}}
     for n, st in stats.items():
         tg, al = np.array(st["together"]) * 1000, np.array(st["alone"]) * 1000
         hid = np.array(st["hidden"], bool)

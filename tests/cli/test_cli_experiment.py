@@ -139,3 +139,14 @@ def test_orientation_refusals(tmp_path: Path, args: tuple[str, ...], message: st
     assert r.returncode == 2, r.stderr
     assert message in r.stderr and "Traceback" not in r.stderr
     assert not (tmp_path / "run" / "log.csv").exists()  # refused before anything moved
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (("cube", "--arm-processes"), "--arm-processes needs --scene"),
+    (("cube", "--hold", "a"), "--hold needs --scene"),
+])
+def test_scene_options_without_a_scene_are_refused(tmp_path: Path, args: tuple[str, ...], message: str) -> None:
+    r = wristmark("experiment", *args, "--out", str(tmp_path / "run"), "--no-progress")
+    assert r.returncode == 2, r.stderr
+    assert message in r.stderr and "Traceback" not in r.stderr
+    assert not (tmp_path / "run").exists()

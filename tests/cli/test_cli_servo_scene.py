@@ -124,6 +124,7 @@ def test_several_boxes_or_hold_need_a_scene(capsys: pytest.CaptureFixture[str]) 
     assert "need --scene" in refused(capsys, "--serial", "/dev/pts/98", "--serial", "/dev/pts/99", *CAMERA)
     assert "--model given 2 times" in refused(capsys, "--model", "a.yaml", "--model", "b.yaml")
     assert "--hold needs --scene" in refused(capsys, "--hold", "a")
+    assert "--arm-processes needs --scene" in refused(capsys, "--arm-processes")
     assert "targets need --scene" in refused(capsys, "--target", "stdin", "--target", "tcp:127.0.0.1:0")
     assert "--actuator given 2 times: several arms need --scene" in refused(
         capsys, "--actuator", "ros2:/lab/a", "--actuator", "ros2:/lab/b", *CAMERA)

@@ -4,6 +4,7 @@ sleeve's pose; the result and the table report it per arm."""
 
 from __future__ import annotations
 
+import csv
 from pathlib import Path
 
 import pytest
@@ -41,3 +42,22 @@ def test_a_position_only_controller_is_refused_naming_the_arm(tmp_path: Path) ->
     with pytest.raises(ConfigError, match="arm 'a': --orientation follow needs --controller qp"):
         scene_trajectories(setup, 1.0, (), "follow")
     assert set(scene_trajectories(setup, 1.0)) == {"a", "b"}  # position only: every arm's path
+
+
+@pytest.mark.slow
+def test_the_arms_tracked_in_worker_processes_walk_exactly_as_in_one(tmp_path: Path) -> None:
+    """``processes=True`` (`experiment cube --scene --arm-processes`): arm b's sleeve tracked in a
+    worker process of its own; every logged cycle of both arms the same as with the arms in one
+    process, but for the wall-clock timings, and the worker stopped at the end."""
+    import multiprocessing
+
+    setup = load_scene_setup(SCENE, controller=FAST)
+    for procs in (False, True):
+        run_scene_cube(setup, tmp_path / f"run_{procs}", duration=1.0, processes=procs)
+    assert not multiprocessing.active_children()
+    timing = {"t_wall", "ctrl_us", "vision_ms"}
+    for n in ("a", "b"):
+        rows = [list(csv.DictReader((tmp_path / f"run_{p}" / f"log_{n}.csv").open())) for p in (False, True)]
+        assert len(rows[0]) == len(rows[1]) > 30
+        for one, two in zip(*rows):
+            assert {k for k in one if one[k] != two[k]} <= timing

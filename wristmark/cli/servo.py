@@ -110,6 +110,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "docs/hardware.md")
     p.add_argument("--hold", action="append", metavar="NAME",
                    help="with --scene: this arm holds its workspace centre while the others walk (repeatable)")
+    p.add_argument("--arm-processes", action="store_true",
+                   help="with --scene: track every arm but the first in a worker process of its own (the same results; "
+                        "faster only with a core to spare, e.g. on hardware, not beside a virtual lab; ~2 s to start)")
     p.add_argument("--camera", metavar="SPEC",
                    help="with --serial: the stereo camera's frame source (/dev/videoN, http://..., a video, "
                         "ros2:LEFT,RIGHT; docs/frame_sources.md); the calibration is --calib")
@@ -387,6 +390,8 @@ def run(args: argparse.Namespace) -> int:
         return run_scene(args)
     if args.hold:
         raise InputError("--hold needs --scene (several arms in one view)")
+    if args.arm_processes:
+        raise InputError("--arm-processes needs --scene (several arms in one view)")
     if args.serials and len(args.serials) > 1:
         raise InputError(f"--serial given {len(args.serials)} times: several actuator boxes need --scene SCENE "
                          "(--serial NAME=PORT per arm)")

@@ -190,7 +190,8 @@ def run_scene(args: argparse.Namespace) -> int:
                                    {n: stores[n] for n, (how, _) in live.items() if how == "ros2"},
                                    participant=participant)
         session = open_arm_set_session(setups, ports, args.camera, scene_camera, options,
-                                       camera_timeout=args.camera_timeout, participant=participant)
+                                       camera_timeout=args.camera_timeout, participant=participant,
+                                       processes=args.arm_processes)
         if bridges is not None:
             bridges.links = dict(session.links)
         recorder = open_scene_recorder(args, setups, scene_camera, session)

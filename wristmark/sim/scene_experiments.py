@@ -39,16 +39,18 @@ def scene_trajectories(setup: SceneSetup, duration: float | None = None,
 def run_scene_cube(setup: SceneSetup, out_dir: Path, duration: float | None = None,
                    hold: tuple[str, ...] = (), seed: int | None = None,
                    on_cycle: Callable[[str, CycleRecord], None] | None = None,
-                   orientation: str = "none") -> dict[str, Any]:
+                   orientation: str = "none", processes: bool = False) -> dict[str, Any]:
     """Every arm's cube, open loop then closed loop on fresh arms, all at once; writes the run
     folder. ``on_cycle(arm, record)`` is called after every cycle of every arm (a live view's);
     ``orientation`` (none | hold | follow): the tip frame's orientation every arm's path asks for
-    (its errors in result.json, as the one-arm experiment's)."""
+    (its errors in result.json, as the one-arm experiment's); ``processes``: the closed loop's
+    tracker runs every arm but the first in a worker process of its own (the same results)."""
     trajs = scene_trajectories(setup, duration, hold, orientation)
     out_dir.mkdir(parents=True, exist_ok=True)
     write_json(out_dir / "config.json", {"experiment": "cube", **setup.describe()})
     logs = {n: RunLog.for_arm(s.params) for n, s in setup.arms.items()}
-    walks = {phase: walk_scene(setup, trajs, phase == "closed_loop", phase, logs=logs, seed=seed, on_cycle=on_cycle)
+    walks = {phase: walk_scene(setup, trajs, phase == "closed_loop", phase, logs=logs, seed=seed, on_cycle=on_cycle,
+                               processes=processes)
              for phase in ("open_loop", "closed_loop")}
     rig = next(iter(setup.arms.values())).rig
     arms: dict[str, Any] = {}

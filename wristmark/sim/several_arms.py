@@ -88,14 +88,15 @@ def _clock_of(link: DirectLink) -> Callable[[], float]:
 
 def walk_scene(setup: SceneSetup, trajectories: Mapping[str, Trajectory], closed_loop: bool, phase: str,
                logs: Mapping[str, RunLog] | None = None, seed: int | None = None,
-               on_cycle: Callable[[str, CycleRecord], None] | None = None) -> SceneWalk:
+               on_cycle: Callable[[str, CycleRecord], None] | None = None, processes: bool = False) -> SceneWalk:
     """Walk each arm's trajectory (in its own {w}, after the rig's settle time at its start) on
     fresh simulated arms, all in lockstep, open loop or closed loop on the one camera; log each
     arm's cycles under ``phase`` into ``logs`` (default new logs). An arm whose marker stays lost
     is held and stops; the others go on. ConfigError before anything runs: a trajectory missing
     for an arm or out of its reach, arms that overlap at their start. A controller that probes its
     play (rig/loop/play_probe.py) probes it first, one arm at a time, the others holding.
-    ``on_cycle(arm, record)`` is called after every logged cycle (e.g. a live view's)."""
+    ``on_cycle(arm, record)`` is called after every logged cycle (e.g. a live view's);
+    ``processes``: the tracker's arms but the first in worker processes (stopped at the end)."""
     names = setup.names
     missing = [n for n in names if n not in trajectories]
     if missing:
@@ -116,69 +117,73 @@ def walk_scene(setup: SceneSetup, trajectories: Mapping[str, Trajectory], closed
         frames = SceneFrames(list(plants.values()), [setup.base(n) for n in names], setup.render_camera,
                              setup.markers, noise=rig.render_noise, seed=seed, age=rig.frame_age,
                              gloss=(rig.sleeve_specular, rig.sleeve_roughness))
-        sensor = ArmSetSensor(setup.render_camera, setup.markers, magnify=rig.tracker_magnify)
-    loops: dict[str, ServoLoop] = {}
-    for i, n in enumerate(names):
-        s = setup.arms[n]
-        controller = make_controller(s.params, s.controller) if closed_loop else None
-        if controller is not None and setup.scene.clearance > 0 and not controller.supports_obstacles:
-            raise ConfigError(f"several arms: controller '{s.controller.kind}' cannot keep a clearance; use kind qp "
-                              "or set the scene's clearance to 0")
-        link = links[n]
-        W = np.asarray(s.camera.T_world_left, float)
-        loops[n] = ServoLoop(s.params, rig, link,
-                             frames=None if frames is None else frames.feed(_clock_of(link)),
-                             sensor=None if sensor is None else sensor.view(n, W),
-                             truth=make_truth(s, plants[n], seed + 100 * i), controller=controller,
-                             on_cycle=None if on_cycle is None else functools.partial(on_cycle, n))
-        loops[n].start_at(psi0[n])
-    logs = dict(logs) if logs is not None else {n: RunLog.for_arm(setup.arms[n].params) for n in names}
-    stats = {n: PhaseStats() for n in names}
-    memory = {n: TrackingMemory() for n in names}
-    stopped = {n: "" for n in names}
-    dt = rig.control_dt
-    settle = {n: int(round(rig.settle_time / dt)) for n in names}
-    for n in names:  # a controller that probes its play: settle and probe, one arm at a time
-        ctrl = loops[n].controller
-        if ctrl is not None and ctrl.wants_play_probe:
-            settle[n] = loops[n].probe_play(trajectories[n], phase, logs[n], stats[n], memory[n], settle[n])
-    n_cycles = max(settle[n] + int(np.floor(trajectories[n].duration / dt)) + 1 for n in names)
-    t0 = max(loop.t for loop in loops.values())  # one clock again: the arms that did not probe held
-    walk = SceneWalk({})
-    offsets: dict[str, Array] = {}
-    active = list(names)
-    for k in range(n_cycles):
-        if not active:
-            break
-        targets = {n: cycle_target(trajectories[n], rig, k, t0 + k * dt, settle[n]) for n in active}
-        for n in active:
-            loops[n].advance_to(targets[n].t)
-        if closed_loop and setup.scene.clearance > 0:
-            model_offsets(loops, offsets)
-            _set_obstacles(setup, loops, offsets)
-        gap = least_distance(_true_bodies(setup, plants))
-        if gap < walk.least_distance_m:
-            walk.least_distance_m, walk.least_at_s = gap, loops[names[0]].elapsed(t0 + k * dt)
-        for n in list(active):
-            try:
-                rec = loops[n].step(targets[n], phase, closed_loop, memory[n], stats[n])
-            except MarkerLostError as e:  # that arm held; the others walk on
-                if e.record is not None:
-                    logs[n].add(e.record)
-                    if on_cycle is not None:
-                        on_cycle(n, e.record)
-                stopped[n] = stats[n].stopped or str(e)
-                active.remove(n)
-                continue
-            logs[n].add(rec)
-            if on_cycle is not None:
-                on_cycle(n, rec)
-        if sensor is not None:
-            walk.tracking_ms.append(sensor.last_ms)
-    for n in names:
-        summary = phase_summary(logs[n], phase, trajectories[n])
-        walk.arms[n] = ArmWalk(logs[n], stats[n], summary, stopped[n])
-    return walk
+        sensor = ArmSetSensor(setup.render_camera, setup.markers, magnify=rig.tracker_magnify, processes=processes)
+    try:
+        loops: dict[str, ServoLoop] = {}
+        for i, n in enumerate(names):
+            s = setup.arms[n]
+            controller = make_controller(s.params, s.controller) if closed_loop else None
+            if controller is not None and setup.scene.clearance > 0 and not controller.supports_obstacles:
+                raise ConfigError(f"several arms: controller '{s.controller.kind}' cannot keep a clearance; use kind "
+                                  "qp or set the scene's clearance to 0")
+            link = links[n]
+            W = np.asarray(s.camera.T_world_left, float)
+            loops[n] = ServoLoop(s.params, rig, link,
+                                 frames=None if frames is None else frames.feed(_clock_of(link)),
+                                 sensor=None if sensor is None else sensor.view(n, W),
+                                 truth=make_truth(s, plants[n], seed + 100 * i), controller=controller,
+                                 on_cycle=None if on_cycle is None else functools.partial(on_cycle, n))
+            loops[n].start_at(psi0[n])
+        logs = dict(logs) if logs is not None else {n: RunLog.for_arm(setup.arms[n].params) for n in names}
+        stats = {n: PhaseStats() for n in names}
+        memory = {n: TrackingMemory() for n in names}
+        stopped = {n: "" for n in names}
+        dt = rig.control_dt
+        settle = {n: int(round(rig.settle_time / dt)) for n in names}
+        for n in names:  # a controller that probes its play: settle and probe, one arm at a time
+            ctrl = loops[n].controller
+            if ctrl is not None and ctrl.wants_play_probe:
+                settle[n] = loops[n].probe_play(trajectories[n], phase, logs[n], stats[n], memory[n], settle[n])
+        n_cycles = max(settle[n] + int(np.floor(trajectories[n].duration / dt)) + 1 for n in names)
+        t0 = max(loop.t for loop in loops.values())  # one clock again: the arms that did not probe held
+        walk = SceneWalk({})
+        offsets: dict[str, Array] = {}
+        active = list(names)
+        for k in range(n_cycles):
+            if not active:
+                break
+            targets = {n: cycle_target(trajectories[n], rig, k, t0 + k * dt, settle[n]) for n in active}
+            for n in active:
+                loops[n].advance_to(targets[n].t)
+            if closed_loop and setup.scene.clearance > 0:
+                model_offsets(loops, offsets)
+                _set_obstacles(setup, loops, offsets)
+            gap = least_distance(_true_bodies(setup, plants))
+            if gap < walk.least_distance_m:
+                walk.least_distance_m, walk.least_at_s = gap, loops[names[0]].elapsed(t0 + k * dt)
+            for n in list(active):
+                try:
+                    rec = loops[n].step(targets[n], phase, closed_loop, memory[n], stats[n])
+                except MarkerLostError as e:  # that arm held; the others walk on
+                    if e.record is not None:
+                        logs[n].add(e.record)
+                        if on_cycle is not None:
+                            on_cycle(n, e.record)
+                    stopped[n] = stats[n].stopped or str(e)
+                    active.remove(n)
+                    continue
+                logs[n].add(rec)
+                if on_cycle is not None:
+                    on_cycle(n, rec)
+            if sensor is not None:
+                walk.tracking_ms.append(sensor.last_ms)
+        for n in names:
+            summary = phase_summary(logs[n], phase, trajectories[n])
+            walk.arms[n] = ArmWalk(logs[n], stats[n], summary, stopped[n])
+        return walk
+    finally:
+        if sensor is not None:  # its worker processes, if any
+            sensor.close()
 
 
 def walk_errors(walk: SceneWalk, phase: str) -> dict[str, tuple[float, float]]:

@@ -31,12 +31,16 @@ __all__ = ["ArmSetSensor", "ArmSensorView"]
 class ArmSetSensor:
     """The sleeves of a marker set tracked in each frame of one stereo camera (poses in {ll})."""
 
-    def __init__(self, camera: StereoCamera, markers: Sequence[MarkerModel], magnify: float = 1.0) -> None:
+    def __init__(self, camera: StereoCamera, markers: Sequence[MarkerModel], magnify: float = 1.0,
+                 processes: bool = False) -> None:
+        """``processes``: every arm but the first tracked in a worker process of its own
+        (cvs.tracking.arm_set; the same results, faster only with a core to spare); :meth:`close`
+        stops them."""
         from wristmark.cvs.tracking.arm_set import ArmSetTracker
         from wristmark.cvs.tracking.settings import TrackerSettings
 
         self.camera = camera
-        self.tracker = ArmSetTracker(camera, markers, TrackerSettings(magnify=magnify))
+        self.tracker = ArmSetTracker(camera, markers, TrackerSettings(magnify=magnify), processes=processes)
         self.hints: dict[str, Array] = {}
         self._frame_index: int | None = None
         self._frame: StereoFrame | None = None
@@ -51,6 +55,10 @@ class ArmSetSensor:
             self.last_ms = 1000.0 * (time.perf_counter() - t0)
             self._frame, self._frame_index = frame, frame.index
         return self._results
+
+    def close(self) -> None:
+        """Stop the tracker's worker processes and threads (idempotent)."""
+        self.tracker.close()
 
     def view(self, arm: str, T_world_left: Array) -> ArmSensorView:
         """Arm ``arm``'s tip sensor in its own {w}: ``T_world_left``, the pose of {ll} in that {w}."""

@@ -283,10 +283,11 @@ class BudgetedArmSetSensor(ArmSetSensor):
     frame (as :class:`rig.loop.tip_sensors.DeadlineTipSensor` does for one arm: no cycle outlasts
     the boxes' watchdog); a frame that comes while the worker is busy is not measured."""
 
-    def __init__(self, camera: StereoCamera, markers: Sequence[Any], budget: float, magnify: float = 1.0) -> None:
+    def __init__(self, camera: StereoCamera, markers: Sequence[Any], budget: float, magnify: float = 1.0,
+                 processes: bool = False) -> None:
         from concurrent.futures import ThreadPoolExecutor
 
-        super().__init__(camera, markers, magnify=magnify)
+        super().__init__(camera, markers, magnify=magnify, processes=processes)
         if not budget > 0:
             raise ValueError(f"budget must be > 0 s, got {budget}")
         self.budget = float(budget)
@@ -322,8 +323,9 @@ class BudgetedArmSetSensor(ArmSetSensor):
         return _BudgetedView(self, arm, np.asarray(T_world_left, float))
 
     def close(self) -> None:
-        """Let a running tracking finish and stop the worker."""
+        """Let a running tracking finish and stop the worker (and the tracker's worker processes)."""
         self._pool.shutdown(wait=True)
+        super().close()
 
 
 class _BudgetedView(ArmSensorView):
@@ -485,14 +487,16 @@ class ArmSetSession:
 
 def open_arm_set_session(setups: Mapping[str, LoopSetup], ports: Mapping[str, str], camera: str,
                          scene_camera: StereoCamera, options: LinkOptions, camera_timeout: float = 2.0,
-                         participant: Any = None) -> ArmSetSession:
+                         participant: Any = None, processes: bool = False) -> ArmSetSession:
     """Open every arm's box (PING, GET_STATE: nothing enabled, nothing moved; a box that does not
     answer or does not fit its arm: one line naming the arm and the port) and the camera; check
     its first frame's size against ``scene_camera`` (at the rig's image scale) and track every
     sleeve in it once, before any motion. ``options.kind`` ros2: ``ports`` are the arms' ROS 2
     namespaces, each arm's driver reached by a rig.ros2.actuator_link.Ros2ActuatorLink on
     ``participant`` (one of dds_config.open_participant for the process; its first measured_js
-    awaited, nothing enabled); a ``ros2:LEFT,RIGHT`` camera on that participant too."""
+    awaited, nothing enabled); a ``ros2:LEFT,RIGHT`` camera on that participant too.
+    ``processes``: the tracker's arms but the first in worker processes of their own
+    (cvs.tracking.arm_set), started before any box is opened."""
     from wristmark.cvs.sources.open_source import SourceOptions
     from wristmark.rig.link.actuator_driver import ActuatorDriver, ActuatorError
     from wristmark.rig.loop.hardware_session import first_frame
@@ -502,6 +506,9 @@ def open_arm_set_session(setups: Mapping[str, LoopSetup], ports: Mapping[str, st
     links: dict[str, Any] = {}
     first_setup = next(iter(setups.values()))
     timeout = options.timeout if options.timeout is not None else HW_TIMEOUT_S
+    cam = first_setup._scaled(scene_camera)
+    sensor = BudgetedArmSetSensor(cam, [s.marker for s in setups.values()], first_setup.rig.tracking_budget,
+                                  magnify=first_setup.rig.tracker_magnify, processes=processes)
     try:
         for name, setup in setups.items():
             try:
@@ -522,10 +529,8 @@ def open_arm_set_session(setups: Mapping[str, LoopSetup], ports: Mapping[str, st
     except BaseException:
         for link in links.values():
             link.close()
+        sensor.close()
         raise
-    cam = first_setup._scaled(scene_camera)
-    sensor = BudgetedArmSetSensor(cam, [s.marker for s in setups.values()], first_setup.rig.tracking_budget,
-                                  magnify=first_setup.rig.tracker_magnify)
     session = ArmSetSession(links, dict(ports), SharedFrameFeed(LatestFrameFeed(source)), sensor, camera, options)
     try:
         first = first_frame(session.feed.feed, cam, camera)

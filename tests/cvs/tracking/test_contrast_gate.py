@@ -82,3 +82,29 @@ def test_the_gate_settings_are_checked() -> None:
     for bad in ({"max_contrast_tip_sigma_m": 0.0}, {"gate_contrast_noise": -1.0}, {"gate_min_spacing_px": np.nan}):
         with pytest.raises(InputError):
             TrackerSettings(**bad)  # type: ignore[arg-type]
+
+
+# A pose of the in-process cube at the virtual lab's image scale (0.35 x 1080p, `wristmark
+# experiment cube --image-scale 0.35`), where the gate on corners 16 px apart refused every frame.
+LAB_SCALE = 0.35
+LAB_PSI = [-0.1341, 0.0057, 0.3991, 0.1478, 0.8588, -0.0438]
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_corners_closer_than_the_measured_spacing_keep_the_pose(seed: int) -> None:
+    """The contrast relation was measured on corners 23-80 px apart; at 16 px it gives 0.53 mm
+    of sigma to a pose 0.15-0.21 mm off, and the loop stopped there for a lost marker. Under
+    gate_min_spacing_px the gate is not applied (the 0.1 px gate still is)."""
+    from wristmark.cvs.camera import scaled_stereo_camera
+    from wristmark.sim.setup import load_setup
+
+    one = load_setup()
+    cam = scaled_stereo_camera(one.camera, LAB_SCALE)
+    pair = StereoRenderer(cam, one.marker, RenderSettings(), seed=seed).render(arm_shape(one.params, np.array(LAB_PSI)))
+    res = MarkerTracker(cam, one.marker).track(pair.left, pair.right)
+    assert res.ok, res.reason
+    assert res.tip_left is not None and np.linalg.norm(res.tip_left - pair.tip_left) < 0.3e-3
+    gaps = np.concatenate([np.hypot(*np.diff(c, axis=0).T) for c in (res.corners_left, res.corners_right)])
+    assert 16.0 <= np.median(gaps) < TrackerSettings().gate_min_spacing_px  # the regime of the lab
+    old = MarkerTracker(cam, one.marker, TrackerSettings(gate_min_spacing_px=16.0)).track(pair.left, pair.right)
+    assert not old.ok and "contrast noise" in old.reason  # what the 16 px floor did

@@ -85,10 +85,12 @@ class TrackerSettings:
     (0.25-0.35 px of noise: 0.53-0.57 mm off at 0.2 mm of sigma at 0.1 px) and a fit whose
     residual exceeds its corners' noise (3 stereo pairs at 0.31 px: 0.76 mm off) were reported
     under every other gate; the corners' ROIs are kept (docs/notes/highlight-stripe.md). Not
-    where the chains' median spacing is under gate_min_spacing_px (the contrast relation was
-    measured on corners 23-80 px apart; a quarter-size sleeve's 8 px corners keep the gate at
-    corner_sigma_px alone). gate_contrast_noise 0 or max_contrast_tip_sigma_m inf disables
-    (cvs.tracking.arm_set applies the same gate after clearing each arm's corners)."""
+    where the chains' median spacing is under gate_min_spacing_px (23 px: the contrast relation
+    was measured on corners 23-80 px apart; below, it overstates the noise: at 0.35 x 1080p, 16 px
+    apart, it gave 0.5-0.6 mm of sigma to poses 0.15 mm off, and the loop stopped for a lost
+    marker; such corners keep the gate at corner_sigma_px alone). gate_contrast_noise 0 or
+    max_contrast_tip_sigma_m inf disables (cvs.tracking.arm_set applies the same gate after
+    clearing each arm's corners)."""
 
     min_corners: int = 3
     min_pairs: int = 2
@@ -115,7 +117,7 @@ class TrackerSettings:
     clipped_radius: float = 0.25
     gate_contrast_noise: float = 7.0
     max_contrast_tip_sigma_m: float = 0.5e-3
-    gate_min_spacing_px: float = 16.0
+    gate_min_spacing_px: float = 23.0
     paper_detector: DetectorSettings = field(default_factory=DetectorSettings)
     magnify_below_px: float = 20.0
 

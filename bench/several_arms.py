@@ -13,7 +13,9 @@ towards the first arm and 10-22 mm in front of or behind it (the arms cross and 
 another's sleeves), else by up to ``--spread`` [m] along x and 0.02 m along y (depth) and z. Per pair the same
 arms are also rendered alone (one arm, one sleeve: the one-arm figure), on the scene's own
 background and sensor noise (``--alone-background same``; ``other``: each on another renderer
-seed's, as the bench did before 5 December 2026), and tracked by a one-arm MarkerTracker each. Prints JSON:
+seed's, as the bench did before 5 December 2026), and tracked by a one-arm MarkerTracker each,
+with the arm set's settings (corners only: the one-arm default also fits the print's bars,
+cvs.tracking.print_edges, which the arm set does not). Prints JSON:
 
 - ``identity_swaps``: poses reported for an arm that lie nearer another arm's truth (must be 0);
   ``wrong``: reported tips off their own truth by over 0.5 mm (``wrong_alone``: the same for the
@@ -91,7 +93,9 @@ def main() -> None:
     scene_trk = ArmSetTracker(cam, markers, processes=args.processes)  # closed below (or at exit)
     for seq in range(args.sequences):
         scene_trk.reset()
-        alone_trk = [MarkerTracker(cam, m, family=markers) for m in markers]
+        # each arm alone with the arm set's own settings (corners only, no print bars:
+        # cvs.tracking.arm_set), so that together and alone differ by the other arms only
+        alone_trk = [MarkerTracker(cam, m, scene_trk.settings, family=markers) for m in markers]
         bases = []
         for i, n in enumerate(names):
             B = setup.base(n).copy()

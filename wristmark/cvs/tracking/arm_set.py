@@ -129,7 +129,9 @@ class ArmSetTracker:
         every so many pairs (1: every pair); ``contrast_noise`` [px x grey levels],
         ``max_tip_sigma_m`` [m]: the gate on each arm's tip sigma at its corners' contrast noise
         (MarkerTracker.contrast_gate, after clearing; default the settings'
-        ``gate_contrast_noise`` and ``max_contrast_tip_sigma_m``)."""
+        ``gate_contrast_noise`` and ``max_contrast_tip_sigma_m``). With several arms the trackers
+        solve from the corners alone (``edge_sigma_px`` 0: another sleeve can stand in a bar's
+        search, cvs.tracking.print_edges; docs/notes/print-bars.md)."""
         if int(search_every) < 1:
             raise InputError(f"search_every must be >= 1, got {search_every}")
         markers = list(markers)
@@ -143,6 +145,9 @@ class ArmSetTracker:
         self.arms = list(self.markers)
         self.trackers: dict[str, MarkerTracker | RemoteTracker] = {}
         self._frames: SharedFrames | None = None
+        if len(markers) > 1:  # corners only: another sleeve's edges can stand in a bar's search (print_edges)
+            settings = replace(settings if settings is not None else TrackerSettings(), edge_sigma_px=0.0)
+        self.settings = settings if settings is not None else TrackerSettings()  # every arm's tracker's
         if processes and len(markers) > 1:
             self._frames, remotes = start_remote_trackers(camera, markers[1:], settings, markers, worker_timeout_s)
             self.trackers = {self.arms[0]: MarkerTracker(camera, markers[0], settings, family=markers)}

@@ -90,7 +90,16 @@ class TrackerSettings:
     apart, it gave 0.5-0.6 mm of sigma to poses 0.15 mm off, and the loop stopped for a lost
     marker; such corners keep the gate at corner_sigma_px alone). gate_contrast_noise 0 or
     max_contrast_tip_sigma_m inf disables (cvs.tracking.arm_set applies the same gate after
-    clearing each arm's corners)."""
+    clearing each arm's corners). edge_sigma_px [px], edge_max_rms_px [px], edge_min_samples,
+    edge_min_spacing_px [px]: a
+    good, oriented result is solved again from its corners and the centre lines of the print's
+    dark bars (cvs.tracking.print_edges: the checker patches, and a coded sleeve's code cells
+    where its roll is known), each bar sample at edge_sigma_px (0.5: measured on the path-traced
+    sets; 0 disables), where at least edge_min_samples bar samples are found and both corners and
+    bars then reproject within edge_max_rms_px RMS, and the chains' median spacing is
+    edge_min_spacing_px or more (measured on 1080p corners 23-80 px apart; at 0.35 x 1080p a
+    code band is 6 px tall and the search crosses it); a sleeve seen side-on shows one arc of
+    corners at z = 0, and the bars up to +-5 mm fix its tilt (docs/notes/highlight-stripe.md)."""
 
     min_corners: int = 3
     min_pairs: int = 2
@@ -120,12 +129,24 @@ class TrackerSettings:
     gate_min_spacing_px: float = 23.0
     paper_detector: DetectorSettings = field(default_factory=DetectorSettings)
     magnify_below_px: float = 20.0
+    edge_sigma_px: float = 0.5
+    edge_max_rms_px: float = 0.5
+    edge_min_samples: int = 8
+    edge_min_spacing_px: float = 23.0
 
     def __post_init__(self) -> None:
         for name in ("gate_contrast_noise", "gate_min_spacing_px"):
             v = float(getattr(self, name))
             if not v >= 0:  # NaN too
                 raise InputError(f"TrackerSettings.{name} must be >= 0, got {v}")
+        if not float(self.edge_sigma_px) >= 0:
+            raise InputError(f"TrackerSettings.edge_sigma_px must be >= 0 (0: off), got {self.edge_sigma_px}")
+        if not float(self.edge_max_rms_px) > 0:
+            raise InputError(f"TrackerSettings.edge_max_rms_px must be > 0, got {self.edge_max_rms_px}")
+        if not float(self.edge_min_spacing_px) >= 0:
+            raise InputError(f"TrackerSettings.edge_min_spacing_px must be >= 0, got {self.edge_min_spacing_px}")
+        if int(self.edge_min_samples) < 1:
+            raise InputError(f"TrackerSettings.edge_min_samples must be >= 1, got {self.edge_min_samples}")
         if not float(self.max_contrast_tip_sigma_m) > 0:
             raise InputError(f"TrackerSettings.max_contrast_tip_sigma_m must be > 0 (inf: off), "
                              f"got {self.max_contrast_tip_sigma_m}")

@@ -61,6 +61,14 @@ from wristmark.cvs.gray_image import check_view, to_gray
 from wristmark.cvs.marker.decode import CodeDecoder
 from wristmark.cvs.tracking.axis import axis_evidence, axis_evidence_strict
 from wristmark.cvs.tracking.homography_init import homography_pose
+from wristmark.cvs.tracking.print_edges import (
+    PrintedEdges,
+    bar_pairs,
+    measure_edges,
+    print_is_negative,
+    printed_edges,
+    refine_with_edges,
+)
 from wristmark.cvs.tracking.result import Array, IntArray, TrackResult
 from wristmark.cvs.tracking.rigid_fit import chord_starts, kabsch, roll_about_z
 from wristmark.cvs.tracking.settings import CornerDetector, TrackerSettings, make_detector
@@ -133,6 +141,7 @@ class MarkerTracker:
         self._last_oriented = False  # the previous pose's direction was decided
         self.decoder = None if marker.code is None else CodeDecoder(camera, marker, self.settings.code, family)
         self._second: tuple[CornerDetector, CornerDetector] | None = None
+        self._print_edges: PrintedEdges | None = None  # the print's bar samples (print_edges), on first use
         self._misfits: list[tuple[Array, Array, Array | None, Array | None]] = []  # this pair's
         self._views: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None  # the pair track() is on
         self._use_second = self.settings.detector == "auto" and type(self.detector_left).__name__ != (
@@ -218,6 +227,8 @@ class MarkerTracker:
             res.timings["axis"] = 1e3 * (time.perf_counter() - t3)
             if res.ok and self.settings.solve_contrast_noise > 0:
                 res = self._contrast_weighted(res, (il, ir))
+            if res.ok and self.settings.edge_sigma_px > 0:
+                res = self._edge_refined(res, (il, ir))
             if res.ok and gate:  # refused here, the corners' ROIs stay (as for an ambiguous direction)
                 res = self.contrast_gate(res, (il, ir))
             res = replace(res, time_ms=1e3 * (time.perf_counter() - t0))
@@ -349,6 +360,56 @@ class MarkerTracker:
         return replace(res, ok=False, tip_left=None, tip_world=None, T_left_marker=None, reason=(
             f"the tip is uncertain by {1e3 * sigma:.2f} mm at the corners' contrast noise and residuals "
             "(dim corners, or corners that fit worse than their contrast says)"))
+
+    def _edge_refined(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]]) -> TrackResult:
+        """A good, oriented result solved again from its corners and the centre lines of the
+        print's dark bars found in both views near its pose (cvs.tracking.print_edges; a coded
+        sleeve's code cells only where its roll is known), each bar sample at ``edge_sigma_px``.
+        Not where the chains' median spacing is under ``edge_min_spacing_px``. Kept where at
+        least ``edge_min_samples`` bar samples were found and both the corners and the bars
+        reproject within ``edge_max_rms_px`` [px] RMS; the contrast gate still judges the
+        corners' own fit (``pose.T_fit``)."""
+        m, pose, s = res.match, res.pose, self.settings
+        if m is None or pose is None or res.T_left_marker is None:
+            return res
+        if _median_spacing(res.corners_left, res.corners_right) < s.edge_min_spacing_px:
+            return res
+        t = time.perf_counter()
+        T0 = np.asarray(res.T_left_marker, float)
+        inv0 = np.eye(4)
+        inv0[:3, :3], inv0[:3, 3] = T0[:3, :3].T, -T0[:3, :3].T @ T0[:3, 3]
+        to_wm = inv0 @ pose.T_fit
+        kl, kr = m.index_left >= 0, m.index_right >= 0
+        in_l, in_r = np.asarray(pose.inliers_left, bool), np.asarray(pose.inliers_right, bool)
+        own = res.corner_sigmas
+        corners = []
+        for idx, uv, inl, k, side in ((m.index_left, res.corners_left, in_l, kl, 0),
+                                      (m.index_right, res.corners_right, in_r, kr, 1)):
+            P = self.solver.marker_points(idx[k][inl]) @ to_wm[:3, :3].T + to_wm[:3, 3]
+            sig = (own[side][inl] if own is not None and own[side].size == inl.size
+                   else np.full(int(inl.sum()), s.corner_sigma_px))
+            corners.append((P, uv[k][inl], np.asarray(sig, float)))
+        if self._print_edges is None:
+            self._print_edges = printed_edges(self.marker)
+        edges = self._print_edges
+        use = None if res.roll_known else ~edges.coded
+        if not res.roll_known and print_is_negative(views[0], self.camera, T0, self.marker):
+            edges = replace(edges, across=-edges.across)  # roll known modulo one column: the print's negative
+        found = [measure_edges(views[i], self.camera, i == 1, T0, edges, use) for i in (0, 1)]
+        bars = (bar_pairs(edges, found[0]), bar_pairs(edges, found[1]))
+        if bars[0][0].shape[0] + bars[1][0].shape[0] < s.edge_min_samples:
+            res.timings["edges"] = 1e3 * (time.perf_counter() - t)
+            return res
+        T, rc, re = refine_with_edges(self.camera, T0, (corners[0], corners[1]), bars, s.edge_sigma_px)
+        res.timings["edges"] = 1e3 * (time.perf_counter() - t)
+        sig_all = np.concatenate([c[2] for c in corners])
+        corner_rms = float(np.sqrt(np.mean((rc.reshape(-1, 2) * sig_all[:, None]) ** 2))) if rc.size else 0.0
+        edge_rms = float(np.sqrt(np.mean(re ** 2)))
+        if not (corner_rms <= s.edge_max_rms_px and edge_rms <= s.edge_max_rms_px):
+            return res
+        tip_left, tip_world = self.solver._tips(T)
+        return replace(res, T_left_marker=T, tip_left=tip_left, tip_world=tip_world,
+                       pose=replace(pose, T_left_marker=T, tip_left=tip_left, tip_world=tip_world))
 
     def _retry_with_gaps(self, res: TrackResult, t0: float) -> TrackResult:
         """A pair lost for too few corners: a highlight over the corner each camera sees best

@@ -22,6 +22,7 @@ from wristmark.cvs.tracking.print_edges import (
 from wristmark.cvs.tracking.tracker import MarkerTracker, TrackerSettings
 from wristmark.models.arm_shape import arm_shape
 from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.sim.render.settings import RenderSettings
@@ -124,7 +125,7 @@ def test_the_tracker_refines_with_the_bars_only_when_asked() -> None:
     assert not np.array_equal(off.tip_left, on.tip_left)
     assert on.tip_left is not None and np.linalg.norm(on.tip_left - pair.tip_left) < 0.1e-3
     for bad in ({"edge_sigma_px": -1.0}, {"edge_max_rms_px": 0.0}, {"edge_min_samples": 0}):
-        with pytest.raises(Exception, match="TrackerSettings"):
+        with pytest.raises(InputError, match="TrackerSettings"):
             TrackerSettings(**bad)  # type: ignore[arg-type]
 
 

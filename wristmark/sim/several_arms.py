@@ -171,6 +171,8 @@ def walk_scene(setup: SceneSetup, trajectories: Mapping[str, Trajectory], closed
                             on_cycle(n, e.record)
                     stopped[n] = stats[n].stopped or str(e)
                     active.remove(n)
+                    if sensor is not None:  # as on the hardware path (rig.loop.arm_set_session)
+                        sensor.retire(n)
                     continue
                 logs[n].add(rec)
                 if on_cycle is not None:

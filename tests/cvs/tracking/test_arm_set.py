@@ -250,3 +250,26 @@ def test_a_gate_computed_while_the_other_arms_are_searched_is_used_only_for_the_
             assert want[arm].ok == got[arm].ok and want[arm].reason == got[arm].reason
             assert np.array_equal(want[arm].T_left_marker, got[arm].T_left_marker) or want[arm].T_left_marker is None
     assert threads.stats == one.stats and threads.stats["refit"] >= 2
+
+
+def test_a_retired_arm_is_neither_searched_for_nor_read_as_another_arm() -> None:
+    """An arm whose loop stopped (held and disabled) costs the others no whole-frame search; its
+    sleeve back in view is still never the other arm's."""
+    away = _render([HOME, _b_at(0.5)])
+    trk = ArmSetTracker(CAM, SETUP.markers, search_every=3)
+    trk.track(away.left, away.right)
+    searched = trk.stats["searches"]
+    assert searched >= 1  # b was searched for while its loop ran
+    trk.retire("b")
+    for _ in range(6):
+        res = trk.track(away.left, away.right)
+        assert res["a"].ok and identity(res["a"]) == "a"
+        assert not res["b"].ok and "retired" in res["b"].reason
+    assert trk.stats["searches"] == searched
+    near = _render([HOME, _b_at(0.2)])  # b's sleeve in view again, a lost: a's search meets b first or not
+    trk.reset()
+    res = trk.track(near.left, near.right)
+    assert res["a"].ok and np.linalg.norm(res["a"].tip_left - near.arms[0].tip_left) < 2e-4
+    assert not res["b"].ok and "retired" in res["b"].reason
+    with pytest.raises(KeyError, match="no arm 'c'"):
+        trk.retire("c")

@@ -158,9 +158,10 @@ class ArmSetTracker:
         self.clear_px, self.body_lengths, self.edge_ratio = float(clear_px), float(body_lengths), float(edge_ratio)
         self.max_sigma_ratio = float(max_sigma_ratio)
         self.contrast_noise, self.max_tip_sigma_m = contrast_noise, max_tip_sigma_m
-        self.stats = {"cleared": 0, "refit": 0, "kept": 0}
+        self.stats = {"cleared": 0, "refit": 0, "kept": 0, "searches": 0}  # searches: whole-frame
         self._missing_last: set[str] = set()
         self._pairs_missing = 0
+        self.retired: frozenset[str] = frozenset()  # arms no longer tracked (:meth:`retire`)
         # the arms' ROI searches side by side (OpenCV, numba and the solver release the GIL)
         self._pool = ThreadPoolExecutor(max_workers=len(markers) - 1, thread_name_prefix="arm-set") \
             if threads and len(markers) > 1 and self._frames is None else None
@@ -182,6 +183,17 @@ class ArmSetTracker:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
+    def retire(self, arm: str) -> None:
+        """Track arm ``arm`` no more (its loop has stopped: held and disabled): neither in its
+        boxes nor by the whole-frame search, which would otherwise go on every ``search_every``-th
+        pair for a sleeve nobody waits for, at several times an ROI search's cost taken from the
+        other arms' cycles. Its result is then ``ok=False`` ("retired"). Its sleeve, if in view,
+        is still never read as another arm's: the other arms' results keep their identity checks."""
+        if arm not in self.markers:
+            raise KeyError(f"no arm '{arm}' in the marker set ({', '.join(self.arms)})")
+        self.trackers[arm].reset()
+        self.retired = self.retired | {arm}  # a new set: a tracking thread reads the old one whole
+
     def reset(self) -> None:
         """Forget every arm's ROI state (the next pair searches the whole frames for every arm)."""
         for t in self.trackers.values():
@@ -197,9 +209,10 @@ class ArmSetTracker:
         il = check_view(left_img, self.camera.image_size, "left")
         ir = check_view(right_img, self.camera.image_size, "right")
         hints = dict(axis_hints_left or {})
-        results: dict[str, TrackResult] = {}
+        retired = self.retired
+        results: dict[str, TrackResult] = {a: self._missing("retired: its loop has stopped") for a in retired}
         found: list[TrackResult] = []
-        tracked = [a for a in self.arms if self.trackers[a].tracking]
+        tracked = [a for a in self.arms if a not in retired and self.trackers[a].tracking]
         jobs = self._start_rois(tracked, il, ir, hints)
         early: dict[str, tuple[TrackResult, Callable[[], TrackResult]]] = {}  # gates of phase one's results
         for arm in tracked:  # each arm that was tracked, in its own boxes only (one per thread or process)
@@ -243,6 +256,7 @@ class ArmSetTracker:
                     _paint_out(masked[v], box)
             searcher = self.trackers[pending[0]]
             searcher.reset()
+            self.stats["searches"] += 1
             res = searcher.track(masked[0], masked[1], axis_hint_left=hints.get(pending[0]), contrast_gate=False)
             if len(hidden) < 2 and (chain := self._two_sleeves(res, len(hidden) % 2)) is not None:
                 # each view's chain on another sleeve: painting both out would lose both sleeves

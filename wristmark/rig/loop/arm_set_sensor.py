@@ -56,6 +56,10 @@ class ArmSetSensor:
             self._frame, self._frame_index = frame, frame.index
         return self._results
 
+    def retire(self, arm: str) -> None:
+        """Track arm ``arm``'s sleeve no more (its loop has stopped; ArmSetTracker.retire)."""
+        self.tracker.retire(arm)
+
     def close(self) -> None:
         """Stop the tracker's worker processes and threads (idempotent)."""
         self.tracker.close()

@@ -741,6 +741,7 @@ def _stop_arm(session: ArmSetSession, run: ArmSetRun, loops: Mapping[str, ServoL
         out.log.add(e.record)
     out.stopped, out.cause, out.t_stop = str(e), "marker-lost", loops[name].elapsed(t)
     session.close_arm(name)
+    session.sensor.retire(name)  # its sleeve no longer searched for: the others' cycles keep that time
 
 
 def stop_cause(e: BaseException) -> tuple[str, str]:

@@ -42,12 +42,17 @@ def percentiles_ms(values_ms: Array) -> dict[str, Any]:
 
 def cycle_timing(records: list[CycleRecord], dt: float) -> dict[str, Any]:
     """Cycle starts on the wall clock: period median and jitter (start minus its nominal time,
-    the nominal schedule fitted as first start + k dt) [ms]."""
-    t = np.array([r.t_wall for r in records], float)
-    t = t[np.isfinite(t)]
+    the nominal schedule fitted as first start + k dt, k each record's cycle counted from its
+    nominal time ``t``: a log with skipped cycles or another arm's probe between its own is not
+    late by the gap) [ms]."""
+    t_wall = np.array([r.t_wall for r in records], float)
+    t_nom = np.array([r.t for r in records], float)
+    ok = np.isfinite(t_wall) & np.isfinite(t_nom)
+    t, t_nom = t_wall[ok], t_nom[ok]
     if t.size < 2:
         return {"period_median_ms": None, "jitter_ms": percentiles_ms(np.zeros(0))}
-    late = t - (t[0] + dt * np.arange(t.size))
+    k = np.round((t_nom - t_nom[0]) / dt)
+    late = t - (t[0] + dt * k)
     late -= np.median(late)
     return {"period_median_ms": float(1000 * np.median(np.diff(t))),
             "jitter_ms": percentiles_ms(1000 * np.abs(late))}

@@ -205,3 +205,44 @@ def test_the_loop_tells_the_controller_where_its_start_ramp_left_the_play() -> N
         learnt[name] = ctrl.compensator.inverse._learnt.copy()  # type: ignore[attr-defined]
     assert learnt["home"][0] > 0 and np.count_nonzero(learnt["home"]) >= 3
     assert not np.any(learnt["start"])
+
+
+
+def _play_after_a_swinging_command(buzz_time: float, path_rate: float = 0.0, period: int = 1,
+                                   start: float = 0.5, n: int = 20) -> tuple[float, int]:
+    """Actuator 1's play estimate (a probe's, 87 um) and the shrinking turns after ``n`` cycles of
+    its command swinging 5 um either side of its play's output every ``period`` cycles (the
+    feedback alone, the motor standing; actuator 0 walks: the path is not held)."""
+    inv = PlayObserverInverse(np.array([0.012, 1.6e-4]), 0.01, start=start, fraction=0.75, freeze=0.5,
+                              buzz_time=buzz_time, buzz_shrink=0.7, buzz_turns=3)
+    inv.seed(np.array([0.006, 8.7e-5]), np.zeros(2), np.array([True, True]), relearn=False)
+    inv.observe(np.zeros(2))
+    for k in range(n):
+        u = np.array([0.001 * k, 5e-6 * (-1) ** (k // period)])
+        inv.offset(u, DT, np.array([0.001 / DT, path_rate]))
+        inv.observe(np.array([0.001 * k, 0.0]))
+    return float(inv.play[1]), inv.buzzes
+
+
+def test_an_actuator_the_feedback_alone_turns_back_and_forth_has_its_play_shrunk() -> None:
+    """Each turn moves the motor by the inverted play: too large a play (a probe's under a loaded
+    host, kept as measured) makes the feedback turn a standing actuator back and forth, the tip
+    swinging (the scene lab's arm a, 0.4-0.8 mm). The third turn within ``buzz_time`` (1 s, 16.7
+    cycles) made by the feedback alone, and each one after, shrinks that play by 0.7, a probe's
+    too, not under ``start`` x the bound; turns the path asks for, or further apart, do not."""
+    play, buzzes = _play_after_a_swinging_command(1.0, start=0.15)  # a turn every cycle: 19 turns
+    assert buzzes == 17 and play == pytest.approx(0.15 * 1.6e-4)  # from the third on; down to the floor
+    play, buzzes = _play_after_a_swinging_command(1.0, period=4, n=40)  # every 0.24 s: 4 turns a second
+    assert buzzes == 7 and play == pytest.approx(0.5 * 1.6e-4)  # floor 80 um (start 0.5)
+    assert _play_after_a_swinging_command(1.0, period=10, n=60)[1] == 0  # every 0.6 s: 2 turns a second
+    assert _play_after_a_swinging_command(0.0) == (8.7e-5, 0)  # buzz_time 0: never
+    # the path moves up: the turns up are asked for; each turn down, the feedback's, shrinks
+    assert _play_after_a_swinging_command(1.0, path_rate=2e-5)[1] == 9
+
+
+@pytest.mark.parametrize(("key", "value", "why"), [
+    ("backlash_buzz_time", -1.0, ">= 0"), ("backlash_buzz_shrink", 1.5, "in \\[0, 1\\]"),
+    ("backlash_buzz_turns", 0, "integer >= 1"), ("backlash_buzz_turns", 2.5, "integer >= 1")])
+def test_the_buzz_settings_are_validated(key: str, value: float, why: str) -> None:
+    with pytest.raises(ConfigError, match=f"'{key}' must be .*{why[:6]}"):
+        dataclasses.replace(ControllerConfig(), **{key: value}).validate()

@@ -145,6 +145,8 @@ def walk_trajectory(setup: SimSetup, trajectory: Trajectory, closed_loop: bool, 
     probe = probe_report(loop.play_fits, loop.play_probe_note) if closed_loop else None
     if probe is not None:  # the play probe (rig/loop/play_probe.py)
         summary["play_probe"] = probe
+    if closed_loop and loop.controller is not None:  # plays shrunk for buzzing (solvers/play_observer.py)
+        summary["play_shrinks"] = loop.controller.play_shrinks
     if closed_loop and loop.controller is not None and loop.controller.compensation_note:
         summary["backlash_inversion"] = loop.controller.compensation_note
     recs = log.phase(phase)

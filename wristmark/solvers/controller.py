@@ -75,6 +75,10 @@ class ControllerConfig:
     backlash_margin x the bound; without readings nothing is inverted; once the desired path has
     stood still for backlash_freeze [s] the sides stay as they are until it moves (a held
     point's measurement noise does not send the motors across the band; 0 = never);
+    backlash_buzz_time [s], backlash_buzz_turns, backlash_buzz_shrink: an actuator the feedback
+    alone turns, its backlash_buzz_turns-th turn within backlash_buzz_time, buzzes across an
+    overestimated play (a probe's under a loaded host): its play estimate is scaled by
+    backlash_buzz_shrink, not under backlash_start x its bound (0 s = never);
     backlash_motor_burst: at a reversal of side the motor's target is sized from the encoders and
     the motor lag the play probe measured so that the motor reaches the new side's steady target
     in one cycle (instead of the lead's fixed burst; actuators without a measured lag keep the
@@ -130,6 +134,9 @@ class ControllerConfig:
     backlash_lead: float = 0.03
     backlash_method: str = "encoders"
     backlash_margin: float = 0.01
+    backlash_buzz_time: float = 1.0
+    backlash_buzz_shrink: float = 0.7
+    backlash_buzz_turns: int = 3
     backlash_freeze: float = 0.5
     backlash_motor_burst: bool = True
     backlash_kinds: tuple[str, ...] = ("qp",)
@@ -149,15 +156,17 @@ class ControllerConfig:
                 raise ConfigError(f"'{k}' must be > 0, got {getattr(self, k)}")
         for k in ("kp", "orientation_weight", "pose_orientation_weight", "kr", "ki", "integral_speed_limit",
                   "clearance_m", "backlash_hysteresis", "backlash_window", "backlash_lead", "backlash_margin",
-                  "backlash_freeze"):
+                  "backlash_freeze", "backlash_buzz_time"):
             if getattr(self, k) < 0:
                 raise ConfigError(f"'{k}' must be >= 0, got {getattr(self, k)}")
         if not self.backlash_play_max or min(self.backlash_play_max) < 0:
             raise ConfigError(f"'backlash_play_max' must be values >= 0 (one per actuator), "
                               f"got {list(self.backlash_play_max)}")
-        for k in ("backlash_start", "backlash_fraction", "backlash_learning_rate"):
+        for k in ("backlash_start", "backlash_fraction", "backlash_learning_rate", "backlash_buzz_shrink"):
             if not 0.0 <= getattr(self, k) <= 1.0:
                 raise ConfigError(f"'{k}' must be in [0, 1], got {getattr(self, k)}")
+        if not isinstance(self.backlash_buzz_turns, int) or self.backlash_buzz_turns < 1:
+            raise ConfigError(f"'backlash_buzz_turns' must be an integer >= 1, got {self.backlash_buzz_turns!r}")
         if not set(self.backlash_kinds) <= set(CONTROLLER_KINDS):
             raise ConfigError(f"'backlash_kinds' must be among {', '.join(CONTROLLER_KINDS)}, "
                               f"got {list(self.backlash_kinds)}")
@@ -223,6 +232,7 @@ CONTROLLER_SECTIONS: dict[str, tuple[str, tuple[str, ...]]] = {
                  ("backlash_compensation", "backlash_play_max", "backlash_start", "backlash_fraction",
                   "backlash_hysteresis", "backlash_learning", "backlash_window", "backlash_learning_rate",
                   "backlash_lead", "backlash_method", "backlash_margin", "backlash_freeze", "backlash_motor_burst",
+                  "backlash_buzz_time", "backlash_buzz_shrink", "backlash_buzz_turns",
                   "backlash_kinds", "backlash_actuator_space")),
     "probe": ("the play probe before the first closed-loop walk",
               ("play_probe", "play_probe_amplitude", "play_probe_time", "play_probe_settle", "play_probe_learning",
@@ -303,6 +313,13 @@ class Controller(abc.ABC):
         # the servo loop passes the encoder readings to step() when this is true
         self.uses_encoders = self.compensator is not None and config.backlash_method == "encoders"
         self.play_probed = False  # a play probe (rig/loop/play_probe.py) has run, or was skipped
+
+    @property
+    def play_shrinks(self) -> int:
+        """How often the encoders' dead-band inversion shrank a play the feedback buzzed across
+        (solvers/play_observer.py, ``backlash_buzz_time``; 0 without that inversion)."""
+        inverse = getattr(self.compensator, "inverse", None)
+        return int(getattr(inverse, "buzzes", 0))
 
     def hand_over_compensation(self, note: str) -> None:
         """Leave the dead-band inversion to the link (``--model``: rig/link/model_link.py inverts
@@ -453,5 +470,7 @@ def make_inverse(config: ControllerConfig, play_max: Array | None = None) -> Bac
         from wristmark.solvers.play_observer import PlayObserverInverse
 
         return PlayObserverInverse(play_max, config.backlash_margin, freeze=config.backlash_freeze,
-                                   motor_burst=config.backlash_motor_burst, **common)  # type: ignore[arg-type]
+                                   motor_burst=config.backlash_motor_burst, buzz_time=config.backlash_buzz_time,
+                                   buzz_shrink=config.backlash_buzz_shrink, buzz_turns=config.backlash_buzz_turns,
+                                   **common)  # type: ignore[arg-type]
     return BacklashInverse(play_max, config.backlash_hysteresis, **common)  # type: ignore[arg-type]

@@ -75,8 +75,17 @@ class PlayObserverInverse(BacklashInverse):
 
     def __init__(self, play_max: Array, margin: float, start: float = 0.5, fraction: float = 0.5,
                  learn: bool = True, window: float = 0.4, rate: float = 0.3, lead: float = 0.0,
-                 freeze: float = 0.0, motor_burst: bool = False) -> None:
+                 freeze: float = 0.0, motor_burst: bool = False, buzz_time: float = 0.0,
+                 buzz_shrink: float = 1.0, buzz_turns: int = 3) -> None:
         self.margin = float(margin)
+        # an actuator turned by the feedback alone (its path does not move it to the new side) and
+        # for the ``buzz_turns``-th time within ``buzz_time`` [s] buzzes across an overestimated
+        # play: each turn moves the motor by the inverted play, the tip over, the feedback back. Its
+        # play estimate (a probe's too) is then scaled by ``buzz_shrink``, not under ``start`` x
+        # play_max (the learning's own start; buzz_time 0: never)
+        self.buzz_time, self.buzz_shrink, self.buzz_turns = float(buzz_time), float(buzz_shrink), int(buzz_turns)
+        self.buzzes = 0  # turns that shrank a play
+        self._path_rate: Array | None = None  # the desired path's actuator rates this cycle
         self.freeze = float(freeze)
         self.motor_burst = bool(motor_burst)
         super().__init__(play_max, 0.0, start=start, fraction=fraction, learn=learn, window=window, rate=rate,
@@ -91,6 +100,7 @@ class PlayObserverInverse(BacklashInverse):
         self._stood = 0.0  # how long the desired path has stood still [s]
         self._seed: tuple[NDArray[np.bool_], Array] | None = None
         self._motor: Array | None = None  # the last encoder readings (micro-units)
+        self._turns: list[tuple[float, NDArray[np.int_]]] = []  # (time [s], which turned) within buzz_time
         if not keep_estimate:
             self._fixed = np.zeros(self.play_max.size, bool)  # plays measured by a probe and not learnt any more
             self.motor_tau = np.full(self.play_max.size, math.nan)  # the motors' lags from a probe [s] (NaN: unknown)
@@ -168,7 +178,20 @@ class PlayObserverInverse(BacklashInverse):
         new = np.where(e > eps, 1.0, np.where(e < -eps, -1.0, d))
         if self.freeze > 0.0 and self._stood >= self.freeze - 1e-9:  # a held point: noise must not walk
             return np.zeros(d.size, bool), np.where(d != 0.0, d, new)  # the motors across the band: sides stay
-        return (new != d) & (d != 0.0), new
+        flip = (new != d) & (d != 0.0)
+        if self.buzz_time > 0.0 and self._path_rate is not None and np.any(flip):
+            self._turns = [t for t in self._turns if t[0] > self.time - self.buzz_time]
+            recent = np.zeros(d.size, int)
+            for _, f in self._turns:
+                recent += f
+            unasked = ~(np.sign(self._path_rate) * new > 0.0)
+            buzz = flip & unasked & (recent + 1 >= self.buzz_turns)
+            floor = np.minimum(self.play, self.start * self.play_max)  # not under the learning's start
+            self.play = np.where(buzz, np.maximum(self.buzz_shrink * self.play, floor), self.play)
+            self.buzzes += int(np.count_nonzero(buzz))
+        if np.any(flip):
+            self._turns.append((self.time, flip.astype(int)))
+        return flip, new
 
     def _learn(self, flip: NDArray[np.bool_], old: Array, new: Array) -> None:
         measured = self.play.copy()
@@ -177,5 +200,6 @@ class PlayObserverInverse(BacklashInverse):
 
     def _track_feedback(self, a: Array, dt: float, a_dot_path: Array | None) -> None:
         super()._track_feedback(a, dt, a_dot_path)
+        self._path_rate = None if a_dot_path is None else np.asarray(a_dot_path, float)
         standing = a_dot_path is not None and not np.any(np.abs(np.asarray(a_dot_path, float)) > 0.0)
         self._stood = self._stood + dt if standing else 0.0

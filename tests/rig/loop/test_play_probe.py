@@ -226,3 +226,43 @@ def test_a_tendon_arm_with_coupled_segments_is_probed_from_the_tip() -> None:
     got = np.array([f.play for f in fits])
     assert len(fits) == true.size == 10 and all(f.ok for f in fits) and probe_cycles
     assert np.all(got >= 0.95 * true) and np.all(got <= 1.5 * true), (got, true)
+
+
+def _overestimating_probe(monkeypatch: pytest.MonkeyPatch, plays: dict[int, float]) -> None:
+    """Make the probe report ``plays`` (actuator index -> play [m]) as trusted fits, as a probe on a
+    loaded host did (docs/notes/play-probe.md)."""
+    from wristmark.rig.loop import play_probe
+
+    fit, probed = play_probe.fit_play, []
+
+    def overestimated(motor: np.ndarray, arm: np.ndarray, play_max: float) -> Any:
+        j = len(probed) % 6
+        probed.append(j)
+        f = fit(motor, arm, play_max)
+        return dataclasses.replace(f, play=plays[j], ok=True) if j in plays else f
+
+    monkeypatch.setattr(play_probe, "fit_play", overestimated)
+
+
+@pytest.mark.slow
+def test_a_play_the_probe_overestimates_is_shrunk_as_the_feedback_buzzes_across_it(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """configs/plant.yaml (30 um per backbone), its s1b and s2b probed at 87 um: the inversion
+    overshoots each change of side and the feedback turns them back and forth. Shrinking a play
+    the feedback alone turns for the third time within backlash_buzz_time brings the cube near
+    the truly probed one (truth-noise, the first 16 s of the cube)."""
+    setup = _setup("plant.yaml")
+    probed, _ = _cube(setup, 16.0, orientation="none")
+    _overestimating_probe(monkeypatch, {3: 8.7e-5, 5: 8.7e-5})
+    off = setup.with_changes(controller=dataclasses.replace(setup.controller, backlash_buzz_time=0.0))
+    kept, _ = _cube(off, 16.0, orientation="none")
+    shrunk, _ = _cube(setup, 16.0, orientation="none")
+    print(f"probed {probed['mean_mm']:.3f} / {probed['max_mm']:.3f} mm ({probed['play_shrinks']} shrinks), "
+          f"kept {kept['mean_mm']:.3f} / {kept['max_mm']:.3f} mm, shrunk {shrunk['mean_mm']:.3f} / "
+          f"{shrunk['max_mm']:.3f} mm ({shrunk['play_shrinks']} shrinks)")
+    assert kept["play_shrinks"] == 0 and shrunk["play_shrinks"] >= 3
+    assert kept["mean_mm"] > 2.0 * probed["mean_mm"]  # the buzz: 0.42 against 0.18 mm
+    # shrunk within the walk's first seconds: the mean near the truly probed run's, the max (the
+    # buzz before the shrinks) well under the kept play's (0.21 / 1.08 mm, 2026-12-05)
+    assert shrunk["mean_mm"] < 1.25 * probed["mean_mm"] and shrunk["mean_mm"] < 0.6 * kept["mean_mm"]
+    assert shrunk["max_mm"] < 0.85 * kept["max_mm"]

@@ -650,6 +650,8 @@ def run_arm_set(setups: Mapping[str, LoopSetup], trajs: Mapping[str, Trajectory]
             if n in loops:
                 out.ready_after_arrival_ms = list(loops[n].ready_after_arrival_ms)
                 out.play_probe = probe_report(loops[n].play_fits, loops[n].play_probe_note)
+                ctrl = loops[n].controller
+                out.play_shrinks = ctrl.play_shrinks if ctrl is not None else 0
     return run
 
 

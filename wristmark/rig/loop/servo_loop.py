@@ -577,7 +577,9 @@ class _ProbeView:
         loop = self.loop
         assert loop.sensor is not None and loop.psi_cmd is not None
         frame = loop.take_frame(target, self.phase, self.memory, self.stats)
-        t_read, encoders = loop.now(), loop.link.measured_actuators()
+        t_ask = loop.now()
+        encoders = loop.link.measured_actuators()
+        t_read = 0.5 * (t_ask + loop.now())  # the box read them between the request and its reply
         truth = loop.observe()
         axis = forward_kinematics(loop.params, loop.psi_cmd).T_world_marker[:3, 2]  # which way the marker points
         meas = None if frame is None else loop.sensor.measure(frame, axis_hint_world=axis)

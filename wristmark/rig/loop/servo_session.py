@@ -156,6 +156,7 @@ class ServoOutcome:
     frame_lock_offsets_ms: list[float] = dataclasses.field(default_factory=list)
     phase_shift_ms: float = float("nan")
     play_probe: list[dict[str, Any]] | str | None = None  # rig.loop.play_probe.probe_report (None: not asked for)
+    play_shrinks: int = 0  # plays the dead-band inversion shrank for buzzing (Controller.play_shrinks)
     # the delay compensation's learnt map of the model's tip motion to the measured one (rig.loop.motion_correction)
     motion_map: dict[str, Any] | None = None
 
@@ -231,6 +232,7 @@ def run_servo(setup: LoopSetup, traj: Trajectory, session: ServoSession, psi0: A
         if loop is not None:
             out.ready_after_arrival_ms = list(loop.ready_after_arrival_ms)
             out.play_probe = probe_report(loop.play_fits, loop.play_probe_note)
+            out.play_shrinks = loop.controller.play_shrinks if loop.controller is not None else 0
             correction = loop.delay.correction if loop.delay is not None else None
             if correction is not None:
                 out.motion_map = {"matrix": np.round(correction.matrix, 4).tolist(), "updates": correction.updates}

@@ -106,6 +106,7 @@ def summarize(setup: LoopSetup, traj: Trajectory, session: ServoSession, out: Se
               "skipped": out.skipped, "dithers": out.dithers}
     if out.play_probe is not None:  # the play probe before the walk (rig/loop/play_probe.py), SI units
         closed["play_probe"] = out.play_probe
+    closed["play_shrinks"] = out.play_shrinks  # plays shrunk for buzzing (solvers/play_observer.py)
     if out.motion_map is not None:  # measured tip motion ~ matrix @ the model's (rig/loop/motion_correction.py)
         closed["motion_map"] = out.motion_map
     link: dict[str, Any] = {"kind": session.options.kind, "port": session.port,

@@ -179,17 +179,15 @@ class PlayObserverInverse(BacklashInverse):
         if self.freeze > 0.0 and self._stood >= self.freeze - 1e-9:  # a held point: noise must not walk
             return np.zeros(d.size, bool), np.where(d != 0.0, d, new)  # the motors across the band: sides stay
         flip = (new != d) & (d != 0.0)
-        if self.buzz_time > 0.0 and self._path_rate is not None and np.any(flip):
+        if self.buzz_time > 0.0 and np.any(flip):
             self._turns = [t for t in self._turns if t[0] > self.time - self.buzz_time]
-            recent = np.zeros(d.size, int)
-            for _, f in self._turns:
-                recent += f
-            unasked = ~(np.sign(self._path_rate) * new > 0.0)
-            buzz = flip & unasked & (recent + 1 >= self.buzz_turns)
-            floor = np.minimum(self.play, self.start * self.play_max)  # not under the learning's start
-            self.play = np.where(buzz, np.maximum(self.buzz_shrink * self.play, floor), self.play)
-            self.buzzes += int(np.count_nonzero(buzz))
-        if np.any(flip):
+            if self._path_rate is not None:
+                recent = np.sum([f for _, f in self._turns], axis=0) if self._turns else np.zeros(d.size, int)
+                unasked = ~(np.sign(self._path_rate) * new > 0.0)
+                buzz = flip & unasked & (recent + 1 >= self.buzz_turns)
+                floor = np.minimum(self.play, self.start * self.play_max)  # not under the learning's start
+                self.play = np.where(buzz, np.maximum(self.buzz_shrink * self.play, floor), self.play)
+                self.buzzes += int(np.count_nonzero(buzz))
             self._turns.append((self.time, flip.astype(int)))
         return flip, new
 

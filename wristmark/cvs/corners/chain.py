@@ -4,8 +4,10 @@ Candidates are tried in decreasing normalised CL order until one is an X-corner 
 chain of ``min_corners``: the second corner is the nearest found by moving the window along the
 four edge directions; then the chain grows outward both ways along the local edge direction
 closest to the last step (turned by half the change of that edge since the previous corner: the
-corner circle's image is curved) until the searched distance exceeds ``stop_ratio`` times the
-last spacing. Consecutive corners alternate in polarity, taken relative to the chain's direction
+corner circle's image is curved) and, where that finds nothing, along the last step itself (a
+highlight stripe over a corner can bend its edge along the chain by 20 deg and turn the search
+off the line: docs/notes/highlight-stripe.md), until the searched distance exceeds
+``stop_ratio`` times the last spacing. Consecutive corners alternate in polarity, taken relative to the chain's direction
 (``along_polarity``: the detector's own flips where a steeply seen sleeve's edges both lean ~45
 deg). ``find_chain(..., gaps=k)``: a
 chain that stops may step, up to k times, over one missed corner: the next corner of the *same*
@@ -203,6 +205,8 @@ def _grow(c: Any, im: Any, prm: Any, seed: int, out: Any) -> int:  # pragma: no 
             da = math.atan2(qx * cy - qy * cx, qx * cx + qy * cy)
             ex, ey = math.cos(a + 0.5 * da), math.sin(a + 0.5 * da)
             k = _search(c, im, prm, cur, ex, ey, prm[6] * dist, used)
+            if k < 0:  # a highlight can bend the current corner's edge: the straight continuation too
+                k = _search(c, im, prm, cur, ux, uy, prm[6] * dist, used)
             if k < 0 and gaps < prm[10]:  # beyond one missed corner (a highlight over it): same polarity
                 k = _search(c, im, prm, cur, ex, ey, prm[11] * dist, used, True, 1.5 * dist)
                 if k < 0:  # over two spacings the turn extrapolated from a limb corner can overshoot

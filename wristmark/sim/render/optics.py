@@ -34,15 +34,22 @@ def vignetting_map(size: tuple[int, int], strength: float) -> F32:
 
 
 def motion_kernel(length: float, angle: float) -> F32:
-    """Normalised linear motion-blur kernel of ``length`` [px] along ``angle`` [rad]."""
-    n = int(np.ceil(length)) | 1
-    k = np.zeros((n, n), np.float32)
+    """Normalised linear motion-blur kernel of ``length`` [px] along ``angle`` [rad]: the segment
+    sampled every 1/8 px, symmetrically about the kernel's centre, and splatted bilinearly into a
+    kernel one pixel wider than the segment on each side, so its centroid is the centre exactly
+    at any angle (the truth is the middle of the exposure). Drawn with cv2.line into a kernel as
+    wide as the segment, it was clipped at the corners: its centroid moved by up to 0.2 px at
+    5 px and 0.71 px at 7 px, and every corner of the frame with it."""
+    n = (int(np.ceil(length)) + 2) | 1
+    k = np.zeros((n, n), np.float64)
     c = (n - 1) / 2
-    d = np.array([np.cos(angle), np.sin(angle)]) * length / 2
-    p0 = (int(round((c - d[0]) * 16)), int(round((c - d[1]) * 16)))
-    p1 = (int(round((c + d[0]) * 16)), int(round((c + d[1]) * 16)))
-    cv2.line(k, p0, p1, 1.0, 1, cv2.LINE_AA, shift=4)
-    return k / max(float(k.sum()), 1e-9)
+    t = np.linspace(-length / 2, length / 2, max(int(np.ceil(8 * length)), 1) + 1)
+    x, y = c + t * np.cos(angle), c + t * np.sin(angle)
+    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+    fx, fy = x - x0, y - y0
+    for dx, dy, w in ((0, 0, (1 - fx) * (1 - fy)), (1, 0, fx * (1 - fy)), (0, 1, (1 - fx) * fy), (1, 1, fx * fy)):
+        np.add.at(k, (y0 + dy, x0 + dx), w)
+    return np.asarray(k / k.sum(), np.float32)
 
 
 def gaussian_ksize(sigma: float) -> int:

@@ -7,15 +7,15 @@ closest to the last step (turned by half the change of that edge since the previ
 corner circle's image is curved) and, where that finds nothing, along the last step itself (a
 highlight stripe over a corner can bend its edge along the chain by 20 deg and turn the search
 off the line: docs/notes/highlight-stripe.md), until the searched distance exceeds
-``stop_ratio`` times the last spacing. Consecutive corners alternate in polarity, taken relative to the chain's direction
-(``along_polarity``: the detector's own flips where a steeply seen sleeve's edges both lean ~45
-deg). ``find_chain(..., gaps=k)``: a
-chain that stops may step, up to k times, over one missed corner: the next corner of the *same*
-polarity between 1.5 and ``gap_ratio`` times the last spacing along the same direction (a
-specular highlight washing out the corner the camera sees best, docs/notes/highlight-stripe.md),
-searched along the extrapolated turn and, where that finds nothing, along the last step; a step
-over that finds nothing does not count against k. The stereo match then indexes it two steps on
-(repeated polarity).
+``stop_ratio`` times the last spacing. Consecutive corners alternate in polarity, taken
+relative to the chain's direction (``along_polarity``: the detector's own flips where a steeply
+seen sleeve's edges both lean ~45 deg). ``find_chain(..., gaps=k)``: a chain that stops may
+step, up to k times, over one missed corner: the next corner of the *same* polarity between 1.5
+and ``gap_ratio`` times the last spacing along the same direction (a specular highlight washing
+out the corner the camera sees best, docs/notes/highlight-stripe.md), searched along the
+extrapolated turn and, where that finds nothing, along the last step; a step over that finds
+nothing does not count against k. The stereo match then indexes it two steps on (repeated
+polarity).
 
 A window search moves the paper's 10x10 square (widened across the step to 20% of the distance
 so that a curved corner circle stays inside it) in half-window steps and takes the first window

@@ -11,7 +11,10 @@ rather than a doubtful pose: no marker, too few corners, no stereo pairs, a resi
 fit that puts a corner on the far side of the sleeve (few corners: the arc
 turned inside out, cvs.tracking.sleeve_facing; a start in the other minimum is tried first), or
 a fit that hinges on corners seen in one view only (the best fit of the stereo pairs alone puts
-the tip more than ``max_single_view_shift_m`` away). A pair lost for too few corners gets one
+the tip more than ``max_single_view_shift_m`` away). With the 'auto' detector a pair the paper
+detector loses is tried with the saddle detector, whose coarser corners are then fitted again by
+the paper detector's model at the fit's own edge directions (cvs.tracking.corner_refit: a
+highlight can bend one corner's edge out of the paper's chain). A pair lost for too few corners gets one
 last try with chains that step over a missed corner (a specular highlight over the corner the
 camera sees best: cvs.corners.detector ``retry_with_gaps``, docs/notes/highlight-stripe.md). A
 pair whose corners fit no pose (RMS above ``max_rms_px``) gets one more with one end corner of
@@ -60,6 +63,7 @@ from wristmark.cvs.camera import StereoCamera
 from wristmark.cvs.gray_image import check_view, to_gray
 from wristmark.cvs.marker.decode import CodeDecoder
 from wristmark.cvs.tracking.axis import axis_evidence, axis_evidence_strict
+from wristmark.cvs.tracking.corner_refit import corner_edge_angles, refit_corners
 from wristmark.cvs.tracking.homography_init import homography_pose
 from wristmark.cvs.tracking.print_edges import (
     PrintedEdges,
@@ -207,7 +211,7 @@ class MarkerTracker:
             t_second = 1e3 * (time.perf_counter() - t2)
             res2 = self.track_corners(sl.corners, sr.corners, sl.polarity, sr.polarity, _t0=t0)
             if res2.ok:
-                res = self._first_detector_in_boxes(res2, il, ir, t0)
+                res = self._first_detector_in_boxes(res2, il, ir, t0, (sl.polarity, sr.polarity))
             res.timings["second_detector"] = t_second
         if not res.ok and res.reason.startswith(_CORNER_REASONS):
             res = self._retry_with_gaps(res, t0)
@@ -484,13 +488,16 @@ class MarkerTracker:
         return out, res2.ok
 
     def _first_detector_in_boxes(self, res: TrackResult, il: NDArray[np.uint8], ir: NDArray[np.uint8],
-                                 t0: float) -> TrackResult:
+                                 t0: float, polarity: tuple[Array | None, Array | None] = (None, None)
+                                 ) -> TrackResult:
         """A good whole-frame result of the second detector ('auto'), its chains searched again by
         the first detector in each view's box around them, as the next pair's ROI search would:
         that result when it is good too (the first detector's corners are the finer: three arms,
         seed 4, pair 0 of sequence 4, arm c, the saddle's 0.26 mm against 0.017 mm from the same
         images' boxes; docs/notes/several-arms.md), else ``res``, the first detector's next boxes
-        then around its corners (not around what the first detector chained in the whole frames)."""
+        then around its corners (not around what the first detector chained in the whole frames),
+        each fitted again by the first detector's model where that result is good too
+        (:meth:`_refit_second`; ``polarity``: the second detector's, left and right)."""
         dets = (self.detector_left, self.detector_right)
         for d, c in zip(dets, (res.corners_left, res.corners_right)):
             d.follow(c)
@@ -508,7 +515,36 @@ class MarkerTracker:
                 return again
         for d, c in zip(dets, (res.corners_left, res.corners_right)):  # its boxes stay on the second's chains
             d.follow(c)
-        return res
+        return self._refit_second(res, (il, ir), polarity, t0)
+
+    def _refit_second(self, res: TrackResult, views: tuple[Any, Any], polarity: tuple[Array | None, Array | None],
+                      t0: float) -> TrackResult:
+        """A good result of the second detector (the saddle's coarser corners) with each matched
+        corner fitted again by the first detector's HTM model at the fit's own edge directions
+        (cvs.tracking.corner_refit), solved again under the same gates: that result when it is
+        good, else ``res``. The saddle's chain through a corner whose edge a highlight bends, the
+        paper detector's accuracy (path-traced seed 404 pair 41: 0.06-0.50 px -> 0.05-0.18)."""
+        m, pose = res.match, res.pose
+        if m is None or pose is None:
+            return res
+        t = time.perf_counter()
+        T_rl = np.eye(4)
+        T_rl[:3, :3], T_rl[:3, 3] = self.camera.R, self.camera.T
+        refit = []
+        for view, project, T_cam, corners, index in zip(
+            views, (self.camera.left.project, self.camera.right.project), (pose.T_fit, T_rl @ pose.T_fit),
+            (res.corners_left, res.corners_right), (m.index_left, m.index_right),
+        ):
+            out = np.array(corners, float).reshape(-1, 2)
+            k = index >= 0
+            if k.any():
+                out[k] = refit_corners(view, out[k], corner_edge_angles(T_cam, self.solver.marker_points(index[k]),
+                                                                        project))
+            refit.append(out)
+        again = self.track_corners(refit[0], refit[1], polarity[0], polarity[1], _t0=t0)
+        out_res = again if again.ok else res
+        out_res.timings["second_refit"] = 1e3 * (time.perf_counter() - t)
+        return out_res
 
     def _second_detectors(self) -> tuple[CornerDetector, CornerDetector]:
         """The saddle detector of each view ('auto': the second try), made on first use."""
@@ -542,6 +578,7 @@ class MarkerTracker:
             if min(len(sl.corners), len(sr.corners)) >= n:
                 res = self.track_corners(sl.corners, sr.corners, sl.polarity, sr.polarity, _t0=t0)
                 if res.ok:
+                    res = self._refit_second(res, (il, ir), (sl.polarity, sr.polarity), t0)
                     res.timings["detect"] = 1e3 * (time.perf_counter() - t0) - t_box
                     res.timings["second_detector_roi"] = t_box
                     for d, c in zip(dets, (sl, sr)):  # the next pair's boxes follow the marker

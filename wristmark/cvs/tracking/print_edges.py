@@ -1,7 +1,7 @@
 """The sleeve's printed edges as extra features of the pose.
 
 A sleeve seen almost side-on shows one arc of 3-4 X-corners, all at z = 0: they fix the tilt of
-its axis poorly (docs/notes/highlight-stripe.md, "Open"). The print has more: the checker rows'
+its axis poorly (docs/notes/print-bars.md, "Why"). The print has more: the checker rows'
 edges along and around the sleeve up to z = +-row_height, and a coded sleeve's code cells up to
 +-5 mm. :func:`printed_edges` lists sample points on every dark/white boundary of the print in
 {wm}; :func:`measure_edges` finds each one's edge in an image along the image normal of the

@@ -1,6 +1,6 @@
 """The tracker on path-traced stereo pairs (Mitsuba 3, ``--engine pbr``) that the tests never saw.
 
-Usage: python bench/pbr_tracking.py [--pairs N] [--seed S] [--image-scale F] [--spp N] [--cache DIR]
+Usage: python bench/pbr_tracking.py [--pairs N] [--seed S] [--image-scale F] [--spp N] [--cache DIR] [--only I,J]
 Needs the extra 'pbr' (scripts/ensure-pbr.sh). Prints JSON. Per pair, drawn from ``--seed``
 (not the committed set's poses, tests/data/pbr): the sleeve (reference and coded in turn), a
 visible configuration (every other one with the sleeve within 5 deg of square to the line of
@@ -86,7 +86,16 @@ def main() -> int:
     ap.add_argument("--cache", metavar="DIR",
                     help="keep each rendered pair in DIR (pair_<i>.npz) and track those already there again "
                          "instead of rendering them (the same --pairs, --seed, --image-scale and --spp)")
+    ap.add_argument("--only", metavar="I,J,...",
+                    help="render and track only these pairs (0-based indices below --pairs; every pair is still "
+                         "drawn, so each is the same pair as in a full run): a lost pair looked at again")
     a = ap.parse_args()
+    try:
+        only = None if a.only is None else {int(v) for v in a.only.split(",") if v.strip()}
+    except ValueError:
+        ap.error(f"--only: comma-separated pair indices, not {a.only!r}")
+    if only is not None and (not only or min(only) < 0 or max(only) >= a.pairs):
+        ap.error(f"--only: indices from 0 to {a.pairs - 1} (--pairs {a.pairs})")
     warm_up()
     full = load_calibration(str(default_config("camera.yaml")))
     cam = scaled_stereo_camera(full, a.image_scale) if a.image_scale != 1 else full
@@ -114,9 +123,11 @@ def main() -> int:
                           light_offset=float(rng.uniform(0, 0.003)), aperture_radius=float(rng.uniform(0, 4e-4)),
                           focus_distance=float(rng.uniform(0.06, 0.1)))
         seed = a.seed * 1000 + i
+        if only is not None and i not in only:
+            continue
         pair = _rendered(a.cache, i, partial(PbrStereoRenderer, cam, m, noise_preset("default", jpeg_quality=90), pbr,
                                              seed=seed), arm_shape(P, q))
-        row: dict = {"sleeve": name, "roughness": pbr.sleeve_roughness, "light_offset": pbr.light_offset,
+        row: dict = {"pair": i, "sleeve": name, "roughness": pbr.sleeve_roughness, "light_offset": pbr.light_offset,
                      "aperture": pbr.aperture_radius, "focus": pbr.focus_distance,
                      "tilt_deg": _tilt_deg(pair.T_left_marker)}
         for k, tr in trackers[name].items():
@@ -144,7 +155,8 @@ def main() -> int:
             "coded_roll_known_rate": len(known) / max(len(coded), 1),
             "coded_rotation_mean_deg": float(np.mean([o["rot_deg"] for o in known])) if known else None,
             "time_ms_median": float(np.median([r[k]["ms"] for r in rows])),
-            "lost": [{"sleeve": r["sleeve"], "roughness": round(r["roughness"], 3), "tilt_deg": round(r["tilt_deg"], 1),
+            "lost": [{"pair": r["pair"], "sleeve": r["sleeve"], "roughness": round(r["roughness"], 3),
+                      "tilt_deg": round(r["tilt_deg"], 1),
                       "reason": r[k]["reason"]} for r in rows if not r[k]["ok"]],
         }
     report["rows"] = rows  # per pair: the draw and each tracker's result

@@ -14,20 +14,14 @@ from wristmark.cvs.tracking.corner_refit import corner_edge_angles, refit_corner
 from wristmark.cvs.tracking.tracker import MarkerTracker
 from wristmark.models.config_files import default_config
 from wristmark.models.marker import MarkerModel
+from wristmark_testing.x_corner import x_corner_radiance
 
 SADDLE = Path(__file__).resolve().parents[2] / "data" / "pbr" / "coded_saddle"
 
 
-def _x_corner(centre: tuple[float, float], angles_deg: tuple[float, float], size: int = 80, k: int = 8) -> np.ndarray:
-    """A blurred X-corner at ``centre`` [px] (pixel centres at integers) whose two edges run at
-    ``angles_deg``, drawn k times finer and averaged down (a point-sampled edge is aliased)."""
-    fine = (np.arange(size * k) + 0.5) / k - 0.5
-    xx, yy = np.meshgrid(fine, fine)
-    dx, dy = xx - centre[0], yy - centre[1]
-    a, b = np.radians(angles_deg)
-    ua = -np.sin(a) * dx + np.cos(a) * dy
-    ub = -np.sin(b) * dx + np.cos(b) * dy
-    img = cv2.resize(np.where(ua * ub > 0, 210.0, 35.0).astype(np.float32), (size, size), interpolation=cv2.INTER_AREA)
+def _x_corner(centre: tuple[float, float], angles_deg: tuple[float, float], size: int = 80) -> np.ndarray:
+    """A blurred X-corner at ``centre`` [px] whose two edges run at ``angles_deg``."""
+    img = x_corner_radiance(centre, angles_deg, (210.0, 210.0), 35.0, size)
     return np.clip(cv2.GaussianBlur(img, (0, 0), 1.0), 0, 255).astype(np.uint8)
 
 

@@ -1,5 +1,5 @@
 """Another detector's corners fitted again by the paper detector's grey-level model:
-:func:`corner_edge_angles`, :func:`refit_corners`.
+:func:`corner_edge_angles`, :func:`refit_corners`, :func:`refit_corners_clipped`.
 
 The saddle detector ('auto''s second try, cvs.corners.saddle) finds chains where the paper
 detector's X-corner test misses a corner (a highlight stripe bending its edge along the chain by
@@ -8,6 +8,11 @@ fit's 0.06 (docs/results.md). Given a pose fitted to them, each matched corner i
 by the HTM model (cvs.corners.subpixel.htm_refine) in the detector's window, started at its
 position and at the pose's own edge directions (the print's lines around and along the sleeve
 through it, projected): the paper detector's accuracy on the saddle detector's chain.
+
+Corners found on an eroded image (white squares clipped and blurred over the corners; the
+tracker's last try, MarkerTracker._retry_eroded) are fitted again on the image itself by the
+same model with its clipped pixels censored (:func:`refit_corners_clipped`,
+cvs.corners.clipped_fit).
 """
 
 from __future__ import annotations
@@ -17,12 +22,13 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
+from wristmark.cvs.corners.clipped_fit import clipped_htm_refine
 from wristmark.cvs.corners.subpixel import htm_refine
 from wristmark.cvs.gray_image import gray_crop
 
 Array = NDArray[np.float64]
 
-__all__ = ["corner_edge_angles", "refit_corners"]
+__all__ = ["corner_edge_angles", "refit_corners", "refit_corners_clipped"]
 
 
 def corner_edge_angles(T_cam_marker: Array, points_marker: Array, project: Callable[[Array], Array]) -> Array:
@@ -71,3 +77,19 @@ def refit_corners(view: NDArray[np.uint8], uv: Array, edges: Array, radius: int 
     moved[ok] = ref[ok] + [x0, y0]
     out[inside] = moved
     return out
+
+
+def refit_corners_clipped(view: NDArray[np.uint8], uv: Array, edges: Array,
+                          clip_level: float = 250.0) -> tuple[Array, NDArray[np.bool_]]:
+    """The corners ``uv`` (N, 2) [raw px] of the grey image ``view`` fitted again by the HTM model
+    with its clipped pixels (``clip_level`` or more) censored (cvs.corners.clipped_fit: window 0.3
+    times the distance to the nearest other corner, 5-14 px), started at ``uv`` and ``edges``
+    (N, 2) [rad]. Returns the fitted corners (N, 2) and ok (N,): False where a corner's fit failed
+    (its input position returned)."""
+    pts = np.asarray(uv, float).reshape(-1, 2)
+    n = pts.shape[0]
+    if n == 0:
+        return pts.copy(), np.zeros(0, bool)
+    d = np.linalg.norm(pts[:, None] - pts[None], axis=2) + np.diag(np.full(n, np.inf))
+    spacing = d.min(axis=1) if n > 1 else np.full(1, np.inf)
+    return clipped_htm_refine(view, pts, edges, spacing, clip_level)

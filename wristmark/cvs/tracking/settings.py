@@ -99,7 +99,15 @@ class TrackerSettings:
     bars then reproject within edge_max_rms_px RMS, and the chains' median spacing is
     edge_min_spacing_px or more (measured on 1080p corners 23-80 px apart; at 0.35 x 1080p a
     code band is 6 px tall and the search crosses it); a sleeve seen side-on shows one arc of
-    corners at z = 0, and the bars up to +-5 mm fix its tilt (docs/notes/highlight-stripe.md)."""
+    corners at z = 0, and the bars up to +-5 mm fix its tilt (docs/notes/highlight-stripe.md).
+    eroded_sizes [px], eroded_min_clipped_px: a pair lost for too few corners or without a start
+    pose, where each view has at least eroded_min_clipped_px pixels at clipped_level or more, is
+    searched again in each view eroded by a disc of each size in turn (white squares exposed at
+    several times full scale and blurred over the corners: a sleeve close to the lens), its
+    corners then fitted on the views themselves by the HTM model with the clipped pixels
+    censored (cvs.corners.clipped_fit); the same pose gates, and the tip's standard deviation
+    with every corner at clipped_sigma_px within max_tip_sigma_m (empty: off;
+    MarkerTracker._retry_eroded)."""
 
     min_corners: int = 3
     min_pairs: int = 2
@@ -133,8 +141,15 @@ class TrackerSettings:
     edge_max_rms_px: float = 0.5
     edge_min_samples: int = 8
     edge_min_spacing_px: float = 23.0
+    eroded_sizes: tuple[int, ...] = (3, 5, 7, 9, 11)
+    eroded_min_clipped_px: int = 200
 
     def __post_init__(self) -> None:
+        sizes = tuple(self.eroded_sizes)
+        if any(not isinstance(k, int) or isinstance(k, bool) or k < 2 for k in sizes):
+            raise InputError(f"TrackerSettings.eroded_sizes must be integers >= 2 [px] (empty: off), got {sizes}")
+        if int(self.eroded_min_clipped_px) < 0:
+            raise InputError(f"TrackerSettings.eroded_min_clipped_px must be >= 0, got {self.eroded_min_clipped_px}")
         for name in ("gate_contrast_noise", "gate_min_spacing_px"):
             v = float(getattr(self, name))
             if not v >= 0:  # NaN too

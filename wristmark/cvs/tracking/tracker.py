@@ -51,7 +51,7 @@ from __future__ import annotations
 
 import inspect
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
 from typing import Any
 
@@ -63,7 +63,7 @@ from wristmark.cvs.camera import StereoCamera
 from wristmark.cvs.gray_image import check_view, to_gray
 from wristmark.cvs.marker.decode import CodeDecoder
 from wristmark.cvs.tracking.axis import axis_evidence, axis_evidence_strict
-from wristmark.cvs.tracking.corner_refit import corner_edge_angles, refit_corners
+from wristmark.cvs.tracking.corner_refit import corner_edge_angles, refit_corners, refit_corners_clipped
 from wristmark.cvs.tracking.homography_init import homography_pose
 from wristmark.cvs.tracking.print_edges import (
     PrintedEdges,
@@ -87,6 +87,8 @@ from wristmark.models.marker import MarkerModel
 _CORNER_REASONS = ("no marker found", "too few marker corners", "only ")
 # ... and those of a fit on few corners: more corners from an enlarged search may settle them
 _FEW_CORNER_REASONS = (*_CORNER_REASONS, "the fit puts marker corners", "the fit hinges", "the tip is uncertain")
+# ... and those after which the views are searched eroded, where they clip (MarkerTracker._retry_eroded)
+_ERODED_REASONS = (*_CORNER_REASONS, "no start pose")
 
 
 def _median(x: Array) -> float:
@@ -152,6 +154,7 @@ class MarkerTracker:
             "SaddleCornerDetector")
         # each view's corners of the last good pair [px] (a lost pair's enlarged search looks there)
         self._seen: tuple[Array | None, Array | None] = (None, None)
+        self._eroded_size = 0  # the erosion [px] of the last pair _retry_eroded tracked (tried first)
         self._roi_magnify = 1.0  # the ROI search's enlargement (the last pair was found enlarged)
         self._magnifies = all("magnify" in inspect.signature(d.detect).parameters
                               for d in (self.detector_left, self.detector_right))
@@ -220,6 +223,8 @@ class MarkerTracker:
         magnified = False
         if not res.ok and res.reason.startswith(_FEW_CORNER_REASONS):
             res, magnified = self._retry_magnified(res, il, ir, t0)
+        if not res.ok and not roi_only and res.reason.startswith(_ERODED_REASONS):
+            res = self._retry_eroded(res, il, ir, t0)
         found = res.ok
         if found and self.settings.magnify > 1.0:  # only the enlarged search uses them
             self._seen = (res.corners_left.copy(), res.corners_right.copy())
@@ -524,13 +529,91 @@ class MarkerTracker:
         (cvs.tracking.corner_refit), solved again under the same gates: that result when it is
         good, else ``res``. The saddle's chain through a corner whose edge a highlight bends, the
         paper detector's accuracy (path-traced seed 404 pair 41: 0.06-0.50 px -> 0.05-0.18)."""
+        again = self._refit_matched(res, views, polarity, t0, refit_corners)
+        if again is None:
+            return res
+        out = again if again.ok else res
+        out.timings["second_refit"] = again.timings.pop("refit", 0.0)
+        return out
+
+    def _retry_eroded(self, res: TrackResult, il: Any, ir: Any, t0: float) -> TrackResult:
+        """A pair lost for too few corners (or no start pose) whose views clip: white squares
+        exposed at several times full scale and blurred spread over the corners, and no corner
+        passes the X-corner test (a sleeve close to the lens: path-traced seed 303 pairs 47 and
+        55, seed 404 pair 49). Each view eroded (a grey-level minimum over a disc of each size in
+        ``settings.eroded_sizes`` [px] in turn) grows the dark squares back until they touch; the
+        first detector's chains there give a pose, and each matched corner is then fitted on the
+        view itself by the HTM model with its clipped pixels censored
+        (cvs.corners.clipped_fit), and solved again under the same gates and one more: the tip's
+        standard deviation with every corner at ``clipped_sigma_px`` within ``max_tip_sigma_m``
+        (seed 303 pair 10, eroded, was 0.58 mm off at 1.7 mm of it; the pairs kept 0.34-0.89 mm,
+        0.05-0.15 mm off). The first size whose refitted corners pass is kept (the eroded
+        corners alone, 0.1-1.9 px off, never are), and
+        is tried first on the next such pair; ``res`` when none does, or when a view has fewer
+        than ``eroded_min_clipped_px`` pixels at ``clipped_level`` or more (erosion finds nothing
+        new in a view that does not clip)."""
+        s = self.settings
+        if not s.eroded_sizes:
+            return res
+        t1 = time.perf_counter()
+        gl, gr = to_gray(il), to_gray(ir)
+        if min(int(np.count_nonzero(gl >= s.clipped_level)), int(np.count_nonzero(gr >= s.clipped_level))) \
+                < s.eroded_min_clipped_px:
+            return res
+        level = float(s.clipped_level)
+
+        def clipped(view: Any, uv: Array, edges: Array) -> Array:
+            return refit_corners_clipped(view, uv, edges, level)[0]
+
+        out = res
+        sizes = [int(k) for k in s.eroded_sizes]
+        if self._eroded_size in sizes:  # the size that tracked the last such pair first
+            sizes.remove(self._eroded_size)
+            sizes.insert(0, self._eroded_size)
+        self._eroded_size = 0
+        for size in sizes:
+            disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (int(size), int(size)))
+            dl = self.detector_left.detect(cv2.erode(gl, disc))
+            dr = self.detector_right.detect(cv2.erode(gr, disc))
+            first = self.track_corners(dl.corners, dr.corners, dl.polarity, dr.polarity, _t0=t0)
+            if not first.ok:
+                continue
+            again = self._refit_matched(first, (gl, gr), (dl.polarity, dr.polarity), t0, clipped)
+            if again is not None and again.ok and self._clipped_tip_sigma(again) <= s.max_tip_sigma_m:
+                again.timings["eroded_refit"] = again.timings.pop("refit", 0.0)
+                out, self._eroded_size = again, size
+                for d, c in zip((self.detector_left, self.detector_right), (again.corners_left, again.corners_right)):
+                    d.follow(c)
+                break
+        out.timings["eroded"] = 1e3 * (time.perf_counter() - t1)
+        return out
+
+    def _clipped_tip_sigma(self, res: TrackResult) -> float:
+        """The tip's standard deviation [m] of a good result's fit with every used corner at
+        ``settings.clipped_sigma_px`` of noise: corners between clipped white squares are
+        0.3-0.8 px off where the two squares' exposures differ (cvs.corners.clipped_fit)."""
         m, pose = res.match, res.pose
         if m is None or pose is None:
-            return res
+            return float("inf")
+        P = self.solver.marker_points
+        used_l = m.index_left[m.index_left >= 0][np.asarray(pose.inliers_left, bool)]
+        used_r = m.index_right[m.index_right >= 0][np.asarray(pose.inliers_right, bool)]
+        tip = np.asarray(self.marker.tip(), float)
+        return tip_sigma(self.camera, pose.T_fit, P(used_l), P(used_r), np.stack([tip, -tip]),
+                         self.settings.clipped_sigma_px)
+
+    def _refit_matched(self, res: TrackResult, views: tuple[Any, Any], polarity: tuple[Array | None, Array | None],
+                       t0: float, refit: Callable[[Any, Array, Array], Array]) -> TrackResult | None:
+        """``res``'s matched corners, each fitted again by ``refit(view, uv, edges)`` at the fit's
+        own edge directions (cvs.tracking.corner_refit.corner_edge_angles), solved again under
+        the same gates (timings key 'refit'); None when ``res`` has no fit."""
+        m, pose = res.match, res.pose
+        if m is None or pose is None:
+            return None
         t = time.perf_counter()
         T_rl = np.eye(4)
         T_rl[:3, :3], T_rl[:3, 3] = self.camera.R, self.camera.T
-        refit = []
+        refit_uv: list[Array] = []
         for view, project, T_cam, corners, index in zip(
             views, (self.camera.left.project, self.camera.right.project), (pose.T_fit, T_rl @ pose.T_fit),
             (res.corners_left, res.corners_right), (m.index_left, m.index_right),
@@ -538,13 +621,11 @@ class MarkerTracker:
             out = np.array(corners, float).reshape(-1, 2)
             k = index >= 0
             if k.any():
-                out[k] = refit_corners(view, out[k], corner_edge_angles(T_cam, self.solver.marker_points(index[k]),
-                                                                        project))
-            refit.append(out)
-        again = self.track_corners(refit[0], refit[1], polarity[0], polarity[1], _t0=t0)
-        out_res = again if again.ok else res
-        out_res.timings["second_refit"] = 1e3 * (time.perf_counter() - t)
-        return out_res
+                out[k] = refit(view, out[k], corner_edge_angles(T_cam, self.solver.marker_points(index[k]), project))
+            refit_uv.append(out)
+        again = self.track_corners(refit_uv[0], refit_uv[1], polarity[0], polarity[1], _t0=t0)
+        again.timings["refit"] = 1e3 * (time.perf_counter() - t)
+        return again
 
     def _second_detectors(self) -> tuple[CornerDetector, CornerDetector]:
         """The saddle detector of each view ('auto': the second try), made on first use."""
@@ -753,6 +834,7 @@ class MarkerTracker:
         self._tracking = self._continuous = self._last_oriented = False
         self._last_pose = None
         self._seen, self._roi_magnify = (None, None), 1.0
+        self._eroded_size = 0
 
     def _start_poses(
         self, idx_l: IntArray, ul: Array, idx_r: IntArray, ur: Array, m: StereoMatch

@@ -30,7 +30,10 @@ __all__ = ["clipped_htm_refine"]
 
 def _fit_one(grey: Array, x0: int, y0: int, c: Array, edges: Array, clip_level: float,
              weight_sigma: float) -> tuple[Array, float] | None:
-    """The censored fit in the window whose top-left pixel is (x0, y0): (centre, cost), or None."""
+    """The censored fit in the window whose top-left pixel is (x0, y0): (centre, cost), or None.
+    Levenberg-Marquardt with the model's analytic Jacobian, started at the sign of the checker
+    (which pair of opposite quadrants is white) that a linear fit of the unclipped pixels at the
+    start gives; the other sign only where that fit fails."""
     h, w = grey.shape
     yy, xx = np.mgrid[0:h, 0:w]
     X, Y, Z = xx.ravel() + float(x0), yy.ravel() + float(y0), grey.ravel()
@@ -39,24 +42,47 @@ def _fit_one(grey: Array, x0: int, y0: int, c: Array, edges: Array, clip_level: 
     if clipped.all() or not clipped.any():
         return None
 
-    def residuals(p: Array) -> Array:
+    def terms(p: Array) -> tuple[Array, ...]:
         cx, cy, ea, eb, s, a, b, gx, gy = p
         dx, dy = X - cx, Y - cy
-        ta = np.tanh((-np.sin(ea) * dx + np.cos(ea) * dy) / s)
-        tb = np.tanh((-np.sin(eb) * dx + np.cos(eb) * dy) / s)
+        ua = -np.sin(ea) * dx + np.cos(ea) * dy
+        ub = -np.sin(eb) * dx + np.cos(eb) * dy
+        ta, tb = np.tanh(ua / s), np.tanh(ub / s)
         m = b + a * ta * tb + gx * dx + gy * dy
+        return dx, dy, ua, ub, ta, tb, m
+
+    def residuals(p: Array) -> Array:
+        m = terms(p)[-1]
         return sw * np.where(clipped, np.minimum(0.0, m - clip_level), m - Z)
 
-    best: tuple[Array, float] | None = None
-    for sign in (1.0, -1.0):  # which pair of opposite quadrants is white
+    def jacobian(p: Array) -> Array:
+        _, _, ea, eb, s, a, _, gx, gy = p
+        dx, dy, ua, ub, ta, tb, m = terms(p)
+        da, db = a * (1.0 - ta * ta) * tb / s, a * ta * (1.0 - tb * tb) / s  # dm/du_a, dm/du_b
+        J = np.column_stack([
+            da * np.sin(ea) + db * np.sin(eb) - gx,  # d/dcx
+            -da * np.cos(ea) - db * np.cos(eb) - gy,  # d/dcy
+            da * (-np.cos(ea) * dx - np.sin(ea) * dy),  # d/dea
+            db * (-np.cos(eb) * dx - np.sin(eb) * dy),  # d/deb
+            -(da * ua + db * ub) / s,  # d/ds
+            ta * tb, np.ones_like(ta), dx, dy,  # d/da, d/db, d/dgx, d/dgy
+        ])
+        live = ~clipped | (m < clip_level)  # a censored pixel above the level has no residual
+        return (sw * live)[:, None] * J
+
+    p_lin = np.array([c[0], c[1], edges[0], edges[1], 2.0, 0.0, 0.0, 0.0, 0.0])
+    _, _, _, _, ta, tb, _ = terms(p_lin)
+    A = np.column_stack([ta * tb, np.ones_like(ta), X - c[0], Y - c[1]])[~clipped] * sw[~clipped, None]
+    first = 1.0 if float(np.linalg.lstsq(A, Z[~clipped] * sw[~clipped], rcond=None)[0][0]) >= 0 else -1.0
+    for sign in (first, -first):
         p0 = np.array([c[0], c[1], edges[0], edges[1], 2.0, sign * clip_level, clip_level, 0.0, 0.0])
         try:
-            sol = least_squares(residuals, p0, method="lm", max_nfev=400)
+            sol = least_squares(residuals, p0, jac=jacobian, method="lm", max_nfev=400)
         except (ValueError, np.linalg.LinAlgError):
             continue
-        if np.all(np.isfinite(sol.x)) and abs(sol.x[4]) > 1e-3 and (best is None or sol.cost < best[1]):
-            best = (np.asarray(sol.x[:2], float), float(sol.cost))
-    return best
+        if np.all(np.isfinite(sol.x)) and abs(sol.x[4]) > 1e-3 and np.hypot(*(sol.x[:2] - c)) <= 3.0:
+            return np.asarray(sol.x[:2], float), float(sol.cost)
+    return None
 
 
 def clipped_htm_refine(img: NDArray[np.uint8], pts: Array, edges: Array, spacing: Array | float,

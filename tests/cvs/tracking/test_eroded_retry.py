@@ -90,6 +90,11 @@ def test_unclipped_views_are_not_searched_eroded(pair) -> None:
     assert not r.ok and "eroded" not in r.timings
 
 
+def test_eroded_sizes_given_as_a_list_are_kept_as_a_tuple() -> None:
+    settings = TrackerSettings(eroded_sizes=[5, 3])  # type: ignore[arg-type]
+    assert settings.eroded_sizes == (5, 3) and hash(settings) == hash(TrackerSettings(eroded_sizes=(5, 3)))
+
+
 @pytest.mark.parametrize("bad", [{"eroded_sizes": (1,)}, {"eroded_sizes": (3.5,)}, {"eroded_min_clipped_px": -1}])
 def test_bad_eroded_settings_are_refused(bad) -> None:
     with pytest.raises(InputError):

@@ -148,6 +148,7 @@ class TrackerSettings:
         sizes = tuple(self.eroded_sizes)
         if any(not isinstance(k, int) or isinstance(k, bool) or k < 2 for k in sizes):
             raise InputError(f"TrackerSettings.eroded_sizes must be integers >= 2 [px] (empty: off), got {sizes}")
+        object.__setattr__(self, "eroded_sizes", sizes)  # a list given stays hashable, like the default
         if int(self.eroded_min_clipped_px) < 0:
             raise InputError(f"TrackerSettings.eroded_min_clipped_px must be >= 0, got {self.eroded_min_clipped_px}")
         for name in ("gate_contrast_noise", "gate_min_spacing_px"):

@@ -595,12 +595,8 @@ class MarkerTracker:
         m, pose = res.match, res.pose
         if m is None or pose is None:
             return float("inf")
-        P = self.solver.marker_points
-        used_l = m.index_left[m.index_left >= 0][np.asarray(pose.inliers_left, bool)]
-        used_r = m.index_right[m.index_right >= 0][np.asarray(pose.inliers_right, bool)]
-        tip = np.asarray(self.marker.tip(), float)
-        return tip_sigma(self.camera, pose.T_fit, P(used_l), P(used_r), np.stack([tip, -tip]),
-                         self.settings.clipped_sigma_px)
+        return self._tip_sigma(pose, m.index_left[m.index_left >= 0], m.index_right[m.index_right >= 0],
+                               corner_sigma_px=self.settings.clipped_sigma_px)
 
     def _refit_matched(self, res: TrackResult, views: tuple[Any, Any], polarity: tuple[Array | None, Array | None],
                        t0: float, refit: Callable[[Any, Array, Array], Array]) -> TrackResult | None:
@@ -773,18 +769,20 @@ class MarkerTracker:
         return True
 
     def _tip_sigma(self, pose: MarkerPose, idx_l: IntArray, idx_r: IntArray,
-                   uv: tuple[Array, Array] | None = None) -> float:
+                   uv: tuple[Array, Array] | None = None, corner_sigma_px: float | None = None) -> float:
         """The fit's tip standard deviation [m] (cvs.tracking.tip_uncertainty), the larger of the
         sleeve's two ends (the direction of z_wm is decided later), at each used corner's noise:
-        ``settings.corner_sigma_px``, and with the pair's images (``track``) and ``uv`` (the
-        corners' raw pixels of each view, as idx_l / idx_r) combined with
-        ``corner_contrast_noise`` / the corner's contrast and, beside clipped pixels,
+        ``corner_sigma_px`` (default ``settings.corner_sigma_px``), and with the pair's images
+        (``track``) and ``uv`` (the corners' raw pixels of each view, as idx_l / idx_r) combined
+        with ``corner_contrast_noise`` / the corner's contrast and, beside clipped pixels,
         ``clipped_sigma_px`` (cvs.tracking.tip_uncertainty.corner_sigmas)."""
         P = self.solver.marker_points
         in_l, in_r = np.asarray(pose.inliers_left, bool), np.asarray(pose.inliers_right, bool)
         used_l, used_r = np.asarray(idx_l)[in_l], np.asarray(idx_r)[in_r]
         tip = np.asarray(self.marker.tip(), float)
         s = self.settings
+        if corner_sigma_px is not None:
+            return tip_sigma(self.camera, pose.T_fit, P(used_l), P(used_r), np.stack([tip, -tip]), corner_sigma_px)
         sigmas: tuple[Array, Array] | None = None
         if self._views is not None and uv is not None and (s.corner_contrast_noise > 0 or s.clipped_sigma_px > 0):
             sl, sr = (corner_sigmas(view, c[used], s.corner_sigma_px, s.corner_contrast_noise, s.clipped_sigma_px,

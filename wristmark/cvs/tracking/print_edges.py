@@ -25,8 +25,8 @@ from wristmark.models.marker import MarkerModel
 
 Array = NDArray[np.float64]
 
-__all__ = ["EdgeMeasurements", "PrintedEdges", "bar_pairs", "measure_edges", "print_is_negative", "printed_edges",
-           "refine_with_edges", "run_kernels_once"]
+__all__ = ["EdgeMeasurements", "PrintedEdges", "bar_pairs", "edges_tip_sigma", "measure_edges", "print_is_negative",
+           "printed_edges", "refine_with_edges", "run_kernels_once"]
 
 
 @dataclass(frozen=True)
@@ -317,9 +317,46 @@ def _image_jacobian(K: Array, R_cam: Array, X_cam: Array, X_left: Array) -> Arra
     return np.concatenate([rot, A], axis=2)
 
 
-def refine_with_edges(camera: StereoCamera, T_left_marker: Array,
-                      corners: tuple[tuple[Array, Array, Array], tuple[Array, Array, Array]],
-                      bars: tuple[tuple[Array, ...], tuple[Array, ...]],
+Corners = tuple[tuple[Array, Array, Array], tuple[Array, Array, Array]]
+Bars = tuple[tuple[Array, ...], tuple[Array, ...]]
+
+
+def _residuals(camera: StereoCamera, T: Array, corners: Corners, bars: Bars,
+               jac: bool) -> tuple[Array, Array, Array, Array]:
+    """At the pose ``T`` ({wm} in {ll}): the corner residuals over their noise, the bars' centre
+    line residuals [px] and, with ``jac``, their Jacobians for a twist applied in {ll}
+    (see :func:`refine_with_edges`)."""
+    Rm, tm = T[:3, :3], T[:3, 3]
+    R_rl, t_rl = np.asarray(camera.R, float), np.asarray(camera.T, float).reshape(3)
+    cams = ((camera.left, np.eye(3), np.zeros(3)), (camera.right, R_rl, t_rl))
+    rc, rb, Jc, Jb = [], [], [], []
+    for (cam, Rc, tc), (Pc, uvc, sc), (Pa, uva, na, Pb, uvb, nb) in zip(cams, corners, bars):
+        XL = np.vstack([Pc, Pa, Pb]) @ Rm.T + tm
+        X = XL @ Rc.T + tc
+        if not X.shape[0]:
+            continue
+        q = cam.project(X)
+        nc, na_ = Pc.shape[0], Pa.shape[0]
+        rc.append(((q[:nc] - uvc) / sc[:, None]).ravel())
+        ea = np.einsum("ij,ij->i", q[nc:nc + na_] - uva, na)
+        eb = np.einsum("ij,ij->i", q[nc + na_:] - uvb, nb)
+        rb.append(0.5 * (ea - eb))
+        if jac:
+            J = _image_jacobian(np.asarray(cam.K, float), Rc, X, XL)
+            Jc.append((J[:nc] / sc[:, None, None]).reshape(-1, 6))
+            Jb.append(0.5 * (np.einsum("ij,ijk->ik", na, J[nc:nc + na_])
+                             - np.einsum("ij,ijk->ik", nb, J[nc + na_:])))
+    return _cat(rc, (0,)), _cat(rb, (0,)), _cat(Jc, (0, 6)), _cat(Jb, (0, 6))
+
+
+def _bar_weights(rb: Array, bar_sigma_px: float, huber: float) -> Array:
+    """Each bar residual's whitening weight: sqrt(2) / ``bar_sigma_px`` (a centre line is the
+    mean of two edges), down-weighted beyond ``huber`` sigmas."""
+    scale = math.sqrt(2.0) / bar_sigma_px
+    return np.sqrt(np.minimum(1.0, huber / np.maximum(np.abs(rb * scale), 1e-12))) * scale
+
+
+def refine_with_edges(camera: StereoCamera, T_left_marker: Array, corners: Corners, bars: Bars,
                       bar_sigma_px: float, huber: float = 2.0, iterations: int = 1) -> tuple[Array, Array, Array]:
     """The pose {wm} in {ll} that best fits the corners and the dark bars' centre lines of both
     views together, from ``T_left_marker``: ``corners`` per view (points in {wm} (N, 3) [m],
@@ -331,35 +368,10 @@ def refine_with_edges(camera: StereoCamera, T_left_marker: Array,
     least 1). Returns the pose, and at it (to first order in the last step) the corner residuals
     over their noise and the bars' residuals [px] of both views."""
     T = np.asarray(T_left_marker, float).copy()
-    R_rl, t_rl = np.asarray(camera.R, float), np.asarray(camera.T, float).reshape(3)
-    cams = ((camera.left, np.eye(3), np.zeros(3)), (camera.right, R_rl, t_rl))
-    scale = math.sqrt(2.0) / bar_sigma_px  # a centre line is the mean of two edges
-
-    def step(Tm: Array, jac: bool) -> tuple[Array, Array, Array, Array]:
-        Rm, tm = Tm[:3, :3], Tm[:3, 3]
-        rc, rb, Jc, Jb = [], [], [], []
-        for (cam, Rc, tc), (Pc, uvc, sc), (Pa, uva, na, Pb, uvb, nb) in zip(cams, corners, bars):
-            XL = np.vstack([Pc, Pa, Pb]) @ Rm.T + tm
-            X = XL @ Rc.T + tc
-            if not X.shape[0]:
-                continue
-            q = cam.project(X)
-            nc, na_ = Pc.shape[0], Pa.shape[0]
-            rc.append(((q[:nc] - uvc) / sc[:, None]).ravel())
-            ea = np.einsum("ij,ij->i", q[nc:nc + na_] - uva, na)
-            eb = np.einsum("ij,ij->i", q[nc + na_:] - uvb, nb)
-            rb.append(0.5 * (ea - eb))
-            if jac:
-                J = _image_jacobian(np.asarray(cam.K, float), Rc, X, XL)
-                Jc.append((J[:nc] / sc[:, None, None]).reshape(-1, 6))
-                Jb.append(0.5 * (np.einsum("ij,ijk->ik", na, J[nc:nc + na_])
-                                 - np.einsum("ij,ijk->ik", nb, J[nc + na_:])))
-        return _cat(rc, (0,)), _cat(rb, (0,)), _cat(Jc, (0, 6)), _cat(Jb, (0, 6))
-
     rc, rb = np.zeros(0), np.zeros(0)
     for _ in range(iterations):
-        rc, rb, Jc, Jb = step(T, True)
-        w = np.sqrt(np.minimum(1.0, huber / np.maximum(np.abs(rb * scale), 1e-12))) * scale
+        rc, rb, Jc, Jb = _residuals(camera, T, corners, bars, True)
+        w = _bar_weights(rb, bar_sigma_px, huber)
         J = np.vstack([Jc, w[:, None] * Jb])
         r = np.concatenate([rc, w * rb])
         xi = np.linalg.solve(J.T @ J + 1e-12 * np.eye(6), -J.T @ r)
@@ -368,3 +380,26 @@ def refine_with_edges(camera: StereoCamera, T_left_marker: Array,
         if np.abs(xi[:3]).max() < 1e-7 and np.abs(xi[3:]).max() < 1e-8:
             break
     return T, rc, rb
+
+
+def edges_tip_sigma(camera: StereoCamera, T_left_marker: Array, corners: Corners, bars: Bars,
+                    bar_sigma_px: float, tips_marker: Array, huber: float = 2.0) -> float:
+    """The largest 3D standard deviation [m] of the points ``tips_marker`` (K, 3) in {wm} [m]
+    for the pose ``T_left_marker`` ({wm} in {ll}) fitted to the corners at their own noise and
+    the bars' centre lines at ``bar_sigma_px`` (down-weighted as in :func:`refine_with_edges`) of
+    both views together: first order, from the fit's Jacobian, as
+    cvs.tracking.tip_uncertainty.tip_sigma does for the corners alone; inf when they do not
+    determine the pose."""
+    T = np.asarray(T_left_marker, float)
+    _, rb, Jc, Jb = _residuals(camera, T, corners, bars, True)
+    J = np.vstack([Jc, _bar_weights(rb, bar_sigma_px, huber)[:, None] * Jb])
+    JtJ = J.T @ J
+    if J.shape[0] < 6 or not np.all(np.isfinite(JtJ)) or np.linalg.cond(JtJ) > 1e14:
+        return float("inf")
+    C = np.linalg.inv(JtJ)  # twist covariance: (rotation vector, translation) in {ll}
+    worst = 0.0
+    for c in np.asarray(tips_marker, float).reshape(-1, 3):
+        p = T[:3, :3] @ c + T[:3, 3]
+        A = np.hstack([-np.array([[0.0, -p[2], p[1]], [p[2], 0.0, -p[0]], [-p[1], p[0], 0.0]]), np.eye(3)])
+        worst = max(worst, float(np.sqrt(max(np.trace(A @ C @ A.T), 0.0))))
+    return worst

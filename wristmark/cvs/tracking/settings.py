@@ -107,7 +107,12 @@ class TrackerSettings:
     corners then fitted on the views themselves by the HTM model with the clipped pixels
     censored (cvs.corners.clipped_fit); the same pose gates, and the tip's standard deviation
     with every corner at clipped_sigma_px within max_tip_sigma_m (empty: off;
-    MarkerTracker._retry_eroded)."""
+    MarkerTracker._retry_eroded). bars_gate: a whole-frame fit refused by the tip-sigma gate
+    (max_tip_sigma_m) is oriented and refined with the print's bars as above, and kept where the
+    tip's sigma from the corners and the bars together is within max_tip_sigma_m at the gate's
+    corner noise and within max_contrast_tip_sigma_m at the contrast noise: bars up to +-5 mm
+    fix the tilt that 3-4 corners of a steeply seen sleeve leave open (needs edge_sigma_px > 0;
+    MarkerTracker._retry_with_bars)."""
 
     min_corners: int = 3
     min_pairs: int = 2
@@ -143,6 +148,7 @@ class TrackerSettings:
     edge_min_spacing_px: float = 23.0
     eroded_sizes: tuple[int, ...] = (3, 5, 7, 9, 11)
     eroded_min_clipped_px: int = 200
+    bars_gate: bool = True
 
     def __post_init__(self) -> None:
         sizes = tuple(self.eroded_sizes)

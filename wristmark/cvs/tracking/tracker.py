@@ -66,8 +66,11 @@ from wristmark.cvs.tracking.axis import axis_evidence, axis_evidence_strict
 from wristmark.cvs.tracking.corner_refit import corner_edge_angles, refit_corners, refit_corners_clipped
 from wristmark.cvs.tracking.homography_init import homography_pose
 from wristmark.cvs.tracking.print_edges import (
+    Bars,
+    Corners,
     PrintedEdges,
     bar_pairs,
+    edges_tip_sigma,
     measure_edges,
     print_is_negative,
     printed_edges,
@@ -89,6 +92,8 @@ _CORNER_REASONS = ("no marker found", "too few marker corners", "only ")
 _FEW_CORNER_REASONS = (*_CORNER_REASONS, "the fit puts marker corners", "the fit hinges", "the tip is uncertain")
 # ... and those after which the views are searched eroded, where they clip (MarkerTracker._retry_eroded)
 _ERODED_REASONS = (*_CORNER_REASONS, "no start pose")
+# how the tip-sigma gate's refusal ends, after which the print's bars are weighed in (_retry_with_bars)
+_TIP_SIGMA_CAUSE = "to fix the marker's tilt)"
 
 
 def _median(x: Array) -> float:
@@ -241,6 +246,9 @@ class MarkerTracker:
             if res.ok and gate:  # refused here, the corners' ROIs stay (as for an ambiguous direction)
                 res = self.contrast_gate(res, (il, ir))
             res = replace(res, time_ms=1e3 * (time.perf_counter() - t0))
+        elif gate and not roi_only and res.reason.endswith(_TIP_SIGMA_CAUSE):
+            res = self._retry_with_bars(res, (to_gray(il), to_gray(ir)), t0, axis_hint_left)
+            found = res.ok
         self._tracking = found  # an ambiguous direction keeps the corners' ROIs
         self._last_pose = res.pose if found else None
         self._last_oriented = res.ok
@@ -324,12 +332,27 @@ class MarkerTracker:
         noise where the residual is the larger: sqrt(chi^2 / (2 N - 6)) over the N used corners'
         pixel residuals, at least 1. 0 where the gate does not apply: no fit, no contrast noise, or
         the chains' median spacing under ``settings.gate_min_spacing_px``."""
+        got = self._contrast_sigmas(res, views, contrast_noise)
+        if got is None:
+            return 0.0
+        idx_l, idx_r, sig, factor = got
+        assert res.pose is not None
+        tip = np.asarray(self.marker.tip(), float)
+        P = self.solver.marker_points
+        return factor * tip_sigma(self.camera, res.pose.T_fit, P(idx_l), P(idx_r), np.stack([tip, -tip]),
+                                  self.settings.corner_sigma_px, sig)
+
+    def _contrast_sigmas(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],
+                         contrast_noise: float | None) -> tuple[IntArray, IntArray, tuple[Array, Array], float] | None:
+        """:meth:`contrast_tip_sigma`'s corner noise: the used corners' model indices of each
+        view, their contrast noise [px] and the fit's residual factor; None where the gate does
+        not apply."""
         m, pose, s = res.match, res.pose, self.settings
         noise = s.gate_contrast_noise if contrast_noise is None else float(contrast_noise)
         if m is None or pose is None or noise <= 0:
-            return 0.0
+            return None
         if _median_spacing(res.corners_left, res.corners_right) < s.gate_min_spacing_px:
-            return 0.0
+            return None
         kl, kr = m.index_left >= 0, m.index_right >= 0
         in_l, in_r = np.asarray(pose.inliers_left, bool), np.asarray(pose.inliers_right, bool)
         idx_l, idx_r = m.index_left[kl][in_l], m.index_right[kr][in_r]
@@ -349,8 +372,7 @@ class MarkerTracker:
                 chi2 += float(((e / sg[:, None]) ** 2).sum())
         dof = 2 * (idx_l.size + idx_r.size) - 6
         factor = max(1.0, float(np.sqrt(chi2 / dof))) if dof > 0 else 1.0
-        tip = np.asarray(self.marker.tip(), float)
-        return factor * tip_sigma(self.camera, T, P(idx_l), P(idx_r), np.stack([tip, -tip]), s.corner_sigma_px, sig)
+        return idx_l, idx_r, sig, factor
 
     def contrast_gate(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],
                       contrast_noise: float | None = None, max_sigma_m: float | None = None) -> TrackResult:
@@ -378,11 +400,19 @@ class MarkerTracker:
         least ``edge_min_samples`` bar samples were found and both the corners and the bars
         reproject within ``edge_max_rms_px`` [px] RMS; the contrast gate still judges the
         corners' own fit (``pose.T_fit``)."""
+        fit = self._edge_fit(res, views)
+        return res if fit is None else fit[0]
+
+    def _edge_fit(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]]
+                  ) -> tuple[TrackResult, Corners, Bars] | None:
+        """:meth:`_edge_refined`'s work: the refined result with the corners (points in the
+        result's {wm}, pixels, solve noise) and bars it was solved from; None where it is not
+        refined."""
         m, pose, s = res.match, res.pose, self.settings
         if m is None or pose is None or res.T_left_marker is None:
-            return res
+            return None
         if _median_spacing(res.corners_left, res.corners_right) < s.edge_min_spacing_px:
-            return res
+            return None
         t = time.perf_counter()
         T0 = np.asarray(res.T_left_marker, float)
         inv0 = np.eye(4)
@@ -408,17 +438,67 @@ class MarkerTracker:
         bars = (bar_pairs(edges, found[0]), bar_pairs(edges, found[1]))
         if bars[0][0].shape[0] + bars[1][0].shape[0] < s.edge_min_samples:
             res.timings["edges"] = 1e3 * (time.perf_counter() - t)
-            return res
-        T, rc, re = refine_with_edges(self.camera, T0, (corners[0], corners[1]), bars, s.edge_sigma_px)
+            return None
+        both = (corners[0], corners[1])
+        T, rc, re = refine_with_edges(self.camera, T0, both, bars, s.edge_sigma_px)
         res.timings["edges"] = 1e3 * (time.perf_counter() - t)
         sig_all = np.concatenate([c[2] for c in corners])
         corner_rms = float(np.sqrt(np.mean((rc.reshape(-1, 2) * sig_all[:, None]) ** 2))) if rc.size else 0.0
         edge_rms = float(np.sqrt(np.mean(re ** 2)))
         if not (corner_rms <= s.edge_max_rms_px and edge_rms <= s.edge_max_rms_px):
-            return res
+            return None
         tip_left, tip_world = self.solver._tips(T)
-        return replace(res, T_left_marker=T, tip_left=tip_left, tip_world=tip_world,
-                       pose=replace(pose, T_left_marker=T, tip_left=tip_left, tip_world=tip_world))
+        return (replace(res, T_left_marker=T, tip_left=tip_left, tip_world=tip_world,
+                        pose=replace(pose, T_left_marker=T, tip_left=tip_left, tip_world=tip_world)), both, bars)
+
+    def _retry_with_bars(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]], t0: float,
+                         hint: Array | None) -> TrackResult:
+        """A pair refused by the tip-sigma gate (too few corners, or seen too steeply, to fix
+        the sleeve's tilt) taken as it would have been, oriented and refined with the print's
+        bars (:meth:`_edge_fit`), and judged again with the bars' evidence added to the corners':
+        kept where the tip's sigma at the corners' gate noise is within ``max_tip_sigma_m`` and
+        at their contrast noise within ``max_contrast_tip_sigma_m``
+        (cvs.tracking.print_edges.edges_tip_sigma). ``res`` unchanged otherwise."""
+        m, best, s = res.match, res.pose, self.settings
+        if m is None or best is None or s.edge_sigma_px <= 0 or not s.bars_gate:
+            return res
+        t = time.perf_counter()
+        kl, kr = m.index_left >= 0, m.index_right >= 0
+        idx_l, ul, idx_r, ur = m.index_left[kl], res.corners_left[kl], m.index_right[kr], res.corners_right[kr]
+        if self._single_view_shift(best, idx_l, ul, idx_r, ur, m) > s.max_single_view_shift_m:
+            return res
+        cand = TrackResult(True, "", best.tip_left, best.tip_world, best.T_left_marker, res.corners_left,
+                           res.corners_right, best.rms_px, 0.0, dict(res.timings), pose=best, match=m)
+        cand = self._orient(cand, views, hint)
+        if cand.ok and s.solve_contrast_noise > 0:
+            cand = self._contrast_weighted(cand, views)
+        fit = self._edge_fit(cand, views) if cand.ok else None
+        if fit is None:
+            res.timings["bars_gate"] = 1e3 * (time.perf_counter() - t)
+            return res
+        out, corners, bars = fit
+        assert out.T_left_marker is not None and out.pose is not None
+        tip = np.asarray(self.marker.tip(), float)
+        tips, T = np.stack([tip, -tip]), out.T_left_marker
+        in_l, in_r = np.asarray(out.pose.inliers_left, bool), np.asarray(out.pose.inliers_right, bool)
+        gate_sig = [corner_sigmas(view, c[used], s.corner_sigma_px, s.corner_contrast_noise, s.clipped_sigma_px,
+                                  s.clipped_level, s.clipped_radius * _median_spacing(c))
+                    for view, c, used in ((views[0], ul, in_l), (views[1], ur, in_r))]
+
+        def at(noise: tuple[Array, Array] | list[Array]) -> float:  # the tip's sigma at these corner noises
+            return edges_tip_sigma(self.camera, T, ((corners[0][0], corners[0][1], noise[0]),
+                                                     (corners[1][0], corners[1][1], noise[1])),
+                                   bars, s.edge_sigma_px, tips)
+
+        sigma = at(gate_sig)
+        contrast = self._contrast_sigmas(out, views, None)
+        c_sigma = 0.0
+        if contrast is not None and np.isfinite(s.max_contrast_tip_sigma_m):
+            c_sigma = at((contrast[3] * contrast[2][0], contrast[3] * contrast[2][1]))
+        res.timings["bars_gate"] = out.timings["bars_gate"] = 1e3 * (time.perf_counter() - t)
+        if not (sigma <= s.max_tip_sigma_m and c_sigma <= s.max_contrast_tip_sigma_m):
+            return res
+        return replace(out, time_ms=1e3 * (time.perf_counter() - t0))
 
     def _retry_with_gaps(self, res: TrackResult, t0: float) -> TrackResult:
         """A pair lost for too few corners: a highlight over the corner each camera sees best
@@ -974,7 +1054,7 @@ class MarkerTracker:
             doubt = "the fit puts marker corners on the far side of the sleeve (too few corners to tell its tilt)"
         elif (sigma := self._tip_sigma(best, idx_l, idx_r, (ul, ur))) > s.max_tip_sigma_m:
             doubt = (f"the tip is uncertain by {1e3 * sigma:.2f} mm at the corners' noise "
-                     "(too few corners, seen too steeply or beside a highlight, to fix the marker's tilt)")
+                     f"(too few corners, seen too steeply or beside a highlight, {_TIP_SIGMA_CAUSE}")
         elif (shift := self._single_view_shift(best, idx_l, ul, idx_r, ur, m)) > s.max_single_view_shift_m:
             doubt = f"the fit hinges on corners seen in one view only (the tip moves {1e3 * shift:.1f} mm without them)"
         if doubt:

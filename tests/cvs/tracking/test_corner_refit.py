@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 
 from wristmark.cvs.calibration.load import load_calibration
-from wristmark.cvs.tracking.corner_refit import corner_edge_angles, refit_corners
+from wristmark.cvs.tracking.corner_refit import corner_edge_angles, partner_corners, refit_corners
 from wristmark.cvs.tracking.tracker import MarkerTracker
 from wristmark.models.config_files import default_config
 from wristmark.models.marker import MarkerModel
@@ -31,6 +31,30 @@ def test_a_corner_started_off_is_fitted_onto_it_and_one_at_the_border_keeps_its_
     out = refit_corners(img, np.array([[40.9, 38.1], [2.0, 70.0]]), edges)
     assert np.hypot(*(out[0] - [40.3, 38.6])) < 0.05  # started 0.78 px off
     np.testing.assert_array_equal(out[1], [2.0, 70.0])  # its window would leave the image
+
+
+def test_a_partner_is_found_from_a_near_prediction_also_beside_a_clipped_stripe_and_not_on_a_flat_patch() -> None:
+    """partner_corners: the plain fit where its window does not clip, the censored fit where it
+    does (both white squares at 4 x full scale: clipped over the corner), and ok false on a flat
+    patch and on a single edge (the X-corner correlation)."""
+    edges = np.radians([[12.0, 97.0]])
+    plain = _x_corner((40.3, 38.6), (12.0, 97.0))
+    out, ok = partner_corners(plain, np.array([[40.8, 38.2]]), edges, 30.0)
+    assert ok[0] and np.hypot(*(out[0] - [40.3, 38.6])) < 0.05
+    radiance = x_corner_radiance((40.3, 38.6), (12.0, 97.0), (1000.0, 1000.0), 35.0, 80)
+    clipped = np.clip(cv2.GaussianBlur(radiance, (0, 0), 1.0), 0, 255).astype(np.uint8)
+    assert (clipped[34:43, 36:45] >= 250).any()
+    out, ok = partner_corners(clipped, np.array([[40.8, 38.2]]), edges, 30.0)
+    assert ok[0] and np.hypot(*(out[0] - [40.3, 38.6])) < 0.1
+    flat = np.full((80, 80), 120, np.uint8)
+    out, ok = partner_corners(flat, np.array([[40.0, 40.0]]), edges, 30.0)
+    assert not ok[0] and np.array_equal(out[0], [40.0, 40.0])
+    yy, xx = np.mgrid[0:80, 0:80]
+    a = np.radians(12.0)
+    edge_only = np.where((yy - 38.6) * np.cos(a) - (xx - 40.3) * np.sin(a) > 0, 210.0, 35.0).astype(np.float32)
+    edge_only = np.clip(cv2.GaussianBlur(edge_only, (0, 0), 1.0), 0, 255).astype(np.uint8)
+    _, ok = partner_corners(edge_only, np.array([[40.3, 38.6]]), edges, 30.0)
+    assert not ok[0]  # one of the two edges alone: no X
 
 
 def test_the_print_lines_project_around_and_along_a_sleeve_seen_side_on() -> None:

@@ -9,6 +9,9 @@ by the HTM model (cvs.corners.subpixel.htm_refine) in the detector's window, sta
 position and at the pose's own edge directions (the print's lines around and along the sleeve
 through it, projected): the paper detector's accuracy on the saddle detector's chain.
 
+A corner seen in one view only is looked for in the other at the place a pose puts it
+(:func:`partner_corners`: the plain fit, or the censored one where its window clips).
+
 Corners found on an eroded image (white squares clipped and blurred over the corners; the
 tracker's last try, MarkerTracker._retry_eroded) are fitted again on the image itself by the
 same model with its clipped pixels censored (:func:`refit_corners_clipped`,
@@ -24,11 +27,12 @@ from numpy.typing import NDArray
 
 from wristmark.cvs.corners.clipped_fit import clipped_htm_refine
 from wristmark.cvs.corners.subpixel import htm_refine
+from wristmark.cvs.corners.xcorner_test import htm_correlation
 from wristmark.cvs.gray_image import gray_crop
 
 Array = NDArray[np.float64]
 
-__all__ = ["corner_edge_angles", "refit_corners", "refit_corners_clipped"]
+__all__ = ["corner_edge_angles", "partner_corners", "refit_corners", "refit_corners_clipped"]
 
 
 def corner_edge_angles(T_cam_marker: Array, points_marker: Array, project: Callable[[Array], Array]) -> Array:
@@ -93,3 +97,41 @@ def refit_corners_clipped(view: NDArray[np.uint8], uv: Array, edges: Array,
     d = np.linalg.norm(pts[:, None] - pts[None], axis=2) + np.diag(np.full(n, np.inf))
     spacing = d.min(axis=1) if n > 1 else np.full(1, np.inf)
     return clipped_htm_refine(view, pts, edges, spacing, clip_level)
+
+
+def partner_corners(view: NDArray[np.uint8], uv: Array, edges: Array, spacing: Array | float,
+                    clip_level: float = 250.0, radius: int = 4, cc_min: float = 0.8,
+                    cc_radius: int = 4) -> tuple[Array, NDArray[np.bool_]]:
+    """Corners of the grey image ``view`` fitted by the HTM model from predicted places ``uv``
+    (N, 2) [raw px] and edge angles ``edges`` (N, 2) [rad], each ``spacing`` [px] from its
+    nearest neighbouring corner (per corner or one value): the paper detector's fit ((2
+    ``radius`` + 1)^2 window, Gaussian weights 0.12 ``spacing`` in [1.5, 4] px) where no pixel of
+    that window reaches ``clip_level``, else the fit with the clipped pixels censored
+    (:func:`refit_corners_clipped`'s). Returns the fitted corners (N, 2) and ok (N,): False (input
+    returned) where the fit fails, moves more than 1.5 px or its window leaves the image, or
+    (the plain fit) where the grey levels of the (2 ``cc_radius`` + 1)^2 window there correlate
+    with the HTM at the given edges by less than ``cc_min`` (the paper's X-corner test, eq. 8:
+    a flat or edge-only patch is no corner)."""
+    pts = np.asarray(uv, float).reshape(-1, 2)
+    e = np.asarray(edges, float).reshape(-1, 2)
+    gaps = np.broadcast_to(np.asarray(spacing, float), (pts.shape[0],))
+    out, ok = pts.copy(), np.zeros(pts.shape[0], bool)
+    h, w = view.shape[:2]
+    for k, (x, y) in enumerate(pts):
+        pad = int(np.ceil(max(radius, 0.3 * gaps[k]))) + 2
+        if not (pad <= x < w - pad and pad <= y < h - pad):
+            continue
+        x0, y0 = int(round(x)) - radius, int(round(y)) - radius
+        grey = gray_crop(view, (x0, y0, x0 + 2 * radius + 1, y0 + 2 * radius + 1))
+        if grey.max() >= clip_level:
+            fit, good = clipped_htm_refine(view, pts[k:k + 1], e[k:k + 1], gaps[k], clip_level, max_move=1.5)
+        else:
+            fit, _, good = htm_refine(grey, pts[k:k + 1] - [x0, y0], e[k:k + 1], radius,
+                                      float(np.clip(0.12 * gaps[k], 1.5, 4.0)))
+            fit = fit + [x0, y0]
+            cx, cy = int(round(fit[0, 0])), int(round(fit[0, 1]))
+            good &= (cc_radius <= cx < w - cc_radius and cc_radius <= cy < h - cc_radius
+                     and abs(htm_correlation(view, cx, cy, cc_radius, e[k, 0], e[k, 1], 1.0)) >= cc_min)
+        if good[0]:
+            out[k], ok[k] = fit[0], True
+    return out, ok

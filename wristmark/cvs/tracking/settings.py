@@ -112,7 +112,11 @@ class TrackerSettings:
     tip's sigma from the corners and the bars together is within max_tip_sigma_m at the gate's
     corner noise and within max_contrast_tip_sigma_m at the contrast noise: bars up to +-5 mm
     fix the tilt that 3-4 corners of a steeply seen sleeve leave open (needs edge_sigma_px > 0;
-    MarkerTracker._retry_with_bars)."""
+    MarkerTracker._retry_with_bars). partner_max_px [px]: a whole-frame fit refused because it
+    hinges on corners seen in one view only (max_single_view_shift_m) has each such corner looked
+    for in the other view where that fit puts it, by the HTM fit (censored where its window
+    clips), kept within partner_max_px of that place, and the pair solved again with those
+    partners under every gate (0: off; MarkerTracker._retry_partners)."""
 
     min_corners: int = 3
     min_pairs: int = 2
@@ -149,6 +153,7 @@ class TrackerSettings:
     eroded_sizes: tuple[int, ...] = (3, 5, 7, 9, 11)
     eroded_min_clipped_px: int = 200
     bars_gate: bool = True
+    partner_max_px: float = 1.0
 
     def __post_init__(self) -> None:
         sizes = tuple(self.eroded_sizes)
@@ -167,6 +172,8 @@ class TrackerSettings:
             raise InputError(f"TrackerSettings.edge_max_rms_px must be > 0, got {self.edge_max_rms_px}")
         if not float(self.edge_min_spacing_px) >= 0:
             raise InputError(f"TrackerSettings.edge_min_spacing_px must be >= 0, got {self.edge_min_spacing_px}")
+        if not float(self.partner_max_px) >= 0:
+            raise InputError(f"TrackerSettings.partner_max_px must be >= 0 [px] (0: off), got {self.partner_max_px}")
         if int(self.edge_min_samples) < 1:
             raise InputError(f"TrackerSettings.edge_min_samples must be >= 1, got {self.edge_min_samples}")
         if not float(self.max_contrast_tip_sigma_m) > 0:

@@ -63,7 +63,12 @@ from wristmark.cvs.camera import StereoCamera
 from wristmark.cvs.gray_image import check_view, to_gray
 from wristmark.cvs.marker.decode import CodeDecoder
 from wristmark.cvs.tracking.axis import axis_evidence, axis_evidence_strict
-from wristmark.cvs.tracking.corner_refit import corner_edge_angles, refit_corners, refit_corners_clipped
+from wristmark.cvs.tracking.corner_refit import (
+    corner_edge_angles,
+    partner_corners,
+    refit_corners,
+    refit_corners_clipped,
+)
 from wristmark.cvs.tracking.homography_init import homography_pose
 from wristmark.cvs.tracking.print_edges import (
     Bars,
@@ -154,6 +159,8 @@ class MarkerTracker:
         self._second: tuple[CornerDetector, CornerDetector] | None = None
         self._print_edges: PrintedEdges | None = None  # the print's bar samples (print_edges), on first use
         self._misfits: list[tuple[Array, Array, Array | None, Array | None]] = []  # this pair's
+        # this pair's fits refused as hinging on single-view corners (_retry_partners)
+        self._hinged: list[tuple[Array, Array, Array, Array, MarkerPose, StereoMatch]] = []
         self._views: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None  # the pair track() is on
         self._use_second = self.settings.detector == "auto" and type(self.detector_left).__name__ != (
             "SaddleCornerDetector")
@@ -183,6 +190,7 @@ class MarkerTracker:
         t0 = time.perf_counter()
         self._continuous = False
         self._misfits = []
+        self._hinged = []
         il = check_view(left_img, self.camera.image_size, "left")
         ir = check_view(right_img, self.camera.image_size, "right")
         self._views = (il, ir)  # the tip-sigma gate looks at each used corner here
@@ -230,6 +238,8 @@ class MarkerTracker:
             res, magnified = self._retry_magnified(res, il, ir, t0)
         if not res.ok and not roi_only and res.reason.startswith(_ERODED_REASONS):
             res = self._retry_eroded(res, il, ir, t0)
+        if not res.ok and not roi_only and self._hinged and self.settings.partner_max_px > 0:
+            res = self._retry_partners(res, (to_gray(il), to_gray(ir)), t0)
         found = res.ok
         if found and self.settings.magnify > 1.0:  # only the enlarged search uses them
             self._seen = (res.corners_left.copy(), res.corners_right.copy())
@@ -550,6 +560,55 @@ class MarkerTracker:
                 follow = getattr(d, "follow", None)
                 if callable(follow):
                     follow(c)
+        return out
+
+    def _retry_partners(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],
+                        t0: float) -> TrackResult:
+        """Fits of this pair refused as hinging on corners seen in one view only (a highlight
+        over a corner in the other view, where the chain stepped over it): each such corner is
+        looked for in the other view where the refused fit puts it (cvs.tracking.corner_refit.
+        partner_corners, at the fit's own edge directions; kept where it lands within
+        ``partner_max_px`` of that place), and the chains with the partners found are solved
+        again under every gate (a partner beside clipped pixels counts as ``clipped_sigma_px``
+        noisy in the tip-sigma gate). The fit with the lowest RMS is kept; ``res`` unchanged when
+        none passes (timings key 'partners')."""
+        t1 = time.perf_counter()
+        s = self.settings
+        hinged, self._hinged = self._hinged, []
+        best: TrackResult | None = None
+        T_rl = np.eye(4)
+        T_rl[:3, :3], T_rl[:3, 3] = self.camera.R, self.camera.T
+        for cl, cr, pl, pr, fit, m in hinged:
+            corners, pols = [np.asarray(cl, float), np.asarray(cr, float)], [np.asarray(pl), np.asarray(pr)]
+            own = (m.index_left, m.index_right)
+            added = 0
+            for view, project, T_cam in ((0, self.camera.left.project, fit.T_fit),
+                                         (1, self.camera.right.project, T_rl @ fit.T_fit)):
+                other = 1 - view
+                seen = own[view][own[view] >= 0]
+                only = [j for j in range(own[other].size) if own[other][j] >= 0 and own[other][j] not in seen]
+                if not only or corners[view].shape[0] < 2:
+                    continue
+                idx = own[other][only]
+                P = self.solver.marker_points(idx)
+                C = P @ T_cam[:3, :3].T + T_cam[:3, 3]
+                uv = np.asarray(project(C), float).reshape(-1, 2)
+                edges = corner_edge_angles(T_cam, P, project)
+                gaps = np.linalg.norm(uv[:, None] - corners[view][None], axis=2).min(axis=1)
+                found, ok = partner_corners(views[view], uv, edges, gaps, s.clipped_level)
+                ok &= np.linalg.norm(found - uv, axis=1) <= s.partner_max_px
+                if ok.any():
+                    corners[view] = np.vstack([corners[view], found[ok]])
+                    pols[view] = np.concatenate([pols[view], pols[other][np.asarray(only)[ok]]])
+                    added += int(ok.sum())
+            if not added:
+                continue
+            r = self.track_corners(corners[0], corners[1], pols[0], pols[1], _t0=t0)
+            if r.ok and (best is None or r.rms_px < best.rms_px):
+                best = r
+        self._hinged = []
+        out = best if best is not None else res
+        out.timings["partners"] = 1e3 * (time.perf_counter() - t1)
         return out
 
     def _retry_magnified(self, res: TrackResult, il: Any, ir: Any, t0: float) -> tuple[TrackResult, bool]:
@@ -1061,6 +1120,8 @@ class MarkerTracker:
             if doubt.startswith("reprojection RMS"):  # a corner beside the chain? (_retry_without_chain_ends)
                 pols = [None if p is None else p.astype(float) for p in (pl, pr)]
                 self._misfits = [*self._misfits[-3:], (cl, cr, pols[0], pols[1])]  # bounded (track_corners alone)
+            elif doubt.startswith("the fit hinges") and pl is not None and pr is not None:  # (_retry_partners)
+                self._hinged = [*self._hinged[-3:], (cl, cr, pl, pr, best, m)]
             return self._fail(doubt, cl, cr, t0, timings, pose=best, match=m)
         return TrackResult(
             True,

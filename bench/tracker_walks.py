@@ -1,7 +1,7 @@
 """The tracker on rendered walks of an arm, two or more tracker settings side by side.
 
 Usage: python bench/tracker_walks.py --compare {facing,chain_polarity,tip_sigma,bars_gate,partners,
-           stereo_dy} [--robot tendon3]
+           reduced,stereo_dy} [--robot tendon3]
            [--image-scale 0.25] [--walks 20] [--first-walk 0] [--frames 40] [--spread 0.02]
            [--wide] [--wrong-mm 1.5]
 Prints JSON. Each walk starts at the arm's home plus a seeded offset of ``--spread`` [rad or m]
@@ -27,6 +27,9 @@ Comparisons:
   partners        a fit refused as hinging on single-view corners kept as refused
                   (``partner_max_px`` 0) and the default, which looks for their partners in the
                   other view (MarkerTracker._retry_partners);
+  reduced         a pair still lost not searched again (``reduced_scales`` empty) and the
+                  default, which searches each whole view reduced 2, 3 and 4 times and fits the
+                  corners found there on the view itself (MarkerTracker._retry_reduced);
   stereo_dy       left and right corners paired within 2 px of rectified y and within 2.5 px
                   (``max_dy_px``; cvs.tracking.stereo_match).
 """
@@ -64,6 +67,7 @@ COMPARISONS: dict[str, dict[str, TrackerSettings]] = {
     "tip_sigma": {"without_tip_sigma_gate": TrackerSettings(max_tip_sigma_m=np.inf), "default": TrackerSettings()},
     "bars_gate": {"without_bars_gate": TrackerSettings(bars_gate=False), "default": TrackerSettings()},
     "partners": {"without_partners": TrackerSettings(partner_max_px=0.0), "default": TrackerSettings()},
+    "reduced": {"without_reduced": TrackerSettings(reduced_scales=()), "default": TrackerSettings()},
     "stereo_dy": {"max_dy_2px": TrackerSettings(max_dy_px=2.0), "max_dy_2.5px": TrackerSettings(max_dy_px=2.5)},
 }
 

@@ -4,30 +4,25 @@ right (MarkerTracker._retry_with_bars, cvs.tracking.print_edges.edges_tip_sigma)
 
 from __future__ import annotations
 
-import json
 import math
-from pathlib import Path
 
-import cv2
 import numpy as np
 import pytest
 
+from tests.cvs.tracking.pbr_pairs import load_pbr_pair
 from wristmark.cvs.calibration.load import load_calibration
 from wristmark.cvs.tracking.settings import TrackerSettings
 from wristmark.cvs.tracking.tracker import MarkerTracker
 from wristmark.models.config_files import default_config
 from wristmark.models.marker import MarkerModel
 
-STEEP = Path(__file__).resolve().parents[2] / "data" / "pbr" / "coded_steep"
 CAM = load_calibration(str(default_config("camera.yaml")))
 CODED = MarkerModel.load(default_config("marker_coded.yaml"))
 
 
 @pytest.fixture(scope="module")
 def pair() -> tuple[np.ndarray, np.ndarray, dict]:
-    truth = json.loads((STEEP / "truth.json").read_text())
-    left, right = (cv2.imread(str(STEEP / f"pair_00_{v}.png"), cv2.IMREAD_GRAYSCALE) for v in ("left", "right"))
-    return left, right, truth
+    return load_pbr_pair("coded_steep")
 
 
 def _tip_mm(r, truth: dict) -> float:

@@ -3,20 +3,16 @@ MarkerTracker._refit_second)."""
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
-
 import cv2
 import numpy as np
 
+from tests.cvs.tracking.pbr_pairs import load_pbr_pair
 from wristmark.cvs.calibration.load import load_calibration
 from wristmark.cvs.tracking.corner_refit import corner_edge_angles, partner_corners, refit_corners
 from wristmark.cvs.tracking.tracker import MarkerTracker
 from wristmark.models.config_files import default_config
 from wristmark.models.marker import MarkerModel
 from wristmark_testing.x_corner import x_corner_radiance
-
-SADDLE = Path(__file__).resolve().parents[2] / "data" / "pbr" / "coded_saddle"
 
 
 def _x_corner(centre: tuple[float, float], angles_deg: tuple[float, float], size: int = 80) -> np.ndarray:
@@ -77,8 +73,7 @@ def test_the_saddle_chain_through_a_bent_corner_gets_the_paper_fit() -> None:
     edge directions they are within 0.25 px, and the tip 0.044 mm."""
     cam = load_calibration(str(default_config("camera.yaml")))
     marker = MarkerModel.load(default_config("marker_coded.yaml"))
-    truth = json.loads((SADDLE / "truth.json").read_text())
-    left, right = (cv2.imread(str(SADDLE / f"pair_00_{v}.png"), cv2.IMREAD_GRAYSCALE) for v in ("left", "right"))
+    left, right, truth = load_pbr_pair("coded_saddle")
     r = MarkerTracker(cam, marker).track(left, right)
     assert r.ok and r.tip_left is not None, r.reason
     assert "second_detector" in r.timings and "second_refit" in r.timings

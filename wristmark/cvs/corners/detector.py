@@ -53,6 +53,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import replace
 from typing import Any
 
 import cv2
@@ -237,6 +238,33 @@ class MarkerCornerDetector:
                 if xc.corners.shape[0]:
                     return self._result(xc, None, t0, extras)
         return self._result(self._chain_in(g, None, s, extras), None, t0, extras)
+
+    def detect_reduced(self, gray: Any, k: int) -> CornerChain:
+        """The marker chain in the whole image reduced ``k`` (>= 2) times by area averaging (its
+        top-left part whose sides are multiples of k), searched with the settings scaled to it
+        (``scaled_settings``, sub-pixel refinement kept), in the image's own pixels: a sleeve so
+        close to the lens, or so far out of focus, that its corners are blurred over several
+        pixels fails the X-corner test at full and half scale and can pass it there. Its corners
+        are as fine as the reduced image's (a few tenths of a pixel of the full image: fit them
+        again at full resolution, as MarkerTracker does). ``retry_with_gaps`` then searches the
+        reduced image's candidates."""
+        t0 = time.perf_counter()
+        g = to_gray(check_image(gray))
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 2:
+            raise InputError(f"the reduction must be an integer >= 2, got {k!r}")
+        k = int(k)
+        h, w = (g.shape[0] // k) * k, (g.shape[1] // k) * k
+        extras: dict[str, float] = {}
+        if h < k or w < k:
+            return self._result(XCorners.empty(), None, t0, extras)
+        small = np.asarray(cv2.resize(g[:h, :w], (w // k, h // k), interpolation=cv2.INTER_AREA), np.uint8)
+        s = replace(scaled_settings(self.settings, k), refine=self.settings.refine)
+        t1 = time.perf_counter()
+        cands = find_candidates(small, s, None, self._ws)
+        chain = find_chain(cands, s)
+        extras["reduced_ms"] = 1e3 * (time.perf_counter() - t1)
+        self._searched = (cands, s, 0, 0, 1.0 / k)
+        return self._result(self._corners(cands, chain, s, 0, 0, extras, 1.0 / k), None, t0, extras)
 
     def _result(self, xc: XCorners, roi: Roi | None, t0: float, extras: dict[str, float]) -> CornerChain:
         self._last = xc.corners if xc.corners.shape[0] else None

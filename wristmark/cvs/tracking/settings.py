@@ -118,7 +118,13 @@ class TrackerSettings:
     hinges on corners seen in one view only (max_single_view_shift_m) has each such corner looked
     for in the other view where that fit puts it, by the HTM fit (censored where its window
     clips), kept within partner_max_px of that place, and the pair solved again with those
-    partners under every gate (0: off; MarkerTracker._retry_partners)."""
+    partners under every gate (0: off; MarkerTracker._retry_partners). reduced_scales [-]: a pair
+    still lost for too few corners, no start pose or a fit on too few corners is searched once
+    more in each whole view reduced by each factor in turn (area averaging; a sleeve close to the
+    lens or out of focus, its corners blurred over several pixels, fails the X-corner test at
+    full and half scale), its corners then fitted on the views themselves as in the eroded
+    search, under the same gates; the first factor that passes is kept (empty: off;
+    MarkerTracker._retry_reduced)."""
 
     min_corners: int = 3
     min_pairs: int = 2
@@ -156,12 +162,17 @@ class TrackerSettings:
     eroded_min_clipped_px: int = 200
     bars_gate: bool = True
     partner_max_px: float = 1.0
+    reduced_scales: tuple[int, ...] = (2, 3, 4)
 
     def __post_init__(self) -> None:
         sizes = tuple(self.eroded_sizes)
         if any(not isinstance(k, int) or isinstance(k, bool) or k < 2 for k in sizes):
             raise InputError(f"TrackerSettings.eroded_sizes must be integers >= 2 [px] (empty: off), got {sizes}")
         object.__setattr__(self, "eroded_sizes", sizes)  # a list given stays hashable, like the default
+        scales = tuple(self.reduced_scales)
+        if any(not isinstance(k, int) or isinstance(k, bool) or k < 2 for k in scales):
+            raise InputError(f"TrackerSettings.reduced_scales must be integers >= 2 (empty: off), got {scales}")
+        object.__setattr__(self, "reduced_scales", scales)
         if int(self.eroded_min_clipped_px) < 0:
             raise InputError(f"TrackerSettings.eroded_min_clipped_px must be >= 0, got {self.eroded_min_clipped_px}")
         for name in ("gate_contrast_noise", "gate_min_spacing_px"):

@@ -97,6 +97,8 @@ _CORNER_REASONS = ("no marker found", "too few marker corners", "only ")
 _FEW_CORNER_REASONS = (*_CORNER_REASONS, "the fit puts marker corners", "the fit hinges", "the tip is uncertain")
 # ... and those after which the views are searched eroded, where they clip (MarkerTracker._retry_eroded)
 _ERODED_REASONS = (*_CORNER_REASONS, "no start pose")
+# ... and those after which the whole views are searched reduced (MarkerTracker._retry_reduced)
+_REDUCED_REASONS = (*_FEW_CORNER_REASONS, "no start pose")
 # how the tip-sigma gate's refusal ends, after which the print's bars are weighed in (_retry_with_bars)
 _TIP_SIGMA_CAUSE = "to fix the marker's tilt)"
 
@@ -240,6 +242,8 @@ class MarkerTracker:
             res = self._retry_eroded(res, il, ir, t0)
         if not res.ok and not roi_only and self._hinged and self.settings.partner_max_px > 0:
             res = self._retry_partners(res, (to_gray(il), to_gray(ir)), t0)
+        if not res.ok and not roi_only and res.reason.startswith(_REDUCED_REASONS):
+            res = self._retry_reduced(res, il, ir, t0)
         found = res.ok
         if found and self.settings.magnify > 1.0:  # only the enlarged search uses them
             self._seen = (res.corners_left.copy(), res.corners_right.copy())
@@ -699,11 +703,6 @@ class MarkerTracker:
         if min(int(np.count_nonzero(gl >= s.clipped_level)), int(np.count_nonzero(gr >= s.clipped_level))) \
                 < s.eroded_min_clipped_px:
             return res
-        level = float(s.clipped_level)
-
-        def clipped(view: Any, uv: Array, edges: Array) -> Array:
-            return refit_corners_clipped(view, uv, edges, level)[0]
-
         out = res
         sizes = [int(k) for k in s.eroded_sizes]
         if self._eroded_size in sizes:  # the size that tracked the last such pair first
@@ -717,7 +716,7 @@ class MarkerTracker:
             first = self.track_corners(dl.corners, dr.corners, dl.polarity, dr.polarity, _t0=t0)
             if not first.ok:
                 continue
-            again = self._refit_matched(first, (gl, gr), (dl.polarity, dr.polarity), t0, clipped)
+            again = self._refit_matched(first, (gl, gr), (dl.polarity, dr.polarity), t0, self._refit_clipped)
             if again is not None and again.ok and self._clipped_tip_sigma(again) <= s.max_tip_sigma_m:
                 again.timings["eroded_refit"] = again.timings.pop("refit", 0.0)
                 out, self._eroded_size = again, size
@@ -726,6 +725,44 @@ class MarkerTracker:
                 break
         out.timings["eroded"] = 1e3 * (time.perf_counter() - t1)
         return out
+
+    def _retry_reduced(self, res: TrackResult, il: Any, ir: Any, t0: float) -> TrackResult:
+        """A pair lost for too few corners, no start pose or a fit on too few corners, searched
+        once more in each whole view reduced by each factor of ``settings.reduced_scales`` in turn
+        (cvs.corners.detector.MarkerCornerDetector.detect_reduced): a sleeve close to the lens or
+        out of focus, its corners blurred over several pixels, fails the X-corner test at full and
+        half scale (path-traced seed 606 pair 30: no X-corner at all, corners 80 px apart) and
+        can pass it there. Each matched corner is then fitted on the view itself by the HTM model
+        with its clipped pixels censored (its window 0.3 times the spacing, up to 14 px:
+        cvs.corners.clipped_fit) and solved again under the same gates and the clipped-noise tip
+        gate (as :meth:`_retry_eroded`); the first factor whose refitted corners pass is kept,
+        else ``res``. Paper detector only (not the saddle)."""
+        scales = self.settings.reduced_scales
+        dets = (self.detector_left, self.detector_right)
+        if not scales or not all(hasattr(d, "detect_reduced") for d in dets):
+            return res
+        t1 = time.perf_counter()
+        gl, gr = to_gray(il), to_gray(ir)
+        out = res
+        for k in scales:
+            dl, dr = (d.detect_reduced(g, k) for d, g in zip(dets, (gl, gr)))  # type: ignore[attr-defined]
+            first = self.track_corners(dl.corners, dr.corners, dl.polarity, dr.polarity, _t0=t0)
+            if not first.ok:
+                continue
+            again = self._refit_matched(first, (gl, gr), (dl.polarity, dr.polarity), t0, self._refit_clipped)
+            if again is not None and again.ok and self._clipped_tip_sigma(again) <= self.settings.max_tip_sigma_m:
+                again.timings["reduced_refit"] = again.timings.pop("refit", 0.0)
+                out = again
+                for d, c in zip(dets, (again.corners_left, again.corners_right)):
+                    d.follow(c)
+                break
+        out.timings["reduced"] = 1e3 * (time.perf_counter() - t1)
+        return out
+
+    def _refit_clipped(self, view: Any, uv: Array, edges: Array) -> Array:
+        """The corners ``uv`` [px] of the grey ``view`` fitted again by the HTM model with the
+        pixels at ``settings.clipped_level`` or more censored (cvs.tracking.corner_refit)."""
+        return refit_corners_clipped(view, uv, edges, float(self.settings.clipped_level))[0]
 
     def _clipped_tip_sigma(self, res: TrackResult) -> float:
         """The tip's standard deviation [m] of a good result's fit with every used corner at

@@ -12,8 +12,9 @@ through it, projected): the paper detector's accuracy on the saddle detector's c
 A corner seen in one view only is looked for in the other at the place a pose puts it
 (:func:`partner_corners`: the plain fit, or the censored one where its window clips).
 
-Corners found on an eroded image (white squares clipped and blurred over the corners; the
-tracker's last try, MarkerTracker._retry_eroded) are fitted again on the image itself by the
+Corners found on a reduced or an eroded image (corners blurred over several pixels, or white
+squares clipped and blurred over them: MarkerTracker._retry_reduced and _retry_eroded, the
+tracker's last tries) are fitted again on the image itself by the
 same model with its clipped pixels censored (:func:`refit_corners_clipped`,
 cvs.corners.clipped_fit).
 """

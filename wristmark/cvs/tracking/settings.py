@@ -103,27 +103,27 @@ class TrackerSettings:
     code band is 6 px tall and the search crosses it); a sleeve seen side-on shows one arc of
     corners at z = 0, and the bars up to +-5 mm fix its tilt (docs/notes/highlight-stripe.md).
     eroded_sizes [px], eroded_min_clipped_px: a pair lost for too few corners or without a start
-    pose, where each view has at least eroded_min_clipped_px pixels at clipped_level or more, is
-    searched again in each view eroded by a disc of each size in turn (white squares exposed at
-    several times full scale and blurred over the corners: a sleeve close to the lens), its
-    corners then fitted on the views themselves by the HTM model with the clipped pixels
-    censored (cvs.corners.clipped_fit); the same pose gates, and the tip's standard deviation
-    with every corner at clipped_sigma_px within max_tip_sigma_m (empty: off;
-    MarkerTracker._retry_eroded). bars_gate: a whole-frame fit refused by the tip-sigma gate
-    (max_tip_sigma_m) is oriented and refined with the print's bars as above, and kept where the
-    tip's sigma from the corners and the bars together is within max_tip_sigma_m at the gate's
-    corner noise and within max_contrast_tip_sigma_m at the contrast noise: bars up to +-5 mm
-    fix the tilt that 3-4 corners of a steeply seen sleeve leave open (needs edge_sigma_px > 0;
+    pose after every other search (the reduced one below included), where each view has at least
+    eroded_min_clipped_px pixels at clipped_level or more, is searched again in each view eroded by
+    a disc of each size in turn (white squares exposed at several times full scale and blurred over
+    the corners: a sleeve close to the lens), its corners then fitted on the views themselves by the
+    HTM model with the clipped pixels censored (cvs.corners.clipped_fit); the same pose gates, and
+    the tip's standard deviation with every corner at clipped_sigma_px within max_tip_sigma_m
+    (empty: off; MarkerTracker._retry_eroded). bars_gate: a whole-frame fit refused by the tip-sigma
+    gate (max_tip_sigma_m) is oriented and refined with the print's bars as above, and kept where
+    the tip's sigma from the corners and the bars together is within max_tip_sigma_m at the gate's
+    corner noise and within max_contrast_tip_sigma_m at the contrast noise: bars up to +-5 mm fix
+    the tilt that 3-4 corners of a steeply seen sleeve leave open (needs edge_sigma_px > 0;
     MarkerTracker._retry_with_bars). partner_max_px [px]: a whole-frame fit refused because it
     hinges on corners seen in one view only (max_single_view_shift_m) has each such corner looked
-    for in the other view where that fit puts it, by the HTM fit (censored where its window
-    clips), kept within partner_max_px of that place, and the pair solved again with those
-    partners under every gate (0: off; MarkerTracker._retry_partners). reduced_scales [-]: a pair
-    still lost for too few corners, no start pose or a fit on too few corners is searched once
-    more in each whole view reduced by each factor in turn (area averaging; a sleeve close to the
-    lens or out of focus, its corners blurred over several pixels, fails the X-corner test at
-    full and half scale), its corners then fitted on the views themselves as in the eroded
-    search, under the same gates; the first factor that passes is kept (empty: off;
+    for in the other view where that fit puts it, by the HTM fit (censored where its window clips),
+    kept within partner_max_px of that place, and the pair solved again with those partners under
+    every gate (0: off; MarkerTracker._retry_partners). reduced_scales [-]: a pair still lost for
+    too few corners, no start pose or a fit on too few corners is searched once more (before the
+    eroded search: the cheaper first) in each whole view reduced by each factor in turn (area
+    averaging; a sleeve close to the lens or out of focus, its corners blurred over several pixels,
+    fails the X-corner test at full and half scale), its corners then fitted on the views themselves
+    as in the eroded search, under the same gates; the first factor that passes is kept (empty: off;
     MarkerTracker._retry_reduced)."""
 
     min_corners: int = 3

@@ -21,7 +21,13 @@ pair whose corners fit no pose (RMS above ``max_rms_px``) gets one more with one
 a view's chain left out (an X-like corner at the sleeve's silhouette that extends a chain). A
 pair still lost for too few corners, where both views saw the marker before, has each view's
 box around its last good corners searched enlarged (``TrackerSettings.magnify``: a small or
-steeply seen sleeve's squares a few pixels wide; docs/notes/steep-views.md). Last, a good,
+steeply seen sleeve's squares a few pixels wide; docs/notes/steep-views.md). A pair then still
+lost, one of whose fits hinged on corners seen in one view only, has those corners looked for in
+the other view (:meth:`MarkerTracker._retry_partners`); one still lost for want of corners is
+searched in each whole view reduced 2-4 times (corners blurred over several pixels:
+:meth:`MarkerTracker._retry_reduced`), then, where both views clip, eroded
+(:meth:`MarkerTracker._retry_eroded`); the corners these two find are fitted again on the views
+themselves. Last, a good,
 oriented result is refused when its tip's standard deviation at its corners' contrast noise,
 scaled up by the fit's residual where that exceeds the noise, is above
 ``max_contrast_tip_sigma_m`` (:meth:`MarkerTracker.contrast_gate`: a dark sleeve's dim corners,
@@ -238,12 +244,12 @@ class MarkerTracker:
         magnified = False
         if not res.ok and res.reason.startswith(_FEW_CORNER_REASONS):
             res, magnified = self._retry_magnified(res, il, ir, t0)
-        if not res.ok and not roi_only and res.reason.startswith(_ERODED_REASONS):
-            res = self._retry_eroded(res, il, ir, t0)
         if not res.ok and not roi_only and self._hinged and self.settings.partner_max_px > 0:
             res = self._retry_partners(res, (to_gray(il), to_gray(ir)), t0)
         if not res.ok and not roi_only and res.reason.startswith(_REDUCED_REASONS):
             res = self._retry_reduced(res, il, ir, t0)
+        if not res.ok and not roi_only and res.reason.startswith(_ERODED_REASONS):
+            res = self._retry_eroded(res, il, ir, t0)
         found = res.ok
         if found and self.settings.magnify > 1.0:  # only the enlarged search uses them
             self._seen = (res.corners_left.copy(), res.corners_right.copy())
@@ -680,7 +686,9 @@ class MarkerTracker:
         return out
 
     def _retry_eroded(self, res: TrackResult, il: Any, ir: Any, t0: float) -> TrackResult:
-        """A pair lost for too few corners (or no start pose) whose views clip: white squares
+        """A pair lost for too few corners (or no start pose) whose views clip, after every other
+        search (the reduced one tracks 4 of the 6 path-traced pairs this search does, at a
+        fraction of its cost, and runs first): white squares
         exposed at several times full scale and blurred spread over the corners, and no corner
         passes the X-corner test (a sleeve close to the lens: path-traced seed 303 pairs 47 and
         55, seed 404 pair 49). Each view eroded (a grey-level minimum over a disc of each size in
@@ -727,8 +735,9 @@ class MarkerTracker:
         return out
 
     def _retry_reduced(self, res: TrackResult, il: Any, ir: Any, t0: float) -> TrackResult:
-        """A pair lost for too few corners, no start pose or a fit on too few corners, searched
-        once more in each whole view reduced by each factor of ``settings.reduced_scales`` in turn
+        """A pair lost for too few corners, no start pose or a fit on too few corners (after the
+        partners, before the eroded search: the cheaper first), searched once more in each whole
+        view reduced by each factor of ``settings.reduced_scales`` in turn
         (cvs.corners.detector.MarkerCornerDetector.detect_reduced): a sleeve close to the lens or
         out of focus, its corners blurred over several pixels, fails the X-corner test at full and
         half scale (path-traced seed 606 pair 30: no X-corner at all, corners 80 px apart) and

@@ -1,6 +1,7 @@
 """The tracker on path-traced stereo pairs (Mitsuba 3, ``--engine pbr``) that the tests never saw.
 
 Usage: python bench/pbr_tracking.py [--pairs N] [--seed S] [--image-scale F] [--spp N] [--cache DIR] [--only I,J]
+           [--baseline KEY=VALUE ...]
 Needs the extra 'pbr' (scripts/ensure-pbr.sh). Prints JSON. Per pair, drawn from ``--seed``
 (not the committed set's poses, tests/data/pbr): the sleeve (reference and coded in turn), a
 visible configuration (every other one with the sleeve within 5 deg of square to the line of
@@ -8,11 +9,14 @@ sight, where the coaxial highlight runs along it), the laminate's GGX roughness 
 0.03-0.3, F0 0.04), the light outputs' offset beside the lenses (0-3 mm), the thin lens
 (aperture radius 0-0.4 mm, focus 60-100 mm) and the sensor noise (the default, JPEG 90).
 Each pair is tracked cold by today's tracker (the paper's chain only: detector ``max_gaps`` 0)
-and by the default one (a lost pair retried with chains that step over a washed-out corner),
-in the same loop: tracked rate, wrong (tip more than ``--wrong-mm`` off), tip error mean [mm],
-the coded sleeve's roll-known rate and rotation error mean [deg], median time [ms]. ``--cache
-DIR`` keeps the rendered pairs, so a tracker change is measured again on the same pairs without
-rendering (about 5 s a pair at half size, 25 s at 1080p here).
+and by the default one (a lost pair retried with chains that step over a washed-out corner), in
+the same loop (``--baseline KEY=VALUE``, repeated: today's tracker is instead the default one
+with these TrackerSettings fields, VALUE in JSON, e.g. ``--baseline reduced_scales=[]`` or
+``--baseline max_dy_px=2.0``: an A/B of one setting on the same pairs): tracked rate, wrong (tip
+more than ``--wrong-mm`` off), tip error mean [mm], the coded sleeve's roll-known rate and
+rotation error mean [deg], median time [ms]. ``--cache DIR`` keeps the rendered pairs, so a
+tracker change is measured again on the same pairs without rendering (about 5 s a pair at half
+size, 25 s at 1080p here).
 """
 
 from __future__ import annotations
@@ -32,10 +36,12 @@ import numpy as np
 from wristmark.cli.render import psi_spread
 from wristmark.cvs.calibration.load import load_calibration
 from wristmark.cvs.camera import scaled_stereo_camera
+from wristmark.cvs.tracking.settings import TrackerSettings
 from wristmark.cvs.tracking.tracker import MarkerTracker
 from wristmark.cvs.tracking.warmup import warm_up
 from wristmark.models.arm_shape import arm_shape
 from wristmark.models.config_files import default_config
+from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import RobotParams
 from wristmark.sim.render.pbr import PbrSettings, PbrStereoRenderer
@@ -89,7 +95,23 @@ def main() -> int:
     ap.add_argument("--only", metavar="I,J,...",
                     help="render and track only these pairs (0-based indices below --pairs; every pair is still "
                          "drawn, so each is the same pair as in a full run): a lost pair looked at again")
+    ap.add_argument("--baseline", metavar="KEY=VALUE", action="append", default=[],
+                    help="today's tracker is the default one with this TrackerSettings field (VALUE in JSON; "
+                         "repeat for more) instead of the paper's chain alone")
     a = ap.parse_args()
+    overrides: dict[str, Any] = {}
+    for item in a.baseline:
+        key, sep, value = item.partition("=")
+        if not sep or key not in TrackerSettings.__dataclass_fields__:
+            ap.error(f"--baseline: KEY=VALUE with KEY a TrackerSettings field, not {item!r}")
+        try:
+            overrides[key] = json.loads(value)
+        except json.JSONDecodeError:
+            ap.error(f"--baseline {key}: VALUE in JSON (e.g. 2.0, [], true), not {value!r}")
+    try:
+        baseline = TrackerSettings(**overrides) if overrides else None
+    except (InputError, TypeError, ValueError) as e:
+        ap.error(f"--baseline: {e}")
     try:
         only = None if a.only is None else {int(v) for v in a.only.split(",") if v.strip()}
     except ValueError:
@@ -104,9 +126,10 @@ def main() -> int:
     sleeves = {"reference": MarkerModel(), "coded": MarkerModel.load(default_config("marker_coded.yaml"))}
     trackers = {}
     for name, m in sleeves.items():
-        today, ours = MarkerTracker(cam, m), MarkerTracker(cam, m)
-        for d in (today.detector_left, today.detector_right):
-            d.settings = replace(d.settings, max_gaps=0)  # type: ignore[attr-defined]
+        today, ours = MarkerTracker(cam, m, baseline), MarkerTracker(cam, m)
+        if baseline is None:
+            for d in (today.detector_left, today.detector_right):
+                d.settings = replace(d.settings, max_gaps=0)  # type: ignore[attr-defined]
         trackers[name] = {"today": today, "default": ours}
     T_lw = np.linalg.inv(np.asarray(cam.T_world_left, float))
     rows: list[dict] = []
@@ -142,7 +165,8 @@ def main() -> int:
             row[k] = out
         rows.append(row)
     report: dict = {"pairs": len(rows), "image_size": list(cam.image_size), "spp": a.spp, "seed": a.seed,
-                    "render_s": time.time() - t_start, "load": os.getloadavg()}
+                    "render_s": time.time() - t_start, "load": os.getloadavg(),
+                    "today_is": overrides if overrides else "the paper's chain alone (detector max_gaps 0)"}
     for k in ("today", "default"):
         ok = [r[k] for r in rows if r[k]["ok"]]
         tips = [o["tip_mm"] for o in ok]

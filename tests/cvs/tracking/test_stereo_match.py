@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from wristmark.cvs.calibration.load import load_calibration
+from wristmark.cvs.tracking.settings import TrackerSettings
 from wristmark.cvs.tracking.stereo_match import StereoRectifier, chain_indices, match_corners
 from wristmark.models.config_files import CONFIG_DIR
 from wristmark.models.errors import InputError
@@ -129,3 +130,12 @@ def test_bad_input() -> None:
         match_corners(RECT, np.zeros((2, 2)), np.zeros((2, 2)), np.array([1, 0]), np.array([1, -1]))
     with pytest.raises(InputError, match="finite"):
         match_corners(RECT, np.full((2, 2), np.nan), np.zeros((2, 2)))
+
+
+def test_a_tracker_tolerance_that_pairs_nothing_is_refused_on_load() -> None:
+    """TrackerSettings.max_dy_px must be > 0 [px] (NaN too): refused when the settings are made,
+    not at the first pair."""
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(InputError, match="max_dy_px"):
+            TrackerSettings(max_dy_px=bad)
+    assert TrackerSettings().max_dy_px == 2.5

@@ -175,6 +175,8 @@ class TrackerSettings:
         object.__setattr__(self, "reduced_scales", scales)
         if int(self.eroded_min_clipped_px) < 0:
             raise InputError(f"TrackerSettings.eroded_min_clipped_px must be >= 0, got {self.eroded_min_clipped_px}")
+        if not float(self.max_dy_px) > 0:  # NaN too
+            raise InputError(f"TrackerSettings.max_dy_px must be > 0 [px], got {self.max_dy_px}")
         for name in ("gate_contrast_noise", "gate_min_spacing_px"):
             v = float(getattr(self, name))
             if not v >= 0:  # NaN too

@@ -743,9 +743,11 @@ class MarkerTracker:
         half scale (path-traced seed 606 pair 30: no X-corner at all, corners 80 px apart) and
         can pass it there. Each matched corner is then fitted on the view itself by the HTM model
         with its clipped pixels censored (its window 0.3 times the spacing, up to 14 px:
-        cvs.corners.clipped_fit) and solved again under the same gates and the clipped-noise tip
-        gate (as :meth:`_retry_eroded`); the first factor whose refitted corners pass is kept,
-        else ``res``. Paper detector only (not the saddle)."""
+        cvs.corners.clipped_fit; a corner whose window does not clip keeps its place from the
+        reduced view: a plain HTM fit in the same window was further off on the path-traced pairs)
+        and solved again under the same gates and the clipped-noise tip gate (as
+        :meth:`_retry_eroded`); the first factor whose refitted corners pass is kept, else
+        ``res``. Paper detector only (not the saddle)."""
         scales = self.settings.reduced_scales
         dets = (self.detector_left, self.detector_right)
         if not scales or not all(hasattr(d, "detect_reduced") for d in dets):

@@ -11,8 +11,9 @@ sight, where the coaxial highlight runs along it), the laminate's GGX roughness 
 Each pair is tracked cold by today's tracker (the paper's chain only: detector ``max_gaps`` 0)
 and by the default one (a lost pair retried with chains that step over a washed-out corner), in
 the same loop (``--baseline KEY=VALUE``, repeated: today's tracker is instead the default one
-with these TrackerSettings fields, VALUE in JSON, e.g. ``--baseline reduced_scales=[]`` or
-``--baseline max_dy_px=2.0``: an A/B of one setting on the same pairs): tracked rate, wrong (tip
+with these TrackerSettings fields, VALUE in JSON, e.g. ``--baseline reduced_scales=[]``,
+``--baseline max_dy_px=2.0`` or, for a field of a settings group, ``--baseline axis.arm_offsets=[]``:
+an A/B of one setting on the same pairs): tracked rate, wrong (tip
 more than ``--wrong-mm`` off), tip error mean [mm], the coded sleeve's roll-known rate and
 rotation error mean [deg], median time [ms]. ``--cache DIR`` keeps the rendered pairs, so a
 tracker change is measured again on the same pairs without rendering (about 5 s a pair at half
@@ -26,7 +27,7 @@ import json
 import os
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, is_dataclass, replace
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -96,19 +97,36 @@ def main() -> int:
                     help="render and track only these pairs (0-based indices below --pairs; every pair is still "
                          "drawn, so each is the same pair as in a full run): a lost pair looked at again")
     ap.add_argument("--baseline", metavar="KEY=VALUE", action="append", default=[],
-                    help="today's tracker is the default one with this TrackerSettings field (VALUE in JSON; "
-                         "repeat for more) instead of the paper's chain alone")
+                    help="today's tracker is the default one with this TrackerSettings field, or GROUP.FIELD of a "
+                         "settings group such as axis.arm_offsets (VALUE in JSON; repeat for more), instead of the "
+                         "paper's chain alone")
     a = ap.parse_args()
     overrides: dict[str, Any] = {}
+    given: dict[str, Any] = {}  # as given, for the report (KEY or GROUP.FIELD: the JSON value)
+    nested: dict[str, dict[str, Any]] = {}
+    defaults = TrackerSettings()
     for item in a.baseline:
         key, sep, value = item.partition("=")
-        if not sep or key not in TrackerSettings.__dataclass_fields__:
-            ap.error(f"--baseline: KEY=VALUE with KEY a TrackerSettings field, not {item!r}")
+        group, dot, field = key.partition(".")
+        sub = getattr(defaults, group, None) if dot else None
+        known = (group in TrackerSettings.__dataclass_fields__ if not dot else
+                 is_dataclass(sub) and field in sub.__dataclass_fields__)
+        if not sep or not known:
+            ap.error(f"--baseline: KEY=VALUE with KEY a TrackerSettings field or GROUP.FIELD (e.g. axis.arm_offsets), "
+                     f"not {item!r}")
         try:
-            overrides[key] = json.loads(value)
+            parsed = json.loads(value)
         except json.JSONDecodeError:
             ap.error(f"--baseline {key}: VALUE in JSON (e.g. 2.0, [], true), not {value!r}")
+        given[key] = parsed
+        parsed = tuple(parsed) if isinstance(parsed, list) else parsed
+        if dot:
+            nested.setdefault(group, {})[field] = parsed
+        else:
+            overrides[key] = parsed
     try:
+        for group, fields in nested.items():
+            overrides[group] = replace(overrides.get(group, getattr(defaults, group)), **fields)
         baseline = TrackerSettings(**overrides) if overrides else None
     except (InputError, TypeError, ValueError) as e:
         ap.error(f"--baseline: {e}")
@@ -166,7 +184,7 @@ def main() -> int:
         rows.append(row)
     report: dict = {"pairs": len(rows), "image_size": list(cam.image_size), "spp": a.spp, "seed": a.seed,
                     "render_s": time.time() - t_start, "load": os.getloadavg(),
-                    "today_is": overrides if overrides else "the paper's chain alone (detector max_gaps 0)"}
+                    "today_is": given if given else "the paper's chain alone (detector max_gaps 0)"}
     for k in ("today", "default"):
         ok = [r[k] for r in rows if r[k]["ok"]]
         tips = [o["tip_mm"] for o in ok]

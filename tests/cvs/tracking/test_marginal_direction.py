@@ -1,8 +1,10 @@
 """Marginal image evidence for the sleeve's direction (AxisEvidenceSettings.margin above ``decide``)
 decides only where the default prior agrees: a path-traced pair's lit tool gave 0.145 the wrong way
 (a half turn, tip 30 mm off; docs/notes/highlight-stripe.md), so such a score against the prior
-gives "direction ambiguous" instead of a guess. Decisive evidence still overrides the prior (a
-rolled endoscope), and evidence below ``decide`` still leaves the prior to decide."""
+gives "direction ambiguous" instead of a guess, unless the same evidence at the arm's width alone
+(``arm_offsets``: a thin tool and its shadow ring left out) decisively backs the prior. Decisive
+evidence still overrides the prior (a rolled endoscope), and evidence below ``decide`` still
+leaves the prior to decide."""
 
 from __future__ import annotations
 
@@ -10,12 +12,15 @@ import numpy as np
 import pytest
 
 import wristmark.cvs.tracking.tracker as tracker_mod
+from tests.cvs.tracking.pbr_pairs import load_pbr_pair
 from wristmark.cvs.calibration.load import load_calibration
 from wristmark.cvs.camera import scaled_stereo_camera
 from wristmark.cvs.tracking.axis import AxisEvidenceSettings
+from wristmark.cvs.tracking.settings import TrackerSettings
 from wristmark.cvs.tracking.tracker import MarkerTracker
 from wristmark.models.arm_shape import arm_shape
 from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import RobotParams
 from wristmark.sim.render.settings import RenderSettings
@@ -35,16 +40,27 @@ def frame() -> RenderedPair:
     return f
 
 
-def _track(frame: RenderedPair, monkeypatch: pytest.MonkeyPatch, evidence_for_truth: float) -> tracker_mod.TrackResult:
+def _track(frame: RenderedPair, monkeypatch: pytest.MonkeyPatch, evidence_for_truth: float,
+           arm_width_for_truth: float | None = None, settings: TrackerSettings | None = None,
+           calls: list[tuple[float, ...]] | None = None) -> tracker_mod.TrackResult:
     """Track ``frame`` with the image evidence replaced by one that scores the true direction
-    ``evidence_for_truth`` (and the half-turned one its negative)."""
+    ``evidence_for_truth`` (and the half-turned one its negative); at the arm-width check's
+    offsets (``arm_offsets``) ``arm_width_for_truth`` instead, where given. ``calls`` collects the
+    offsets of each call."""
     z_true = frame.T_left_marker[:3, 2]
 
-    def fake(images: object, camera: object, marker: object, T: np.ndarray, *a: object, **k: object) -> float:
-        return evidence_for_truth if float(T[:3, 2] @ z_true) > 0 else -evidence_for_truth
+    def fake(images: object, camera: object, marker: object, T: np.ndarray,
+             settings: AxisEvidenceSettings | None = None, *a: object, **k: object) -> float:
+        offsets = (settings or AxisEvidenceSettings()).offsets
+        if calls is not None:
+            calls.append(tuple(offsets))
+        score = evidence_for_truth
+        if arm_width_for_truth is not None and offsets == AxisEvidenceSettings().arm_offsets:
+            score = arm_width_for_truth
+        return score if float(T[:3, 2] @ z_true) > 0 else -score
 
     monkeypatch.setattr(tracker_mod, "axis_evidence", fake)
-    tr = MarkerTracker(CAM, MARKER)
+    tr = MarkerTracker(CAM, MARKER, settings or TrackerSettings())
     return tr.track(frame.left, frame.right)
 
 
@@ -75,3 +91,51 @@ def test_evidence_below_decide_leaves_the_default_prior(frame: RenderedPair, mon
     res = _track(frame, monkeypatch, -0.5 * AxisEvidenceSettings().decide)
     assert res.ok and res.axis_source == "default" and res.tip_left is not None
     assert np.linalg.norm(res.tip_left - frame.tip_left) < 0.3e-3
+
+
+def test_marginal_evidence_against_the_prior_is_settled_by_a_decisive_arm_width_check(
+        frame: RenderedPair, monkeypatch: pytest.MonkeyPatch) -> None:
+    s = AxisEvidenceSettings()
+    res = _track(frame, monkeypatch, -(s.decide + 0.45 * s.margin), arm_width_for_truth=s.decide + 1.5 * s.margin)
+    assert res.ok and res.axis_source == "default" and res.tip_left is not None
+    assert res.axis_score == pytest.approx(s.decide + 1.5 * s.margin)  # the arm-width score is reported
+    assert np.linalg.norm(res.tip_left - frame.tip_left) < 0.3e-3
+
+
+@pytest.mark.parametrize("arm_width", [0.5, -1.5], ids=["marginal", "against_the_prior"])
+def test_an_arm_width_check_that_is_not_decisive_for_the_prior_leaves_the_direction_ambiguous(
+        frame: RenderedPair, monkeypatch: pytest.MonkeyPatch, arm_width: float) -> None:
+    s = AxisEvidenceSettings()
+    res = _track(frame, monkeypatch, -(s.decide + 0.45 * s.margin), arm_width_for_truth=s.decide + arm_width * s.margin)
+    assert not res.ok and res.reason == "direction ambiguous" and res.tip_left is None
+
+
+def test_no_arm_offsets_turn_the_arm_width_check_off(frame: RenderedPair, monkeypatch: pytest.MonkeyPatch) -> None:
+    s = AxisEvidenceSettings()
+    calls: list[tuple[float, ...]] = []
+    off = TrackerSettings(axis=AxisEvidenceSettings(arm_offsets=()))
+    res = _track(frame, monkeypatch, -(s.decide + 0.45 * s.margin), arm_width_for_truth=1.0, settings=off, calls=calls)
+    assert not res.ok and res.reason == "direction ambiguous"
+    assert calls and all(c == s.offsets for c in calls)  # never asked at the arm's width
+
+
+def test_arm_offsets_must_be_positive() -> None:
+    assert AxisEvidenceSettings(arm_offsets=[0.8, 0.9]).arm_offsets == (0.8, 0.9)  # a list stays hashable
+    for bad in ((0.8, 0.0), (float("nan"),), (-0.5,)):
+        with pytest.raises(InputError, match="arm_offsets"):
+            AxisEvidenceSettings(arm_offsets=bad)
+
+
+def test_a_path_traced_reference_whose_tool_casts_a_shadow_ring_is_tracked_the_right_way() -> None:
+    """Path-traced pair 4 of seed 505 (tests/data/pbr/reference_tool_shadow): a light output 2.6
+    mm beside each lens rings the tool with a shadow as wide as the arm's body just beyond the
+    sleeve, so the evidence over the usual offsets leans the wrong way (marginally); at the arm's
+    width alone it backs the default prior, which is right."""
+    left, right, truth = load_pbr_pair("reference_tool_shadow")
+    cam = load_calibration(CONFIG_DIR / "camera.yaml")
+    res = MarkerTracker(cam, MARKER).track(left, right)
+    assert res.ok and res.axis_source == "default", res.reason
+    assert res.axis_score >= AxisEvidenceSettings().decide + AxisEvidenceSettings().margin
+    assert np.linalg.norm(res.tip_left - np.asarray(truth["tip_left"])) < 0.1e-3
+    off = MarkerTracker(cam, MARKER, TrackerSettings(axis=AxisEvidenceSettings(arm_offsets=()))).track(left, right)
+    assert not off.ok and off.reason == "direction ambiguous"

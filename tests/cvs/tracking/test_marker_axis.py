@@ -19,6 +19,7 @@ from wristmark.cvs.tracking.stereo_pose import HALF_TURN_X
 from wristmark.cvs.tracking.tracker import MarkerTracker
 from wristmark.models.arm_shape import arm_shape
 from wristmark.models.config_files import CONFIG_DIR
+from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import RobotParams
 from wristmark.sim.render.settings import RenderSettings
@@ -105,3 +106,34 @@ def test_tracking_keeps_the_direction_from_pair_to_pair(rolled: list[RenderedPai
     assert first.ok and again.ok and again.axis_source == "previous"
     assert first.tip_left is not None and again.tip_left is not None
     assert np.linalg.norm(again.tip_left - f.tip_left) < 0.2e-3
+
+
+@pytest.mark.parametrize("which", ["upright", "rolled"])
+def test_the_arm_width_evidence_favours_the_true_direction_decisively(which: str,
+                                                                      request: pytest.FixtureRequest) -> None:
+    """At ``arm_offsets`` alone, bands under ``arm_min_edge`` dropped (MarkerTracker._orient's
+    arm-width check): decisive for the true direction on our renders, and odd."""
+    frames: list[RenderedPair] = request.getfixturevalue(which)
+    cam = CAM if which == "upright" else _rolled(CAM)
+    s = AxisEvidenceSettings()
+    arm = dataclasses.replace(s, offsets=s.arm_offsets, min_band_edge=s.arm_min_edge)
+    for f in frames:
+        e = axis_evidence((f.left, f.right), cam, MARKER, f.T_left_marker, arm)
+        assert e >= s.decide + s.margin, e
+        assert axis_evidence((f.left, f.right), cam, MARKER, f.T_left_marker @ HALF_TURN_X, arm) == pytest.approx(-e)
+
+
+def test_bands_without_an_edge_above_min_band_edge_count_for_nothing(upright: list[RenderedPair]) -> None:
+    f = upright[0]
+    s = AxisEvidenceSettings()
+    assert axis_evidence((f.left, f.right), CAM, MARKER, f.T_left_marker, dataclasses.replace(s, min_band_edge=0.0)) \
+        == axis_evidence((f.left, f.right), CAM, MARKER, f.T_left_marker, s)
+    assert axis_evidence((f.left, f.right), CAM, MARKER, f.T_left_marker,
+                         dataclasses.replace(s, min_band_edge=255.0 * 24)) == 0.0  # no edge is that strong
+
+
+@pytest.mark.parametrize("field", ["min_band_edge", "arm_min_edge"])
+@pytest.mark.parametrize("value", [-1.0, float("nan")])
+def test_edge_floors_must_not_be_negative(field: str, value: float) -> None:
+    with pytest.raises(InputError, match=field):
+        AxisEvidenceSettings(**{field: value})

@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from wristmark.cvs.camera import Camera, StereoCamera
 from wristmark.cvs.marker.cells import sample_camera_points
+from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
 
 Array = NDArray[np.float64]
@@ -42,7 +43,15 @@ class AxisEvidenceSettings:
     tool gave 0.145 the wrong way, docs/notes/highlight-stripe.md); min_edge: least edge
     strength of the stronger side for a band to count [grey levels];
     decide_strict: least |far score| that decides in axis_evidence_strict; veto_strict: a near
-    score this far the other way vetoes it.
+    score this far the other way vetoes it; arm_offsets: the lateral offsets (in r) of the
+    arm-width check that settles marginal evidence against the default prior (only a body about
+    as wide as the sleeve: a thin tool with the shadow ring that a light beside the lenses casts
+    around it reached 0.5-0.6 r on path-traced pairs, the arm's body and its ring about 1.0 r;
+    MarkerTracker._orient; empty: no such check); min_band_edge: a band (camera, near or far) in
+    which neither side's edge strength exceeds this counts for nothing in axis_evidence [grey
+    levels] (0: every band counts); arm_min_edge: min_band_edge of the arm-width check (behind a
+    body that bends away, the far band shows 2-9 grey levels on both sides, and the score's
+    normalisation would make two noise levels a full vote).
     """
 
     near: tuple[float, ...] = (0.2, 0.35, 0.5, 0.65, 0.8)
@@ -56,6 +65,19 @@ class AxisEvidenceSettings:
     decide_strict: float = 0.3
     veto_strict: float = 0.5
     min_edge: float = 30.0
+    arm_offsets: tuple[float, ...] = (0.7, 0.75, 0.8, 0.85, 0.9, 0.95, 1.0, 1.05, 1.1)
+    min_band_edge: float = 0.0
+    arm_min_edge: float = 10.0
+
+    def __post_init__(self) -> None:
+        offsets = tuple(float(o) for o in self.arm_offsets)
+        if not all(np.isfinite(o) and o > 0 for o in offsets):
+            raise InputError(f"AxisEvidenceSettings.arm_offsets must be > 0 [marker radii] (empty: off), got {offsets}")
+        object.__setattr__(self, "arm_offsets", offsets)  # a list given stays hashable, like the default
+        for name in ("min_band_edge", "arm_min_edge"):
+            v = float(getattr(self, name))
+            if not v >= 0:  # NaN too
+                raise InputError(f"AxisEvidenceSettings.{name} must be >= 0 [grey levels], got {v}")
 
 
 def _side_edges(img: NDArray[np.uint8], cam: Camera, T_cam_marker: Array, zs: Array, r: float,
@@ -116,12 +138,14 @@ def axis_evidence(images: tuple[NDArray[np.uint8], NDArray[np.uint8]], camera: S
     > 0 the arm's body lies on its -z side, < 0 on its +z side (the half-turned pose is the
     right one), 0 when the images say nothing (marker seen end-on, out of view, no contrast):
     the mean over cameras (``left_only``: the left one) and both bands of (proximal - distal) /
-    (proximal + distal). A distal
+    (proximal + distal), over the bands where either side's edge exceeds
+    ``settings.min_band_edge``. A distal
     tool as wide as the arm, with no body behind the sleeve, fools it (axis_evidence_strict)."""
-    e = axis_bands(images, camera, marker, T_left_marker, settings, left_only)
+    s = settings or AxisEvidenceSettings()
+    e = axis_bands(images, camera, marker, T_left_marker, s, left_only)
     with np.errstate(invalid="ignore", divide="ignore"):
         score = (e[:, :, 1] - e[:, :, 0]) / (e[:, :, 1] + e[:, :, 0])
-    ok = np.isfinite(score) & (e[:, :, 1] + e[:, :, 0] > 1e-9)
+    ok = np.isfinite(score) & (e[:, :, 1] + e[:, :, 0] > 1e-9) & (np.fmax(e[:, :, 0], e[:, :, 1]) > s.min_band_edge)
     return float(np.mean(score[ok])) if ok.any() else 0.0
 
 

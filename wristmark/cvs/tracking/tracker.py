@@ -45,7 +45,9 @@ continues behind the sleeve, nothing lies beyond the tip), and last the default 
 ``PoseSettings.axis_hint_left`` (+x: the arm enters from the left). Marginal image evidence
 (``AxisEvidenceSettings.margin`` above ``decide``) decides only where the default prior agrees;
 where they disagree the result is ``ok=False``, "direction ambiguous" (a lit tool beside the
-sleeve gave a path-traced pair 0.145 the wrong way: docs/notes/highlight-stripe.md). With
+sleeve gave a path-traced pair 0.145 the wrong way: docs/notes/highlight-stripe.md), unless the
+same evidence at the arm's width alone (``AxisEvidenceSettings.arm_offsets``: a thin tool and its
+shadow ring left out) decisively backs the prior, which then decides. With
 ``TrackerSettings.strict_direction`` the image evidence must hold in both of its bands
 (cvs.tracking.axis.axis_evidence_strict) and there is no default: otherwise the result is
 ``ok=False`` with reason "direction ambiguous" (never a guess; a distal tool as wide as the arm
@@ -891,8 +893,10 @@ class MarkerTracker:
         """Fix the direction of z_wm (and, with a readable code, the roll) of a good fit: the
         code (coded sleeves), a caller's hint, else the previous pair's pose where this fit is
         consistent with it and the image does not contradict it, else decisive image evidence
-        (marginal evidence only where the default prior agrees), else (not strict_direction) the
-        default prior; otherwise ok false, 'direction ambiguous'."""
+        (marginal evidence only where the default prior agrees, or where the arm-width evidence,
+        ``AxisEvidenceSettings.arm_offsets``, decisively backs the prior against it: then the
+        prior, with that score), else (not strict_direction) the default prior; otherwise ok
+        false, 'direction ambiguous'."""
         assert res.pose is not None
         pose, score = res.pose, float("nan")
         if self.decoder is not None:
@@ -932,6 +936,11 @@ class MarkerTracker:
             elif decided:  # marginal: only with the default prior's agreement, else ambiguous
                 if default is not None and (score > 0) == (float(z @ default) > 0):
                     want, source = (z if score > 0 else -z), "image"
+                elif default is not None and ax.arm_offsets:  # unless a body as wide as the arm backs the prior
+                    width = evidence(images, self.camera, self.marker, pose.T_left_marker,
+                                     replace(ax, offsets=ax.arm_offsets, min_band_edge=ax.arm_min_edge))
+                    if abs(width) >= ax.decide + ax.margin and (width > 0) == (float(z @ default) > 0):
+                        want, source, score = default, "default", width
             elif default is not None:
                 want, source = default, "default"
         if want is None:

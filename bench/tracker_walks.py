@@ -1,7 +1,7 @@
 """The tracker on rendered walks of an arm, two or more tracker settings side by side.
 
 Usage: python bench/tracker_walks.py --compare {facing,chain_polarity,tip_sigma,bars_gate,partners,
-           reduced,stereo_dy} [--robot tendon3]
+           reduced,stereo_dy,single_view} [--robot tendon3]
            [--image-scale 0.25] [--walks 20] [--first-walk 0] [--frames 40] [--spread 0.02]
            [--wide] [--wrong-mm 1.5]
 Prints JSON. Each walk starts at the arm's home plus a seeded offset of ``--spread`` [rad or m]
@@ -31,7 +31,10 @@ Comparisons:
                   default, which searches each whole view reduced 2, 3 and 4 times and fits the
                   corners found there on the view itself (MarkerTracker._retry_reduced);
   stereo_dy       left and right corners paired within 2 px of rectified y and within 2.5 px
-                  (``max_dy_px``; cvs.tracking.stereo_match).
+                  (``max_dy_px``; cvs.tracking.stereo_match);
+  single_view     a corner seen by one camera only held to the pose solve's usual outlier test
+                  (``PoseSettings.single_view_factor`` 0) and the default, which holds it to a
+                  stricter one (2 x the median residual instead of 4).
 """
 
 from __future__ import annotations
@@ -45,6 +48,7 @@ import numpy as np
 
 from wristmark.cvs.camera import scaled_stereo_camera
 from wristmark.cvs.corners.xcorners import DetectorSettings
+from wristmark.cvs.tracking.stereo_pose import PoseSettings
 from wristmark.cvs.tracking.tracker import MarkerTracker, TrackerSettings
 from wristmark.cvs.tracking.warmup import warm_up
 from wristmark.models.arm_spec import home_psi
@@ -69,6 +73,8 @@ COMPARISONS: dict[str, dict[str, TrackerSettings]] = {
     "partners": {"without_partners": TrackerSettings(partner_max_px=0.0), "default": TrackerSettings()},
     "reduced": {"without_reduced": TrackerSettings(reduced_scales=()), "default": TrackerSettings()},
     "stereo_dy": {"max_dy_2px": TrackerSettings(max_dy_px=2.0), "max_dy_2.5px": TrackerSettings(max_dy_px=2.5)},
+    "single_view": {"usual_test": TrackerSettings(pose=PoseSettings(single_view_factor=0.0)),
+                    "default": TrackerSettings()},
 }
 
 

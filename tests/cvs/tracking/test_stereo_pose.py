@@ -11,7 +11,7 @@ from wristmark.cvs.calibration.load import load_calibration
 from wristmark.cvs.tracking.homography_init import homography_pose
 from wristmark.cvs.tracking.stereo_pose import PoseSettings, StereoPoseSolver
 from wristmark.models.config_files import CONFIG_DIR
-from wristmark.models.errors import InputError
+from wristmark.models.errors import ConfigError, InputError
 from wristmark.models.marker import MarkerModel
 
 CAM = load_calibration(CONFIG_DIR / "camera.yaml")
@@ -188,3 +188,46 @@ def test_a_noisy_corner_given_its_sigma_counts_less(solver: StereoPoseSolver) ->
     assert w.rms_px == pytest.approx(float(np.sqrt(np.mean(e**2))), rel=1e-6)
     with pytest.raises(InputError):
         solver.solve(il, ul, ir, ur, S, (sl[1:], np.full(ir.size, 0.1)))
+
+
+def _one_view_corner(rng: np.random.Generator) -> tuple[np.ndarray, ...]:
+    """A pose whose right view sees a corner the left view does not (dropped from the left)."""
+    for _ in range(50):
+        T = _truth(rng)
+        il, ul, ir, ur = _observe(T, rng, 0.2)
+        both = np.intersect1d(il, ir)
+        if both.size >= 5:
+            drop = both[both.size // 2]  # a middle corner: the left view misses it (a stripe over it)
+            keep = il != drop
+            return T, il[keep], ul[keep], ir, ur, int(np.flatnonzero(ir == drop)[0])
+    raise AssertionError("no pose with 5 corners in both views")
+
+
+def test_a_one_view_corner_off_by_a_pixel_is_rejected_where_a_paired_one_is_kept(solver: StereoPoseSolver) -> None:
+    """A corner the other camera does not see meets the stricter test (``single_view_factor``):
+    1.2 px off (the others at 0.2 px of noise) it passes the usual one (4 x the median residual)
+    and pulls the fit's tip 0.25 mm off."""
+    rng = np.random.default_rng(8)
+    T, il, ul, ir, ur, k = _one_view_corner(rng)
+    ur = ur.copy()
+    ur[k] += [1.0, -0.7]  # 1.2 px
+    tip = T[:3, :3] @ MARKER.tip() + T[:3, 3]
+    pose = solver.solve(il, ul, ir, ur, _start(il, ul))
+    assert not pose.inliers_right[k] and pose.inliers == il.size + ir.size - 1
+    assert np.linalg.norm(pose.tip_left - tip) < 0.05e-3
+    off = StereoPoseSolver(CAM, MARKER, PoseSettings(single_view_factor=0.0)).solve(il, ul, ir, ur, _start(il, ul))
+    assert off.inliers == il.size + ir.size  # the usual test alone keeps it
+    assert np.linalg.norm(off.tip_left - tip) > 2 * np.linalg.norm(pose.tip_left - tip)
+    # the same error on a corner both cameras see is left to the usual test (its partner checks it)
+    il2, ul2, ir2, ur2 = _observe(T, np.random.default_rng(108), 0.2)
+    j = int(np.flatnonzero(ir2 == np.intersect1d(il2, ir2)[1])[0])
+    ur2 = ur2.copy()
+    ur2[j] += [1.0, -0.7]
+    assert solver.solve(il2, ul2, ir2, ur2, _start(il2, ul2)).inliers_right[j]
+
+
+@pytest.mark.parametrize(("field", "value"), [("single_view_factor", 1.0), ("single_view_factor", -2.0),
+                                               ("single_view_min_pairs", 0)])
+def test_single_view_settings_are_checked(field: str, value: float) -> None:
+    with pytest.raises(ConfigError, match=field):
+        PoseSettings(**{field: value}).validate()

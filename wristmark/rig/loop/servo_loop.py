@@ -242,8 +242,6 @@ class ServoLoop:
         # grid at that same instant began a whole cycle late, and a loop late by most of a cycle
         # could stay a frame behind its camera); the simulated clock is past it by the latency
         t0 = self.t + dt if self.wall_clock and self._advanced else self.t
-        if self.wall_clock and not self._advanced:  # a first grid begins now (times relative to now), not
-            t0 = max(t0, time.monotonic())  # when the loop was made: its set-up made the first cycle late
         shift0 = self._grid_shift()
         k = 0
         while k < n:

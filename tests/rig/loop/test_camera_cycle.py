@@ -120,6 +120,9 @@ def _run(rig: RigConfig, missing: frozenset[int] = frozenset()) -> tuple[ServoLo
     sensor.loop = loop
     loop.psi_cmd = PSI0.copy()  # already there: no ramp, no 2 s settle
     link.sent.clear()
+    # the cycles start now, not when the link was made before the loop and its controller (their
+    # set-up, 8 ms once in CI, made the first cycle that late and its frame's latency that short)
+    loop.t = link.t = time.monotonic()
     log = RunLog()
     stats = loop.run(_line().truncated(0.6), "servo", True, log)
     return loop, link, log, stats

@@ -14,18 +14,17 @@ the second line of stdout. Both lines are flushed at once; it serves until SIGIN
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 import threading
 from collections.abc import Callable, Iterable
 from pathlib import Path
-from types import FrameType
 from typing import Any
 
 import numpy as np
 
 from wristmark.cli.common_options import add_config_option, add_force_argument, set_example
 from wristmark.cli.option_types import MAX_TIMEOUT_S, PSI_ABS_MAX, float_in, int_in, positive_float, seed_int
+from wristmark.cli.stop_flag import StopFlag, stop_on_signals
 from wristmark.cvs.camera import StereoCamera
 from wristmark.models.arm_spec import Arm, arm_size, home_psi, load_loop_arm
 from wristmark.models.config_files import default_config
@@ -136,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
         TruePlant(params, plant, psi0=psi0)  # the plant file fits the arm: one line before anything is served
     except WristmarkError as e:
         raise InputError(str(e)) from None
-    done = _stop_on_signals()
+    done = stop_on_signals()
     if args.ros2 is not None:
         return _serve_ros2_lab(args, params, plant, psi0, done)
     if args.camera_port is None:
@@ -155,18 +154,6 @@ def run(args: argparse.Namespace) -> int:
         emulator.stop()
         return 0
     return _serve_lab(args, params, plant, psi0, done)
-
-
-def _stop_on_signals() -> threading.Event:
-    """An event that SIGTERM and SIGINT set (the serving loops end on it)."""
-    done = threading.Event()
-
-    def _stop(signum: int, frame: FrameType | None) -> None:
-        done.set()
-
-    signal.signal(signal.SIGTERM, _stop)
-    signal.signal(signal.SIGINT, _stop)
-    return done
 
 
 def lab_calibration(args: argparse.Namespace, params: Arm, marker: MarkerModel) -> StereoCamera:
@@ -190,7 +177,7 @@ def lab_calibration(args: argparse.Namespace, params: Arm, marker: MarkerModel) 
 
 
 def _serve_lab(args: argparse.Namespace, params: Arm, plant: object, psi0: np.ndarray,
-               done: threading.Event) -> int:
+               done: StopFlag) -> int:
     from wristmark.models.marker import MarkerModel
     from wristmark.rig.loop.heap_freeze import freeze_heap
     from wristmark.rig.loop.loop_setup import default_config
@@ -228,7 +215,7 @@ def _stop_and_report(lab: Any) -> None:
           f"JPEG {s['encode_ms_median'] or 0:.1f} ms median)", file=sys.stderr, flush=True)
 
 
-def _serve_until_done(lab: Any, done: threading.Event) -> int:
+def _serve_until_done(lab: Any, done: StopFlag) -> int:
     """Serve until ``done`` (0), or 1 with one line on stderr when the lab's camera failed."""
     while not done.wait(0.2):
         if lab.error:
@@ -238,7 +225,7 @@ def _serve_until_done(lab: Any, done: threading.Event) -> int:
 
 
 def _serve_ros2_lab(args: argparse.Namespace, params: Arm, plant: object, psi0: np.ndarray,
-                    done: threading.Event) -> int:
+                    done: StopFlag) -> int:
     """The virtual lab over ROS 2 (sim/ros2_lab.py): stdout's first line the ``--actuator`` SPEC
     (ros2:/NS), its second the ``--camera`` SPEC (ros2:LEFT,RIGHT)."""
     from wristmark.rig.ros2.bridge import clean_namespace
@@ -315,7 +302,7 @@ def _run_scene(args: argparse.Namespace) -> int:
     lab = SceneLab(setup, camera, watchdog_s=args.watchdog, truth_out=args.truth_out, rt_priority=args.rt_priority,
                    render_rt=not args.render_normal_priority)
     _write_scene_calibration(args, setup)
-    done = _stop_on_signals()
+    done = stop_on_signals()
     try:
         ptys, url = lab.start()
         freeze_heap()  # a full collection would stop the boxes and the camera for ~0.1 s (rig.loop.heap_freeze)
@@ -362,7 +349,7 @@ def _serve_ros2_scene(args: argparse.Namespace) -> int:
     except ValueError as e:  # an arm's name that is no ROS 2 name
         raise InputError(f"--ros2: {e}") from None
     _write_scene_calibration(args, setup)
-    done = _stop_on_signals()
+    done = stop_on_signals()
     try:
         lab.start()
         specs = lab.topics()

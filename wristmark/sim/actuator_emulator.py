@@ -236,11 +236,6 @@ class ActuatorEmulator:
             except OSError:
                 return
 
-    def serve_forever(self) -> None:
-        """Block until :meth:`stop` (from a signal handler or another thread)."""
-        while self._thread is not None and self._thread.is_alive():
-            self._thread.join(0.1)
-
     def stop(self) -> None:
         """Stop serving and close both ends of the pty (clients see the device vanish)."""
         self._stop.set()

@@ -1,7 +1,7 @@
 """The tracker on rendered walks of an arm, two or more tracker settings side by side.
 
 Usage: python bench/tracker_walks.py --compare {facing,chain_polarity,tip_sigma,bars_gate,partners,
-           reduced,stereo_dy,single_view} [--robot tendon3]
+           reduced,stereo_dy,single_view,wide_windows} [--robot tendon3]
            [--image-scale 0.25] [--walks 20] [--first-walk 0] [--frames 40] [--spread 0.02]
            [--wide] [--wrong-mm 1.5]
 Prints JSON. Each walk starts at the arm's home plus a seeded offset of ``--spread`` [rad or m]
@@ -34,7 +34,10 @@ Comparisons:
                   (``max_dy_px``; cvs.tracking.stereo_match);
   single_view     a corner seen by one camera only held to the pose solve's usual outlier test
                   (``PoseSettings.single_view_factor`` 0) and the default, which holds it to a
-                  stricter one (2 x the median residual instead of 4).
+                  stricter one (2 x the median residual instead of 4);
+  wide_windows    a fit the contrast gate refused kept as refused (``wide_sigma_px`` 0) and the
+                  default, which fits its corners again in windows matched to their spacing where
+                  they lie more than ~33 px apart (MarkerTracker._retry_wide_windows).
 """
 
 from __future__ import annotations
@@ -75,6 +78,7 @@ COMPARISONS: dict[str, dict[str, TrackerSettings]] = {
     "stereo_dy": {"max_dy_2px": TrackerSettings(max_dy_px=2.0), "max_dy_2.5px": TrackerSettings(max_dy_px=2.5)},
     "single_view": {"usual_test": TrackerSettings(pose=PoseSettings(single_view_factor=0.0)),
                     "default": TrackerSettings()},
+    "wide_windows": {"without_wide_windows": TrackerSettings(wide_sigma_px=0.0), "default": TrackerSettings()},
 }
 
 

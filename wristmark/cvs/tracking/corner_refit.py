@@ -54,12 +54,13 @@ def corner_edge_angles(T_cam_marker: Array, points_marker: Array, project: Calla
     return np.column_stack([np.arctan2(d[0, :, 1], d[0, :, 0]), np.arctan2(d[1, :, 1], d[1, :, 0])])
 
 
-def refit_corners(view: NDArray[np.uint8], uv: Array, edges: Array, radius: int = 4) -> Array:
+def refit_corners(view: NDArray[np.uint8], uv: Array, edges: Array, radius: int = 4,
+                  max_sigma_px: float = 4.0) -> Array:
     """The corners ``uv`` (N, 2) [raw px] of ``view`` (grey or BGR) fitted again by the HTM model
     (cvs.corners.subpixel.htm_refine: (2 radius + 1)^2 window, Gaussian weights 0.12 times the
-    distance to the nearest other corner, in [1.5, 4] px, as the paper detector's own fit),
-    started at ``uv`` and ``edges`` (N, 2) [rad]; a corner whose fit fails, moves more than
-    1.5 px or whose window leaves the image keeps its position."""
+    distance to the nearest other corner, in [1.5, ``max_sigma_px``] px; the defaults are the
+    paper detector's own fit), started at ``uv`` and ``edges`` (N, 2) [rad]; a corner whose fit
+    fails, moves more than 1.5 px or whose window leaves the image keeps its position."""
     pts = np.asarray(uv, float).reshape(-1, 2)
     out = pts.copy()
     n = pts.shape[0]
@@ -77,7 +78,7 @@ def refit_corners(view: NDArray[np.uint8], uv: Array, edges: Array, radius: int 
     x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, w), min(y1, h)
     grey = gray_crop(view, (x0, y0, x1, y1))
     ref, _, ok = htm_refine(grey, pts[inside] - [x0, y0], np.asarray(edges, float).reshape(-1, 2)[inside], radius,
-                            np.clip(0.12 * spacing[inside], 1.5, 4.0))
+                            np.clip(0.12 * spacing[inside], 1.5, float(max_sigma_px)))
     moved = out[inside]
     moved[ok] = ref[ok] + [x0, y0]
     out[inside] = moved

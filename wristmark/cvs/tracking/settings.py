@@ -124,7 +124,13 @@ class TrackerSettings:
     averaging; a sleeve close to the lens or out of focus, its corners blurred over several pixels,
     fails the X-corner test at full and half scale), its corners then fitted on the views themselves
     as in the eroded search, under the same gates; the first factor that passes is kept (empty: off;
-    MarkerTracker._retry_reduced)."""
+    MarkerTracker._retry_reduced). wide_sigma_px [px]: a fit the contrast gate refused whose
+    corners lie further apart than the detector's HTM window serves (its Gaussian weights, 0.12
+    times the distance to the nearest other corner, stop at 4 px: a corner more than ~33 px from
+    the next, close to the lens and blurred by defocus, is fitted from its noisy centre alone) has
+    its matched corners fitted again with weights up to wide_sigma_px in a window of 1.25 times
+    that, at the fit's own edge directions, and is solved, oriented and judged again under every
+    gate (4 or less: off; MarkerTracker._retry_wide_windows)."""
 
     min_corners: int = 3
     min_pairs: int = 2
@@ -163,6 +169,7 @@ class TrackerSettings:
     bars_gate: bool = True
     partner_max_px: float = 1.0
     reduced_scales: tuple[int, ...] = (2, 3, 4)
+    wide_sigma_px: float = 8.0
 
     def __post_init__(self) -> None:
         sizes = tuple(self.eroded_sizes)
@@ -173,6 +180,9 @@ class TrackerSettings:
         if any(not isinstance(k, int) or isinstance(k, bool) or k < 2 for k in scales):
             raise InputError(f"TrackerSettings.reduced_scales must be integers >= 2 (empty: off), got {scales}")
         object.__setattr__(self, "reduced_scales", scales)
+        if not float(self.wide_sigma_px) >= 0:  # NaN too
+            raise InputError(f"TrackerSettings.wide_sigma_px must be >= 0 [px] (4 or less: off), "
+                             f"got {self.wide_sigma_px}")
         if int(self.eroded_min_clipped_px) < 0:
             raise InputError(f"TrackerSettings.eroded_min_clipped_px must be >= 0, got {self.eroded_min_clipped_px}")
         if not float(self.max_dy_px) > 0:  # NaN too

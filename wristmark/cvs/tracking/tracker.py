@@ -109,6 +109,8 @@ _ERODED_REASONS = (*_CORNER_REASONS, "no start pose")
 _REDUCED_REASONS = (*_FEW_CORNER_REASONS, "no start pose")
 # how the tip-sigma gate's refusal ends, after which the print's bars are weighed in (_retry_with_bars)
 _TIP_SIGMA_CAUSE = "to fix the marker's tilt)"
+_CONTRAST_GATE_CAUSE = "at the corners' contrast noise and residuals"  # contrast_gate's refusal
+_DETECTOR_MAX_SIGMA_PX = 4.0  # the cap on the detector's HTM weights (cvs.corners.subpixel.subpixel)
 
 
 def _median(x: Array) -> float:
@@ -125,6 +127,15 @@ def _median_spacing(*chains: Array) -> float:
     """The median distance [px] between consecutive corners of the chains (inf without any)."""
     gaps = [np.hypot(*np.diff(c, axis=0).T) for c in chains if c.shape[0] > 1]
     return _median(np.concatenate(gaps)) if gaps else float("inf")
+
+
+def _nearest_spacing(corners: Array) -> Array:
+    """Each corner's distance [px] to the nearest other one (empty with fewer than two)."""
+    if corners.shape[0] < 2:
+        return np.zeros(0)
+    d = np.linalg.norm(corners[:, None] - corners[None], axis=2)
+    np.fill_diagonal(d, np.inf)
+    return np.asarray(d.min(axis=1), float)
 
 
 def _box_around(corners: Array, shape: tuple[int, ...]) -> tuple[int, int, int, int]:
@@ -258,15 +269,9 @@ class MarkerTracker:
             spacing = _median_spacing(res.corners_left, res.corners_right)
             self._roi_magnify = self.settings.magnify if magnified and spacing < self.settings.magnify_below_px else 1.0
         if res.ok:
-            t3 = time.perf_counter()
-            res = self._orient(res, (il, ir), axis_hint_left)
-            res.timings["axis"] = 1e3 * (time.perf_counter() - t3)
-            if res.ok and self.settings.solve_contrast_noise > 0:
-                res = self._contrast_weighted(res, (il, ir))
-            if res.ok and self.settings.edge_sigma_px > 0:
-                res = self._edge_refined(res, (il, ir))
-            if res.ok and gate:  # refused here, the corners' ROIs stay (as for an ambiguous direction)
-                res = self.contrast_gate(res, (il, ir))
+            res = self._judged(res, (il, ir), axis_hint_left, gate)
+            if not res.ok and not roi_only and _CONTRAST_GATE_CAUSE in res.reason:
+                res = self._retry_wide_windows(res, (il, ir), t0, axis_hint_left)
             res = replace(res, time_ms=1e3 * (time.perf_counter() - t0))
         elif gate and not roi_only and res.reason.endswith(_TIP_SIGMA_CAUSE):
             res = self._retry_with_bars(res, (to_gray(il), to_gray(ir)), t0, axis_hint_left)
@@ -411,7 +416,7 @@ class MarkerTracker:
         if sigma <= bound:
             return res
         return replace(res, ok=False, tip_left=None, tip_world=None, T_left_marker=None, reason=(
-            f"the tip is uncertain by {1e3 * sigma:.2f} mm at the corners' contrast noise and residuals "
+            f"the tip is uncertain by {1e3 * sigma:.2f} mm {_CONTRAST_GATE_CAUSE} "
             "(dim corners, or corners that fit worse than their contrast says)"))
 
     def _edge_refined(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]]) -> TrackResult:
@@ -572,6 +577,52 @@ class MarkerTracker:
                 follow = getattr(d, "follow", None)
                 if callable(follow):
                     follow(c)
+        return out
+
+    def _judged(self, res: TrackResult, views: tuple[Any, Any], hint: Array | None, gate: bool) -> TrackResult:
+        """A good fit oriented (timings key 'axis'), solved again with each corner weighted by its
+        contrast, refined with the print's bars and, with ``gate``, held to :meth:`contrast_gate`
+        (refused there, the corners' ROIs stay, as for an ambiguous direction)."""
+        t = time.perf_counter()
+        res = self._orient(res, views, hint)
+        res.timings["axis"] = 1e3 * (time.perf_counter() - t)
+        if res.ok and self.settings.solve_contrast_noise > 0:
+            res = self._contrast_weighted(res, views)
+        if res.ok and self.settings.edge_sigma_px > 0:
+            res = self._edge_refined(res, views)
+        if res.ok and gate:
+            res = self.contrast_gate(res, views)
+        return res
+
+    def _retry_wide_windows(self, res: TrackResult, views: tuple[Any, Any], t0: float,
+                            hint: Array | None) -> TrackResult:
+        """A fit :meth:`contrast_gate` refused whose corners lie further apart than the detector's
+        HTM window serves (Gaussian weights 0.12 times the distance to the nearest other corner,
+        capped at 4 px): its matched corners fitted again with the cap at ``wide_sigma_px``, in a
+        window of 1.25 times that, at the fit's own edge directions (each corner's polarity from
+        its index's parity), then solved, oriented and judged again under every gate. A large
+        corner blurred by defocus is otherwise fitted from its noisy centre alone: path-traced
+        808/19, 50-55 px between corners, fitted 0.4-1.3 px off and refused at 0.81 mm of tip
+        sigma, is 0.2-0.8 px off and 0.10 mm off at the tip this way. ``res`` unchanged when no
+        corner is that far apart or the new fit fails (timings key 'wide')."""
+        s, m = self.settings, res.match
+        if m is None or res.pose is None or s.wide_sigma_px <= _DETECTOR_MAX_SIGMA_PX:
+            return res
+        kl, kr = m.index_left >= 0, m.index_right >= 0
+        nearest = [_nearest_spacing(c) for c in (res.corners_left[kl], res.corners_right[kr])]
+        if not any(g.size and 0.12 * float(g.max()) > _DETECTOR_MAX_SIGMA_PX for g in nearest):
+            return res
+        t = time.perf_counter()
+        radius = int(np.ceil(1.25 * s.wide_sigma_px))
+        matched = replace(res, corners_left=res.corners_left[kl], corners_right=res.corners_right[kr],
+                          match=replace(m, index_left=m.index_left[kl], index_right=m.index_right[kr]))
+        parity = (np.where(m.index_left[kl] % 2 == 0, 1.0, -1.0), np.where(m.index_right[kr] % 2 == 0, 1.0, -1.0))
+        again = self._refit_matched(matched, (to_gray(views[0]), to_gray(views[1])), parity, t0,
+                                    lambda view, uv, edges: refit_corners(view, uv, edges, radius, s.wide_sigma_px))
+        if again is not None and again.ok:
+            again = self._judged(again, views, hint, gate=True)
+        out = again if again is not None and again.ok else res
+        out.timings["wide"] = 1e3 * (time.perf_counter() - t)
         return out
 
     def _retry_partners(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],

@@ -25,6 +25,15 @@ from numpy.typing import NDArray
 from wristmark.cvs.corners.likelihood import CornerCandidates, Image
 from wristmark.cvs.corners.xcorners import Array, DetectorSettings, IntArray
 
+HTM_WEIGHT_PER_SPACING = 0.12  # the HTM fit's Gaussian weights: sigma per distance to the nearest other corner
+HTM_WEIGHT_MAX_PX = 4.0  # ... capped here [px] (and at 1.5 px below)
+
+
+def htm_weight_sigma(spacing: Array | float, max_px: float = HTM_WEIGHT_MAX_PX) -> Array:
+    """The HTM fit's Gaussian weight sigma [px] for corners ``spacing`` [px] from the nearest
+    other corner: 0.12 times that, in [1.5, ``max_px``] px (the detector's own: 4 px)."""
+    return np.clip(HTM_WEIGHT_PER_SPACING * np.asarray(spacing, float), 1.5, float(max_px))
+
 
 def _quadric_pinv(size: int) -> Array:
     r = size // 2
@@ -270,6 +279,6 @@ def subpixel(
     edges = cands.edges[idx]
     if not s.refine or idx.size == 0:
         return q, q.copy(), edges
-    ref, e, ok = htm_refine(cands.gray, cands.points(idx), edges, s.refine_radius, np.clip(0.12 * spacing, 1.5, 4.0))
+    ref, e, ok = htm_refine(cands.gray, cands.points(idx), edges, s.refine_radius, htm_weight_sigma(spacing))
     ref[~ok] = q[~ok]
     return ref, q, e

@@ -1,5 +1,5 @@
 """Another detector's corners fitted again by the paper detector's grey-level model:
-:func:`corner_edge_angles`, :func:`refit_corners`, :func:`refit_corners_clipped`.
+:func:`corner_edge_angles`, :func:`nearest_spacing`, :func:`refit_corners`, :func:`refit_corners_clipped`.
 
 The saddle detector ('auto''s second try, cvs.corners.saddle) finds chains where the paper
 detector's X-corner test misses a corner (a highlight stripe bending its edge along the chain by
@@ -27,13 +27,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.cvs.corners.clipped_fit import clipped_htm_refine
-from wristmark.cvs.corners.subpixel import htm_refine
+from wristmark.cvs.corners.subpixel import HTM_WEIGHT_MAX_PX, HTM_WEIGHT_PER_SPACING, htm_refine, htm_weight_sigma
 from wristmark.cvs.corners.xcorner_test import htm_correlation
 from wristmark.cvs.gray_image import gray_crop
 
 Array = NDArray[np.float64]
 
-__all__ = ["corner_edge_angles", "partner_corners", "refit_corners", "refit_corners_clipped"]
+__all__ = ["corner_edge_angles", "nearest_spacing", "partner_corners", "refit_corners", "refit_corners_clipped"]
 
 
 def corner_edge_angles(T_cam_marker: Array, points_marker: Array, project: Callable[[Array], Array]) -> Array:
@@ -54,8 +54,16 @@ def corner_edge_angles(T_cam_marker: Array, points_marker: Array, project: Calla
     return np.column_stack([np.arctan2(d[0, :, 1], d[0, :, 0]), np.arctan2(d[1, :, 1], d[1, :, 0])])
 
 
+def nearest_spacing(uv: Array) -> Array:
+    """Each of the points ``uv`` (N, 2) [px]: its distance [px] to the nearest other one (inf
+    alone; empty for none)."""
+    pts = np.asarray(uv, float).reshape(-1, 2)
+    d = np.linalg.norm(pts[:, None] - pts[None], axis=2) + np.diag(np.full(pts.shape[0], np.inf))
+    return np.asarray(d.min(axis=1), float) if pts.shape[0] else np.zeros(0)
+
+
 def refit_corners(view: NDArray[np.uint8], uv: Array, edges: Array, radius: int = 4,
-                  max_sigma_px: float = 4.0) -> Array:
+                  max_sigma_px: float = HTM_WEIGHT_MAX_PX) -> Array:
     """The corners ``uv`` (N, 2) [raw px] of ``view`` (grey or BGR) fitted again by the HTM model
     (cvs.corners.subpixel.htm_refine: (2 radius + 1)^2 window, Gaussian weights 0.12 times the
     distance to the nearest other corner, in [1.5, ``max_sigma_px``] px; the defaults are the
@@ -71,14 +79,13 @@ def refit_corners(view: NDArray[np.uint8], uv: Array, edges: Array, radius: int 
     inside = (pts[:, 0] >= pad) & (pts[:, 0] < w - pad) & (pts[:, 1] >= pad) & (pts[:, 1] < h - pad)
     if not inside.any():
         return out
-    d = np.linalg.norm(pts[:, None] - pts[None], axis=2) + np.diag(np.full(n, np.inf))
-    spacing = d.min(axis=1) if n > 1 else np.full(1, 4.0 / 0.12)
+    spacing = nearest_spacing(pts) if n > 1 else np.full(1, HTM_WEIGHT_MAX_PX / HTM_WEIGHT_PER_SPACING)
     x0, y0 = int(np.floor(pts[inside, 0].min())) - pad, int(np.floor(pts[inside, 1].min())) - pad
     x1, y1 = int(np.ceil(pts[inside, 0].max())) + pad + 1, int(np.ceil(pts[inside, 1].max())) + pad + 1
     x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, w), min(y1, h)
     grey = gray_crop(view, (x0, y0, x1, y1))
     ref, _, ok = htm_refine(grey, pts[inside] - [x0, y0], np.asarray(edges, float).reshape(-1, 2)[inside], radius,
-                            np.clip(0.12 * spacing[inside], 1.5, float(max_sigma_px)))
+                            htm_weight_sigma(spacing[inside], max_sigma_px))
     moved = out[inside]
     moved[ok] = ref[ok] + [x0, y0]
     out[inside] = moved
@@ -96,8 +103,7 @@ def refit_corners_clipped(view: NDArray[np.uint8], uv: Array, edges: Array,
     n = pts.shape[0]
     if n == 0:
         return pts.copy(), np.zeros(0, bool)
-    d = np.linalg.norm(pts[:, None] - pts[None], axis=2) + np.diag(np.full(n, np.inf))
-    spacing = d.min(axis=1) if n > 1 else np.full(1, np.inf)
+    spacing = nearest_spacing(pts) if n > 1 else np.full(1, np.inf)
     return clipped_htm_refine(view, pts, edges, spacing, clip_level)
 
 
@@ -129,7 +135,7 @@ def partner_corners(view: NDArray[np.uint8], uv: Array, edges: Array, spacing: A
             fit, good = clipped_htm_refine(view, pts[k:k + 1], e[k:k + 1], gaps[k], clip_level, max_move=1.5)
         else:
             fit, _, good = htm_refine(grey, pts[k:k + 1] - [x0, y0], e[k:k + 1], radius,
-                                      float(np.clip(0.12 * gaps[k], 1.5, 4.0)))
+                                      float(htm_weight_sigma(gaps[k])))
             fit = fit + [x0, y0]
             cx, cy = int(round(fit[0, 0])), int(round(fit[0, 1]))
             good &= (cc_radius <= cx < w - cc_radius and cc_radius <= cy < h - cc_radius

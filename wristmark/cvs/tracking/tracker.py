@@ -68,11 +68,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera
+from wristmark.cvs.corners.subpixel import HTM_WEIGHT_MAX_PX, HTM_WEIGHT_PER_SPACING
 from wristmark.cvs.gray_image import check_view, to_gray
 from wristmark.cvs.marker.decode import CodeDecoder
 from wristmark.cvs.tracking.axis import axis_evidence, axis_evidence_strict
 from wristmark.cvs.tracking.corner_refit import (
     corner_edge_angles,
+    nearest_spacing,
     partner_corners,
     refit_corners,
     refit_corners_clipped,
@@ -110,7 +112,6 @@ _REDUCED_REASONS = (*_FEW_CORNER_REASONS, "no start pose")
 # how the tip-sigma gate's refusal ends, after which the print's bars are weighed in (_retry_with_bars)
 _TIP_SIGMA_CAUSE = "to fix the marker's tilt)"
 _CONTRAST_GATE_CAUSE = "at the corners' contrast noise and residuals"  # contrast_gate's refusal
-_DETECTOR_MAX_SIGMA_PX = 4.0  # the cap on the detector's HTM weights (cvs.corners.subpixel.subpixel)
 
 
 def _median(x: Array) -> float:
@@ -127,15 +128,6 @@ def _median_spacing(*chains: Array) -> float:
     """The median distance [px] between consecutive corners of the chains (inf without any)."""
     gaps = [np.hypot(*np.diff(c, axis=0).T) for c in chains if c.shape[0] > 1]
     return _median(np.concatenate(gaps)) if gaps else float("inf")
-
-
-def _nearest_spacing(corners: Array) -> Array:
-    """Each corner's distance [px] to the nearest other one (empty with fewer than two)."""
-    if corners.shape[0] < 2:
-        return np.zeros(0)
-    d = np.linalg.norm(corners[:, None] - corners[None], axis=2)
-    np.fill_diagonal(d, np.inf)
-    return np.asarray(d.min(axis=1), float)
 
 
 def _box_around(corners: Array, shape: tuple[int, ...]) -> tuple[int, int, int, int]:
@@ -606,11 +598,11 @@ class MarkerTracker:
         sigma, is 0.2-0.8 px off and 0.10 mm off at the tip this way. ``res`` unchanged when no
         corner is that far apart or the new fit fails (timings key 'wide')."""
         s, m = self.settings, res.match
-        if m is None or res.pose is None or s.wide_sigma_px <= _DETECTOR_MAX_SIGMA_PX:
+        if m is None or res.pose is None or s.wide_sigma_px <= HTM_WEIGHT_MAX_PX:
             return res
         kl, kr = m.index_left >= 0, m.index_right >= 0
-        nearest = [_nearest_spacing(c) for c in (res.corners_left[kl], res.corners_right[kr])]
-        if not any(g.size and 0.12 * float(g.max()) > _DETECTOR_MAX_SIGMA_PX for g in nearest):
+        gaps = np.concatenate([nearest_spacing(c) for c in (res.corners_left[kl], res.corners_right[kr])])
+        if not np.any(np.isfinite(gaps) & (HTM_WEIGHT_PER_SPACING * gaps > HTM_WEIGHT_MAX_PX)):
             return res
         t = time.perf_counter()
         radius = int(np.ceil(1.25 * s.wide_sigma_px))

@@ -609,7 +609,7 @@ class MarkerTracker:
         matched = replace(res, corners_left=res.corners_left[kl], corners_right=res.corners_right[kr],
                           match=replace(m, index_left=m.index_left[kl], index_right=m.index_right[kr]))
         parity = (np.where(m.index_left[kl] % 2 == 0, 1.0, -1.0), np.where(m.index_right[kr] % 2 == 0, 1.0, -1.0))
-        again = self._refit_matched(matched, (to_gray(views[0]), to_gray(views[1])), parity, t0,
+        again = self._refit_matched(matched, views, parity, t0,  # refit_corners converts its crops alone
                                     lambda view, uv, edges: refit_corners(view, uv, edges, radius, s.wide_sigma_px))
         if again is not None and again.ok:
             again = self._judged(again, views, hint, gate=True)

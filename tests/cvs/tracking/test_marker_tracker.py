@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import replace
+from typing import Any
+
 import numpy as np
 import pytest
 
@@ -285,24 +289,68 @@ def test_a_view_missed_in_its_roi_gets_the_second_detector_in_the_boxes_not_a_wh
     trk = MarkerTracker(CAM, MARKER)
     f = frames[0]
     assert trk.track(f.left, f.right).ok
-    real_detect = type(trk.detector_left).detect
     left = trk.detector_left
-
-    def misses_in_box(gray: np.ndarray, roi: object = None) -> object:
-        res = real_detect(left, gray, roi)
-        if roi is None:
-            return res
-        from dataclasses import replace
-
-        return replace(res, corners=np.zeros((0, 2)), polarity=np.zeros(0, int))
-
-    monkeypatch.setattr(left, "detect", misses_in_box)
+    _left_boxes_give(trk, monkeypatch, lambda res: replace(res, corners=np.zeros((0, 2)), polarity=np.zeros(0, int)))
     calls = _count_searches(monkeypatch)
     res = trk.track(f.left, f.right)
     assert res.ok and "second_detector_roi" in res.timings
     assert not [c for c in calls if c[1]], calls  # no whole-frame search
     assert np.linalg.norm(res.tip_left - f.tip_left) < 0.3e-3  # type: ignore[operator]
     assert left.previous_roi(f.left.shape) is not None  # the box follows the saddle's corners
+
+
+def _left_boxes_give(trk: MarkerTracker, monkeypatch: pytest.MonkeyPatch, change: Callable[[Any], Any]) -> None:
+    """The left view's paper detector returns ``change(chain)`` in its ROI box (whole frames as they are)."""
+    real_detect = type(trk.detector_left).detect
+    left = trk.detector_left
+
+    def in_box(gray: np.ndarray, roi: object = None) -> object:
+        res = real_detect(left, gray, roi)
+        return res if roi is None else change(res)
+
+    monkeypatch.setattr(left, "detect", in_box)
+
+
+def _chains_elsewhere_in_boxes(trk: MarkerTracker, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The left view's box chains corners off the right view's epipolar lines (a box holding the
+    edges beside a small sleeve: no stereo pair fits)."""
+    _left_boxes_give(trk, monkeypatch, lambda res: replace(res, corners=res.corners + np.array([0.0, 25.0])))
+
+
+def test_boxes_that_chain_other_corners_get_the_second_detector_in_the_boxes_in_the_roi_phase(
+    frames: list[RenderedPair], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The arm set's ROI phase (``roi_only``): each view's box holds a chain but they give no
+    pose (the scene lab's half-size sleeve, where every such pair sent the arm to the arm set's
+    whole-frame search, 30-65 ms a pair): the saddle detector in both views' boxes recovers the
+    pose, and no whole frame is searched."""
+    trk = MarkerTracker(CAM, MARKER)
+    f = frames[0]
+    assert trk.track(f.left, f.right).ok
+    _chains_elsewhere_in_boxes(trk, monkeypatch)
+    calls = _count_searches(monkeypatch)
+    res = trk.track(f.left, f.right, roi_only=True)
+    assert res.ok and "second_detector_roi" in res.timings
+    assert not [c for c in calls if c[1]], calls  # no whole-frame search
+    assert np.linalg.norm(res.tip_left - f.tip_left) < 0.3e-3  # type: ignore[operator]
+
+
+def test_boxes_that_chain_other_corners_are_followed_by_the_paper_detectors_whole_frames_in_track(
+    frames: list[RenderedPair], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The same boxes where the whole frames may be searched (one arm's ``track``): the paper
+    detector's whole frames come first (its corners are the finer where they fit), and the
+    second detector is not run."""
+    trk = MarkerTracker(CAM, MARKER)
+    f = frames[0]
+    assert trk.track(f.left, f.right).ok
+    _chains_elsewhere_in_boxes(trk, monkeypatch)
+    calls = _count_searches(monkeypatch)
+    res = trk.track(f.left, f.right)
+    assert res.ok and "second_detector_roi" not in res.timings and "second_detector" not in res.timings
+    assert not [c for c in calls if c[0] == "SaddleCornerDetector"], calls
+    assert ("MarkerCornerDetector", True) in calls  # the right view searched whole (the left's spy is its own)
+    assert np.linalg.norm(res.tip_left - f.tip_left) < 0.3e-3  # type: ignore[operator]
 
 
 def test_a_view_without_the_marker_is_searched_whole_once_per_pair(

@@ -868,8 +868,13 @@ class MarkerTracker:
         the second detector in both views' boxes: a miss of one detector in one view (the paper's
         detector lost 1-2 % of the lab's frames at half size that the saddle detector found at once)
         then costs two small boxes, not a whole-frame search of both views with both detectors (80-
-        100 ms at 960 x 540, the servo loop's cycle overrun). Returns the result (None when neither
-        view has a box) and the chains of the views searched whole here (None where not)."""
+        100 ms at 960 x 540, the servo loop's cycle overrun). Boxes that both chain corners that
+        give no good fit (a small sleeve's box also holds the edges beside it: the scene lab's sleeve
+        at half size, 20 px between corners, in most pairs of its start) get the same try when the
+        whole frames are not to be searched (``whole`` False: the arm set's ROI phase); else the
+        first detector's whole frames come first, in :meth:`_track_views`. Returns the result (None
+        when neither view has a box) and the chains of the views searched whole here (None where
+        not)."""
         n = self.settings.min_corners
         boxes = (self.detector_left.previous_roi(il.shape), self.detector_right.previous_roi(ir.shape))
         if boxes[0] is None and boxes[1] is None:
@@ -879,20 +884,21 @@ class MarkerTracker:
         chains: list[Any] = [None if b is None else d.detect(img, b, **mag) for d, img, b in zip(dets, (il, ir), boxes)]
         missed = [c is None or len(c.corners) < n for c in chains]
         self._continuous = not any(missed)  # the previous pose is a start and a prior only then
-        if any(missed) and self._use_second and boxes[0] is not None and boxes[1] is not None:
-            t1 = time.perf_counter()
-            second = self._second_detectors()
-            sl, sr = second[0].detect(il, boxes[0]), second[1].detect(ir, boxes[1])
-            t_box = 1e3 * (time.perf_counter() - t1)
-            if min(len(sl.corners), len(sr.corners)) >= n:
-                res = self.track_corners(sl.corners, sr.corners, sl.polarity, sr.polarity, _t0=t0)
-                if res.ok:
-                    res = self._refit_second(res, (il, ir), (sl.polarity, sr.polarity), t0)
-                    res.timings["detect"] = 1e3 * (time.perf_counter() - t0) - t_box
-                    res.timings["second_detector_roi"] = t_box
-                    for d, c in zip(dets, (sl, sr)):  # the next pair's boxes follow the marker
-                        d.follow(c.corners)
-                    return res, (None, None)
+        if not any(missed):
+            t_det = 1e3 * (time.perf_counter() - t0)
+            res = self.track_corners(chains[0].corners, chains[1].corners, chains[0].polarity, chains[1].polarity,
+                                     _t0=t0)
+            res.timings["detect"] = t_det
+            if res.ok:
+                return res, (None, None)
+            # each box chained corners, but not the marker's; with the whole frames to search, the
+            # first detector's come first (its corners are the finer where they fit)
+            if whole:
+                return res, (None, None)
+            second_res = self._second_in_boxes_kept(il, ir, boxes, t0)
+            return (res if second_res is None else second_res), (None, None)
+        if (second_res := self._second_in_boxes(il, ir, boxes, t0)) is not None:
+            return second_res, (None, None)
         full: list[Any] = [None, None]
         for k in (0, 1):
             if missed[k] and whole:  # that view whole, as the detector's own ``track`` would
@@ -905,6 +911,47 @@ class MarkerTracker:
         res = self.track_corners(dl.corners, dr.corners, dl.polarity, dr.polarity, _t0=t0)
         res.timings["detect"] = t_det
         return res, (full[0], full[1])
+
+    def _second_in_boxes_kept(self, il: Any, ir: Any, boxes: tuple[Any, Any], t0: float) -> TrackResult | None:
+        """:meth:`_second_in_boxes` with the first detector searching again around the second's
+        chains; when it fails, the retries that follow see the pair's earlier chains alone (the
+        misfits and hinges its own fits left are dropped)."""
+        kept = (self._misfits, self._hinged, self._last_shift, self._last_fit_px)
+        res = self._second_in_boxes(il, ir, boxes, t0, first_again=True)
+        if res is None:
+            self._misfits, self._hinged, self._last_shift, self._last_fit_px = kept
+        return res
+
+    def _second_in_boxes(self, il: Any, ir: Any, boxes: tuple[Any, Any], t0: float,
+                         first_again: bool = False) -> TrackResult | None:
+        """ROI tracking's one try of the second detector ('auto') in both views' boxes, when the
+        first missed the marker in one of them or its chains gave no good fit: the good result
+        (its corners fitted again by the first detector's model, :meth:`_refit_second`; the
+        next pair's boxes follow it), or None. ``first_again``: the first detector searches
+        again in boxes around the second's chains first (:meth:`_first_detector_in_boxes`)."""
+        if not self._use_second or boxes[0] is None or boxes[1] is None:
+            return None
+        t1 = time.perf_counter()
+        second = self._second_detectors()
+        sl, sr = second[0].detect(il, boxes[0]), second[1].detect(ir, boxes[1])
+        t_box = 1e3 * (time.perf_counter() - t1)
+        if min(len(sl.corners), len(sr.corners)) < self.settings.min_corners:
+            return None
+        res = self.track_corners(sl.corners, sr.corners, sl.polarity, sr.polarity, _t0=t0)
+        if not res.ok:
+            return None
+        polarity = (sl.polarity, sr.polarity)
+        if first_again:
+            res = self._first_detector_in_boxes(res, il, ir, t0, polarity)
+            res.timings["detect"] = 1e3 * (time.perf_counter() - t0) - t_box
+            res.timings["second_detector_roi"] = t_box
+            return res
+        res = self._refit_second(res, (il, ir), polarity, t0)
+        res.timings["detect"] = 1e3 * (time.perf_counter() - t0) - t_box
+        res.timings["second_detector_roi"] = t_box
+        for d, c in zip((self.detector_left, self.detector_right), (sl, sr)):  # the next boxes follow it
+            d.follow(c.corners)
+        return res
 
     def _single_view_shift(self, best: MarkerPose, idx_l: IntArray, ul: Array, idx_r: IntArray, ur: Array,
                            m: StereoMatch) -> float:

@@ -941,16 +941,14 @@ class MarkerTracker:
         if not res.ok:
             return None
         polarity = (sl.polarity, sr.polarity)
-        if first_again:
+        if first_again:  # its boxes follow the result
             res = self._first_detector_in_boxes(res, il, ir, t0, polarity)
-            res.timings["detect"] = 1e3 * (time.perf_counter() - t0) - t_box
-            res.timings["second_detector_roi"] = t_box
-            return res
-        res = self._refit_second(res, (il, ir), polarity, t0)
+        else:
+            res = self._refit_second(res, (il, ir), polarity, t0)
+            for d, c in zip((self.detector_left, self.detector_right), (sl, sr)):  # the next boxes follow it
+                d.follow(c.corners)
         res.timings["detect"] = 1e3 * (time.perf_counter() - t0) - t_box
         res.timings["second_detector_roi"] = t_box
-        for d, c in zip((self.detector_left, self.detector_right), (sl, sr)):  # the next boxes follow it
-            d.follow(c.corners)
         return res
 
     def _single_view_shift(self, best: MarkerPose, idx_l: IntArray, ul: Array, idx_r: IntArray, ur: Array,

@@ -167,6 +167,46 @@ def test_without_a_six_dof_pose_the_probe_is_skipped_and_says_so(capsys: pytest.
     assert not [r for r in log.records if r.phase == "point:probe"] and log.phase("point")
 
 
+class _RollUnreadAt:
+    """A tip sensor whose ``at``-th measurement (from 1) has its roll code unread, as a coded
+    sleeve's tracker gives now and then (the orientation modulo one column)."""
+
+    def __init__(self, inner: object, at: int) -> None:
+        self.inner, self.at, self.calls = inner, at, 0
+
+    def measure(self, frame: object, axis_hint_world: object = None) -> TipMeasurement:
+        self.calls += 1
+        m = self.inner.measure(frame, axis_hint_world)  # type: ignore[attr-defined]
+        return dataclasses.replace(m, roll_known=False) if self.calls == self.at else m
+
+
+def test_one_settle_cycle_without_the_roll_code_does_not_skip_the_probe() -> None:
+    """The settle's last measurement has its roll unread (the cycles before it had it): the probe
+    still runs and fits every actuator (a 6-DoF pose in the settle's last cycles is enough),
+    where it was once skipped for that one cycle (a scene lab's flaky test)."""
+    from wristmark.rig.loop.servo_session import PointHold
+    from wristmark.rig.recording.run_log import RunLog
+    from wristmark.rig.targets.orientation_path import start_configuration
+    from wristmark.rig.targets.trajectories import workspace_centre
+    from wristmark.sim.setup import make_direct_loop
+
+    setup = _setup("plant_unseen.yaml")
+    traj = PointHold(np.array([workspace_centre(setup.params)]), 1.0, hold=0.6)
+    n_settle = int(round(0.6 / setup.rig.control_dt))
+    fits, logs = [], []
+    for at in (n_settle, 0):  # the settle's last measurement without its roll, then none
+        loop = make_direct_loop(setup, start_configuration(setup.params, traj.sample(0.0)[0]), closed_loop=True,
+                                seed=0)
+        loop.sensor = _RollUnreadAt(loop.sensor, at)
+        logs.append(RunLog())
+        loop.run(traj, "point", True, logs[-1], settle=0.6)
+        assert loop.play_probe_note == "" and isinstance(loop.play_fits, list) and len(loop.play_fits) == 6
+        fits.append(loop.play_fits)
+    phases = [r.phase for r in logs[0].records]
+    assert phases[:n_settle + 1] == ["point:settle"] * n_settle + ["point:probe"]  # roll dropped on the settle's last
+    assert fits[0] == fits[1] and sum(f.ok for f in fits[0]) >= 4  # the same probe as with the roll read
+
+
 def _hold_point(robot: str, from_tip: bool, sensor: str = "vision") -> tuple[Any, SimSetup, list]:
     """A point held on a shipped arm with its plant file and the reference marker (the controller's
     ``play_probe_from_tip`` as given): the loop, its setup and the log's probe cycles."""

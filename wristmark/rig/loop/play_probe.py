@@ -18,14 +18,15 @@ on the loop's clock; no pose needed), for the inversion's reversal burst (``back
 An arm whose pose does not give its actuators (fewer than 6 joints, or more actuators than
 joints: tendons) is probed the same way with the controller's ``play_probe_from_tip`` (off by
 default: skipped with a note), each actuator's output read from the tip alone along the tip's
-motion it causes (:class:`TipProjection`; any marker). Otherwise the probe assumes a
-6-DoF pose: without one (the reference marker, or a coded marker whose roll code was
-not read at the end of the settle) nothing moves, the loop's ``play_probe_note`` says so (the
-experiments put it in result.json; not on stderr, where a run prints only its one-line stop), and
-the inversion learns the play online at the reversals as without a probe. The probe's cycles are logged as
+motion it causes (:class:`TipProjection`; any marker). Otherwise the probe assumes a 6-DoF
+pose: without one in the settle's last ``POSE_RECENT_CYCLES`` cycles (the reference marker, or a
+coded marker whose roll code was not read in any of them; one cycle that missed it does not
+count) nothing moves, the loop's ``play_probe_note`` says so (the experiments put it in
+result.json; not on stderr, where a run prints only its one-line stop), and the inversion learns
+the play online at the reversals as without a probe. The probe's cycles are logged as
 ``phase + ':probe'`` and are not counted in the walk's errors; more than the rig's
-``max_lost_cycles`` probe cycles in a row without a pose hold the arm and stop the run
-(MarkerLostError), as in the loop. Works the same on the simulated
+``max_lost_cycles`` probe cycles in a row without a pose (a coded sleeve's unread roll is none)
+hold the arm and stop the run (MarkerLostError), as in the loop. Works the same on the simulated
 bench and on the hardware path (GET_STATE gives the encoders, the frames the pose).
 """
 
@@ -33,7 +34,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -48,8 +49,12 @@ from wristmark.rig.loop.probe_loop import ProbeLoop
 from wristmark.rig.loop.servo_cycle import CycleOutcome, CycleTarget
 from wristmark.solvers.play_probe_fit import PlayFit, fit_motor_lag, fit_play
 
+if TYPE_CHECKING:
+    from wristmark.rig.loop.tip_sensors import TipMeasurement
+
 Array = NDArray[np.float64]
 RESTORE_CYCLES = 3  # cycles the probe waits after its last command (the motor's lag is ~0.07 s)
+POSE_RECENT_CYCLES = 10  # a 6-DoF pose in the settle's last this many cycles lets the probe run
 FEW_JOINTS = ("play probe skipped: the arm has fewer than 6 joints, so a measured pose does not give its actuators "
               "(the play is learnt online; play_probe_from_tip: true reads each from the tip)")
 MORE_ACTUATORS = ("play probe skipped: the arm has more actuators than joints (tendons or pairs), so a measured pose "
@@ -115,7 +120,6 @@ def run_play_probe(loop: ProbeLoop, template: CycleTarget) -> list[PlayFit] | No
     """Probe every actuator's play from the loop's settled command and hand the fits to the
     controller (None when skipped: no 6-DoF pose). ``template`` is the target logged."""
     ctrl = loop.controller
-    meas0 = loop.last_measurement
     n, m = arm_size(loop.params)
     cfg, params, dt = ctrl.config, loop.params, loop.rig.control_dt
     base = loop.psi_cmd.copy()
@@ -127,7 +131,10 @@ def run_play_probe(loop: ProbeLoop, template: CycleTarget) -> list[PlayFit] | No
         ctrl.start_play(None)
         return None
     projection = TipProjection(params, base) if (n < 6 or m > n) else None
-    if meas0 is None or (projection is None and (meas0.R_world is None or not meas0.roll_known)):
+    # a 6-DoF pose in the settle's last cycles, not only its last one (one cycle may miss the code)
+    measured = _recent(loop.last_pose, loop.now(), POSE_RECENT_CYCLES * dt) if projection is None \
+        else loop.last_measurement is not None
+    if not measured:
         loop.skip(NO_POSE if projection is None else NO_TIP)
         ctrl.start_play(None)
         return None
@@ -178,6 +185,11 @@ def run_play_probe(loop: ProbeLoop, template: CycleTarget) -> list[PlayFit] | No
     return fits
 
 
+def _recent(meas: TipMeasurement | None, now: float, window: float) -> bool:
+    """Whether ``meas`` was captured at most ``window`` [s] before ``now`` (the frames' clock)."""
+    return meas is not None and now - meas.t_capture <= window
+
+
 def _sample(loop: ProbeLoop, target: CycleTarget, j: int, samples: ProbeSamples, reads: list[tuple[float, Array]],
             hint: Array, projection: TipProjection | None = None) -> tuple[Array, bool]:
     """One probe cycle's frame, encoders and pose, logged as actuator ``j``'s sample; returns the
@@ -194,7 +206,8 @@ def _sample(loop: ProbeLoop, target: CycleTarget, j: int, samples: ProbeSamples,
         if ok and meas is not None and meas.p_world is not None:
             y[j] = projection.output(j, meas.p_world)
     else:
-        ok = meas is not None and meas.ok and meas.p_world is not None and meas.R_world is not None
+        ok = meas is not None and meas.ok and meas.p_world is not None and meas.R_world is not None \
+            and meas.roll_known  # a coded sleeve whose code was not read: roll only modulo a column
         if ok and meas is not None:
             sol = solve_pose_ik(params, meas.p_world, meas.R_world, hint)
             hint = sol.psi

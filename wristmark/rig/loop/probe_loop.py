@@ -66,6 +66,11 @@ class ProbeLoop(Protocol):
         """The loop's last measurement (None: none yet)."""
         ...
 
+    @property
+    def last_pose(self) -> TipMeasurement | None:
+        """The loop's last measurement with a 6-DoF pose: orientation and roll known (None: none yet)."""
+        ...
+
     def now(self) -> float:
         """The time on the frames' clock [s]."""
         ...

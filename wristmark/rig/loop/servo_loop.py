@@ -115,6 +115,7 @@ class ServoLoop:
         self.on_cycle = on_cycle
         self.on_frame = on_frame
         self.last_measurement: TipMeasurement | None = None
+        self.last_pose: TipMeasurement | None = None  # the last measurement with a 6-DoF pose (roll known)
         self.last_frame: StereoFrame | None = None
         self.t = float(link.time)
         self.psi_cmd: Array | None = None
@@ -388,6 +389,8 @@ class ServoLoop:
         model = forward_kinematics(self.params, self.psi_cmd)  # the commanded arm, nominal model
         meas = self.sensor.measure(frame, axis_hint_world=model.T_world_marker[:3, 2])  # which way it points
         self.last_measurement = meas
+        if meas.ok and meas.R_world is not None and meas.roll_known:
+            self.last_pose = meas
         if callable(self.on_frame):
             self.on_frame(frame, meas)
         if not (meas.ok and meas.p_world is not None and np.all(np.isfinite(meas.p_world))):
@@ -556,6 +559,11 @@ class _ProbeView:
     def last_measurement(self) -> TipMeasurement | None:
         """The loop's last measurement."""
         return self.loop.last_measurement
+
+    @property
+    def last_pose(self) -> TipMeasurement | None:
+        """The loop's last measurement with a 6-DoF pose (None: none yet)."""
+        return self.loop.last_pose
 
     def now(self) -> float:
         """The time on the frames' clock [s]."""

@@ -1,7 +1,7 @@
 """The tracker on path-traced stereo pairs (Mitsuba 3, ``--engine pbr``) that the tests never saw.
 
 Usage: python bench/pbr_tracking.py [--pairs N] [--seed S] [--image-scale F] [--spp N] [--cache DIR] [--only I,J]
-           [--baseline KEY=VALUE ...]
+           [--loop-hint] [--baseline KEY=VALUE ...]
 Needs the extra 'pbr' (scripts/ensure-pbr.sh). Prints JSON. Per pair, drawn from ``--seed``
 (not the committed set's poses, tests/data/pbr): the sleeve (reference and coded in turn), a
 visible configuration (every other one with the sleeve within 5 deg of square to the line of
@@ -15,9 +15,10 @@ with these TrackerSettings fields, VALUE in JSON, e.g. ``--baseline reduced_scal
 ``--baseline max_dy_px=2.0`` or, for a field of a settings group, ``--baseline axis.arm_offsets=[]``:
 an A/B of one setting on the same pairs): tracked rate, wrong (tip
 more than ``--wrong-mm`` off), tip error mean [mm], the coded sleeve's roll-known rate and
-rotation error mean [deg], median time [ms]. ``--cache DIR`` keeps the rendered pairs, so a
-tracker change is measured again on the same pairs without rendering (about 5 s a pair at half
-size, 25 s at 1080p here).
+rotation error mean [deg], median time [ms]. ``--loop-hint`` gives the trackers the marker's true
+axis as the direction hint, as the servo loop gives the commanded model's. ``--cache DIR`` keeps
+the rendered pairs, so a tracker change is measured again on the same pairs without rendering
+(about 5 s a pair at half size, 25 s at 1080p here).
 """
 
 from __future__ import annotations
@@ -96,6 +97,9 @@ def main() -> int:
     ap.add_argument("--only", metavar="I,J,...",
                     help="render and track only these pairs (0-based indices below --pairs; every pair is still "
                          "drawn, so each is the same pair as in a full run): a lost pair looked at again")
+    ap.add_argument("--loop-hint", action="store_true",
+                    help="give both trackers the marker's true axis as the direction hint, as the servo loop gives "
+                         "the commanded model's (a reference sleeve's direction then comes from it)")
     ap.add_argument("--baseline", metavar="KEY=VALUE", action="append", default=[],
                     help="today's tracker is the default one with this TrackerSettings field, or GROUP.FIELD of a "
                          "settings group such as axis.arm_offsets (VALUE in JSON; repeat for more), instead of the "
@@ -173,7 +177,7 @@ def main() -> int:
                      "tilt_deg": _tilt_deg(pair.T_left_marker)}
         for k, tr in trackers[name].items():
             tr.reset()
-            r = tr.track(pair.left, pair.right)
+            r = tr.track(pair.left, pair.right, axis_hint_left=pair.T_left_marker[:3, 2] if a.loop_hint else None)
             out = {"ok": r.ok, "reason": r.reason, "ms": r.time_ms, "roll_known": r.roll_known, "rms_px": r.rms_px,
                    "retried": "gap_chain" in r.timings,
                    "pairs": None if r.match is None else r.match.n_pairs}
@@ -183,6 +187,7 @@ def main() -> int:
             row[k] = out
         rows.append(row)
     report: dict = {"pairs": len(rows), "image_size": list(cam.image_size), "spp": a.spp, "seed": a.seed,
+                    "loop_hint": a.loop_hint,
                     "render_s": time.time() - t_start, "load": os.getloadavg(),
                     "today_is": given if given else "the paper's chain alone (detector max_gaps 0)"}
     for k in ("today", "default"):

@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, is_dataclass, replace
@@ -46,7 +47,7 @@ from wristmark.models.config_files import default_config
 from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
 from wristmark.models.robot_params import RobotParams
-from wristmark.sim.render.pbr import PbrSettings, PbrStereoRenderer
+from wristmark.sim.render.pbr import PbrSettings, PbrStereoRenderer, load_mitsuba
 from wristmark.sim.render.settings import noise_preset
 from wristmark.sim.visibility import random_visible_psi
 
@@ -140,6 +141,9 @@ def main() -> int:
         ap.error(f"--only: comma-separated pair indices, not {a.only!r}")
     if only is not None and (not only or min(only) < 0 or max(only) >= a.pairs):
         ap.error(f"--only: indices from 0 to {a.pairs - 1} (--pairs {a.pairs})")
+    wanted = range(a.pairs) if only is None else sorted(only)
+    if a.cache is None or not all((Path(a.cache) / f"pair_{i}.npz").is_file() for i in wanted):
+        load_mitsuba()  # a pair to render: Mitsuba is needed (a one-line error before the warm-up)
     warm_up()
     full = load_calibration(str(default_config("camera.yaml")))
     cam = scaled_stereo_camera(full, a.image_scale) if a.image_scale != 1 else full
@@ -212,4 +216,8 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    try:
+        raise SystemExit(main())
+    except InputError as err:  # e.g. Mitsuba not installed: one line, not a traceback
+        print(f"pbr_tracking: error: {err}", file=sys.stderr)
+        raise SystemExit(2) from None

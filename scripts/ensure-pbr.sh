@@ -1,9 +1,12 @@
 #!/usr/bin/env bash
 # Installs what `wristmark render --engine pbr` needs: Debian's libllvm19 (Mitsuba's CPU variant
 # llvm_ad_rgb needs LLVM >= 19; 14/15 fail with "Cannot select fminimum") and the extra 'pbr'
-# (mitsuba 3 from PyPI) into the Python given as $PYTHON (default: python3).
+# (mitsuba 3 from PyPI) into the Python given as $PYTHON (default: the project's .venv, made by
+# `make setup`, else python3).
 set -euo pipefail
-PY="${PYTHON:-python3}"
+HERE="$(cd "$(dirname "$0")/.." && pwd)"
+if [ -x "$HERE/.venv/bin/python" ]; then DEFAULT_PY="$HERE/.venv/bin/python"; else DEFAULT_PY=python3; fi
+PY="${PYTHON:-$DEFAULT_PY}"
 LIB=/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1
 if [ ! -e "$LIB" ] && [ ! -e /usr/lib/llvm-19/lib/libLLVM.so.1 ]; then
   SUDO=""

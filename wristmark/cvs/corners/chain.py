@@ -247,17 +247,64 @@ def _chain_kernel(c: Any, im: Any, prm: Any) -> Any:  # pragma: no cover
     return out[:0].copy()
 
 
+@numba.njit(cache=True, nogil=True)
+def _pairs_kernel(c: Any, im: Any, prm: Any, max_pairs: int) -> Any:  # pragma: no cover
+    """Seeds in decreasing normalised CL order (as _chain_kernel, up to max_seeds X-corners):
+    each seed's chain, where it has exactly two corners; each unordered pair once."""
+    ok = c[5]
+    max_seeds, seed_candidates = prm[8], prm[9]
+    n = min(c[0].size, seed_candidates)
+    out = np.empty(_MAX_CHAIN, np.int64)
+    pairs = np.empty((max_pairs, 2), np.int64)
+    found = seeds = 0
+    for k in range(n):
+        _xtest(c, im, prm, k)
+        if not ok[k]:
+            continue
+        m = _grow(c, im, prm, k, out)
+        if m == 2:
+            a, b = min(out[0], out[1]), max(out[0], out[1])
+            new = True
+            for j in range(found):
+                if pairs[j, 0] == a and pairs[j, 1] == b:
+                    new = False
+            if new:
+                pairs[found, 0], pairs[found, 1] = out[0], out[1]
+                found += 1
+                if found >= max_pairs:
+                    break
+        seeds += 1
+        if seeds >= max_seeds:
+            break
+    return pairs[:found].copy()
+
+
+def _params(s: DetectorSettings, gaps: int) -> tuple[Any, ...]:
+    return (
+        int(s.half_window), float(s.template_scale), float(s.cc_min), float(s.contrast_ratio),
+        math.cos(math.radians(s.edge_tol_deg)), float(s.max_step_px), float(s.stop_ratio), int(s.min_corners),
+        int(s.max_seeds), int(s.seed_candidates), max(int(gaps), 0), float(s.gap_ratio),
+        math.cos(math.radians(s.cross_edge_tol_deg)), s.chain_polarity == "along",
+    )
+
+
+def find_pairs(cands: CornerCandidates, s: DetectorSettings, max_pairs: int = 8) -> IntArray:
+    """Candidate index pairs (M, 2), M <= ``max_pairs``, of the seeds (tried as :func:`find_chain`
+    tries them) whose chain stops at two corners: a sleeve seen so steeply that only the two
+    corners facing the camera pass the X-corner test (MarkerTracker's last try on a coded
+    sleeve, cvs.tracking.two_pairs). Each unordered pair once, in the order found."""
+    c = cands
+    arrays = (c.xs, c.ys, c.cln, c.rng, c.tested, c.ok, c.cc, c.pol, c.edges)
+    pairs: IntArray = _pairs_kernel(arrays, (c.gray, c.ix, c.iy, np.empty((2, NBINS))), _params(s, 0),
+                                    max(int(max_pairs), 1))
+    return pairs
+
+
 def find_chain(cands: CornerCandidates, s: DetectorSettings, gaps: int = 0) -> IntArray:
     """Candidate indices of the marker chain (module doc), ordered along the chain; empty when
     no seed grows a chain of ``s.min_corners``. ``gaps``: missed corners the chain may step over
     (0: the paper's chain)."""
     c = cands
     arrays = (c.xs, c.ys, c.cln, c.rng, c.tested, c.ok, c.cc, c.pol, c.edges)
-    prm = (
-        int(s.half_window), float(s.template_scale), float(s.cc_min), float(s.contrast_ratio),
-        math.cos(math.radians(s.edge_tol_deg)), float(s.max_step_px), float(s.stop_ratio), int(s.min_corners),
-        int(s.max_seeds), int(s.seed_candidates), max(int(gaps), 0), float(s.gap_ratio),
-        math.cos(math.radians(s.cross_edge_tol_deg)), s.chain_polarity == "along",
-    )
-    chain: IntArray = _chain_kernel(arrays, (c.gray, c.ix, c.iy, np.empty((2, NBINS))), prm)
+    chain: IntArray = _chain_kernel(arrays, (c.gray, c.ix, c.iy, np.empty((2, NBINS))), _params(s, gaps))
     return chain

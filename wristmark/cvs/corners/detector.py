@@ -60,7 +60,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from wristmark.cvs.corners.chain import along_polarity, find_chain
+from wristmark.cvs.corners.chain import along_polarity, find_chain, find_pairs
 from wristmark.cvs.corners.likelihood import CornerCandidates, Image, Workspace, corner_likelihood, find_candidates
 from wristmark.cvs.corners.planar_board import assemble_grid
 from wristmark.cvs.corners.subpixel import htm_refine, quadric_subpixel, subpixel
@@ -126,7 +126,9 @@ def run_kernels_once() -> None:
     corner = np.where((xx < 24.3) == (yy < 23.6), 200, 40).astype(np.uint8)
     img = np.asarray(cv2.GaussianBlur(corner, (5, 5), 1.0), np.uint8)
     detect_xcorners(img)  # CL, NMS, X-corner test, quadric and HTM fit
-    MarkerCornerDetector().detect(img)  # the chain search
+    det = MarkerCornerDetector()
+    det.detect(img)  # the chain search
+    det.chains_of_two(img)  # and its chains of two
 
 
 class MarkerCornerDetector:
@@ -210,6 +212,26 @@ class MarkerCornerDetector:
         chain = find_chain(cands, s, s.max_gaps)
         extras["chain_ms"] = 1e3 * (time.perf_counter() - t0)
         return self._result(self._corners(cands, chain, s, x0, y0, extras, magnify), None, t0, extras)
+
+    def chains_of_two(self, gray: Any, max_chains: int = 8) -> list[XCorners]:
+        """Chains of exactly two corners in the whole image at full scale (uint8 grey or BGR), at
+        most ``max_chains``, each sub-pixel as a chain's corners (cvs.corners.chain.find_pairs): a
+        sleeve seen so steeply that only the two corners facing the camera pass the X-corner
+        test. Texture beside the marker forms such pairs too: the caller tells them apart. The
+        ROI state and :meth:`retry_with_gaps` are left as they were."""
+        g = to_gray(check_image(gray))
+        s = replace(self.settings, min_corners=2)
+        cands = find_candidates(g, s, None, self._ws)
+        times: dict[str, float] = {}
+        out: list[XCorners] = []
+        for pair in find_pairs(cands, s, max_chains):
+            xc = self._corners(cands, pair, s, 0, 0, times)
+            # one corner can leave two candidates (a plateau of CL): the same two corners once
+            if xc.corners.shape[0] == 2 and not any(
+                    min(np.abs(xc.corners - o.corners).max(), np.abs(xc.corners[::-1] - o.corners).max()) < 1.0
+                    for o in out):
+                out.append(xc)
+        return out
 
     def detect(self, gray: Any, roi: Roi | None = None, magnify: float = 1.0) -> CornerChain:
         """The marker chain in the whole image or in ``roi`` = (x, y, w, h) [px]; uint8 grey or

@@ -130,7 +130,15 @@ class TrackerSettings:
     the next, close to the lens and blurred by defocus, is fitted from its noisy centre alone) has
     its matched corners fitted again with weights up to wide_sigma_px in a window of 1.25 times
     that, at the fit's own edge directions, and is solved, oriented and judged again under every
-    gate (4 or less: off; MarkerTracker._retry_wide_windows)."""
+    gate (4 or less: off; MarkerTracker._retry_wide_windows). two_pairs_min_bars, two_pairs_margin
+    [-]: a coded sleeve still lost for too few corners or without a start pose, whose views each
+    show a chain of only two corners (seen steeply, the next corners fail the X-corner test), is
+    put on the chord those two stereo pairs fix, turned to the sleeve axis their edges show, in
+    every roll hypothesis, each scored by the print's bar samples found there (code cells
+    included); the best is kept where it has two_pairs_min_bars samples or more, two_pairs_margin
+    times as many as any other hypothesis, corners and bars within edge_max_rms_px, its code read
+    with the same roll, and the tip's sigma from corners and bars within the bars gate's bounds
+    (0 min bars: off; needs edge_sigma_px > 0; cvs.tracking.two_pairs, MarkerTracker._retry_two_pairs)."""
 
     min_corners: int = 3
     min_pairs: int = 2
@@ -170,6 +178,8 @@ class TrackerSettings:
     partner_max_px: float = 1.0
     reduced_scales: tuple[int, ...] = (2, 3, 4)
     wide_sigma_px: float = 8.0
+    two_pairs_min_bars: int = 24
+    two_pairs_margin: float = 1.4
 
     def __post_init__(self) -> None:
         sizes = tuple(self.eroded_sizes)
@@ -204,6 +214,10 @@ class TrackerSettings:
         if not float(self.max_contrast_tip_sigma_m) > 0:
             raise InputError(f"TrackerSettings.max_contrast_tip_sigma_m must be > 0 (inf: off), "
                              f"got {self.max_contrast_tip_sigma_m}")
+        if int(self.two_pairs_min_bars) < 0:
+            raise InputError(f"TrackerSettings.two_pairs_min_bars must be >= 0 (0: off), got {self.two_pairs_min_bars}")
+        if not float(self.two_pairs_margin) >= 1:  # NaN too
+            raise InputError(f"TrackerSettings.two_pairs_margin must be >= 1, got {self.two_pairs_margin}")
 
 
 def make_detector(kind: str, settings: DetectorSettings | None = None) -> CornerDetector:

@@ -58,6 +58,7 @@ decided.
 from __future__ import annotations
 
 import inspect
+import math
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
@@ -98,6 +99,7 @@ from wristmark.cvs.tracking.sleeve_facing import corner_facing, turned_start
 from wristmark.cvs.tracking.stereo_match import StereoMatch, StereoRectifier, match_corners
 from wristmark.cvs.tracking.stereo_pose import MarkerPose, StereoPoseSolver
 from wristmark.cvs.tracking.tip_uncertainty import corner_sigmas, tip_sigma
+from wristmark.cvs.tracking.two_pairs import RollFit, StereoChord, axis_from_edges, roll_hypotheses, stereo_chords
 from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
 
@@ -112,6 +114,7 @@ _REDUCED_REASONS = (*_FEW_CORNER_REASONS, "no start pose")
 # how the tip-sigma gate's refusal ends, after which the print's bars are weighed in (_retry_with_bars)
 _TIP_SIGMA_CAUSE = "to fix the marker's tilt)"
 _CONTRAST_GATE_CAUSE = "at the corners' contrast noise and residuals"  # contrast_gate's refusal
+_TWO_PAIRS_MAX_CHORDS = 4  # stereo chords of two corners judged (MarkerTracker._retry_two_pairs), at most
 
 
 def _median(x: Array) -> float:
@@ -267,6 +270,10 @@ class MarkerTracker:
             res = replace(res, time_ms=1e3 * (time.perf_counter() - t0))
         elif gate and not roi_only and res.reason.endswith(_TIP_SIGMA_CAUSE):
             res = self._retry_with_bars(res, (to_gray(il), to_gray(ir)), t0, axis_hint_left)
+            found = res.ok
+        if not res.ok and gate and not roi_only and self.decoder is not None and res.reason.startswith(
+                _ERODED_REASONS):
+            res = self._retry_two_pairs(res, (to_gray(il), to_gray(ir)), t0)
             found = res.ok
         self._tracking = found  # an ambiguous direction keeps the corners' ROIs
         self._last_pose = res.pose if found else None
@@ -518,6 +525,102 @@ class MarkerTracker:
         if not (sigma <= s.max_tip_sigma_m and c_sigma <= s.max_contrast_tip_sigma_m):
             return res
         return replace(out, time_ms=1e3 * (time.perf_counter() - t0))
+
+    def _retry_two_pairs(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],
+                         t0: float) -> TrackResult:
+        """A coded sleeve lost for too few corners: its pose from two stereo pairs and the print
+        (cvs.tracking.two_pairs; TrackerSettings.two_pairs_*), kept where the best roll hypothesis
+        wins by the margin, its code reads the same roll and the tip's sigma from corners and bars
+        passes the bars gate's bounds. Where two chords give poses whose tips differ by more than
+        ``max_tip_sigma_m``, neither. ``res`` unchanged otherwise."""
+        s = self.settings
+        chains = [getattr(d, "chains_of_two", None) for d in (self.detector_left, self.detector_right)]
+        if self.decoder is None or s.two_pairs_min_bars <= 0 or s.edge_sigma_px <= 0 or not all(
+                callable(c) for c in chains):
+            return res
+        t = time.perf_counter()
+        left, right = (c(v) for c, v in zip(chains, views))  # type: ignore[misc]
+        m = self.marker
+        chords = stereo_chords(self.rectifier, left, right, 2.0 * m.radius * math.sin(0.5 * m.beta), s.max_dy_px)
+        kept = self.judge_chords(views, chords[:_TWO_PAIRS_MAX_CHORDS], res.timings)
+        res.timings["two_pairs"] = 1e3 * (time.perf_counter() - t)
+        if not kept or any(np.linalg.norm(np.asarray(k.tip_left) - np.asarray(kept[0].tip_left)) > s.max_tip_sigma_m
+                           for k in kept[1:]):
+            return res
+        out = kept[0]
+        out.timings["two_pairs"] = res.timings["two_pairs"]
+        return replace(out, time_ms=1e3 * (time.perf_counter() - t0))
+
+    def judge_chords(self, views: tuple[NDArray[np.uint8], NDArray[np.uint8]], chords: Sequence[StereoChord],
+                     timings: dict[str, float] | None = None) -> list[TrackResult]:
+        """Each stereo chord of two corners (cvs.tracking.two_pairs.stereo_chords) on the grey
+        ``views``: its best roll hypothesis, kept where it passes every gate of
+        :meth:`_retry_two_pairs` (TrackerSettings.two_pairs_*); the results kept, in the chords'
+        order (bench/two_pairs.py judges chords of tracked pairs this way)."""
+        s, m = self.settings, self.marker
+        if self.decoder is None or s.edge_sigma_px <= 0:
+            return []
+        if self._print_edges is None:
+            self._print_edges = printed_edges(m)
+        kept: list[TrackResult] = []
+        for chord in chords:
+            axis = axis_from_edges(self.camera, chord, m)
+            fit = None if axis is None else roll_hypotheses(views, self.camera, m, self._print_edges, chord, axis,
+                                                            s.corner_sigma_px, s.edge_sigma_px, s.two_pairs_margin,
+                                                            0.5 * s.max_tip_sigma_m)
+            if fit is None or not (fit.bars >= s.two_pairs_min_bars and fit.bars >= fit.runner_up
+                                   and fit.coded >= s.two_pairs_margin * max(fit.runner_up_coded, 1)
+                                   and fit.corner_rms_px <= s.edge_max_rms_px and fit.bar_rms_px <= s.edge_max_rms_px):
+                continue
+            out = self._two_pair_result(fit, chord, views, {} if timings is None else timings)
+            if out is not None:
+                kept.append(out)
+        return kept
+
+    def _two_pair_result(self, fit: RollFit, chord: StereoChord, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],
+                         timings: dict[str, float]) -> TrackResult | None:
+        """:meth:`_retry_two_pairs`' judgement of one chord's best roll: its code read the same
+        way (and, with a family, as this sleeve), both corners facing both cameras, and the tip's
+        sigma from corners and bars within ``max_tip_sigma_m`` at the gate's corner noise and
+        within ``max_contrast_tip_sigma_m`` at their contrast noise; the result, else None."""
+        assert self.decoder is not None
+        s, T = self.settings, fit.T_left_marker
+        reading = self.decoder.read(views, T)
+        if not (reading.ok and reading.shift == 0 and reading.direction > 0):
+            return None
+        if len(self.decoder.members) > 1 and self.decoder.members[reading.member] != self.marker:
+            return None
+        P = self.solver.marker_points(fit.ids)
+        centres = (np.zeros(3), np.asarray(self._T_left_right[:3, 3], float))
+        if min(float(corner_facing(T, P, c).min()) for c in centres) < s.min_corner_facing:
+            return None
+        tips = np.stack([np.asarray(self.marker.tip(), float), -np.asarray(self.marker.tip(), float)])
+        uv = (chord.uv_left, chord.uv_right)
+        gate_sig = [corner_sigmas(views[i], uv[i], s.corner_sigma_px, s.corner_contrast_noise, s.clipped_sigma_px,
+                                  s.clipped_level, s.clipped_radius * _median_spacing(uv[i])) for i in (0, 1)]
+        contrast = [corner_sigmas(views[i], uv[i], s.corner_sigma_px, s.gate_contrast_noise) for i in (0, 1)]
+        chi2 = 0.0
+        for project, u, sg in ((self.camera.project_left, uv[0], contrast[0]),
+                               (self.camera.project_right, uv[1], contrast[1])):
+            e = np.asarray(project(P @ T[:3, :3].T + T[:3, 3]), float).reshape(-1, 2) - u
+            chi2 += float(((e / sg[:, None]) ** 2).sum())
+        factor = max(1.0, math.sqrt(chi2 / 2.0))  # 8 residuals, 6 unknowns
+
+        def at(noise: list[Array]) -> float:
+            return edges_tip_sigma(self.camera, T, ((P, uv[0], noise[0]), (P, uv[1], noise[1])), fit.bar_pairs,
+                                   s.edge_sigma_px, tips)
+
+        if not (at(gate_sig) <= s.max_tip_sigma_m and at([factor * c for c in contrast]) <= s.max_contrast_tip_sigma_m):
+            return None
+        tip_left, tip_world = self.solver._tips(T)
+        ids = np.asarray(fit.ids, int)
+        rl, rr = self.rectifier.left(uv[0]), self.rectifier.right(uv[1])
+        match = StereoMatch(ids.copy(), ids.copy(), np.array([[0, 0], [1, 1]]), np.asarray(chord.dy_px, float), rl, rr)
+        inl = np.ones(2, bool)
+        pose = MarkerPose(T, T, tip_left, tip_world, fit.corner_rms_px, 2, 2, inl, inl.copy(), self.marker.beta, 0.0)
+        return TrackResult(True, "", tip_left, tip_world, T, uv[0].copy(), uv[1].copy(), fit.corner_rms_px, 0.0,
+                           dict(timings), pose=pose, match=match, axis_source="code", roll_known=True,
+                           ids_left=ids.copy(), ids_right=ids.copy(), code=reading)
 
     def _retry_with_gaps(self, res: TrackResult, t0: float) -> TrackResult:
         """A pair lost for too few corners: a highlight over the corner each camera sees best

@@ -1,7 +1,7 @@
 """The tracker on rendered walks of an arm, two or more tracker settings side by side.
 
 Usage: python bench/tracker_walks.py --compare {facing,chain_polarity,tip_sigma,bars_gate,partners,
-           reduced,stereo_dy,single_view,wide_windows} [--robot tendon3]
+           reduced,stereo_dy,single_view,wide_windows,two_pairs} [--robot tendon3] [--marker FILE]
            [--image-scale 0.25] [--walks 20] [--first-walk 0] [--frames 40] [--spread 0.02]
            [--wide] [--wrong-mm 1.5]
 Prints JSON. Each walk starts at the arm's home plus a seeded offset of ``--spread`` [rad or m]
@@ -37,7 +37,10 @@ Comparisons:
                   stricter one (2 x the median residual instead of 4);
   wide_windows    a fit the contrast gate refused kept as refused (``wide_sigma_px`` 0) and the
                   default, which fits its corners again in windows matched to their spacing where
-                  they lie more than ~33 px apart (MarkerTracker._retry_wide_windows).
+                  they lie more than ~33 px apart (MarkerTracker._retry_wide_windows);
+  two_pairs       a coded sleeve's pair still lost kept lost (``two_pairs_min_bars`` 0) and the
+                  default, which tries its views' chains of two corners in every roll hypothesis
+                  (MarkerTracker._retry_two_pairs; needs ``--marker configs/marker_coded.yaml``).
 """
 
 from __future__ import annotations
@@ -79,6 +82,7 @@ COMPARISONS: dict[str, dict[str, TrackerSettings]] = {
     "single_view": {"usual_test": TrackerSettings(pose=PoseSettings(single_view_factor=0.0)),
                     "default": TrackerSettings()},
     "wide_windows": {"without_wide_windows": TrackerSettings(wide_sigma_px=0.0), "default": TrackerSettings()},
+    "two_pairs": {"without_two_pairs": TrackerSettings(two_pairs_min_bars=0), "default": TrackerSettings()},
 }
 
 
@@ -86,6 +90,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--compare", choices=sorted(COMPARISONS), required=True)
     ap.add_argument("--robot", default="tendon3", help="a shipped arm (configs/robots/NAME.yaml)")
+    ap.add_argument("--marker", default=None, help="a marker file (default: the arm's own, configs/marker.yaml)")
     ap.add_argument("--image-scale", type=float, default=0.25)
     ap.add_argument("--walks", type=int, default=20)
     ap.add_argument("--first-walk", type=int, default=0, help="the first walk's seed (walks are seeded in turn)")
@@ -95,7 +100,7 @@ def main() -> int:
     ap.add_argument("--wide", action="store_true", help="walks start anywhere within the joint limits (marker in view)")
     args = ap.parse_args()
     warm_up()
-    setup = load_setup(robot=CONFIG_DIR / "robots" / f"{args.robot}.yaml")
+    setup = load_setup(robot=CONFIG_DIR / "robots" / f"{args.robot}.yaml", marker=args.marker)
     render_cam = scaled_stereo_camera(setup.render_camera, args.image_scale)
     cam = scaled_stereo_camera(setup.tracking_camera, args.image_scale)
     W = cam.T_world_left
@@ -128,7 +133,7 @@ def main() -> int:
                 if res.ok and res.tip_left is not None:
                     stats[k]["err"].append(1e3 * float(np.linalg.norm(W[:3, :3] @ res.tip_left + W[:3, 3] - shape.tip)))
     out: dict[str, object] = {"compare": args.compare, "robot": args.robot, "image_scale": args.image_scale,
-                              "pairs": pairs, "walks": args.walks, "first_walk": args.first_walk,
+                              "marker": args.marker, "pairs": pairs, "walks": args.walks, "first_walk": args.first_walk,
                               "spread": args.spread, "wide": args.wide,
                               "wrong_mm": args.wrong_mm}
     for k, s in stats.items():

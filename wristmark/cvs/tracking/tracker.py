@@ -274,7 +274,7 @@ class MarkerTracker:
         if not res.ok and gate and not roi_only and self.decoder is not None and res.reason.startswith(
                 _ERODED_REASONS):
             res = self._retry_two_pairs(res, (to_gray(il), to_gray(ir)), t0)
-            found = res.ok
+            found = found or res.ok
         self._tracking = found  # an ambiguous direction keeps the corners' ROIs
         self._last_pose = res.pose if found else None
         self._last_oriented = res.ok

@@ -2,7 +2,7 @@
 
 Seen 35 deg or more from square in a dim image, a coded sleeve can show only the two corners
 that face the camera: the next ones fail the X-corner test, no chain of three forms, and the
-pair is lost (path-traced 1414/15, docs/notes/highlight-stripe.md "Two stereo pairs"). Two
+pair is lost (path-traced 1414/15; docs/notes/highlight-stripe.md, "Two corners a view"). Two
 stereo pairs fix a chord of the corner ring, but not the turn about it nor the roll:
 
 1. :func:`stereo_chords`: chains of two of each view (cvs.corners.detector.chains_of_two)
@@ -14,10 +14,12 @@ stereo pairs fix a chord of the corner ring, but not the turn about it nor the r
 3. :func:`roll_hypotheses`: every adjacent corner pair of the ring, both ways round, put on
    the chord near that turn and scored by the print's bar samples found there
    (cvs.tracking.print_edges), the code cells' included (their places need the roll); the best
-   few refined with their bars. The best is kept only by ``margin`` over every other.
+   few refined with their bars. Rivals are the hypotheses that put the tip elsewhere (those that
+   agree on it differ only in the roll they name, which the code decides).
 
-MarkerTracker._retry_two_pairs then reads the code along the best (it must say the same roll),
-and the tip's sigma from the two corners and the bars together must pass the tracker's gates.
+MarkerTracker._retry_two_pairs keeps the best where it has the most samples, `two_pairs_margin` times the
+code cells' samples of any rival, its code read names the same roll, and the tip's sigma from
+the two corners and the bars together passes the tracker's gates.
 """
 
 from __future__ import annotations

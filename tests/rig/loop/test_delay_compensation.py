@@ -17,7 +17,7 @@ from tests import old_defaults
 from wristmark.cvs.sources.frames import StereoFrame
 from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
 from wristmark.models.ik import solve_tip_ik
-from wristmark.models.kinematics import tip_position
+from wristmark.models.kinematics import forward_kinematics, tip_position
 from wristmark.models.robot_params import HOME_PSI, RobotParams
 from wristmark.rig.link.actuator_link import DirectLink
 from wristmark.rig.loop.delay_compensation import DelayCompensator
@@ -55,6 +55,23 @@ def test_prediction_with_instant_commands_is_the_fk_of_the_commands_sent_in_betw
     assert np.linalg.norm(tip(PSI_C) - tip(PSI_A)) > 1e-3  # the check above is not trivial
     p = np.array([0.01, -0.02, 0.1])
     np.testing.assert_allclose(dc.compensate(p, 0.05, 0.13), p + tip(PSI_C) - tip(PSI_A), atol=1e-15)
+
+
+def test_the_measured_orientation_is_turned_on_by_the_models_turn_of_the_tip_frame() -> None:
+    dc = DelayCompensator(P, tau=0.0)
+    dc.record(0.00, PSI_A)
+    dc.record(0.06, PSI_B)
+    dc.record(0.12, PSI_C)
+    rot = lambda q: forward_kinematics(P, q).T_world_tip[:3, :3]  # noqa: E731
+    turn = dc.predicted_turn(0.05, 0.13)
+    np.testing.assert_allclose(turn, rot(PSI_C) @ rot(PSI_A).T, rtol=0, atol=1e-12)
+    assert np.degrees(np.arccos(np.clip((np.trace(turn) - 1) / 2, -1, 1))) > 1.0  # not trivial
+    assert np.array_equal(dc.predicted_turn(0.065, 0.11), np.eye(3))  # no command in between
+    assert np.array_equal(dc.predicted_turn(0.07, 0.07), np.eye(3))
+    np.testing.assert_allclose(dc.predicted_turn(0.13, 0.05), turn.T, rtol=0, atol=1e-12)  # moved back
+    # a measurement that is the model's orientation at capture becomes the model's at "now"
+    np.testing.assert_allclose(dc.compensate_rotation(rot(PSI_A), 0.05, 0.13), rot(PSI_C), rtol=0, atol=1e-12)
+    assert np.array_equal(DelayCompensator(P).predicted_turn(0.0, 1.0), np.eye(3))  # no history
 
 
 def test_prediction_with_a_lag_follows_the_first_order_response_of_every_actuator() -> None:

@@ -9,7 +9,7 @@ import dataclasses
 
 import numpy as np
 
-from tests.rig.loop.test_servo_loop import RIG, _line, _loop, _plant
+from tests.rig.loop.test_servo_loop import RIG, P, _line, _loop, _plant
 from wristmark.rig.loop.tip_sensors import TipMeasurement
 from wristmark.rig.recording.run_log import RunLog
 from wristmark.sim.plant import TruePlant
@@ -136,3 +136,37 @@ def test_after_cycles_that_stepped_on_the_last_measurement_the_jump_gate_does_no
         results[reuse] = (log.records[8].meas_ok, log.records[8].rejected, stats.rejected)  # type: ignore[attr-defined]
     assert results[False][:2] == (True, False)  # the wrong pose accepted: the arm chases it
     assert results[True] == (False, True, 1)  # rejected, the only one
+
+
+def test_a_reused_measurements_orientation_is_turned_on_with_its_tip() -> None:
+    """A cycle that steps on the last measurement asks the controller for the orientation the
+    model turned it to since its capture, not for the same turn again (a reused measurement's
+    stale rotation, applied on every cycle without a frame, made an arm holding its orientation
+    over a slow camera oscillate, tests/sim/test_scene_lab.py)."""
+    plant = _plant()
+    rig = dataclasses.replace(RIG, reuse_lost=True, reuse_measurement_age=0.3, max_lost_cycles=10, lost_dither=0.0)
+    loop, _ = _loop(_Gap(plant, lose_at=6, gap=3), True, rig=rig, plant=plant)
+    assert loop.controller is not None and loop.delay is not None
+    asked: list[tuple[object, ...]] = []
+    step = loop.controller.step
+
+    def spy(*args: object, **kwargs: object) -> object:
+        asked.append(args)
+        return step(*args, **kwargs)  # type: ignore[arg-type]
+
+    loop.controller.step = spy  # type: ignore[method-assign]
+    log = RunLog()
+    loop.run(_line().with_orientation("hold", P), "closed", True, log, settle=0.0)
+    lost = [i for i, r in enumerate(log.records) if not r.meas_ok]
+    assert lost == [5, 6, 7] and len(asked) == len(log.records)
+    last = log.records[4]  # the measurement the lost cycles step on
+    assert last.R_est is not None
+    turned = []
+    for i in lost:
+        orient = asked[i][-1]
+        assert orient is not None
+        R = np.asarray(orient.R_meas)  # type: ignore[attr-defined]
+        angle = np.degrees(np.arccos(np.clip((np.trace(R @ np.asarray(last.R_est).T) - 1) / 2, -1, 1)))
+        turned.append(angle)
+    # each lost cycle's rotation is the last one turned on by the commands since: more each cycle
+    assert turned[0] > 1e-3 and turned[1] > turned[0] and turned[2] > turned[1], turned

@@ -13,6 +13,11 @@ sent at or before ``t`` (``tau = 0``: commands take effect at once), or the comm
 through a first-order lag of time constant ``tau`` [s] per actuator (the actuators' own lag), or
 each command reached ``reach`` [s] after its send (the ``--model`` link inverts the lag so that
 each target is reached a cycle after it went out; rig ``delay_compensation_reach``).
+The measured orientation (a rotation mapping the tip frame's axes into {w}) is moved on the same
+way, by the model's turn of the tip frame over the gap, in {w}:
+
+    R_compensated = R_model(t_now) @ R_model(t_capture).T @ R_measured
+
 Only the difference of the model between the two instants is used, so the model's own error
 (calibration, backlash, load) cancels to first order. The servo loop records the configuration the
 arm is expected to follow for each command (``Controller.output_model``): with a dead-band
@@ -35,7 +40,7 @@ from numpy.typing import NDArray
 
 from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
 from wristmark.models.arm_spec import Arm
-from wristmark.models.kinematics import tip_position
+from wristmark.models.kinematics import forward_kinematics, tip_position
 from wristmark.rig.loop.motion_correction import MotionCorrection
 
 Array = NDArray[np.float64]
@@ -151,3 +156,21 @@ class DelayCompensator:
         if self.correction is not None:
             motion = self.correction.apply(motion)
         return np.asarray(p_measured, float) + motion
+
+    def predicted_turn(self, t_capture: float, t_now: float) -> Array:
+        """The model's turn of the tip frame in {w} (3x3) from ``t_capture`` to ``t_now`` [s]:
+        R_tip(model(t_now)) @ R_tip(model(t_capture)).T (identity without a history, when nothing
+        changed, or when the two instants are the same)."""
+        if not (math.isfinite(t_capture) and math.isfinite(t_now)) or t_now == t_capture:
+            return np.eye(3)
+        before, after = self.model_psi(t_capture), self.model_psi(t_now)
+        if before is None or after is None or np.array_equal(before, after):
+            return np.eye(3)
+        R_before = forward_kinematics(self.params, before).T_world_tip[:3, :3]
+        R_after = forward_kinematics(self.params, after).T_world_tip[:3, :3]
+        return np.asarray(R_after @ R_before.T, float)
+
+    def compensate_rotation(self, R_measured: Array, t_capture: float, t_now: float) -> Array:
+        """The measured tip-frame orientation (3x3, tip axes in {w}) turned on by the model from
+        its capture to ``t_now`` [s] (the learnt correction maps positions only: not applied)."""
+        return self.predicted_turn(t_capture, t_now) @ np.asarray(R_measured, float)

@@ -430,6 +430,15 @@ class ServoLoop:
         t_start = self._cycle_start if self.wall_clock else self.t
         return self.delay.compensate(meas.p_world, meas.t_capture, t_start)
 
+    def _compensated_rotation(self, meas: TipMeasurement) -> Array | None:
+        """The measured tip-frame orientation (3x3 in {w}; None without one) turned on by the delay
+        compensation to this cycle's start, as :meth:`_compensated` moves the tip: a measurement
+        reused on cycles without a frame would otherwise ask for the same turn again each cycle."""
+        if meas.R_world is None or self.delay is None:
+            return meas.R_world
+        t_start = self._cycle_start if self.wall_clock else self.t
+        return self.delay.compensate_rotation(meas.R_world, meas.t_capture, t_start)
+
     def _control(self, target: CycleTarget, p_est: Array, meas: TipMeasurement) -> float:
         """One controller step from the tip ``p_est`` [m] (and the measurement's orientation);
         returns its time [us]."""
@@ -437,7 +446,7 @@ class ServoLoop:
         # the encoders, for a controller that uses them (the encoders' dead-band inversion)
         enc = self.link.measured_actuators() if self.controller.uses_encoders else None
         c0 = time.perf_counter()
-        orient = OrientationTask.of(target.R_des, target.w_des, meas.R_world, meas.roll_known)
+        orient = OrientationTask.of(target.R_des, target.w_des, self._compensated_rotation(meas), meas.roll_known)
         step = self.controller.step(self.psi_cmd, p_est, target.p_des, target.v_des, self.rig.control_dt, orient,
                                     encoders=enc)
         self.psi_cmd = step.psi_next

@@ -94,6 +94,8 @@ def test_with_the_code_cells_blanked_the_two_pair_path_keeps_nothing(pair, camer
     assert len(chords) >= 1  # the two corners are still there
     r = MarkerTracker(camera, MARKER).track(views[0], views[1])
     assert not r.ok and "two_pairs" in r.timings
+    # a lost pair's time is the whole call's, its last try (the two-pair path) and the searches before it
+    assert r.time_ms >= r.timings["detect"] + r.timings["two_pairs"], (r.time_ms, r.timings)
 
 
 def test_bad_two_pair_settings_are_refused() -> None:

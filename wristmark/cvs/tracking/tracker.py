@@ -211,9 +211,11 @@ class MarkerTracker:
         ir = check_view(right_img, self.camera.image_size, "right")
         self._views = (il, ir)  # the tip-sigma gate looks at each used corner here
         try:
-            return self._track_views(il, ir, t0, axis_hint_left, roi_only, contrast_gate)
+            res = self._track_views(il, ir, t0, axis_hint_left, roi_only, contrast_gate)
         finally:
             self._views = None
+        # the whole call, every search and retry included (a lost pair's result comes from its last one)
+        return replace(res, time_ms=1e3 * (time.perf_counter() - t0))
 
     def _track_views(self, il: NDArray[np.uint8], ir: NDArray[np.uint8], t0: float, axis_hint_left: Array | None,
                      roi_only: bool, gate: bool = True) -> TrackResult:

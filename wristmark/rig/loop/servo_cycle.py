@@ -94,11 +94,14 @@ class CycleTarget:
 @dataclass
 class TrackingMemory:
     """The closed loop's memory across cycles: the last accepted tip [m] and the current run of
-    cycles without an accepted measurement (and why the last one failed)."""
+    cycles without an accepted measurement (and why the last one failed; of that run, the last
+    cycles in a row without a new frame, and why the last frame that came failed)."""
 
     last_ok: Array | None = None
     lost_run: int = 0
     last_reason: str = ""
+    no_frame_run: int = 0  # of the lost run, the last cycles in a row that had no new frame
+    last_frame_reason: str = ""  # why the lost run's last frame gave no accepted measurement
     last_meas: TipMeasurement | None = None  # the last accepted measurement (for cycles without a frame)
     held_psi: Array | None = None  # the command in force when the marker was lost (the dither's centre)
     reused_run: int = 0  # of the lost run, the cycles that stepped on the last measurement (rig reuse_lost)

@@ -313,6 +313,8 @@ class ServoLoop:
         if outcome.accepted:
             memory.lost_run = 0
             memory.reused_run = 0
+            memory.no_frame_run = 0
+            memory.last_frame_reason = ""
             memory.held_psi = None
         else:
             self._count_lost(outcome, memory, stats)
@@ -503,21 +505,29 @@ class ServoLoop:
         stats.reused += int(outcome.reused)
         memory.reused_run += int(outcome.reused)
         memory.lost_run += 1
+        if outcome.meas is None:
+            memory.no_frame_run += 1
+        else:
+            memory.no_frame_run = 0
+            memory.last_frame_reason = memory.last_reason
         stats.max_consecutive_lost = max(stats.max_consecutive_lost, memory.lost_run)
 
     def _stop_lost(self, target: CycleTarget, t_wall: float, phase: str, outcome: CycleOutcome,
                    memory: TrackingMemory, stats: PhaseStats) -> None:
-        """Hold the arm, log the cycle, raise: the camera stalled or the marker stayed lost."""
+        """Hold the arm, log the cycle, raise: the camera stalled (no new frame in the whole lost
+        run) or the marker stayed lost (frames came that did not show it; a late frame or two
+        among them do not make it the camera's fault: an arm set stops every arm on a stall)."""
         self.link.hold()
         at = f"at t = {self.elapsed(target.t):.2f} s"
-        if memory.last_reason == NO_FRAME:
+        if memory.no_frame_run >= memory.lost_run:
             waited = memory.lost_run * self.rig.control_dt
             name = self.frames.name if self.frames is not None else "camera"
             stats.stopped = f"camera stalled: no new frame from {name} for {memory.lost_run} cycles " \
                             f"({waited:.2f} s) {at}"
             error: type[MarkerLostError] = CameraStalledError
         else:
-            stats.stopped = f"marker lost for {memory.lost_run} cycles {at} ({memory.last_reason})"
+            why = memory.last_frame_reason or memory.last_reason
+            stats.stopped = f"marker lost for {memory.lost_run} cycles {at} ({why})"
             error = MarkerLostError
         rec = self.record(target, t_wall, phase, outcome, float("nan"))
         raise error(stats.stopped + ": arm held", stats, rec)

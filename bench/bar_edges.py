@@ -5,7 +5,9 @@ The tracker's bars (cvs.tracking.print_edges.measure_edges) take the largest dar
 each printed edge's profile, and keep it only where the profile rises by a quarter of its span per
 pixel: a blurred edge (a sleeve close to the lens, out of focus) rises slower and is refused, and
 a half-clipped one is found off its place (path-traced 1515/15, docs/notes/highlight-stripe.md).
-This bench asks, at each pair's *true* pose, every printed edge sample that faces the camera (as
+(The tracker now measures the edges those tests refuse by such a fit, measure_edges'
+``blur_fit_px``; here "kept" is the gradient's tests alone.) This bench asks, at each pair's
+*true* pose, every printed edge sample that faces the camera (as
 the tracker does): where does the largest gradient put it, where does a fitted blurred step
 (a + b Phi((t - t0) / sigma) on the profile's unclipped samples) put it, and which of them the
 tracker's tests keep. Offsets are along the edge's image normal [px] from the true projection.
@@ -83,7 +85,8 @@ def edge_offsets(views: tuple[np.ndarray, np.ndarray], camera: Any, marker: Mark
     R, t = T[:3, :3], T[:3, 3]
     for side, grey in enumerate(views):
         right = side == 1
-        kept = measure_edges(grey, camera, right, T, edges, min_facing=min_facing)
+        # the largest gradient's tests alone (no blurred-step fit)
+        kept = measure_edges(grey, camera, right, T, edges, min_facing=min_facing, blur_fit_px=0.0)
         kept_at = {int(k): i for i, k in enumerate(kept.index)}
         P = edges.points @ R.T + t
         n = edges.normals @ R.T

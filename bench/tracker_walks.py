@@ -1,7 +1,7 @@
 """The tracker on rendered walks of an arm, two or more tracker settings side by side.
 
 Usage: python bench/tracker_walks.py --compare {facing,chain_polarity,tip_sigma,bars_gate,partners,
-           reduced,stereo_dy,single_view,wide_windows,two_pairs} [--robot tendon3] [--marker FILE]
+           reduced,stereo_dy,single_view,wide_windows,two_pairs,blur_fit} [--robot tendon3] [--marker FILE]
            [--image-scale 0.25] [--walks 20] [--first-walk 0] [--frames 40] [--spread 0.02]
            [--wide] [--wrong-mm 1.5]
 Prints JSON. Each walk starts at the arm's home plus a seeded offset of ``--spread`` [rad or m]
@@ -41,6 +41,9 @@ Comparisons:
   two_pairs       a coded sleeve's pair still lost kept lost (``two_pairs_min_bars`` 0) and the
                   default, which tries its views' chains of two corners in every roll hypothesis
                   (MarkerTracker._retry_two_pairs; needs ``--marker configs/marker_coded.yaml``).
+  blur_fit        bar edges by the largest gradient alone (``edge_blur_fit_px`` 0) and the
+                  default, where a blurred edge the gradient refuses is measured by a fitted
+                  blurred step (print_edges.measure_edges).
 """
 
 from __future__ import annotations
@@ -83,6 +86,7 @@ COMPARISONS: dict[str, dict[str, TrackerSettings]] = {
                     "default": TrackerSettings()},
     "wide_windows": {"without_wide_windows": TrackerSettings(wide_sigma_px=0.0), "default": TrackerSettings()},
     "two_pairs": {"without_two_pairs": TrackerSettings(two_pairs_min_bars=0), "default": TrackerSettings()},
+    "blur_fit": {"without_blur_fit": TrackerSettings(edge_blur_fit_px=0.0), "default": TrackerSettings()},
 }
 
 

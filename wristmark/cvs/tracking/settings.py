@@ -102,6 +102,11 @@ class TrackerSettings:
     edge_min_spacing_px or more (measured on 1080p corners 23-80 px apart; at 0.35 x 1080p a
     code band is 6 px tall and the search crosses it); a sleeve seen side-on shows one arc of
     corners at z = 0, and the bars up to +-5 mm fix its tilt (docs/notes/highlight-stripe.md).
+    edge_blur_fit_px [px]: a bar edge whose profile rises too slowly for the largest gradient (a
+    blurred sleeve) is measured by a blurred step fitted to its profile's unclipped levels over
+    +-edge_blur_fit_px, where its white level is seen under the clip (0: off; print_edges.measure_edges,
+    bench/bar_edges.py; docs/notes/print-bars.md, "Blurred bars"). Not in the two-pair path, which
+    measures the bars of every roll hypothesis (the fit made it ~6 x slower).
     eroded_sizes [px], eroded_min_clipped_px: a pair lost for too few corners or without a start
     pose after every other search (the reduced one below included), where each view has at least
     eroded_min_clipped_px pixels at clipped_level or more, is searched again in each view eroded by
@@ -172,6 +177,7 @@ class TrackerSettings:
     edge_max_rms_px: float = 0.5
     edge_min_samples: int = 8
     edge_min_spacing_px: float = 23.0
+    edge_blur_fit_px: float = 7.5
     eroded_sizes: tuple[int, ...] = (3, 5, 7, 9, 11)
     eroded_min_clipped_px: int = 200
     bars_gate: bool = True
@@ -209,6 +215,8 @@ class TrackerSettings:
             raise InputError(f"TrackerSettings.edge_min_spacing_px must be >= 0, got {self.edge_min_spacing_px}")
         if not float(self.partner_max_px) >= 0:
             raise InputError(f"TrackerSettings.partner_max_px must be >= 0 [px] (0: off), got {self.partner_max_px}")
+        if not 0 <= float(self.edge_blur_fit_px) < float("inf"):
+            raise InputError(f"TrackerSettings.edge_blur_fit_px must be >= 0 (0: off), got {self.edge_blur_fit_px}")
         if int(self.edge_min_samples) < 1:
             raise InputError(f"TrackerSettings.edge_min_samples must be >= 1, got {self.edge_min_samples}")
         if not float(self.max_contrast_tip_sigma_m) > 0:

@@ -34,7 +34,14 @@ from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera
 from wristmark.cvs.corners.xcorners import XCorners
-from wristmark.cvs.tracking.print_edges import Bars, Corners, PrintedEdges, bar_pairs, measure_edges, refine_with_edges
+from wristmark.cvs.tracking.print_edges import (
+    Bars,
+    Corners,
+    PrintedEdges,
+    bar_pairs,
+    measure_edges,
+    refine_with_edges,
+)
 from wristmark.cvs.tracking.result import Array
 from wristmark.cvs.tracking.rigid_fit import chord_starts, roll_about_z
 from wristmark.cvs.tracking.sleeve_facing import corner_facing
@@ -166,8 +173,8 @@ class RollFit:
 
 
 def _bars(views: tuple[NDArray[np.uint8], NDArray[np.uint8]], camera: StereoCamera, T: Array,
-          edges: PrintedEdges) -> Bars:
-    found = [measure_edges(views[i], camera, i == 1, T, edges) for i in (0, 1)]
+          edges: PrintedEdges, blur_fit_px: float) -> Bars:
+    found = [measure_edges(views[i], camera, i == 1, T, edges, blur_fit_px=blur_fit_px) for i in (0, 1)]
     return (bar_pairs(edges, found[0]), bar_pairs(edges, found[1]))
 
 
@@ -187,18 +194,21 @@ def _coded(bars: Bars, row_height: float) -> int:
 def roll_hypotheses(views: tuple[NDArray[np.uint8], NDArray[np.uint8]], camera: StereoCamera, marker: MarkerModel,
                     edges: PrintedEdges, chord: StereoChord, axis: Array, corner_sigma_px: float,
                     bar_sigma_px: float, margin: float = 1.4, same_tip_m: float = 0.5e-3, window_deg: float = 15.0,
-                    min_facing: float = 0.2, refine_top: int = 3, refine_max: int = 8, rounds: int = 3
-                    ) -> RollFit | None:
+                    min_facing: float = 0.2, refine_top: int = 3, refine_max: int = 8, rounds: int = 3,
+                    blur_fit_px: float = 0.0) -> RollFit | None:
     """Every roll hypothesis of the chord (its corners as ring corners a, a +- 1, for each a)
     started on the chord turned to within ``window_deg`` of ``axis`` (either sign) with both
     corners facing both cameras by ``min_facing``, scored by the bar samples of the print (code
     cells included) found in ``views`` at the best start. The ``refine_top`` best, and up to
     ``refine_max`` whose start has at least 1 / ``margin`` of the best start's samples, are
     refined ``rounds`` times with their bars (corners at ``corner_sigma_px``, bars at
-    ``bar_sigma_px``). The most bars wins. ``runner_up``: the most of any rival, a refined
-    hypothesis whose tip lies more than ``same_tip_m`` from the winner's, or one not refined (at
-    its start). Hypotheses that put the tip in the same place agree on it, whatever roll they
-    name: the code decides the roll (MarkerTracker._two_pair_result). None without a start."""
+    ``bar_sigma_px``; bars measured with ``blur_fit_px``, print_edges.measure_edges: 0, the largest gradient
+    alone, by default, as the hypotheses' bars are measured many times and the blurred-step fit of the
+    edges a wrong hypothesis refuses made the path ~6 x slower). The most bars wins.
+    ``runner_up``: the most of any rival, a refined hypothesis whose tip lies more than ``same_tip_m`` from the
+    winner's, or one not refined (at its start). Hypotheses that put the tip in the same place agree on it,
+    whatever roll they name: the code decides the roll (MarkerTracker._two_pair_result). None without a start.
+    """
     P = np.asarray(marker.corners(), float)
     n = marker.columns
     centres = (np.zeros(3), -np.asarray(camera.R, float).T @ np.asarray(camera.T, float).reshape(3))
@@ -218,7 +228,7 @@ def roll_hypotheses(views: tuple[NDArray[np.uint8], NDArray[np.uint8]], camera: 
             best: tuple[int, Array, int] | None = None
             for T0 in starts:
                 T = T0 @ M
-                bars = _bars(views, camera, T, edges)
+                bars = _bars(views, camera, T, edges, blur_fit_px)
                 k = _count(bars)
                 if best is None or k > best[0]:
                     best = (k, T, _coded(bars, marker.row_height))
@@ -232,7 +242,7 @@ def roll_hypotheses(views: tuple[NDArray[np.uint8], NDArray[np.uint8]], camera: 
     for _, T, ids, _ in chosen:
         sig = np.full(2, corner_sigma_px)
         corners: Corners = ((P[list(ids)], chord.uv_left, sig), (P[list(ids)], chord.uv_right, sig))
-        bars = _bars(views, camera, T, edges)
+        bars = _bars(views, camera, T, edges, blur_fit_px)
         rc, rb = np.zeros(0), np.zeros(0)
         try:
             for i in range(rounds + 1):
@@ -240,7 +250,7 @@ def roll_hypotheses(views: tuple[NDArray[np.uint8], NDArray[np.uint8]], camera: 
                     raise np.linalg.LinAlgError("too few bars")
                 T, rc, rb = refine_with_edges(camera, T, corners, bars, bar_sigma_px, iterations=3)
                 if i < rounds:
-                    bars = _bars(views, camera, T, edges)
+                    bars = _bars(views, camera, T, edges, blur_fit_px)
         except np.linalg.LinAlgError:
             continue
         fits.append((_count(bars), T, ids, corners, bars, rc, rb, _coded(bars, marker.row_height)))

@@ -157,7 +157,7 @@ def measure_edges(view: NDArray[np.uint8], camera: StereoCamera, right: bool, T_
     refined by a parabola), kept where the profile spans ``min_step`` grey levels or more, has
     no pixel at ``clipped_level`` or more (a highlight) and peaks inside the search. Samples
     whose bar partner does not face the camera are not searched. A sample those tests refuse (a
-    blurred edge rises too slowly; a half-clipped one peaks off its place) is measured by a
+    blurred edge rises too slowly) is measured by a
     blurred step a + b Phi((t - t0) / sigma) fitted to the unclipped samples of its profile over
     +-``blur_fit_px`` (0: off), kept where t0 lies inside the search, b spans ``min_step`` or
     more, a + b lies under ``clipped_level`` (the white level is seen, not extrapolated from a
@@ -272,7 +272,6 @@ def _profile_peaks(grey: NDArray[np.float32], x0: float, y0: float, uv: Array, u
     the step is at least a quarter of that span per px); where it does not, with ``blur_px`` > 0,
     the blurred step fitted over +-``blur_px`` to the unclipped levels (measure_edges)."""
     n_s = int(round(2.0 * (search_px + 0.5) / 0.5)) + 1
-    h, w = grey.shape
     k_n = uv.shape[0]
     offset = np.zeros(k_n)
     good = np.zeros(k_n, np.bool_)
@@ -281,14 +280,7 @@ def _profile_peaks(grey: NDArray[np.float32], x0: float, y0: float, uv: Array, u
         lo_v, hi_v = 1e30, -1e30
         for i in range(n_s):
             t = -search_px - 0.5 + 0.5 * i
-            x = uv[k, 0] + t * u[k, 0] - x0
-            y = uv[k, 1] + t * u[k, 1] - y0
-            x = min(max(x, 0.0), w - 1.0)
-            y = min(max(y, 0.0), h - 1.0)
-            xi, yi = min(int(x), w - 2), min(int(y), h - 2)
-            fx, fy = x - xi, y - yi
-            v = ((1 - fy) * ((1 - fx) * grey[yi, xi] + fx * grey[yi, xi + 1])
-                 + fy * ((1 - fx) * grey[yi + 1, xi] + fx * grey[yi + 1, xi + 1]))
+            v = _bilinear(grey, uv[k, 0] + t * u[k, 0] - x0, uv[k, 1] + t * u[k, 1] - y0)
             prof[i] = v
             lo_v, hi_v = min(lo_v, v), max(hi_v, v)
         best, j = -1e30, 0

@@ -105,6 +105,44 @@ def test_prediction_with_a_lag_follows_the_first_order_response_of_every_actuato
     assert np.linalg.norm(dc.predicted_motion(0.05, 0.13)) < np.linalg.norm(instant.predicted_motion(0.05, 0.13))
 
 
+def test_a_cycles_motion_and_turn_solve_the_lagged_model_once_per_instant(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A cycle asks for the tip's motion and its turn between the same two instants: with a lag
+    each instant is one solve of the actuators, the same answer as solving afresh, and a new
+    command makes it solve again."""
+    import wristmark.rig.loop.delay_compensation as module
+    solves: list[float] = []
+
+    def counted(params: RobotParams, a: np.ndarray, delta_hint: np.ndarray) -> np.ndarray:
+        solves.append(1.0)
+        return psi_from_actuators(params, a, delta_hint=delta_hint)
+
+    monkeypatch.setattr(module, "psi_from_actuators", counted)
+    dc = DelayCompensator(P, tau=0.04)
+    dc.record(0.00, PSI_A)
+    dc.record(0.06, PSI_B)
+    motion, turn = dc.predicted_motion(0.05, 0.09), dc.predicted_turn(0.05, 0.09)
+    assert len(solves) == 2
+    fresh = DelayCompensator(P, tau=0.04)
+    fresh.record(0.00, PSI_A)
+    fresh.record(0.06, PSI_B)
+    assert np.array_equal(fresh.predicted_turn(0.05, 0.09), turn)
+    assert np.linalg.norm(motion) > 1e-4
+    dc.record(0.12, PSI_C)  # a new command: the lag's curve after 0.12 changed, solve again
+    expected = fresh_motion(0.05, 0.15)
+    solves.clear()
+    np.testing.assert_allclose(dc.predicted_motion(0.05, 0.15), expected, rtol=0, atol=1e-15)
+    assert len(solves) == 2
+
+
+def fresh_motion(t_capture: float, t_now: float) -> np.ndarray:
+    """The lagged model's motion (tau 0.04 s) over A, B, C sent at 0, 0.06, 0.12 s, from a new history."""
+    dc = DelayCompensator(P, tau=0.04)
+    for t, q in ((0.0, PSI_A), (0.06, PSI_B), (0.12, PSI_C)):
+        dc.record(t, q)
+    return dc.predicted_motion(t_capture, t_now)
+
+
 @pytest.mark.parametrize("tau", [0.0, 0.07])
 def test_prediction_with_a_reach_arrives_at_each_command_one_reach_after_its_send(tau: float) -> None:
     """The --model link inverts the motors' lag: each target is reached a cycle after it went out,

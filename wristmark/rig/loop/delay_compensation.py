@@ -77,10 +77,14 @@ class DelayCompensator:
         self.horizon = float(horizon)
         self.correction = correction
         self._sent: deque[_Sent] = deque()
+        # model_psi per instant until the history changes: a cycle asks for the same two
+        # instants twice (the tip's motion, then its turn), and with a lag each is a solve
+        self._psi_at: dict[float, Array | None] = {}
 
     def reset(self) -> None:
         """Forget every command (a new run) and the learnt correction."""
         self._sent.clear()
+        self._psi_at.clear()
         if self.correction is not None:
             self.correction.reset()
 
@@ -102,6 +106,7 @@ class DelayCompensator:
         a_cmd = actuators_from_psi(self.params, q)
         a_model = self._actuators_at(t) if self._sent else a_cmd
         self._sent.append(_Sent(float(t), q, a_cmd, a_model))
+        self._psi_at.clear()
         while len(self._sent) > 2 and self._sent[1].t < t - self.horizon:
             self._sent.popleft()
 
@@ -129,13 +134,21 @@ class DelayCompensator:
         return e.a_cmd + (e.a_model - e.a_cmd) * math.exp(-gap / self.tau)
 
     def model_psi(self, t: float) -> Array | None:
-        """The configuration the model expects at ``t`` [s] (None before any command)."""
+        """The configuration the model expects at ``t`` [s] (None before any command; solved
+        once per instant until the next :meth:`record`)."""
+        if t in self._psi_at:
+            return self._psi_at[t]
         e = self._entry_at(t)
         if e is None:
-            return None
-        if self.tau == 0.0 and self.reach == 0.0:
-            return e.psi
-        return psi_from_actuators(self.params, self._actuators_at(t), delta_hint=e.psi)
+            psi = None
+        elif self.tau == 0.0 and self.reach == 0.0:
+            psi = e.psi
+        else:
+            psi = psi_from_actuators(self.params, self._actuators_at(t), delta_hint=e.psi)
+        if len(self._psi_at) > 64:  # many instants between two commands (not a loop's pattern)
+            self._psi_at.clear()
+        self._psi_at[t] = psi
+        return psi
 
     def predicted_motion(self, t_capture: float, t_now: float) -> Array:
         """The model's tip motion in {w} [m] from ``t_capture`` to ``t_now`` (zeros without a

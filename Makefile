@@ -6,7 +6,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: setup compiled help run check test lint typecheck pytest pytest-fast bench results browser rtsp-server clean examples
+.PHONY: setup compiled help run check test lint typecheck pytest pytest-fast bench results browser rtsp-server pbr clean examples
 
 setup: $(STAMP) compiled
 
@@ -18,7 +18,7 @@ compiled: $(STAMP)
 
 help:
 	@echo "make run          the cube experiment, open vs closed loop, on the simulated rig (runs/latest)"
-	@echo "make check        ruff, mypy and the fast tests: no slow, wallclock, browser or network ones"
+	@echo "make check        ruff, mypy and the fast tests: no slow, wallclock, browser, network or pbr ones"
 	@echo "make test         ruff, mypy and every test (CI): the wallclock ones alone, after the rest"
 	@echo "make pytest-fast  the fast tests only;  make pytest  every test (PYTEST_WORKERS=$(PYTEST_WORKERS))"
 	@echo "make examples     examples/*.py in their fast mode;  make bench  bench/*.py into runs/bench"
@@ -42,6 +42,11 @@ browser:
 rtsp-server:
 	bash scripts/ensure-rtsp-server.sh
 
+# The path tracer (`wristmark render --engine pbr`: the optional extra pbr, Mitsuba 3, and Debian's
+# libllvm19) in .venv: the `pbr` test renders a pair with it end to end.
+pbr: $(STAMP)
+	bash scripts/ensure-pbr.sh
+
 lint: $(STAMP)
 	$(VENV)/bin/ruff check wristmark wristmark_testing tests bench examples
 
@@ -49,10 +54,11 @@ typecheck: $(STAMP)
 	$(VENV)/bin/mypy wristmark
 
 # Test markers (pyproject.toml, docs/testing.md): slow, wallclock (times real events), browser
-# (headless Chromium), network (loopback servers). `make check` runs the tests with none of them
-# (~780 of ~930), in one process: lint, types and tests in ~2 min here, without Chromium or the
-# RTSP server (so it does not depend on `browser` and `rtsp-server`).
-FAST_TESTS := not slow and not wallclock and not browser and not network
+# (headless Chromium), network (loopback servers), pbr (the path tracer). `make check` runs the
+# tests with none of them (~1600 of ~1850), in one process: lint, types and tests in ~5 min here,
+# without Chromium, the RTSP server or the path tracer (it does not depend on `browser`,
+# `rtsp-server` and `pbr`).
+FAST_TESTS := not slow and not wallclock and not browser and not network and not pbr
 # Processes for the tests that do not time real events (pytest-xdist). A module's tests stay in
 # one process (--dist loadfile), so its module-scoped fixtures are built once.
 PYTEST_WORKERS ?= 2
@@ -67,7 +73,7 @@ pytest-fast: setup
 # rest of the suite for the cores.
 # Both always run (unless the first was interrupted); the exit status is non-zero if either
 # failed, and a failed first run's summary line is repeated at the end.
-pytest: setup browser rtsp-server
+pytest: setup browser rtsp-server pbr
 	@set -o pipefail; log=$$(mktemp); \
 	echo "== pytest on $(PYTEST_WORKERS) processes: all but the wallclock tests"; \
 	$(PY) -m pytest -n $(PYTEST_WORKERS) --dist loadfile --durations=20 -m "not wallclock" 2>&1 | tee $$log; first=$$?; \
@@ -87,12 +93,12 @@ test: $(STAMP)
 	@logs=$$(mktemp -d); \
 	$(MAKE) --no-print-directory compiled > $$logs/solve 2>&1 & solve=$$!; \
 	$(PY) scripts/compile_kernels.py > $$logs/kernels 2>&1 & kernels=$$!; \
-	$(MAKE) --no-print-directory browser rtsp-server > $$logs/installs 2>&1 & installs=$$!; \
+	$(MAKE) --no-print-directory browser rtsp-server pbr > $$logs/installs 2>&1 & installs=$$!; \
 	$(MAKE) --no-print-directory lint typecheck; checks=$$?; \
 	wait $$solve; wait $$kernels; compiled=$$?; wait $$installs; installed=$$?; \
 	cat $$logs/solve $$logs/kernels $$logs/installs; rm -rf $$logs; \
 	if [ $$compiled -ne 0 ]; then echo "== scripts/compile_kernels.py FAILED"; fi; \
-	if [ $$installed -ne 0 ]; then echo "== make browser rtsp-server FAILED"; fi; \
+	if [ $$installed -ne 0 ]; then echo "== make browser rtsp-server pbr FAILED"; fi; \
 	[ $$checks -eq 0 ] && [ $$compiled -eq 0 ] && [ $$installed -eq 0 ] && $(MAKE) --no-print-directory pytest
 
 # The examples of the public API (examples/*.py), each in its fast mode as CI runs them.

@@ -1,6 +1,7 @@
 """Bar edges measured by a blurred-step fit where the largest gradient's tests refuse them
-(print_edges.measure_edges ``blur_fit_px``; TrackerSettings.edge_blur_fit_px): synthetic blurred
-and clipped edges, and the path-traced pair tests/data/pbr/coded_blurred_bars (1515/15)."""
+(print_edges.measure_edges ``blur_fit_px``; TrackerSettings.edge_blur_fit_px and
+edge_blur_max_sigma_px): synthetic blurred and clipped edges, a sharp step into a shading ramp,
+and the path-traced pair tests/data/pbr/coded_blurred_bars (1515/15)."""
 
 from __future__ import annotations
 
@@ -30,10 +31,11 @@ def _step(sigma: float, dark: float, white: float) -> np.ndarray:
     return np.asarray(np.tile(np.minimum(row, 255.0), (40, 1)), np.float32)
 
 
-def _measure(grey: np.ndarray, blur_px: float) -> tuple[float, bool]:
-    """The one sample at (20, 20) along +x: (offset [px], kept)."""
+def _measure(grey: np.ndarray, blur_px: float, max_sigma: float = 6.0) -> tuple[float, bool]:
+    """The one sample at (20, 20) along +x: (offset [px], kept), the fit's sigma up to ``max_sigma``
+    [px] (6: its own bound)."""
     off, good = _profile_peaks(grey, 0.0, 0.0, np.array([[20.0, 20.0]]), np.array([[1.0, 0.0]]), 3.5, 12.0,
-                               250.0, blur_px, 0.06)
+                               250.0, blur_px, 0.06, max_sigma)
     return float(off[0]), bool(good[0])
 
 
@@ -58,6 +60,30 @@ def test_an_edge_whose_white_half_is_clipped_is_not_fitted() -> None:
     assert not _measure(grey, 0.0)[1] and not _measure(grey, 7.5)[1]
     grey = _step(2.8, 60.0, 240.0)  # the same blurred step whose white is seen: found
     off, kept = _measure(grey, 7.5)
+    assert kept and abs(off - (EDGE_X - 20.0)) < 0.05, off
+
+
+# path-traced 1010/41, a bar edge of the left view at its true place (t = 0): grey levels at
+# t = -7.5, -7.0, ..., 7.5 px along its image normal (in-process, stop 58)
+RAMP_PROFILE = (8, 7, 6, 6, 7, 7, 8, 9, 10, 11, 14, 20, 28, 39, 51, 65, 80, 97, 113, 127, 139, 150, 161, 173,
+                180, 191, 204, 216, 220, 216, 215)
+
+
+def test_a_step_into_a_shading_ramp_is_not_taken_for_a_wide_blur() -> None:
+    """The print's edge rises to mid-grey within ~2 px, then the white square brightens over
+    ~5 px more towards the highlight: one blurred step fitted to both widens to sigma ~2.8 px and
+    puts the edge ~1.7 px into the ramp. The tracker's fit keeps sigma <= 2.5 px
+    (TrackerSettings.edge_blur_max_sigma_px): refused, while a real 2 px blur is still found."""
+    x = np.arange(40, dtype=float)
+    row = np.interp(x - EDGE_X, np.arange(-7.5, 7.51, 0.5), np.asarray(RAMP_PROFILE, float))
+    grey = np.asarray(np.tile(row, (40, 1)), np.float32)
+    assert not _measure(grey, 0.0)[1]  # too slow a rise for the gradient
+    off, kept = _measure(grey, 7.5)  # no bound on the blur: kept, far into the ramp
+    assert kept and off - (EDGE_X - 20.0) > 1.5, off
+    assert not _measure(grey, 7.5, 2.5)[1]
+    blurred = _step(2.0, 40.0, 200.0)
+    assert not _measure(blurred, 0.0)[1]
+    off, kept = _measure(blurred, 7.5, 2.5)
     assert kept and abs(off - (EDGE_X - 20.0)) < 0.05, off
 
 
@@ -90,3 +116,9 @@ def test_the_close_blurred_coded_sleeve_is_tracked_with_its_roll(pair) -> None:
 def test_a_bad_blur_fit_width_is_refused(value: float) -> None:
     with pytest.raises(InputError, match="edge_blur_fit_px"):
         TrackerSettings(edge_blur_fit_px=value)
+
+
+@pytest.mark.parametrize("value", [0.0, -1.0, float("nan"), float("inf")])
+def test_a_bad_largest_blur_is_refused(value: float) -> None:
+    with pytest.raises(InputError, match="edge_blur_max_sigma_px"):
+        TrackerSettings(edge_blur_max_sigma_px=value)

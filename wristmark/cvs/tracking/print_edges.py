@@ -26,6 +26,7 @@ from wristmark.models.marker import MarkerModel
 Array = NDArray[np.float64]
 BLUR_FIT_PX = 7.5  # [px] the blurred-step fit's profile, +-this along the edge's normal (measure_edges)
 BLUR_FIT_RESIDUAL = 0.06  # its largest RMS residual, a fraction of the fitted step
+BLUR_FIT_MAX_SIGMA = 6.0  # [px] its largest fitted blur (measure_edges; 6: the fit's own bound)
 _SQRT2 = math.sqrt(2.0)
 _SQRT2PI = math.sqrt(2.0 * math.pi)
 
@@ -148,7 +149,8 @@ def _grey_patch(view: NDArray[np.uint8], uv: Array, margin: float) -> tuple[NDAr
 def measure_edges(view: NDArray[np.uint8], camera: StereoCamera, right: bool, T_left_marker: Array,
                   edges: PrintedEdges, use: NDArray[np.bool_] | None = None, search_px: float = 3.5,
                   min_step: float = 12.0, clipped_level: int = 250, min_facing: float = 0.5,
-                  blur_fit_px: float = BLUR_FIT_PX, blur_fit_residual: float = BLUR_FIT_RESIDUAL) -> EdgeMeasurements:
+                  blur_fit_px: float = BLUR_FIT_PX, blur_fit_residual: float = BLUR_FIT_RESIDUAL,
+                  blur_fit_max_sigma_px: float = BLUR_FIT_MAX_SIGMA) -> EdgeMeasurements:
     """Each printed edge sample (``use``: which; default all) that faces the view's camera by
     ``min_facing`` or more (cosine between the surface normal and the line of sight), found in
     ``view`` (the left or, with ``right``, the right image) along its boundary's image normal
@@ -161,8 +163,10 @@ def measure_edges(view: NDArray[np.uint8], camera: StereoCamera, right: bool, T_
     blurred step a + b Phi((t - t0) / sigma) fitted to the unclipped samples of its profile over
     +-``blur_fit_px`` (0: off), kept where t0 lies inside the search, b spans ``min_step`` or
     more, a + b lies under ``clipped_level`` (the white level is seen, not extrapolated from a
-    clipped half) and the fit's RMS residual is within ``blur_fit_residual`` times b (bench/bar_edges.py:
-    on path-traced 1515/15 the largest gradient is 0.95 px off, this fit 0.19)."""
+    clipped half), the fit's RMS residual is within ``blur_fit_residual`` times b and its sigma
+    is ``blur_fit_max_sigma_px`` or less (a sharp step into a shading ramp fits as a wider blur
+    placed in the ramp; bench/bar_edges.py: on path-traced 1515/15 the largest gradient is 0.95 px
+    off, this fit 0.19)."""
     R, t = T_left_marker[:3, :3], T_left_marker[:3, 3]
     sel = np.arange(edges.points.shape[0]) if use is None else np.flatnonzero(use)
     P = edges.points[sel] @ R.T + t
@@ -192,7 +196,8 @@ def measure_edges(view: NDArray[np.uint8], camera: StereoCamera, right: bool, T_
     sel, uv, u = sel[ok], uv[ok], d[ok] / length[ok, None]
     grey, (x0, y0) = _grey_patch(view, uv, max(search_px, blur_fit_px) + 2.0)
     offset, good = _profile_peaks(grey, float(x0), float(y0), uv, u, float(search_px), float(min_step),
-                                  float(clipped_level), float(blur_fit_px), float(blur_fit_residual))
+                                  float(clipped_level), float(blur_fit_px), float(blur_fit_residual),
+                                  float(blur_fit_max_sigma_px))
     return EdgeMeasurements(sel[good], uv[good] + offset[good, None] * u[good], u[good])
 
 
@@ -210,9 +215,9 @@ def _bilinear(grey: NDArray[np.float32], x: float, y: float) -> float:  # pragma
 
 @numba.njit(cache=True, nogil=True)
 def _blurred_step(t: Array, v: Array, t_start: float, span: float,
-                  ) -> tuple[float, float, float, float]:  # pragma: no cover (jit)
+                  ) -> tuple[float, float, float, float, float]:  # pragma: no cover (jit)
     """Levenberg-Marquardt fit of v ~ a + b Phi((t - t0) / sigma) (sigma in [0.3, 6] px, |t0| <= 6
-    px, b >= 1): (t0, a, b, RMS residual)."""
+    px, b >= 1): (t0, a, b, RMS residual, sigma)."""
     n = t.size
     a, b, t0, sg = float(v.min()), max(span, 1.0), t_start, 1.5
     lam = 1e-3
@@ -257,20 +262,21 @@ def _blurred_step(t: Array, v: Array, t_start: float, span: float,
             lam *= 10.0
         if not improved or done:
             break
-    return t0, a, b, math.sqrt(c0 / n)
+    return t0, a, b, math.sqrt(c0 / n), sg
 
 
 @numba.njit(cache=True, nogil=True)
 def _profile_peaks(grey: NDArray[np.float32], x0: float, y0: float, uv: Array, u: Array, search_px: float,
                    min_step: float, clipped: float, blur_px: float, blur_residual: float,
-                   ) -> tuple[Array, NDArray[np.bool_]]:  # pragma: no cover (jit)
+                   blur_max_sigma: float) -> tuple[Array, NDArray[np.bool_]]:  # pragma: no cover (jit)
     """Per sample k, the profile of ``grey`` (a crop whose pixel (0, 0) is image pixel (x0, y0))
     along ``u[k]`` through ``uv[k]`` [px], bilinear at 0.5 px from -search_px - 0.5 to
     search_px + 0.5: the offset [px] along ``u[k]`` of its largest dark-to-white step (central
     differences, the peak refined by a parabola), and whether it counts (peak inside the search,
     the profile spans ``min_step`` grey levels or more with no level at ``clipped`` or more, and
     the step is at least a quarter of that span per px); where it does not, with ``blur_px`` > 0,
-    the blurred step fitted over +-``blur_px`` to the unclipped levels (measure_edges)."""
+    the blurred step fitted over +-``blur_px`` to the unclipped levels, its sigma at most
+    ``blur_max_sigma`` [px] (measure_edges)."""
     n_s = int(round(2.0 * (search_px + 0.5) / 0.5)) + 1
     k_n = uv.shape[0]
     offset = np.zeros(k_n)
@@ -314,10 +320,11 @@ def _profile_peaks(grey: NDArray[np.float32], x0: float, y0: float, uv: Array, u
         if nv < 8 or hi_b - lo_b < min_step:
             continue
         start = min(max(offset[k], -search_px), search_px)
-        t0, a, b, rms = _blurred_step(ts[:nv], vs[:nv], start, hi_b - lo_b)
+        t0, a, b, rms, sg = _blurred_step(ts[:nv], vs[:nv], start, hi_b - lo_b)
         # the white level fitted must be one the profile shows (under the clip): a step whose
         # white half is clipped away leaves its height, blur and place to trade off
-        if abs(t0) <= search_px and b >= min_step and a + b < clipped and rms <= blur_residual * b:
+        if (abs(t0) <= search_px and b >= min_step and a + b < clipped and rms <= blur_residual * b
+                and sg <= blur_max_sigma):
             offset[k], good[k] = t0, True
     return offset, good
 
@@ -326,9 +333,9 @@ def run_kernels_once() -> None:
     """Load (or, first time, compile) this module's numba kernel (cvs.tracking.warmup)."""
     grey = np.zeros((16, 16), np.float32)
     grey[:, 8:] = 200.0
-    _profile_peaks(grey, 0.0, 0.0, np.array([[8.0, 8.0]]), np.array([[1.0, 0.0]]), 3.5, 12.0, 250.0, 0.0, 0.06)
+    _profile_peaks(grey, 0.0, 0.0, np.array([[8.0, 8.0]]), np.array([[1.0, 0.0]]), 3.5, 12.0, 250.0, 0.0, 0.06, 6.0)
     grey[:, 7] = 100.0  # a blurred step: the fit's kernel too
-    _profile_peaks(grey, 0.0, 0.0, np.array([[8.0, 8.0]]), np.array([[1.0, 0.0]]), 3.5, 12.0, 250.0, 6.0, 0.06)
+    _profile_peaks(grey, 0.0, 0.0, np.array([[8.0, 8.0]]), np.array([[1.0, 0.0]]), 3.5, 12.0, 250.0, 6.0, 0.06, 6.0)
 
 
 def _se3(xi: Array) -> Array:

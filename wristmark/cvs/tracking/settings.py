@@ -107,6 +107,9 @@ class TrackerSettings:
     +-edge_blur_fit_px, where its white level is seen under the clip (0: off; print_edges.measure_edges,
     bench/bar_edges.py; docs/notes/print-bars.md, "Blurred bars"). Not in the two-pair path, which
     measures the bars of every roll hypothesis (the fit made it ~6 x slower).
+    edge_blur_max_sigma_px [px]: the widest blur that fit may find: a sharp step into the white
+    square's shading ramp (near a highlight) fits as a wide blur placed in the ramp (path-traced
+    1010/41: sigma ~2.8 px, 1.7 px off; docs/notes/print-bars.md, "The fit's widest blur").
     eroded_sizes [px], eroded_min_clipped_px: a pair lost for too few corners or without a start
     pose after every other search (the reduced one below included), where each view has at least
     eroded_min_clipped_px pixels at clipped_level or more, is searched again in each view eroded by
@@ -178,6 +181,7 @@ class TrackerSettings:
     edge_min_samples: int = 8
     edge_min_spacing_px: float = 23.0
     edge_blur_fit_px: float = 7.5
+    edge_blur_max_sigma_px: float = 2.5
     eroded_sizes: tuple[int, ...] = (3, 5, 7, 9, 11)
     eroded_min_clipped_px: int = 200
     bars_gate: bool = True
@@ -217,6 +221,8 @@ class TrackerSettings:
             raise InputError(f"TrackerSettings.partner_max_px must be >= 0 [px] (0: off), got {self.partner_max_px}")
         if not 0 <= float(self.edge_blur_fit_px) < float("inf"):
             raise InputError(f"TrackerSettings.edge_blur_fit_px must be >= 0 (0: off), got {self.edge_blur_fit_px}")
+        if not 0 < float(self.edge_blur_max_sigma_px) < float("inf"):
+            raise InputError(f"TrackerSettings.edge_blur_max_sigma_px must be > 0, got {self.edge_blur_max_sigma_px}")
         if int(self.edge_min_samples) < 1:
             raise InputError(f"TrackerSettings.edge_min_samples must be >= 1, got {self.edge_min_samples}")
         if not float(self.max_contrast_tip_sigma_m) > 0:

@@ -462,8 +462,8 @@ class MarkerTracker:
         use = None if res.roll_known else ~edges.coded
         if not res.roll_known and print_is_negative(views[0], self.camera, T0, self.marker):
             edges = replace(edges, across=-edges.across)  # roll known modulo one column: the print's negative
-        found = [measure_edges(views[i], self.camera, i == 1, T0, edges, use, blur_fit_px=s.edge_blur_fit_px)
-                 for i in (0, 1)]
+        found = [measure_edges(views[i], self.camera, i == 1, T0, edges, use, blur_fit_px=s.edge_blur_fit_px,
+                               blur_fit_max_sigma_px=s.edge_blur_max_sigma_px) for i in (0, 1)]
         bars = (bar_pairs(edges, found[0]), bar_pairs(edges, found[1]))
         if bars[0][0].shape[0] + bars[1][0].shape[0] < s.edge_min_samples:
             res.timings["edges"] = 1e3 * (time.perf_counter() - t)

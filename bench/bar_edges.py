@@ -6,7 +6,9 @@ each printed edge's profile, and keep it only where the profile rises by a quart
 pixel: a blurred edge (a sleeve close to the lens, out of focus) rises slower and is refused, and
 a half-clipped one is found off its place (path-traced 1515/15, docs/notes/highlight-stripe.md).
 (The tracker now measures the edges those tests refuse by such a fit, measure_edges'
-``blur_fit_px``; here "kept" is the gradient's tests alone.) This bench asks, at each pair's
+``blur_fit_px``, its sigma bounded by ``blur_fit_max_sigma_px``; here "kept" is the gradient's
+tests alone, and "tracker_fit" the tracker's own fit of the refused edges, by the smallest of the
+bounds SIGMA_BOUNDS_PX under which it keeps them.) This bench asks, at each pair's
 *true* pose, every printed edge sample that faces the camera (as
 the tracker does): where does the largest gradient put it, where does a fitted blurred step
 (a + b Phi((t - t0) / sigma) on the profile's unclipped samples) put it, and which of them the
@@ -44,6 +46,7 @@ from wristmark.models.marker import MarkerModel
 PBR_DATA = Path(__file__).resolve().parents[1] / "tests" / "data" / "pbr"
 HALF_SPAN_PX = 7.5  # the profile fitted: +-this along the edge's normal [px]
 CLIPPED = 250  # grey level the tracker counts as clipped (TrackerSettings.clipped_level)
+SIGMA_BOUNDS_PX = (1.5, 2.5, 6.0)  # bounds on the tracker fit's sigma (6: the fit's own bound)
 
 
 def _profile(grey: np.ndarray, uv: np.ndarray, u: np.ndarray, ts: np.ndarray) -> np.ndarray:
@@ -79,15 +82,20 @@ def edge_offsets(views: tuple[np.ndarray, np.ndarray], camera: Any, marker: Mark
                  min_facing: float = 0.5) -> dict[str, list[float]]:
     """Per edge sample facing the camera at the true pose ``T`` ({wm} in {ll}): the largest
     gradient's offset (refined as the tracker does), whether the tracker keeps it, and the erf
-    fit's offset and sigma [px]."""
+    fit's offset and sigma [px]; and for a sample the gradient refuses and the tracker's own fit
+    keeps, its offset and the smallest of SIGMA_BOUNDS_PX under which it keeps it (NaN: not kept)."""
     edges = printed_edges(marker)
-    out: dict[str, list[float]] = {"gradient": [], "kept": [], "erf": [], "sigma": []}
+    out: dict[str, list[float]] = {"gradient": [], "kept": [], "erf": [], "sigma": [], "fit": [], "fit_bound": []}
     R, t = T[:3, :3], T[:3, 3]
     for side, grey in enumerate(views):
         right = side == 1
         # the largest gradient's tests alone (no blurred-step fit)
         kept = measure_edges(grey, camera, right, T, edges, min_facing=min_facing, blur_fit_px=0.0)
         kept_at = {int(k): i for i, k in enumerate(kept.index)}
+        # the tracker's fit of the refused samples, under each bound on its sigma
+        fitted = [measure_edges(grey, camera, right, T, edges, min_facing=min_facing, blur_fit_max_sigma_px=b)
+                  for b in SIGMA_BOUNDS_PX]
+        fitted_at = [{int(k): i for i, k in enumerate(f.index)} for f in fitted]
         P = edges.points @ R.T + t
         n = edges.normals @ R.T
         centre = -camera.R.T @ np.asarray(camera.T, float).reshape(3) if right else np.zeros(3)
@@ -120,6 +128,14 @@ def edge_offsets(views: tuple[np.ndarray, np.ndarray], camera: Any, marker: Mark
             out["kept"].append(float(int(e) in kept_at))
             out["erf"].append(float("nan") if fit is None else fit[0])
             out["sigma"].append(float("nan") if fit is None else fit[1])
+            within = [j for j in range(len(SIGMA_BOUNDS_PX)) if int(e) in fitted_at[j]] if int(e) not in kept_at else []
+            if within:
+                f, j = fitted[within[0]], fitted_at[within[0]][int(e)]
+                out["fit"].append(float(np.dot(f.uv[j] - uv[k], u[k])))
+                out["fit_bound"].append(SIGMA_BOUNDS_PX[within[0]])
+            else:
+                out["fit"].append(float("nan"))
+                out["fit_bound"].append(float("nan"))
     return out
 
 
@@ -133,12 +149,20 @@ def _stats(x: np.ndarray) -> dict[str, Any]:
 
 def summary(offsets: dict[str, list[float]]) -> dict[str, Any]:
     """The offsets' RMS and median |.| [px]: the tracker's kept samples (its gradient, the erf fit
-    on the same samples) and the refused ones (their gradient and erf fit)."""
-    g, k, e, s = (np.asarray(offsets[key], float) for key in ("gradient", "kept", "erf", "sigma"))
+    on the same samples) and the refused ones (their gradient and erf fit); and the refused ones
+    the tracker's fit keeps, by the bound on its sigma ("sigma <= 1.5": kept under 1.5 px, ...,
+    each bin the samples the next smaller bound refuses), with their mean offset."""
+    g, k, e, s, f, fb = (np.asarray(offsets[key], float)
+                         for key in ("gradient", "kept", "erf", "sigma", "fit", "fit_bound"))
     kept, refused = k > 0.5, k <= 0.5
+    by_bound = {}
+    for b in SIGMA_BOUNDS_PX:
+        x = f[fb == b]
+        by_bound[f"sigma <= {b}"] = {**_stats(x), **({"mean_px": round(float(x.mean()), 3)} if x.size else {})}
     return {"samples": int(g.size), "kept": {"gradient": _stats(g[kept]), "erf": _stats(e[kept])},
             "refused": {"gradient": _stats(g[refused]), "erf": _stats(e[refused])},
-            "erf_sigma_median_px": None if not np.isfinite(s).any() else round(float(np.nanmedian(s)), 2)}
+            "erf_sigma_median_px": None if not np.isfinite(s).any() else round(float(np.nanmedian(s)), 2),
+            "tracker_fit": by_bound}
 
 
 def _pairs(a: argparse.Namespace) -> list[tuple[str, tuple[np.ndarray, np.ndarray], MarkerModel, np.ndarray]]:
@@ -182,7 +206,7 @@ def main() -> int:
         print(f"bar_edges: {e}", file=sys.stderr)
         return 2
     camera = load_calibration(str(default_config("camera.yaml")))
-    rows, pooled = [], {"gradient": [], "kept": [], "erf": [], "sigma": []}
+    rows, pooled = [], {"gradient": [], "kept": [], "erf": [], "sigma": [], "fit": [], "fit_bound": []}
     for name, views, marker, T in pairs:
         off = edge_offsets(views, camera, marker, T, a.min_facing)
         for key in pooled:

@@ -1,5 +1,6 @@
 """bench/bar_edges.py on a committed path-traced pair: where the bar measurement's largest
-gradient and an erf edge fit put the print's edges at the true pose; a missing pair in one line."""
+gradient, an erf edge fit and the tracker's own fit put the print's edges at the true pose; a
+missing pair in one line."""
 
 from __future__ import annotations
 
@@ -29,6 +30,10 @@ def test_on_a_close_blurred_sleeve_the_erf_fit_finds_the_edges_the_gradient_test
     assert refused["gradient"]["n"] > 3 * kept["gradient"]["n"] and pooled["erf_sigma_median_px"] > 1.5
     assert refused["erf"]["n"] >= 0.9 * refused["gradient"]["n"]
     assert refused["erf"]["median_abs_px"] < 0.6 * refused["gradient"]["median_abs_px"]
+    # the tracker's own fit keeps most of them, within its 2.5 px bound on the blur, and as near
+    fit = pooled["tracker_fit"]
+    assert fit["sigma <= 2.5"]["n"] >= 0.5 * refused["gradient"]["n"]
+    assert fit["sigma <= 2.5"]["rms_px"] < 0.5 * refused["gradient"]["rms_px"]
 
 
 def test_an_unknown_pair_is_one_line_and_exit_2() -> None:

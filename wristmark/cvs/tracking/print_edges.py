@@ -26,7 +26,7 @@ from wristmark.models.marker import MarkerModel
 Array = NDArray[np.float64]
 BLUR_FIT_PX = 7.5  # [px] the blurred-step fit's profile, +-this along the edge's normal (measure_edges)
 BLUR_FIT_RESIDUAL = 0.06  # its largest RMS residual, a fraction of the fitted step
-BLUR_FIT_MAX_SIGMA = 6.0  # [px] its largest fitted blur (measure_edges; 6: the fit's own bound)
+BLUR_FIT_MAX_SIGMA = 2.5  # [px] its largest fitted blur (measure_edges; 6 or more: no bound but the fit's own)
 _SQRT2 = math.sqrt(2.0)
 _SQRT2PI = math.sqrt(2.0 * math.pi)
 

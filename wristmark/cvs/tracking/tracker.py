@@ -80,6 +80,7 @@ from wristmark.cvs.tracking.corner_refit import (
     refit_corners,
     refit_corners_clipped,
 )
+from wristmark.cvs.tracking.foreshortening import htm_bias
 from wristmark.cvs.tracking.homography_init import homography_pose
 from wristmark.cvs.tracking.print_edges import (
     Bars,
@@ -341,15 +342,60 @@ class MarkerTracker:
                corner_sigmas(views[1], ur, s.corner_sigma_px, s.solve_contrast_noise))
         w = self.solver.solve(m.index_left[kl], ul, m.index_right[kr], ur, pose.T_fit, sig)
         res.timings["weighted"] = 1e3 * (time.perf_counter() - t)
+        return self._solved_again(res, w, corner_sigmas=sig)
+
+    def _solved_again(self, res: TrackResult, w: MarkerPose, **changes: Any) -> TrackResult:
+        """``res`` (a good, oriented result) with the fit ``w`` of its own corners solved again,
+        and ``changes`` to its other fields, where ``w`` keeps the same corners and reprojects
+        within ``max_rms_px``; else ``res``. The direction and roll stay the result's."""
+        pose = res.pose
+        assert pose is not None and res.T_left_marker is not None
         same = (np.array_equal(w.inliers_left, pose.inliers_left)
                 and np.array_equal(w.inliers_right, pose.inliers_right))
-        if not (same and w.rms_px <= s.max_rms_px):
+        if not (same and w.rms_px <= self.settings.max_rms_px):
             return res
         T = w.T_fit @ np.linalg.inv(pose.T_fit) @ res.T_left_marker  # the same direction and roll
         tip_left, tip_world = self.solver._tips(T)
         pose = replace(w, T_left_marker=T, tip_left=tip_left, tip_world=tip_world)
         return replace(res, pose=pose, T_left_marker=T, tip_left=tip_left, tip_world=tip_world, rms_px=w.rms_px,
-                       corner_sigmas=sig)
+                       **changes)
+
+    def _foreshortening_debiased(self, res: TrackResult) -> TrackResult:
+        """A good, oriented result solved again (with its own corner weights) from its used corners
+        less the HTM fit's bias where the sleeve turns away from the camera that saw them
+        (cvs.tracking.foreshortening: corners facing it at a cosine of at most
+        ``foreshortening_max_facing``, drawn at the result's fit with ``foreshortening_blur_px``
+        of blur). The direction, the roll and every gate are the result's (as in
+        :meth:`_contrast_weighted`); the new fit and its debiased corners replace the result's
+        where it keeps the same corners and reprojects within ``max_rms_px``."""
+        m, pose, s = res.match, res.pose, self.settings
+        if m is None or pose is None or res.T_left_marker is None:
+            return res
+        t = time.perf_counter()
+        T_left = pose.T_fit
+        T_right = np.eye(4)
+        T_right[:3, :3], T_right[:3, 3] = self.camera.R, np.asarray(self.camera.T, float).reshape(3)
+        corners, used, moved = [], [], False
+        for camera, T, index, uv in ((self.camera.left, T_left, m.index_left, res.corners_left),
+                                     (self.camera.right, T_right @ T_left, m.index_right, res.corners_right)):
+            k = index >= 0
+            P = self.solver.marker_points(index[k])
+            facing = corner_facing(T, P, np.zeros(3))
+            spacing = nearest_spacing(uv[k]) if int(k.sum()) > 1 else np.full(int(k.sum()), np.inf)
+            bias = htm_bias(camera, T, P, spacing, self.marker.radius, self.marker.beta, facing,
+                            s.foreshortening_max_facing, s.foreshortening_blur_px)
+            fixed = np.asarray(uv, float).copy()
+            fixed[k] -= bias
+            corners.append(fixed)
+            used.append(k)
+            moved = moved or bool(np.any(bias))
+        if not moved:
+            res.timings["foreshortening"] = 1e3 * (time.perf_counter() - t)
+            return res
+        w = self.solver.solve(m.index_left[used[0]], corners[0][used[0]], m.index_right[used[1]], corners[1][used[1]],
+                              T_left, res.corner_sigmas)
+        res.timings["foreshortening"] = 1e3 * (time.perf_counter() - t)
+        return self._solved_again(res, w, corners_left=corners[0], corners_right=corners[1])
 
     def contrast_tip_sigma(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],
                            contrast_noise: float | None = None) -> float:
@@ -686,6 +732,8 @@ class MarkerTracker:
         res.timings["axis"] = 1e3 * (time.perf_counter() - t)
         if res.ok and self.settings.solve_contrast_noise > 0:
             res = self._contrast_weighted(res, views)
+        if res.ok and self.settings.foreshortening_max_facing > 0:
+            res = self._foreshortening_debiased(res)
         if res.ok and self.settings.edge_sigma_px > 0:
             res = self._edge_refined(res, views)
         if res.ok and gate:

@@ -89,6 +89,7 @@ def warm_up(opencv_threads: int | None = 1, jit: bool = True) -> float:
         from wristmark.cvs.calibration.load import load_calibration
         from wristmark.cvs.camera import scaled_stereo_camera
         from wristmark.cvs.corners.detector import run_kernels_once
+        from wristmark.cvs.tracking.foreshortening import run_kernels_once as run_foreshortening_kernel
         from wristmark.cvs.tracking.print_edges import run_kernels_once as run_edge_kernels
         from wristmark.cvs.tracking.tracker import MarkerTracker
         from wristmark.models.config_files import CONFIG_DIR
@@ -96,6 +97,7 @@ def warm_up(opencv_threads: int | None = 1, jit: bool = True) -> float:
 
         run_kernels_once()  # the detector's, including the planar board's detect_xcorners
         run_edge_kernels()  # the print bars' search (not reached at the warm-up's quarter size)
+        run_foreshortening_kernel()  # a corner's patch drawn at the fit (corners facing the camera obliquely)
         # a quarter-size camera: the kernels' types do not depend on the image size
         camera = scaled_stereo_camera(load_calibration(CONFIG_DIR / "camera.yaml"), 0.25)
         for marker in (MarkerModel(), MarkerModel.load(CONFIG_DIR / "marker_coded.yaml")):

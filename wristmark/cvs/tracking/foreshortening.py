@@ -1,0 +1,150 @@
+"""The HTM corner fit's bias where the sleeve turns away from the camera: :func:`corner_patch`,
+:func:`htm_bias`.
+
+Towards the sleeve's silhouette its print is foreshortened (the column beyond a corner is
+narrower in the image than the one before it) and, under a light beside the lens, dimmer (the
+radiance of a matte print falls with the cosine between its normal and the line of sight).
+Blurred, such a corner is not the HTM model's (two straight edges, one contrast, a linear
+shading: cvs.corners.subpixel.htm_refine), and the fit lands on the brighter, wider side. Over
+the 2420 used corners of 300 path-traced pairs, the error along the image direction of the
+sleeve's circumference, towards the silhouette, averages -0.18 px where the corner faces the
+camera at a cosine of 0.3-0.4, -0.12 px at 0.4-0.5, -0.08 px at 0.5-0.6 and under 0.05 px above
+0.6; the fast renderer's corners show the same (-0.11, -0.06, -0.05 px) at its smaller blur
+(docs/notes/foreshortened-corners.md).
+
+:func:`htm_bias` predicts that bias corner by corner at a fitted pose: :func:`corner_patch` draws
+the corner's window as the camera sees the sleeve there (rays through each pixel's sub-samples,
+the calibrated distortion removed, meet the cylinder; the checker's columns at multiples of
+the marker's beta, shaded by that cosine; no hit is the dark background; a Gaussian blur), the
+same HTM fit runs on it from the corner's true place, and where it lands is the bias. The
+tracker subtracts it and solves again (MarkerTracker._foreshortening_debiased).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import cv2
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from wristmark.cvs.camera import Camera
+from wristmark.cvs.corners.subpixel import htm_refine, htm_weight_sigma
+from wristmark.cvs.tracking.corner_refit import corner_edge_angles
+
+Array = NDArray[np.float64]
+
+__all__ = ["corner_patch", "htm_bias", "run_kernels_once"]
+
+_DARK = 0.05  # the print's dark albedo over its white (the HTM fit is blind to the scale)
+_LEVEL = 200.0  # grey level of a white square facing the camera in the drawn patch
+
+
+@numba.njit(cache=True, nogil=True)
+def _draw(q0: Any, J: Any, R: Any, o: Any, radius: float, beta: float, x0: float, y0: float, n: int, ss: int,
+          out: Any) -> None:  # pragma: no cover (jit)
+    """corner_patch's sub-samples: pixel (i, j) of ``out`` (n, n) is the mean over ss^2 sub-samples
+    (a sheared grid) of the cosine-shaded checker where its ray meets the cylinder (0 off it)."""
+    two_pi = 2.0 * math.pi
+    for i in range(n):
+        for j in range(n):
+            acc = 0.0
+            for a in range(ss):
+                for b in range(ss):
+                    # a sheared grid: ss^2 distinct offsets along each axis (an edge's place is
+                    # kept to 1 / ss^2 px, not 1 / ss)
+                    du = j + (b + (a + 0.5) / ss) / ss - 0.5 + x0
+                    dv = i + (a + (b + 0.5) / ss) / ss - 0.5 + y0
+                    xn = q0[0] + J[0, 0] * du + J[0, 1] * dv
+                    yn = q0[1] + J[1, 0] * du + J[1, 1] * dv
+                    # the ray (xn, yn, 1) in {wm}: R^T v
+                    dx = R[0, 0] * xn + R[1, 0] * yn + R[2, 0]
+                    dy = R[0, 1] * xn + R[1, 1] * yn + R[2, 1]
+                    dz = R[0, 2] * xn + R[1, 2] * yn + R[2, 2]
+                    norm = math.sqrt(dx * dx + dy * dy + dz * dz)
+                    dx, dy, dz = dx / norm, dy / norm, dz / norm
+                    a2 = dx * dx + dy * dy
+                    b2 = 2.0 * (o[0] * dx + o[1] * dy)
+                    c2 = o[0] * o[0] + o[1] * o[1] - radius * radius
+                    disc = b2 * b2 - 4.0 * a2 * c2
+                    if disc <= 0.0 or a2 <= 0.0:
+                        continue
+                    t = (-b2 - math.sqrt(disc)) / (2.0 * a2)  # the nearer hit
+                    if t <= 0.0:
+                        continue
+                    px, py, pz = o[0] + t * dx, o[1] + t * dy, o[2] + t * dz
+                    facing = -(px * dx + py * dy) / radius
+                    if facing <= 0.0:
+                        continue
+                    column = int(math.floor((math.atan2(py, px) % two_pi) / beta))
+                    dark = (column % 2 == 0) == (pz > 0.0)
+                    acc += (_DARK if dark else 1.0) * min(facing, 1.0)
+            out[i, j] = _LEVEL * acc / (ss * ss)
+
+
+def corner_patch(camera: Camera, T_cam_marker: Array, radius: float, beta: float, centre_px: Array,
+                 half_px: int = 7, supersample: int = 4,
+                 blur_px: float = 1.0) -> tuple[NDArray[np.float32], Array]:
+    """A (2 ``half_px`` + 1)^2 window of pixels whose middle one is centred on ``centre_px`` (2,)
+    [raw px] (the grid follows the point, so that a point drawn there always has the same
+    sub-pixel phase), drawn as ``camera`` sees a checker sleeve of ``radius`` [m] about z_wm at
+    the pose ``T_cam_marker`` (4x4, {wm} in this camera's frame [m]): columns ``beta`` [rad] wide
+    from x_wm, the dark squares where the column index is even above z = 0 and odd below, each
+    sub-sample's radiance the cosine between the sleeve's normal and its ray (0 off the sleeve),
+    ``supersample``^2 sub-samples a pixel (a sheared grid), then a Gaussian blur of ``blur_px``
+    [px] (0: none). Returns the patch (float32 grey levels, a facing white square 200) and the
+    raw-pixel place (2,) of its first pixel's centre."""
+    c0 = np.asarray(centre_px, float).reshape(2)
+    # the distortion removed at the centre and, to first order, around it (at most 0.03 px off
+    # 7 px out, in the calibrated camera's corners)
+    q = camera.undistort(np.vstack([c0, c0 + [1.0, 0.0], c0 + [0.0, 1.0]]))
+    J = np.column_stack([q[1] - q[0], q[2] - q[0]])  # d(normalized) / d(px)
+    T = np.asarray(T_cam_marker, float)
+    R = np.ascontiguousarray(T[:3, :3])
+    o = -R.T @ T[:3, 3]  # the camera centre in {wm}
+    n = 2 * half_px + 1
+    patch = np.zeros((n, n))
+    _draw(q[0], J, R, o, float(radius), float(beta), float(-half_px), float(-half_px), n, int(supersample), patch)
+    if blur_px > 0:
+        patch = np.asarray(cv2.GaussianBlur(patch, (0, 0), float(blur_px), borderType=cv2.BORDER_REPLICATE), float)
+    return np.asarray(patch, np.float32), c0 - half_px
+
+
+def run_kernels_once() -> None:
+    """Load (or, first time, compile) this module's numba kernel (cvs.tracking.warmup)."""
+    T = np.eye(4)
+    T[:3, 3] = [0.0, 0.0, 0.05]
+    camera = Camera(np.array([[1000.0, 0.0, 8.0], [0.0, 1000.0, 8.0], [0.0, 0.0, 1.0]]), np.zeros(5))
+    corner_patch(camera, T, 0.003, math.pi / 6.0, np.array([8.0, 8.0]), 3, 2, 0.0)
+
+
+def htm_bias(camera: Camera, T_cam_marker: Array, points_marker: Array, spacing_px: Array, radius: float,
+             beta: float, facing: Array, max_facing: float = 0.7, blur_px: float = 1.0,
+             refine_radius: int = 4) -> Array:
+    """Where the HTM fit lands [px] (N, 2), relative to the true place, at each corner
+    ``points_marker`` (N, 3) in {wm} [m] of a checker sleeve (``radius`` [m], columns ``beta``
+    [rad]) seen by ``camera`` at the pose ``T_cam_marker`` (4x4, {wm} in its frame), each
+    ``spacing_px`` (N,) [px] from its nearest neighbour (the fit's Gaussian weights) and facing
+    the camera at the cosine ``facing`` (N,): :func:`corner_patch` fitted by
+    cvs.corners.subpixel.htm_refine ((2 ``refine_radius`` + 1)^2 window) from the true corner
+    and the print's edge angles there. Zero where ``facing`` is above ``max_facing`` or not
+    positive, or where the fit fails."""
+    P = np.asarray(points_marker, float).reshape(-1, 3)
+    bias = np.zeros((P.shape[0], 2))
+    f = np.asarray(facing, float)
+    sel = np.flatnonzero((f > 0) & (f <= max_facing))
+    if not sel.size:
+        return bias
+    T = np.asarray(T_cam_marker, float)
+    true = camera.project(P[sel] @ T[:3, :3].T + T[:3, 3])
+    edges = corner_edge_angles(T, P[sel], camera.project)
+    for i, k in enumerate(sel):
+        half = refine_radius + 3
+        patch, _ = corner_patch(camera, T, radius, beta, true[i], half, blur_px=blur_px)
+        fit, _, ok = htm_refine(patch, np.array([[half, half]], float), edges[i:i + 1], refine_radius,
+                                float(htm_weight_sigma(float(spacing_px[k]))))
+        if ok[0]:
+            bias[k] = fit[0] - half
+    return bias

@@ -95,7 +95,8 @@ class ControllerConfig:
     inversion starts from the fitted play (solvers/play_probe_fit.py), learning it on from there
     (play_probe_learning) or keeping the probe's. play_probe_from_tip: an arm whose pose does not
     give its actuators (fewer than 6 joints, or more actuators than joints) is probed too, each
-    actuator's output read from the tip alone (rig/loop/play_probe.TipProjection); off by default:
+    actuator's output read from the tip's place and turn alone (rig/loop/play_probe.TipProjection);
+    off by default:
     it helped in process (bench/any_arm.py) but not in the virtual lab at 0.35 x (noisier fits;
     docs/your-arm.md "Dead-band inversion per actuator").
     """

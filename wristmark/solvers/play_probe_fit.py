@@ -21,6 +21,7 @@ side and place instead of the middle of the band.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -92,6 +93,30 @@ def fit_play(motor: Array, arm: Array, play_max: float, min_samples: int = 6) ->
     rms = float(np.sqrt(max(rss, 0.0) / m.size))
     ok = MIN_GAIN <= gain <= 1.0 / MIN_GAIN and rms / gain <= MAX_NOISE * play_max
     return PlayFit(b, gain, c, float(o1[0]), float(o1[-1]), rms, bool(ok))
+
+
+def fused_readout(motor: Array, readouts: Sequence[Array], play_max: float) -> Array:
+    """One arm-side series [motor units] from several readouts of the same output, one value per
+    sample each (NaN: not read), every one affine in the output with its own noise (the tip's
+    position and its rotation along the motion an actuator causes: rig/loop/play_probe.py's
+    TipProjection): each is fitted alone (:func:`fit_play`), put in motor units, (y - c) / g, and
+    the samples averaged with weights 1 / (its residual RMS / g)^2 over the readouts that read
+    them. A readout whose fit has too few samples or a gain out of [MIN_GAIN, 1 / MIN_GAIN] (the
+    output does not move it) is left out; where none is kept, the first, as it was."""
+    m = np.asarray(motor, float)
+    ys = [np.asarray(y, float) for y in readouts]
+    num, den = np.zeros(m.size), np.zeros(m.size)
+    for y in ys:
+        f = fit_play(m, y, play_max)
+        if not (f.gain > 0 and MIN_GAIN <= f.gain <= 1.0 / MIN_GAIN and f.residual_rms > 0):
+            continue
+        w = (f.gain / f.residual_rms) ** 2
+        read = np.isfinite(y) & np.isfinite(m)
+        num[read] += w * (y[read] - f.offset) / f.gain
+        den[read] += w
+    if not np.any(den > 0):
+        return ys[0]
+    return np.where(den > 0, num / np.where(den > 0, den, 1.0), np.nan)
 
 
 def _line(o: Array, y: Array) -> tuple[float, float, float]:

@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
 
 from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
 from wristmark.models.arm_spec import Arm, arm_size
@@ -47,13 +48,14 @@ from wristmark.models.pose_ik import solve_pose_ik
 from wristmark.models.units import on_micro_grid
 from wristmark.rig.loop.probe_loop import ProbeLoop
 from wristmark.rig.loop.servo_cycle import CycleOutcome, CycleTarget
-from wristmark.solvers.play_probe_fit import PlayFit, fit_motor_lag, fit_play
+from wristmark.solvers.play_probe_fit import PlayFit, fit_motor_lag, fit_play, fused_readout
 
 if TYPE_CHECKING:
     from wristmark.rig.loop.tip_sensors import TipMeasurement
 
 Array = NDArray[np.float64]
 RESTORE_CYCLES = 3  # cycles the probe waits after its last command (the motor's lag is ~0.07 s)
+TURN_MAX = 0.1  # [rad] a tip turn read since the probe's first beyond this is not one it caused (TipProjection.turn)
 POSE_RECENT_CYCLES = 10  # a 6-DoF pose in the settle's last this many cycles lets the probe run
 FEW_JOINTS = ("play probe skipped: the arm has fewer than 6 joints, so a measured pose does not give its actuators "
               "(the play is learnt online; play_probe_from_tip: true reads each from the tip)")
@@ -79,26 +81,52 @@ class ProbeSamples:
     probed: list[int] = dataclasses.field(default_factory=list)
     motor: list[Array] = dataclasses.field(default_factory=list)
     arm: list[Array] = dataclasses.field(default_factory=list)
+    turn: list[Array] = dataclasses.field(default_factory=list)  # TipProjection.turn's readouts (NaN: none)
 
 
 class TipProjection:
     """The arm side of one actuator from the measured tip alone, for an arm whose pose does not
     give its actuators (fewer than 6 joints, or more actuators than joints): with the others held,
-    actuator j's output moves the tip along v_j = d tip / d a_j at the probe's start (nominal model,
-    models/actuation.py's inverse map); its output is read as a0_j + v_j . (p - tip0) / |v_j|^2
-    [rad or m] (an affine proxy is all solvers/play_probe_fit.py needs)."""
+    actuator j's output moves the tip along v_j = d tip / d a_j and turns the tip frame by
+    w_j = d theta / d a_j (a rotation vector in {w}) at the probe's start (nominal model,
+    models/actuation.py's inverse map). Its output is read twice, as a0_j + v_j . (p - tip0) /
+    |v_j|^2 from the tip's place (:meth:`output`) and as a0_j + w_j . theta / |w_j|^2 from the tip
+    frame's turn theta since the first orientation read (:meth:`turn`) [rad or m]: affine proxies,
+    all solvers/play_probe_fit.py needs; ``fused_readout`` weighs the two by their noise (a stem's
+    roll turns the tip by its own angle but moves it only by the arm's lever: read from the place
+    alone, the probe refused a single_tendon stem's play as too noisy at 4 of 6 seeds)."""
 
     def __init__(self, params: Arm, psi0: Array, step: float = 1e-5) -> None:
         self.a0 = actuators_from_psi(params, psi0)
         self.tip0 = forward_kinematics(params, psi0).tip
-        rows = []
+        rows, turns = [], []
         for j in range(self.a0.size):
             e = np.zeros(self.a0.size)
             e[j] = step
-            tips = [forward_kinematics(params, psi_from_actuators(params, self.a0 + s * e, delta_hint=psi0)).tip
+            ends = [forward_kinematics(params, psi_from_actuators(params, self.a0 + s * e, delta_hint=psi0)).T_world_tip
                     for s in (1.0, -1.0)]
-            rows.append((tips[0] - tips[1]) / (2.0 * step))
+            rows.append((ends[0][:3, 3] - ends[1][:3, 3]) / (2.0 * step))
+            turns.append(Rotation.from_matrix(ends[0][:3, :3] @ ends[1][:3, :3].T).as_rotvec() / (2.0 * step))
         self.v = np.array(rows)  # (actuators, 3) [m per rad or m]
+        self.w = np.array(turns)  # (actuators, 3) [rad per rad or m]
+        self._R_first: Array | None = None  # the first tip orientation read, in {w}
+
+    def turn(self, j: int, R_world: Array | None) -> float:
+        """Actuator j's output read from the measured tip frame's orientation ``R_world`` (3x3,
+        any frame fixed to the tip, in {w}): its turn since the first one read, along w_j. NaN
+        where nothing is read, the tip does not turn with it, or the turn is over
+        ``TURN_MAX`` [rad] (a reference sleeve's roll read a column off)."""
+        w = self.w[j]
+        nw = float(w @ w)
+        if R_world is None or nw <= 1e-12 or not np.all(np.isfinite(R_world)):
+            return float("nan")
+        R = np.asarray(R_world, float)
+        if self._R_first is None:
+            self._R_first = R
+        theta = Rotation.from_matrix(R @ self._R_first.T).as_rotvec()
+        if float(np.linalg.norm(theta)) > TURN_MAX:
+            return float("nan")
+        return float(self.a0[j] + w @ theta / nw)
 
     def output(self, j: int, p_world: Array) -> float:
         """Actuator j's output read from the measured tip ``p_world`` in {w} [m] (NaN where the
@@ -169,7 +197,10 @@ def run_play_probe(loop: ProbeLoop, template: CycleTarget) -> list[PlayFit] | No
         # every 250 ms: six fits at the end were 0.47 s of silence in the virtual lab)
         loop.command(psi)
         rows = np.flatnonzero(np.asarray(samples.probed) == j)
-        fit = fit_play(np.asarray(samples.motor)[rows, j], np.asarray(samples.arm)[rows, j], float(play_max[j]))
+        motor, arm = np.asarray(samples.motor)[rows, j], np.asarray(samples.arm)[rows, j]
+        if projection is not None:  # the tip's place and its turn, weighed by their noise
+            arm = fused_readout(motor, [arm, np.asarray(samples.turn)[rows, j]], float(play_max[j]))
+        fit = fit_play(motor, arm, float(play_max[j]))
         seg = reads[first_read:]  # the motor's lag from the encoders alone (no pose needed)
         tau = fit_motor_lag(np.array([t for t, _ in sends]), np.array([a[j] for _, a in sends]),
                             np.array([t for t, _ in seg]), np.array([m[j] for _, m in seg]))
@@ -201,10 +232,12 @@ def _sample(loop: ProbeLoop, target: CycleTarget, j: int, samples: ProbeSamples,
     reads.append((reading.t_read, on_micro_grid(reading.encoders)))
     meas = reading.meas
     y = np.full(reading.encoders.size, np.nan)
+    turn = np.full(reading.encoders.size, np.nan)
     if projection is not None:
         ok = meas is not None and meas.ok and meas.p_world is not None and bool(np.all(np.isfinite(meas.p_world)))
         if ok and meas is not None and meas.p_world is not None:
             y[j] = projection.output(j, meas.p_world)
+            turn[j] = projection.turn(j, meas.R_world)
     else:
         ok = meas is not None and meas.ok and meas.p_world is not None and meas.R_world is not None \
             and meas.roll_known  # a coded sleeve whose code was not read: roll only modulo a column
@@ -215,6 +248,7 @@ def _sample(loop: ProbeLoop, target: CycleTarget, j: int, samples: ProbeSamples,
     samples.probed.append(j)
     samples.motor.append(_encoders_at(reads, meas.t_capture if meas is not None else reads[-1][0]))
     samples.arm.append(y)
+    samples.turn.append(turn)
     loop.log_cycle(target, t_wall, CycleOutcome(meas, reading.truth, ok, False, 0.0))
     return hint, ok
 

@@ -66,9 +66,10 @@ def play_operator(motor: Array, plays: Array, starts: Array) -> Array:
     return out
 
 
-def fit_play(motor: Array, arm: Array, play_max: float, min_samples: int = 6) -> PlayFit:
+def fit_play(motor: Array, arm: Array, play_max: float, min_samples: int = 6, refine: bool = True) -> PlayFit:
     """Fit y = c + g o(m; b) to the probe's motor readings ``motor`` and arm-side values ``arm``
-    (same units, one per cycle); b within [0, ``play_max``]."""
+    (same units, one per cycle); b within [0, ``play_max``]: the best of a grid of plays and
+    starts, then (``refine``) refined continuously (~50 x the grid's time)."""
     m = np.asarray(motor, float)
     y = np.asarray(arm, float)
     keep = np.isfinite(m) & np.isfinite(y)
@@ -87,7 +88,9 @@ def fit_play(motor: Array, arm: Array, play_max: float, min_samples: int = 6) ->
     g = np.where(var > 0, cov / np.where(var > 0, var, 1.0), 0.0)
     resid = np.sum((y - ym) ** 2) - g * cov  # residual sum of squares per (b, start)
     i, j = np.unravel_index(int(np.argmin(resid)), resid.shape)
-    b, start = _refine(m, y, float(plays[i]), float(starts[j]), play_max)
+    b, start = float(plays[i]), float(starts[j])
+    if refine:
+        b, start = _refine(m, y, b, start, play_max)
     o1 = play_operator(m, np.array([b]), np.array([start]))[0, 0]
     gain, c, rss = _line(o1, y)
     rms = float(np.sqrt(max(rss, 0.0) / m.size))
@@ -99,7 +102,7 @@ def fused_readout(motor: Array, readouts: Sequence[Array], play_max: float) -> A
     """One arm-side series [motor units] from several readouts of the same output, one value per
     sample each (NaN: not read), every one affine in the output with its own noise (the tip's
     position and its rotation along the motion an actuator causes: rig/loop/play_probe.py's
-    TipProjection): each is fitted alone (:func:`fit_play`), put in motor units, (y - c) / g, and
+    TipProjection): each is fitted alone (:func:`fit_play` on its grid), put in motor units, (y - c) / g, and
     the samples averaged with weights 1 / (its residual RMS / g)^2 over the readouts that read
     them. A readout whose fit has too few samples or a gain out of [MIN_GAIN, 1 / MIN_GAIN] (the
     output does not move it) is left out; where none is kept, the first, as it was."""
@@ -107,7 +110,7 @@ def fused_readout(motor: Array, readouts: Sequence[Array], play_max: float) -> A
     ys = [np.asarray(y, float) for y in readouts]
     num, den = np.zeros(m.size), np.zeros(m.size)
     for y in ys:
-        f = fit_play(m, y, play_max)
+        f = fit_play(m, y, play_max, refine=False)  # a weight needs no refined play
         if not (f.gain > 0 and MIN_GAIN <= f.gain <= 1.0 / MIN_GAIN and f.residual_rms > 0):
             continue
         w = (f.gain / f.residual_rms) ** 2

@@ -109,7 +109,7 @@ def test_two_readouts_of_one_output_are_weighed_by_their_noise() -> None:
 def test_fusing_two_readouts_costs_far_less_than_a_fit() -> None:
     """The probe fits each actuator within one cycle (the box's watchdog wants a command every
     250 ms): the fused readout's weights come from each readout's grid fit, so fusing and then
-    fitting costs at most 1.5 x the fit alone (each fitted in full, it was 2.5 x), median of 7."""
+    fitting costs at most 1.5 x the fit alone (each fitted in full, it was 3.3 x), median of 7."""
     import time
 
     from wristmark.solvers.play_probe_fit import fused_readout

@@ -107,7 +107,8 @@ def test_off_the_sleeve_is_dark_and_a_square_is_shaded_by_its_cosine(camera: Ste
 
 def test_bad_settings_are_refused() -> None:
     for bad in ({"foreshortening_max_facing": 1.5}, {"foreshortening_max_facing": float("nan")},
-                {"foreshortening_blur_px": -1.0}, {"foreshortening_blur_px": float("inf")}):
+                {"foreshortening_blur_px": -1.0}, {"foreshortening_blur_px": float("inf")},
+                {"foreshortening_min_spacing_px": -1.0}, {"foreshortening_min_spacing_px": float("nan")}):
         with pytest.raises(InputError, match="foreshortening"):
             TrackerSettings(**bad)
 
@@ -131,9 +132,9 @@ def test_the_tracked_corners_lose_their_bias_where_the_sleeve_turns_away(rendere
     corners of eight pairs), and no tip moves far."""
     cam = load_calibration(default_config("camera.yaml"))
     marker = MarkerModel()
-    on = MarkerTracker(cam, marker, replace(TrackerSettings(), foreshortening_max_facing=0.7))
-    off = MarkerTracker(cam, marker)
-    assert off.settings.foreshortening_max_facing == 0  # off by default
+    on = MarkerTracker(cam, marker)
+    off = MarkerTracker(cam, marker, replace(TrackerSettings(), foreshortening_max_facing=0.0))
+    assert on.settings.foreshortening_max_facing == 0.7  # on by default
     errors: dict[str, list[float]] = {"on": [], "off": []}
     tips: dict[str, list[float]] = {"on": [], "off": []}
     T_right = np.eye(4)
@@ -160,3 +161,23 @@ def test_the_tracked_corners_lose_their_bias_where_the_sleeve_turns_away(rendere
     assert after < 0.9 * before, (before, after)
     assert max(abs(a - b) for a, b in zip(tips["on"], tips["off"])) < 0.1e-3
     assert max(tips["on"]) < 0.3e-3
+
+
+def test_no_correction_where_the_corners_lie_closer_than_the_bound(rendered: list) -> None:
+    """Below ``foreshortening_min_spacing_px`` (the chains' median spacing) nothing is drawn: the
+    result is the uncorrected one, to the bit."""
+    cam = load_calibration(default_config("camera.yaml"))
+    marker = MarkerModel()
+    far = MarkerTracker(cam, marker, replace(TrackerSettings(), foreshortening_min_spacing_px=1e3))
+    off = MarkerTracker(cam, marker, replace(TrackerSettings(), foreshortening_max_facing=0.0))
+    on = MarkerTracker(cam, marker)
+    moved = 0
+    for pair in rendered[:4]:
+        got = []
+        for tracker in (far, off, on):
+            tracker.reset()
+            got.append(tracker.track(pair.left, pair.right))
+        assert "foreshortening" not in got[0].timings
+        np.testing.assert_array_equal(got[0].tip_left, got[1].tip_left)
+        moved += int(not np.array_equal(got[2].tip_left, got[1].tip_left))
+    assert moved >= 1  # with the default bound it does correct these pairs

@@ -63,7 +63,7 @@ from numpy.typing import NDArray
 from wristmark.cvs.corners.chain import along_polarity, find_chain, find_pairs
 from wristmark.cvs.corners.likelihood import CornerCandidates, Image, Workspace, corner_likelihood, find_candidates
 from wristmark.cvs.corners.planar_board import assemble_grid
-from wristmark.cvs.corners.subpixel import htm_refine, quadric_subpixel, subpixel
+from wristmark.cvs.corners.subpixel import chain_spacing, htm_refine, quadric_subpixel, subpixel
 from wristmark.cvs.corners.xcorner_test import check_xcorners
 from wristmark.cvs.corners.xcorners import Array, CornerChain, DetectorSettings, Roi, XCorners, scaled_settings
 from wristmark.cvs.gray_image import check_image, gray_crop, to_gray
@@ -185,10 +185,7 @@ class MarkerCornerDetector:
         t3 = time.perf_counter()
         if chain.size < s.min_corners:
             return XCorners.empty()
-        gaps = np.hypot(*np.diff(cands.points(chain), axis=0).T)
-        spacing = np.minimum(np.r_[gaps, np.inf], np.r_[np.inf, gaps])
-        spacing[[0, -1]] *= 0.6  # foreshortening: an unseen next corner is closer than the last step
-        ref, q, e = subpixel(cands, chain, s, spacing)
+        ref, q, e = subpixel(cands, chain, s, chain_spacing(cands.points(chain)))
         times["subpixel_ms"] = times.get("subpixel_ms", 0.0) + 1e3 * (time.perf_counter() - t3)
         off = np.array([x0, y0], float)
         ref, q = (ref + 0.5) / magnify - 0.5 + off, (q + 0.5) / magnify - 0.5 + off

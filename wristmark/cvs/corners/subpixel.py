@@ -27,6 +27,22 @@ from wristmark.cvs.corners.xcorners import Array, DetectorSettings, IntArray
 
 HTM_WEIGHT_PER_SPACING = 0.12  # the HTM fit's Gaussian weights: sigma per distance to the nearest other corner
 HTM_WEIGHT_MAX_PX = 4.0  # ... capped here [px] (and at 1.5 px below)
+CHAIN_END_SPACING = 0.6  # a chain end's spacing: this times its one step (chain_spacing)
+
+
+def chain_spacing(points: Array) -> Array:
+    """The spacing [px] (N,) that sets each corner's HTM window along a chain of ``points`` (N, 2)
+    [px], in the chain's order: the distance to the nearer neighbour along the chain, and at its
+    two ends ``CHAIN_END_SPACING`` times the one step there (foreshortening: the unseen next corner
+    is closer than the last step). The detector's (cvs.corners.detector) and the tracker's drawing
+    of a corner's fit (cvs.tracking.foreshortening) share it."""
+    pts = np.asarray(points, float).reshape(-1, 2)
+    if pts.shape[0] < 2:
+        return np.full(pts.shape[0], np.inf)
+    gaps = np.hypot(*np.diff(pts, axis=0).T)
+    spacing = np.minimum(np.r_[gaps, np.inf], np.r_[np.inf, gaps])
+    spacing[[0, -1]] *= CHAIN_END_SPACING
+    return np.asarray(spacing, float)
 
 
 def htm_weight_sigma(spacing: Array | float, max_px: float = HTM_WEIGHT_MAX_PX) -> Array:

@@ -80,11 +80,13 @@ class TrackerSettings:
     over its contrast (7: the relation measured on the path-traced 1080p pairs; 0: unweighted);
     foreshortening_max_facing [-], foreshortening_blur_px [px]: a good, oriented result is
     solved again from its corners less the HTM fit's bias where the sleeve turns away from the
-    camera (each used corner facing it at a cosine of at most foreshortening_max_facing, e.g.
-    0.7; the bias drawn at the fit with foreshortening_blur_px of optics blur;
-    cvs.tracking.foreshortening, docs/notes/foreshortened-corners.md; 0, the default: off: on
-    the path-traced pairs it brings the tip means down by 0-8 %, but in the fast renderer's loop
-    it doubled the play probe's stem-roll readout noise);
+    camera (each used corner facing it at a cosine of at most foreshortening_max_facing, 0.7;
+    0: off; the bias drawn at the fit with foreshortening_blur_px of optics blur, in the window
+    the detector fitted the corner in; cvs.tracking.foreshortening,
+    docs/notes/foreshortened-corners.md: it brings the path-traced tip means down by 1-10 %);
+    not where the chains' median spacing is under foreshortening_min_spacing_px [px] (23: at
+    half the 1080p scale, 11-18 px, the fits near the silhouette scatter by half a pixel and
+    tendon3's half-scale registration turned 0.17 -> 0.25 deg off with it);
     gate_contrast_noise [px x grey levels], max_contrast_tip_sigma_m [m], gate_min_spacing_px
     [px]: a good, oriented result (the pose reported, after the contrast-weighted solve) is
     refused when its tip's standard deviation at each used corner's contrast noise
@@ -175,8 +177,9 @@ class TrackerSettings:
     max_tip_sigma_m: float = 0.001
     corner_contrast_noise: float = 0.0
     solve_contrast_noise: float = 7.0
-    foreshortening_max_facing: float = 0.0
+    foreshortening_max_facing: float = 0.7
     foreshortening_blur_px: float = 0.8
+    foreshortening_min_spacing_px: float = 23.0
     clipped_sigma_px: float = 1.0
     clipped_level: int = 250
     clipped_radius: float = 0.25
@@ -237,6 +240,9 @@ class TrackerSettings:
         if not 0 <= float(self.foreshortening_max_facing) <= 1:  # NaN too
             raise InputError(f"TrackerSettings.foreshortening_max_facing must be in [0, 1] (0: off), "
                              f"got {self.foreshortening_max_facing}")
+        if not 0 <= float(self.foreshortening_min_spacing_px) < float("inf"):
+            raise InputError(f"TrackerSettings.foreshortening_min_spacing_px must be >= 0 [px], "
+                             f"got {self.foreshortening_min_spacing_px}")
         if not 0 <= float(self.foreshortening_blur_px) < float("inf"):
             raise InputError(f"TrackerSettings.foreshortening_blur_px must be >= 0 [px], "
                              f"got {self.foreshortening_blur_px}")

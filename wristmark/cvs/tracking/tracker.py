@@ -69,7 +69,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.cvs.camera import StereoCamera
-from wristmark.cvs.corners.subpixel import HTM_WEIGHT_MAX_PX, HTM_WEIGHT_PER_SPACING
+from wristmark.cvs.corners.subpixel import HTM_WEIGHT_MAX_PX, HTM_WEIGHT_PER_SPACING, chain_spacing
 from wristmark.cvs.gray_image import check_view, to_gray
 from wristmark.cvs.marker.decode import CodeDecoder
 from wristmark.cvs.tracking.axis import axis_evidence, axis_evidence_strict
@@ -365,11 +365,14 @@ class MarkerTracker:
         less the HTM fit's bias where the sleeve turns away from the camera that saw them
         (cvs.tracking.foreshortening: corners facing it at a cosine of at most
         ``foreshortening_max_facing``, drawn at the result's fit with ``foreshortening_blur_px``
-        of blur). The direction, the roll and every gate are the result's (as in
-        :meth:`_contrast_weighted`); the new fit and its debiased corners replace the result's
-        where it keeps the same corners and reprojects within ``max_rms_px``."""
+        of blur; not where the chains' median spacing is under ``foreshortening_min_spacing_px``).
+        The direction, the roll and every gate are the result's (as in :meth:`_contrast_weighted`);
+        the new fit and its debiased corners replace the result's where it keeps the same corners
+        and reprojects within ``max_rms_px``."""
         m, pose, s = res.match, res.pose, self.settings
         if m is None or pose is None or res.T_left_marker is None:
+            return res
+        if _median_spacing(res.corners_left, res.corners_right) < s.foreshortening_min_spacing_px:
             return res
         t = time.perf_counter()
         T_left = pose.T_fit
@@ -381,7 +384,7 @@ class MarkerTracker:
             k = index >= 0
             P = self.solver.marker_points(index[k])
             facing = corner_facing(T, P, np.zeros(3))
-            spacing = nearest_spacing(uv[k]) if int(k.sum()) > 1 else np.full(int(k.sum()), np.inf)
+            spacing = chain_spacing(uv)[k]  # the detector's windows: its chain's order (ends narrower)
             bias = htm_bias(camera, T, P, spacing, self.marker.radius, self.marker.beta, facing,
                             s.foreshortening_max_facing, s.foreshortening_blur_px)
             fixed = np.asarray(uv, float).copy()

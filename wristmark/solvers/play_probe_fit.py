@@ -130,11 +130,12 @@ def _line(o: Array, y: Array) -> tuple[float, float, float]:
     return g, float(y.mean() - g * o.mean()), float(dy @ dy - g * (do @ dy))
 
 
-def _path_rss(motor: list[float], arm: list[float], play: float, start: float) -> float:
+def _path_rss(motor: list[float], arm: list[float], sy: float, syy: float, play: float, start: float) -> float:
     """The residual sum of squares of the line y = c + g o through the outputs o of one play
     operator (:func:`play_operator` for one ``play`` and one ``start``), as :func:`_line`; on
-    Python floats, ``arm`` about its mean and the outputs about the motor's first sample (the
-    refinement runs it some 200 times: on arrays their overheads made a fit 25 ms, 12 here)."""
+    Python floats, ``arm`` about its mean (``sy``, ``syy``: its sum and sum of squares, the
+    caller's once) and the outputs about the motor's first sample (the refinement runs it some
+    200 times: on arrays their overheads made a fit 25 ms, 12 here)."""
     half = 0.5 * play
     m0 = motor[0]
     o = -start * half
@@ -146,8 +147,7 @@ def _path_rss(motor: list[float], arm: list[float], play: float, start: float) -
         soo += o * o
         soy += o * yk
     var = soo - so * so / n
-    cov = soy - so * sum(arm) / n
-    syy = sum(v * v for v in arm)
+    cov = soy - so * sy / n
     return syy - cov * cov / var if var > 0 else syy
 
 
@@ -157,9 +157,10 @@ def _refine(m: Array, y: Array, b0: float, s0: float, play_max: float) -> tuple[
     a grid step."""
     motor = [float(v) for v in m]
     arm = [float(v) for v in y - y.mean()]
+    sy, syy = sum(arm), sum(v * v for v in arm)
 
     def rss(x: Array) -> float:
-        return _path_rss(motor, arm, min(max(float(x[0]), 0.0), play_max), min(max(float(x[1]), -1.0), 1.0))
+        return _path_rss(motor, arm, sy, syy, min(max(float(x[0]), 0.0), play_max), min(max(float(x[1]), -1.0), 1.0))
 
     step = play_max / (PLAY_STEPS - 1)
     simplex = np.array([[b0, s0], [b0 + step, s0], [b0, s0 + 2.0 / (START_STEPS - 1)]])

@@ -3,8 +3,9 @@ decides only where the default prior agrees: a path-traced pair's lit tool gave 
 (a half turn, tip 30 mm off; docs/notes/highlight-stripe.md), so such a score against the prior
 gives "direction ambiguous" instead of a guess, unless the same evidence at the arm's width alone
 (``arm_offsets``: a thin tool and its shadow ring left out) decisively backs the prior. Decisive
-evidence still overrides the prior (a rolled endoscope), and evidence below ``decide`` still
-leaves the prior to decide."""
+evidence still overrides the prior (a rolled endoscope) where the arm-width check backs it (else
+it is only marginal: a glossy tool's open jaws gave 0.36 the wrong way), and evidence below
+``decide`` still leaves the prior to decide."""
 
 from __future__ import annotations
 
@@ -87,6 +88,31 @@ def test_decisive_evidence_still_overrides_the_default_prior(frame: RenderedPair
     assert np.linalg.norm(res.tip_left - frame.tip_left) == pytest.approx(2 * MARKER.tip_offset, abs=0.5e-3)
 
 
+def test_decisive_evidence_that_the_arm_width_check_does_not_back_is_only_marginal(
+        frame: RenderedPair, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Decisive evidence (here against the default prior) decides alone only where the same
+    evidence at the arm's width backs it by ``decide``: else it counts as marginal, and against the
+    prior that is "direction ambiguous" (a glossy tool's open jaws, path-traced: the half turn)."""
+    s = AxisEvidenceSettings()
+    for arm_width in (0.0, 0.5 * s.decide):  # none, too weak
+        res = _track(frame, monkeypatch, -(s.decide + 1.5 * s.margin), arm_width_for_truth=arm_width)
+        assert not res.ok and res.reason == "direction ambiguous" and res.tip_left is None, arm_width
+    # the arm-width check decisively the other way, for the prior: as for marginal evidence, the prior
+    prior = _track(frame, monkeypatch, -(s.decide + 1.5 * s.margin), arm_width_for_truth=s.decide + 1.5 * s.margin)
+    assert prior.ok and prior.axis_source == "default" and np.linalg.norm(prior.tip_left - frame.tip_left) < 0.3e-3
+    backed = _track(frame, monkeypatch, -(s.decide + 1.5 * s.margin), arm_width_for_truth=-s.decide)
+    assert backed.ok and backed.axis_source == "image"  # backed by decide: the half turn is taken
+    assert np.linalg.norm(backed.tip_left - frame.tip_left) == pytest.approx(2 * MARKER.tip_offset, abs=0.5e-3)
+
+
+def test_decisive_evidence_for_the_default_prior_decides_without_the_arm_width_check(
+        frame: RenderedPair, monkeypatch: pytest.MonkeyPatch) -> None:
+    s = AxisEvidenceSettings()
+    res = _track(frame, monkeypatch, s.decide + 1.5 * s.margin, arm_width_for_truth=0.0)
+    assert res.ok and res.axis_source == "image" and res.tip_left is not None
+    assert np.linalg.norm(res.tip_left - frame.tip_left) < 0.3e-3
+
+
 def test_evidence_below_decide_leaves_the_default_prior(frame: RenderedPair, monkeypatch: pytest.MonkeyPatch) -> None:
     res = _track(frame, monkeypatch, -0.5 * AxisEvidenceSettings().decide)
     assert res.ok and res.axis_source == "default" and res.tip_left is not None
@@ -139,3 +165,20 @@ def test_a_path_traced_reference_whose_tool_casts_a_shadow_ring_is_tracked_the_r
     assert np.linalg.norm(res.tip_left - np.asarray(truth["tip_left"])) < 0.1e-3
     off = MarkerTracker(cam, MARKER, TrackerSettings(axis=AxisEvidenceSettings(arm_offsets=()))).track(left, right)
     assert not off.ok and off.reason == "direction ambiguous"
+
+
+def test_a_path_traced_reference_whose_open_jaws_shine_beyond_the_tip_is_not_half_turned() -> None:
+    """Path-traced pair 18 of seed 2020 (tests/data/pbr/reference_open_jaws): the tool's lit shaft
+    and its open, glossy jaws give edges on the distal side, while the arm's body bends away from
+    the far band, so the evidence over the usual offsets decisively (0.36) points the wrong way.
+    At the arm's width alone it says nothing (-0.006), so the result is "direction ambiguous",
+    not a pose 30 mm off; with the loop's hint it is tracked."""
+    left, right, truth = load_pbr_pair("reference_open_jaws")
+    cam = load_calibration(CONFIG_DIR / "camera.yaml")
+    res = MarkerTracker(cam, MARKER).track(left, right)
+    assert not res.ok and res.reason == "direction ambiguous" and res.tip_left is None
+    off = MarkerTracker(cam, MARKER, TrackerSettings(axis=AxisEvidenceSettings(arm_offsets=()))).track(left, right)
+    assert off.ok and np.linalg.norm(off.tip_left - np.asarray(truth["tip_left"])) > 25e-3  # the half turn
+    z = np.asarray(truth["T_left_marker"])[:3, 2]
+    hinted = MarkerTracker(cam, MARKER).track(left, right, axis_hint_left=z)
+    assert hinted.ok and np.linalg.norm(hinted.tip_left - np.asarray(truth["tip_left"])) < 0.1e-3

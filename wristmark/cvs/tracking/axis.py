@@ -44,7 +44,8 @@ class AxisEvidenceSettings:
     strength of the stronger side for a band to count [grey levels];
     decide_strict: least |far score| that decides in axis_evidence_strict; veto_strict: a near
     score this far the other way vetoes it; arm_offsets: the lateral offsets (in r) of the
-    arm-width check that settles marginal evidence against the default prior (only a body about
+    arm-width check that must back decisive evidence by ``decide`` (else it is only marginal) and
+    settles marginal evidence against the default prior (only a body about
     as wide as the sleeve: a thin tool with the shadow ring that a light beside the lenses casts
     around it reached 0.5-0.6 r on path-traced pairs, the arm's body and its ring about 1.0 r;
     MarkerTracker._orient; empty: no such check); min_band_edge: a band (camera, near or far) in

@@ -41,7 +41,10 @@ kinematic model's marker axis in a servo loop); else the previous pair's pose, b
 this fit is consistent with it (chains found in the previous ROIs, small motion: within
 ``prior_max_move_m``, ``prior_max_turn_deg`` and ``prior_max_px``) and the image
 (cvs.tracking.axis) does not contradict it; else decisive image evidence (the arm's body
-continues behind the sleeve, nothing lies beyond the tip), and last the default prior
+continues behind the sleeve, nothing lies beyond the tip) that the same evidence at the arm's
+width alone backs (``AxisEvidenceSettings.arm_offsets``, by ``decide``; unbacked, it counts as
+marginal: a glossy tool's lit shaft and open jaws scored 0.36 the wrong way on a path-traced
+pair whose arm bent away from the far band), and last the default prior
 ``PoseSettings.axis_hint_left`` (+x: the arm enters from the left). Marginal image evidence
 (``AxisEvidenceSettings.margin`` above ``decide``) decides only where the default prior agrees;
 where they disagree the result is ``ok=False``, "direction ambiguous" (a lit tool beside the
@@ -1138,6 +1141,7 @@ class MarkerTracker:
         """Fix the direction of z_wm (and, with a readable code, the roll) of a good fit: the
         code (coded sleeves), a caller's hint, else the previous pair's pose where this fit is
         consistent with it and the image does not contradict it, else decisive image evidence
+        that the arm-width evidence backs by ``decide`` (unbacked, it is marginal)
         (marginal evidence only where the default prior agrees, or where the arm-width evidence,
         ``AxisEvidenceSettings.arm_offsets``, decisively backs the prior against it: then the
         prior, with that score), else (not strict_direction) the default prior; otherwise ok
@@ -1173,17 +1177,28 @@ class MarkerTracker:
             decided = abs(score) >= (ax.decide_strict if strict else ax.decide)
             default = None if strict or self.settings.pose.axis_hint_left is None else np.asarray(
                 self.settings.pose.axis_hint_left, float)
+            width = float("nan")  # the same evidence at the arm's width alone, where asked for
+
+            def arm_width() -> float:
+                return evidence(images, self.camera, self.marker, pose.T_left_marker,
+                                replace(ax, offsets=ax.arm_offsets, min_band_edge=ax.arm_min_edge))
+
+            decisive = decided and (strict or abs(score) >= ax.decide + ax.margin)
+            if prior is None and decisive and not strict and ax.arm_offsets:
+                # decisive only where a body as wide as the arm shows on the same side (else
+                # marginal): a lit, glossy tool's edges at 0.55-0.6 radii fooled it (2020/18, stop 62)
+                width = arm_width()
+                decisive = abs(width) >= ax.decide and (width > 0) == (score > 0)
             if prior is not None:
                 if not decided or (score > 0) == (float(z @ prior) > 0):
                     want, source = prior, "previous"
-            elif decided and (strict or abs(score) >= ax.decide + ax.margin):
+            elif decisive:
                 want, source = (z if score > 0 else -z), "image"
             elif decided:  # marginal: only with the default prior's agreement, else ambiguous
                 if default is not None and (score > 0) == (float(z @ default) > 0):
                     want, source = (z if score > 0 else -z), "image"
                 elif default is not None and ax.arm_offsets:  # unless a body as wide as the arm backs the prior
-                    width = evidence(images, self.camera, self.marker, pose.T_left_marker,
-                                     replace(ax, offsets=ax.arm_offsets, min_band_edge=ax.arm_min_edge))
+                    width = arm_width() if np.isnan(width) else width
                     if abs(width) >= ax.decide + ax.margin and (width > 0) == (float(z @ default) > 0):
                         want, source, score = default, "default", width
             elif default is not None:

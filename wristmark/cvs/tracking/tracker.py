@@ -328,13 +328,18 @@ class MarkerTracker:
                        match=sub, ids_left=code.absolute_ids(sub.index_left, n),
                        ids_right=code.absolute_ids(sub.index_right, n))
 
-    def _contrast_weighted(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]]) -> TrackResult:
+    def _contrast_weighted(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],
+                           debias: bool = False) -> TrackResult:
         """A good, oriented result solved once more from its own fit with each corner weighted by
         its noise (``corner_sigma_px`` combined with ``solve_contrast_noise`` over its contrast,
         cvs.tracking.tip_uncertainty.corner_sigmas): dim corners count less. The direction, the
         roll and every gate are those of the unweighted fit (the weights move it by a fraction
         of its noise, but a marginal direction score must not flip with them); the weighted fit
-        replaces it only where it keeps the same corners and reprojects within ``max_rms_px``."""
+        replaces it only where it keeps the same corners and reprojects within ``max_rms_px``.
+        ``debias``: in the same solve, the corners less the HTM fit's bias drawn at the unweighted
+        fit (:meth:`_debiased_corners`; one solve instead of two, the bias moving by far less than
+        its own size between the two fits), which replace the result's corners; where that fit is
+        refused, the weighted fit of the corners as found."""
         m, pose, s = res.match, res.pose, self.settings
         if m is None or pose is None or res.T_left_marker is None:
             return res
@@ -343,9 +348,17 @@ class MarkerTracker:
         t = time.perf_counter()
         sig = (corner_sigmas(views[0], ul, s.corner_sigma_px, s.solve_contrast_noise),
                corner_sigmas(views[1], ur, s.corner_sigma_px, s.solve_contrast_noise))
-        w = self.solver.solve(m.index_left[kl], ul, m.index_right[kr], ur, pose.T_fit, sig)
-        res.timings["weighted"] = 1e3 * (time.perf_counter() - t)
-        return self._solved_again(res, w, corner_sigmas=sig)
+        fixed = self._debiased_corners(res) if debias else None
+        drawn = res.timings.get("foreshortening", 0.0) if fixed is not None else 0.0
+        out = res
+        if fixed is not None:
+            w = self.solver.solve(m.index_left[kl], fixed[0][kl], m.index_right[kr], fixed[1][kr], pose.T_fit, sig)
+            out = self._solved_again(res, w, corner_sigmas=sig, corners_left=fixed[0], corners_right=fixed[1])
+        if out is res:
+            w = self.solver.solve(m.index_left[kl], ul, m.index_right[kr], ur, pose.T_fit, sig)
+            out = self._solved_again(res, w, corner_sigmas=sig)
+        res.timings["weighted"] = 1e3 * (time.perf_counter() - t) - drawn  # the drawing has its own key
+        return out
 
     def _solved_again(self, res: TrackResult, w: MarkerPose, **changes: Any) -> TrackResult:
         """``res`` (a good, oriented result) with the fit ``w`` of its own corners solved again,
@@ -372,16 +385,33 @@ class MarkerTracker:
         The direction, the roll and every gate are the result's (as in :meth:`_contrast_weighted`);
         the new fit and its debiased corners replace the result's where it keeps the same corners
         and reprojects within ``max_rms_px``."""
-        m, pose, s = res.match, res.pose, self.settings
+        m, pose = res.match, res.pose
         if m is None or pose is None or res.T_left_marker is None:
             return res
-        if _median_spacing(res.corners_left, res.corners_right) < s.foreshortening_min_spacing_px:
+        t = time.perf_counter()
+        corners = self._debiased_corners(res)
+        if corners is None:
             return res
+        kl, kr = m.index_left >= 0, m.index_right >= 0
+        w = self.solver.solve(m.index_left[kl], corners[0][kl], m.index_right[kr], corners[1][kr], pose.T_fit,
+                              res.corner_sigmas)
+        res.timings["foreshortening"] = 1e3 * (time.perf_counter() - t)
+        return self._solved_again(res, w, corners_left=corners[0], corners_right=corners[1])
+
+    def _debiased_corners(self, res: TrackResult) -> tuple[Array, Array] | None:
+        """The result's corners (left, right; every corner found, the unmatched as they are) less
+        the HTM fit's bias drawn at its fit (cvs.tracking.foreshortening, ``foreshortening_*``
+        settings; timings key 'foreshortening'); None where no corner moves or the chains' median
+        spacing is under ``foreshortening_min_spacing_px``."""
+        m, pose, s = res.match, res.pose, self.settings
+        assert m is not None and pose is not None
+        if _median_spacing(res.corners_left, res.corners_right) < s.foreshortening_min_spacing_px:
+            return None
         t = time.perf_counter()
         T_left = pose.T_fit
         T_right = np.eye(4)
         T_right[:3, :3], T_right[:3, 3] = self.camera.R, np.asarray(self.camera.T, float).reshape(3)
-        corners, used, moved = [], [], False
+        corners, moved = [], False
         for camera, T, index, uv in ((self.camera.left, T_left, m.index_left, res.corners_left),
                                      (self.camera.right, T_right @ T_left, m.index_right, res.corners_right)):
             k = index >= 0
@@ -393,15 +423,9 @@ class MarkerTracker:
             fixed = np.asarray(uv, float).copy()
             fixed[k] -= bias
             corners.append(fixed)
-            used.append(k)
             moved = moved or bool(np.any(bias))
-        if not moved:
-            res.timings["foreshortening"] = 1e3 * (time.perf_counter() - t)
-            return res
-        w = self.solver.solve(m.index_left[used[0]], corners[0][used[0]], m.index_right[used[1]], corners[1][used[1]],
-                              T_left, res.corner_sigmas)
         res.timings["foreshortening"] = 1e3 * (time.perf_counter() - t)
-        return self._solved_again(res, w, corners_left=corners[0], corners_right=corners[1])
+        return (corners[0], corners[1]) if moved else None
 
     def contrast_tip_sigma(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],
                            contrast_noise: float | None = None) -> float:
@@ -736,9 +760,10 @@ class MarkerTracker:
         t = time.perf_counter()
         res = self._orient(res, views, hint)
         res.timings["axis"] = 1e3 * (time.perf_counter() - t)
+        debias = self.settings.foreshortening_max_facing > 0
         if res.ok and self.settings.solve_contrast_noise > 0:
-            res = self._contrast_weighted(res, views)
-        if res.ok and self.settings.foreshortening_max_facing > 0:
+            res = self._contrast_weighted(res, views, debias)
+        elif res.ok and debias:
             res = self._foreshortening_debiased(res)
         if res.ok and self.settings.edge_sigma_px > 0:
             res = self._edge_refined(res, views)

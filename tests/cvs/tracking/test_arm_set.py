@@ -4,6 +4,8 @@ and reported as its own arm, ROI tracking per arm, a sleeve out of view or hidde
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import pytest
 
@@ -273,3 +275,44 @@ def test_a_retired_arm_is_neither_searched_for_nor_read_as_another_arm() -> None
     assert not res["b"].ok and "retired" in res["b"].reason
     with pytest.raises(KeyError, match="no arm 'c'"):
         trk.retire("c")
+
+
+def test_a_background_search_holds_neither_the_arm_found_in_its_boxes_nor_its_own_find() -> None:
+    """``background_search``: while b (out of view) is searched for in the whole frames, a's
+    results come without waiting for that search (held here until released); once b is in view,
+    the search's find is adopted at the next pair and b is tracked in its boxes from that pair."""
+    away, near = _render([HOME, _b_at(0.5)]), _render([HOME, _b_at(0.2)])
+    trk = ArmSetTracker(CAM, SETUP.markers, search_every=1, background_search=True)
+    try:
+        first = trk.track(away.left, away.right)  # nothing tracked yet: the search runs in the pair
+        assert first["a"].ok and not first["b"].ok and "not in view" in first["b"].reason
+        b_tracker = trk.trackers["b"]
+        release, started = threading.Event(), threading.Event()
+        search_track = b_tracker.track
+
+        def held(*args: object, **kwargs: object) -> object:
+            started.set()
+            assert release.wait(10.0)
+            return search_track(*args, **kwargs)  # type: ignore[arg-type]
+
+        b_tracker.track = held  # type: ignore[method-assign]
+        res = trk.track(away.left, away.right)  # b's search starts beside this pair and is held
+        assert started.wait(10.0)
+        for _ in range(3):  # a tracked in its boxes while b's search is held
+            assert res["a"].ok and np.linalg.norm(res["a"].tip_left - away.arms[0].tip_left) < 2e-4
+            assert not res["b"].ok and "meanwhile" in res["b"].reason
+            res = trk.track(away.left, away.right)
+        release.set()
+        trk.finish_search()
+        b_tracker.track = search_track  # type: ignore[method-assign]
+        assert not trk.trackers["b"].tracking  # b was not found out of view
+        res = trk.track(near.left, near.right)  # b in view: searched for beside this pair
+        assert res["a"].ok and not res["b"].ok
+        trk.finish_search()
+        assert trk.trackers["b"].tracking  # found and adopted
+        res = trk.track(near.left, near.right)
+        for i, arm in enumerate(("a", "b")):
+            assert res[arm].ok and identity(res[arm]) == arm, res[arm].reason
+            assert np.linalg.norm(res[arm].tip_left - near.arms[i].tip_left) < 2e-4
+    finally:
+        trk.close()

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import replace
 from functools import partial
 from typing import Any
@@ -117,7 +117,7 @@ class ArmSetTracker:
                  threads: bool = True, search_every: int = 3, clear_px: float = 6.0, body_lengths: float = 1.0,
                  edge_ratio: float = 0.3, max_sigma_ratio: float = 1.6, contrast_noise: float | None = None,
                  max_tip_sigma_m: float | None = None, processes: bool = False,
-                 worker_timeout_s: float = CALL_TIMEOUT_S) -> None:
+                 worker_timeout_s: float = CALL_TIMEOUT_S, background_search: bool = False) -> None:
         """``names``: the marker files' names for the messages (default the arms'); ``threads``:
         the arms' ROI searches run side by side in worker threads while the machine has a core to
         spare (:func:`core_to_spare`; results are the same either way); ``processes``: every arm
@@ -126,7 +126,13 @@ class ArmSetTracker:
         ``threads`` then unused), a worker that ends or does not answer within
         ``worker_timeout_s`` [s] raising ``ArmWorkerError``;
         ``search_every``: an arm missing from pair to pair is searched for in the whole frames in
-        every so many pairs (1: every pair); ``contrast_noise`` [px x grey levels],
+        every so many pairs (1: every pair); ``background_search``: where another arm was found in
+        its boxes in the pair, that search runs in a thread of its own while the next pairs are
+        tracked (the arms found in their boxes are returned without waiting for it; what it finds
+        is adopted at the first pair after it ends, and tracked in its boxes from that pair on),
+        where every missing arm is tracked in this process (for a real-time loop: a lost arm's
+        search held every other arm's cycle for up to the tracking budget;
+        docs/notes/several-arms.md); ``contrast_noise`` [px x grey levels],
         ``max_tip_sigma_m`` [m]: the gate on each arm's tip sigma at its corners' contrast noise
         (MarkerTracker.contrast_gate, after clearing; default the settings'
         ``gate_contrast_noise`` and ``max_contrast_tip_sigma_m``). With several arms the trackers
@@ -165,10 +171,16 @@ class ArmSetTracker:
         # the arms' ROI searches side by side (OpenCV, numba and the solver release the GIL)
         self._pool = ThreadPoolExecutor(max_workers=len(markers) - 1, thread_name_prefix="arm-set") \
             if threads and len(markers) > 1 and self._frames is None else None
+        self._search_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="arm-set-search") \
+            if background_search and len(markers) > 1 else None
+        self._search: Future[tuple[dict[str, TrackResult], list[str]]] | None = None
+        self._searching: frozenset[str] = frozenset()  # the arms a background search is looking for
 
     def close(self) -> None:
         """Stop the worker processes (``processes``) and threads; idempotent. The arm set tracks
         no more pairs after it (a worker's arm would raise ArmWorkerError)."""
+        if self._search_pool is not None:
+            self._search_pool.shutdown(wait=True)
         for t in self.trackers.values():
             if isinstance(t, RemoteTracker):
                 t.close()
@@ -191,11 +203,13 @@ class ArmSetTracker:
         is still never read as another arm's: the other arms' results keep their identity checks."""
         if arm not in self.markers:
             raise KeyError(f"no arm '{arm}' in the marker set ({', '.join(self.arms)})")
+        self._collect_search(wait=True)  # its tracker is then the caller's alone
         self.trackers[arm].reset()
         self.retired = self.retired | {arm}  # a new set: a tracking thread reads the old one whole
 
     def reset(self) -> None:
         """Forget every arm's ROI state (the next pair searches the whole frames for every arm)."""
+        self._collect_search(wait=True)
         for t in self.trackers.values():
             t.reset()
         self._missing_last, self._pairs_missing = set(), 0
@@ -212,7 +226,9 @@ class ArmSetTracker:
         retired = self.retired
         results: dict[str, TrackResult] = {a: self._missing("retired: its loop has stopped") for a in retired}
         found: list[TrackResult] = []
-        tracked = [a for a in self.arms if a not in retired and self.trackers[a].tracking]
+        self._collect_search()
+        searching = self._searching  # their trackers are the background search's until it ends
+        tracked = [a for a in self.arms if a not in retired and a not in searching and self.trackers[a].tracking]
         jobs = self._start_rois(tracked, il, ir, hints)
         early: dict[str, tuple[TrackResult, Callable[[], TrackResult]]] = {}  # gates of phase one's results
         for arm in tracked:  # each arm that was tracked, in its own boxes only (one per thread or process)
@@ -232,6 +248,10 @@ class ArmSetTracker:
             else:  # lost, or its boxes caught another sleeve: searched again below
                 trk.reset()
         pending = [a for a in self.arms if a not in results]
+        if searching:
+            return self._gated(self._clear({a: self._own(a, results[a]) if a in results else self._missing(
+                "not in view (searched for in the whole frames meanwhile)") for a in self.arms}, (il, ir)),
+                (il, ir), early)
         # arms missing in the last pair too (after one more search: a sleeve lost for one pair is
         # usually found in the next) are searched for in every ``search_every``-th pair only (a
         # whole-frame search per missing sleeve costs several times an ROI search)
@@ -242,6 +262,54 @@ class ArmSetTracker:
                 "not in view (searched for " f"every {self.search_every} pairs)") for a in self.arms}, (il, ir)),
                 (il, ir), early)
         self._missing_last = set(pending)  # what the whole-frame search below does not find stays missing
+        if self._search_pool is not None and found and all(isinstance(self.trackers[a], MarkerTracker)
+                                                           for a in pending):  # only while others are tracked
+            self._searching = frozenset(pending)
+            self._search = self._search_pool.submit(self._search_whole, il.copy(), ir.copy(), list(found),
+                                                    list(pending), hints, True)
+            return self._gated(self._clear({a: self._own(a, results[a]) if a in results else self._missing(
+                "not in view (searched for in the whole frames meanwhile)") for a in self.arms}, (il, ir)),
+                (il, ir), early)
+        got, failures = self._search_whole(il, ir, found, pending, hints, False)
+        results.update(got)
+        pending = [a for a in pending if a not in got]
+        self._missing_last = set(pending)
+        for arm in pending:
+            results[arm] = self._missing("not found; " + "; ".join(failures) if failures else "not in view")
+        return self._gated(self._clear({a: self._own(a, results[a]) for a in self.arms}, (il, ir)), (il, ir), early)
+
+    def finish_search(self) -> None:
+        """Wait for a background search (``background_search``) to end and let each arm it found
+        adopt its result; nothing when none runs."""
+        self._collect_search(wait=True)
+
+    def _collect_search(self, wait: bool = False) -> None:
+        """A background search that has ended (``wait``: once it ends): each arm it found adopts
+        its result (tracked in its boxes from the next pair on), unless retired meanwhile; its
+        error, if it raised one, raised here."""
+        job = self._search
+        if job is None or not (wait or job.done()):
+            return
+        self._search = None
+        try:
+            got, _ = job.result()
+        finally:
+            self._searching = frozenset()
+        for arm, res in got.items():
+            if arm not in self.retired:
+                self.trackers[arm].adopt(res)
+
+    def _search_whole(self, il: NDArray[np.uint8], ir: NDArray[np.uint8], found: list[TrackResult],
+                      pending: list[str], hints: Mapping[str, Array],
+                      background: bool) -> tuple[dict[str, TrackResult], list[str]]:
+        """The arms ``pending`` searched for in whole frames with the sleeves ``found`` (and each
+        found here) painted out, one search per sleeve: the results of the arms found (each
+        identified by its code) and why the others were not. Adopted at once by its arm's tracker,
+        or (``background``: in the search's thread, which uses only the pending arms' trackers)
+        left for :meth:`_collect_search`, every searcher reset."""
+        pending = list(pending)
+        results: dict[str, TrackResult] = {}
+        found = list(found)
         masked: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None
         failures: list[str] = []
         hidden: list[tuple[int, Box]] = []  # one view's chain of two sleeves, hidden until a sleeve is found
@@ -270,7 +338,9 @@ class ArmSetTracker:
                 hidden, masked = [], None
             who = identity(res)
             if who in pending:
-                if self.trackers[who] is not searcher:
+                if background:
+                    searcher.reset()  # the arm's tracker adopts it in the caller's thread
+                elif self.trackers[who] is not searcher:
                     searcher.reset()
                     self.trackers[who].adopt(res)
                 results[who] = res
@@ -284,10 +354,7 @@ class ArmSetTracker:
                 failures.append(f"a second sleeve read as arm '{who}'")
             else:
                 failures.append(f"a sleeve in view not tracked ({res.reason})")
-        self._missing_last = set(pending)
-        for arm in pending:
-            results[arm] = self._missing("not found; " + "; ".join(failures) if failures else "not in view")
-        return self._gated(self._clear({a: self._own(a, results[a]) for a in self.arms}, (il, ir)), (il, ir), early)
+        return results, failures
 
     def _start_rois(self, tracked: list[str], il: NDArray[np.uint8], ir: NDArray[np.uint8],
                     hints: Mapping[str, Array]) -> dict[str, Any]:

@@ -32,15 +32,18 @@ class ArmSetSensor:
     """The sleeves of a marker set tracked in each frame of one stereo camera (poses in {ll})."""
 
     def __init__(self, camera: StereoCamera, markers: Sequence[MarkerModel], magnify: float = 1.0,
-                 processes: bool = False) -> None:
+                 processes: bool = False, background_search: bool = False) -> None:
         """``processes``: every arm but the first tracked in a worker process of its own
         (cvs.tracking.arm_set; the same results, faster only with a core to spare); :meth:`close`
-        stops them."""
+        stops them. ``background_search``: a missing arm's whole-frame search does not hold the
+        other arms' results (ArmSetTracker; for the wall clock's loop, not a simulated one: what
+        it finds then depends on how long it takes)."""
         from wristmark.cvs.tracking.arm_set import ArmSetTracker
         from wristmark.cvs.tracking.settings import TrackerSettings
 
         self.camera = camera
-        self.tracker = ArmSetTracker(camera, markers, TrackerSettings(magnify=magnify), processes=processes)
+        self.tracker = ArmSetTracker(camera, markers, TrackerSettings(magnify=magnify), processes=processes,
+                                     background_search=background_search)
         self.hints: dict[str, Array] = {}
         self._frame_index: int | None = None
         self._frame: StereoFrame | None = None

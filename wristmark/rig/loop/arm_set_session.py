@@ -281,13 +281,15 @@ class BudgetedArmSetSensor(ArmSetSensor):
     """An :class:`rig.loop.arm_set_sensor.ArmSetSensor` whose tracking of a frame (every sleeve at
     once) runs in a worker thread and is given up after ``budget`` [s] for every arm of that
     frame (as :class:`rig.loop.tip_sensors.DeadlineTipSensor` does for one arm: no cycle outlasts
-    the boxes' watchdog); a frame that comes while the worker is busy is not measured."""
+    the boxes' watchdog); a frame that comes while the worker is busy is not measured. A missing
+    arm's whole-frame search runs beside the other arms' tracking, not in their cycles
+    (``ArmSetTracker(background_search=True)``)."""
 
     def __init__(self, camera: StereoCamera, markers: Sequence[Any], budget: float, magnify: float = 1.0,
                  processes: bool = False) -> None:
         from concurrent.futures import ThreadPoolExecutor
 
-        super().__init__(camera, markers, magnify=magnify, processes=processes)
+        super().__init__(camera, markers, magnify=magnify, processes=processes, background_search=True)
         if not budget > 0:
             raise ValueError(f"budget must be > 0 s, got {budget}")
         self.budget = float(budget)

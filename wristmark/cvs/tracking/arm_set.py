@@ -46,6 +46,7 @@ from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel, check_marker_set
 
 Box = tuple[int, int, int, int]  # (u0, v0, u1, v1) [px], end exclusive
+_SEARCHING = "not in view (searched for in the whole frames meanwhile)"  # an arm a background search looks for
 
 __all__ = ["ArmSetTracker", "ArmWorkerError", "core_to_spare", "identity", "sleeve_boxes"]
 
@@ -248,35 +249,38 @@ class ArmSetTracker:
             else:  # lost, or its boxes caught another sleeve: searched again below
                 trk.reset()
         pending = [a for a in self.arms if a not in results]
-        if searching:
-            return self._gated(self._clear({a: self._own(a, results[a]) if a in results else self._missing(
-                "not in view (searched for in the whole frames meanwhile)") for a in self.arms}, (il, ir)),
-                (il, ir), early)
+        if searching:  # an arm lost in its boxes now is searched for once that search has ended
+            return self._reported(results, {a: _SEARCHING if a in searching else "lost in its boxes (the whole frames "
+                                            "are being searched for another arm)" for a in pending}, (il, ir), early)
         # arms missing in the last pair too (after one more search: a sleeve lost for one pair is
         # usually found in the next) are searched for in every ``search_every``-th pair only (a
         # whole-frame search per missing sleeve costs several times an ROI search)
         still = bool(pending) and set(pending) <= self._missing_last
         self._pairs_missing = self._pairs_missing + 1 if still else 0
         if still and self._pairs_missing > 1 and self._pairs_missing % self.search_every:
-            return self._gated(self._clear({a: self._own(a, results[a]) if a in results else self._missing(
-                "not in view (searched for " f"every {self.search_every} pairs)") for a in self.arms}, (il, ir)),
-                (il, ir), early)
+            return self._reported(results, dict.fromkeys(pending, f"not in view (searched for every "
+                                                                   f"{self.search_every} pairs)"), (il, ir), early)
         self._missing_last = set(pending)  # what the whole-frame search below does not find stays missing
         if self._search_pool is not None and found and all(isinstance(self.trackers[a], MarkerTracker)
                                                            for a in pending):  # only while others are tracked
             self._searching = frozenset(pending)
             self._search = self._search_pool.submit(self._search_whole, il.copy(), ir.copy(), list(found),
                                                     list(pending), hints, True)
-            return self._gated(self._clear({a: self._own(a, results[a]) if a in results else self._missing(
-                "not in view (searched for in the whole frames meanwhile)") for a in self.arms}, (il, ir)),
-                (il, ir), early)
+            return self._reported(results, dict.fromkeys(pending, _SEARCHING), (il, ir), early)
         got, failures = self._search_whole(il, ir, found, pending, hints, False)
         results.update(got)
         pending = [a for a in pending if a not in got]
         self._missing_last = set(pending)
-        for arm in pending:
-            results[arm] = self._missing("not found; " + "; ".join(failures) if failures else "not in view")
-        return self._gated(self._clear({a: self._own(a, results[a]) for a in self.arms}, (il, ir)), (il, ir), early)
+        why = "not found; " + "; ".join(failures) if failures else "not in view"
+        return self._reported(results, dict.fromkeys(pending, why), (il, ir), early)
+
+    def _reported(self, results: dict[str, TrackResult], missing: Mapping[str, str], images: tuple[Any, Any],
+                  early: Mapping[str, tuple[TrackResult, Callable[[], TrackResult]]]) -> dict[str, TrackResult]:
+        """Every arm's result of the pair, in the markers' order: its own (:meth:`_own`) where
+        ``results`` has one, else not found for the reason ``missing`` gives; cleared of other
+        arms' edges (:meth:`_clear`) and gated (:meth:`_gated`)."""
+        own = {a: self._own(a, results[a]) if a in results else self._missing(missing[a]) for a in self.arms}
+        return self._gated(self._clear(own, images), images, early)
 
     def finish_search(self) -> None:
         """Wait for a background search (``background_search``) to end and let each arm it found

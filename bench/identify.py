@@ -88,8 +88,10 @@ def one(robot: Path | None, plant_path: Path, poses: int, duration: float | None
         data, nominal_closed = servo_run_excitation(setup, duration)
     else:
         data = excite_on_bench(setup, bench_plan(setup, poses))
+    t1 = time.perf_counter()
     ident = identify(setup.params, data, setup.controller.play_max_for(setup.params))
     t_fit = time.perf_counter() - t0
+    t_solve = time.perf_counter() - t1
     modelled = setup.with_changes(model=ident.plant)
     nominal_open = cube(setup, False, duration)
     nominal_closed = nominal_closed or cube(setup, True, duration)
@@ -99,7 +101,7 @@ def one(robot: Path | None, plant_path: Path, poses: int, duration: float | None
     return {
         "robot": str(robot) if robot else "reference", "source": source,
         "plant": str(plant_path), "excitation_s": float(data.meta.get("motion_s", data.times[-1] - data.times[0])),
-        "poses": ident.poses, "fit_rms_mm": 1000 * ident.rms_m, "identify_wall_s": t_fit,
+        "poses": ident.poses, "fit_rms_mm": 1000 * ident.rms_m, "identify_wall_s": t_fit, "fit_wall_s": t_solve,
         "parameter_errors": parameter_errors(ident.plant, truth),
         "open_loop_nominal": nominal_open, "open_loop_model": model_open, "open_ratio": ratio,
         "closed_loop_nominal": nominal_closed, "closed_loop_model": model_closed,

@@ -46,75 +46,76 @@ def _add_bend(theta: float, delta: float, dv: Array) -> tuple[float, float]:
     return th, (math.atan2(bx, by) if th > 0 else delta)
 
 
-def _chain(arm: Arm, plant: PlantParams, q: Array) -> tuple[ArmFrames, Array]:
-    """The model's chain (models.kinematics) with the stem bent by stem_coupling x theta1, and
-    points along the bent stem."""
+def _stem_bend(arm: Arm, plant: PlantParams, q: Array) -> tuple[float, float]:
+    """The stem's bend (stem_coupling x theta1 [rad]) and its plane [rad] at the configuration ``q``."""
     if isinstance(arm, ArmSpec):
-        lay = arm.layout
-        th1 = float(q[arm.theta_index[0]])
         de1 = arm.segments[0].planar if arm.delta_index[0] is None else float(q[arm.delta_index[0]])
-        theta_s = plant.stem_coupling * th1
-        R_w_s = rot_z(float(q[lay.revolute].sum()))
-        d = float(q[lay.prismatic].sum())
-        stem = np.array([R_w_s @ segment_point(d, theta_s, de1 or 0.0, s) for s in np.linspace(0, 1, 8)])
-        return forward_kinematics(arm, q, stem_bend=theta_s), stem
-    theta_s = plant.stem_coupling * q[2]
-    R_w_s = rot_z(q[0])
-    stem = np.array([R_w_s @ segment_point(q[1], theta_s, q[3], s) for s in np.linspace(0, 1, 8)])
-    return forward_kinematics(arm, q, stem_bend=theta_s), stem
+        return plant.stem_coupling * float(q[arm.theta_index[0]]), de1 or 0.0
+    return plant.stem_coupling * float(q[2]), float(q[3])
+
+
+def _frames(arm: Arm, plant: PlantParams, q: Array) -> ArmFrames:
+    """The model's chain (models.kinematics) with the stem bent by stem_coupling x theta1."""
+    return forward_kinematics(arm, q, stem_bend=_stem_bend(arm, plant, q)[0])
+
+
+def _stem(arm: Arm, plant: PlantParams, q: Array) -> Array:
+    """Points (8, 3) along the bent stem in {w} [m], incision to {1b}."""
+    theta_s, plane = _stem_bend(arm, plant, q)
+    if isinstance(arm, ArmSpec):
+        R_w_s, d = rot_z(float(q[arm.layout.revolute].sum())), float(q[arm.layout.prismatic].sum())
+    else:
+        R_w_s, d = rot_z(float(q[0])), float(q[1])
+    return np.array([R_w_s @ segment_point(d, theta_s, plane, s) for s in np.linspace(0, 1, 8)])
+
+
+def _load_bend(T_base: Array, tip: Array, force: Array, stiffness: float) -> Array:
+    """The bend vector (2,) [rad] a tip force ``force`` [N] in {w} adds to the segment whose base
+    is ``T_base`` (4x4 in {w}): its moment about the base, in the base's x-y plane, over the
+    stiffness [N m/rad] (the cross product in floats: np.cross cost the fit ~40 us a call)."""
+    rx, ry, rz = (tip - T_base[:3, 3]).tolist()
+    fx, fy, fz = force.tolist()
+    moment = np.array((ry * fz - rz * fy, rz * fx - rx * fz, rx * fy - ry * fx))
+    return (T_base[:3, :2].T @ moment) / stiffness
 
 
 def plant_bend(arm: Arm, plant: PlantParams, q_out: Array) -> tuple[Array, ArmFrames, Array]:
     """The true configuration, frames and stem points (8, 3) in {w} [m] of the arm ``arm``
     (:func:`true_arm`) whose backbones reach the configuration ``q_out`` [rad, m, ...]: gains,
     plane offsets, stem coupling and the tip load of ``plant`` (sized to the arm)."""
-    if isinstance(arm, ArmSpec):
-        return _bend_any(arm, plant, q_out)
-    P = plant
-    q = np.array(q_out, float)
-    for t in range(2):
-        q[2 + 2 * t] *= P.bend_gain[t]
-        q[3 + 2 * t] += P.plane_offset[t]
-    frames, stem = _chain(arm, plant, q)
-    F = np.asarray(P.tip_force, float)
-    if np.any(F != 0.0):
-        for t, T_base in ((0, frames.T_world_1b), (1, frames.T_world_2b)):
-            M = np.cross(frames.tip - T_base[:3, 3], F)
-            m_loc = T_base[:3, :3].T @ M
-            th, de = _add_bend(q[2 + 2 * t], q[3 + 2 * t], m_loc[:2] / P.segment_stiffness[t])
-            q[2 + 2 * t], q[3 + 2 * t] = th, de
-        frames, stem = _chain(arm, plant, q)
-    return q, frames, stem
+    q, frames = _bent(arm, plant, q_out)
+    return q, frames, _stem(arm, plant, q)
 
 
-def _bend_any(spec: ArmSpec, plant: PlantParams, q_out: Array) -> tuple[Array, ArmFrames, Array]:
-    """:func:`plant_bend` for any arm: per segment the gain on theta and the offset on delta (a
-    planar segment's offset is in its turned plane), then the tip load's bend."""
+def plant_tip(arm: Arm, plant: PlantParams, q_out: Array) -> Array:
+    """The true tip in {w} [m] of :func:`plant_bend` (without its stem points)."""
+    return _bent(arm, plant, q_out)[1].tip
+
+
+def _bent(arm: Arm, plant: PlantParams, q_out: Array) -> tuple[Array, ArmFrames]:
+    """:func:`plant_bend`'s configuration and frames: per segment the gain on theta and the
+    offset on delta (a planar segment's offset is in its turned plane), then the tip load's bend
+    (the reference arm's segments: (theta, delta) at (2, 3) and (4, 5))."""
     P = plant
     q = np.array(q_out, float)
-    idx = list(zip(spec.theta_index, spec.delta_index))
+    spec = arm if isinstance(arm, ArmSpec) else None
+    idx: list[tuple[int, int | None]] = list(zip(spec.theta_index, spec.delta_index)) if spec else [(2, 3), (4, 5)]
     for t, (ti, di) in enumerate(idx):
         q[ti] *= P.bend_gain[t]
         if di is not None:
             q[di] += P.plane_offset[t]
-    frames, stem = _chain(spec, plant, q)
+    frames = _frames(arm, plant, q)
     F = np.asarray(P.tip_force, float)
     if np.any(F != 0.0):
         for t, ((ti, di), T_base) in enumerate(zip(idx, frames.segment_bases)):
-            M = np.cross(frames.tip - T_base[:3, 3], F)
-            dv = (T_base[:3, :3].T @ M)[:2] / P.segment_stiffness[t]
+            dv = _load_bend(T_base, frames.tip, F, P.segment_stiffness[t])
             if di is None:  # planar: the load's bend along the plane, theta [sin p, cos p]
-                plane = spec.segments[t].planar or 0.0
+                plane = (spec.segments[t].planar if spec else None) or 0.0
                 q[ti] += dv[0] * math.sin(plane) + dv[1] * math.cos(plane)
             else:
                 q[ti], q[di] = _add_bend(q[ti], q[di], dv)
-        frames, stem = _chain(spec, plant, q)
-    return q, frames, stem
-
-
-def plant_tip(arm: Arm, plant: PlantParams, q_out: Array) -> Array:
-    """The true tip in {w} [m] of :func:`plant_bend`."""
-    return plant_bend(arm, plant, q_out)[1].tip
+        frames = _frames(arm, plant, q)
+    return q, frames
 
 
 def _gain_offset_inverse(arm: Arm, plant: PlantParams, psi: Array) -> Array:

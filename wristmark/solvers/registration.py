@@ -45,6 +45,7 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from wristmark.models.actuation import actuators_from_psi, psi_from_actuators
+from wristmark.models.arm_actuation import arm_actuators, arm_psi_from_actuators
 from wristmark.models.arm_spec import Arm, ArmSpec, actuator_units
 from wristmark.models.constant_curvature import rot_z, segment_transform
 from wristmark.models.errors import InputError
@@ -148,23 +149,30 @@ class ArmCorrection:
         return T
 
     def _spec_marker_frame(self, spec: ArmSpec, q: Array, motion_sign: Array, approach_move: Array | None,
-                           prior_sign: Array | None, path: Array | None = None, lag: Array | None = None) -> Array:
+                           prior_sign: Array | None, path: Array | None = None) -> Array:
         """:meth:`marker_frame` of any arm (sim/plant.py's TruePlant._bend_any and _chain without the tip load)."""
-        n_seg = len(spec.segments)
-        if len(self.bend_gain) != n_seg or len(self.half_play) != spec.m or len(self.plane_offset) != n_seg:
-            raise InputError(f"an arm correction of {spec.name} needs {n_seg} bend gains and plane offsets and "
-                             f"{spec.m} plays (ArmCorrection.for_arm)")
+        self._check_size(spec)
         if any(self.half_play):
             h = np.abs(np.asarray(self.half_play))
-            if lag is not None:  # given (_model: every pose's at once)
-                pass
-            elif path is not None and len(path) > 0:  # the play operator along every move (sim/plant.py)
+            if path is not None and len(path) > 0:  # the play operator along every move (sim/plant.py)
                 lag = path_lags([np.asarray(path, float)], h)[0]
             elif approach_move is not None and prior_sign is not None:  # output - motor after the two moves
                 lag = np.clip(-prior_sign * h - approach_move, -h, h)
             else:
                 lag = -h * motion_sign
             q = psi_from_actuators(spec, actuators_from_psi(spec, q) + lag, q)
+        return self._spec_bent_frame(spec, q)
+
+    def _check_size(self, spec: ArmSpec) -> None:
+        n_seg = len(spec.segments)
+        if len(self.bend_gain) != n_seg or len(self.half_play) != spec.m or len(self.plane_offset) != n_seg:
+            raise InputError(f"an arm correction of {spec.name} needs {n_seg} bend gains and plane offsets and "
+                             f"{spec.m} plays (ArmCorrection.for_arm)")
+
+    def _spec_bent_frame(self, spec: ArmSpec, q_out: Array) -> Array:
+        """The 4x4 pose of {wm} in {w} of any arm whose outputs (past the plays) are at the
+        configuration ``q_out``: each segment's gain and plane offset, the stem bent in segment 1's plane."""
+        q = np.array(q_out, float)
         if any(sg.planar is not None and o for sg, o in zip(spec.segments, self.plane_offset)):
             spec = replace(spec, segments=tuple(replace(sg, planar=sg.planar + o) if sg.planar is not None else sg
                                                 for sg, o in zip(spec.segments, self.plane_offset)))
@@ -174,6 +182,15 @@ class ArmCorrection:
                 q[di] += self.plane_offset[t]
         bend = self.stem_coupling * float(q[spec.theta_index[0]])
         return forward_kinematics(spec, q, stem_bend=bend).T_world_marker
+
+    def spec_marker_frames(self, spec: ArmSpec, psi: Array, lags: Array) -> list[Array]:
+        """:meth:`marker_frame` of any arm at each configuration of ``psi`` (K, n) whose outputs lag
+        their motors by ``lags`` (K, m) [rad or m]: the plays of all K at once."""
+        self._check_size(spec)
+        q = np.asarray(psi, float)
+        if any(self.half_play):
+            q = arm_psi_from_actuators(spec, arm_actuators(spec, q) + lags, q)
+        return [self._spec_bent_frame(spec, qk) for qk in q]
 
 
 @dataclass
@@ -210,8 +227,7 @@ def _model(params: Arm, poses: list[RegistrationPose], arm: ArmCorrection) -> tu
     if (isinstance(params, ArmSpec) and any(arm.half_play) and poses
             and all(p.path is not None and len(p.path) for p in poses)):
         lags = path_lags([np.asarray(p.path, float) for p in poses], np.abs(np.asarray(arm.half_play, float)))
-        frames = [arm._spec_marker_frame(params, np.array(p.psi, float), p.motion_sign, None, None, lag=g)
-                  for p, g in zip(poses, lags)]
+        frames = arm.spec_marker_frames(params, np.array([p.psi for p in poses], float), lags)
     else:
         frames = [arm.marker_frame(params, p.psi, p.motion_sign, p.approach_move, p.prior_sign, p.path)
                   for p in poses]
@@ -277,16 +293,27 @@ def solve_registration(params: Arm, poses: list[RegistrationPose], estimate_arm:
         fit[:] = True
     keep = fit.copy()
 
+    last: dict[bytes, tuple[Array, Array]] = {}
+
+    def model(x: Array) -> tuple[Array, Array]:
+        """The model's centres and axes in {w} at x's arm correction; the last kept: the Jacobian's
+        six steps of the camera's pose leave the arm as it was (a third of tendon3's model calls)."""
+        key = x[6:].tobytes()
+        if key not in last:
+            last.clear()
+            last[key] = _model(params, poses, unpack(x)[2])
+        return last[key]
+
     def residuals(x: Array) -> Array:
-        R, t, arm = unpack(x)
-        mw, ma = _model(params, poses, arm)
+        R, t, _ = unpack(x)
+        mw, ma = model(x)
         rc = (cl @ R.T + t - mw) / SIGMA_CENTRE
         ra = (al @ R.T - ma) / SIGMA_AXIS
         return np.concatenate([rc[keep].ravel(), ra[keep].ravel()])
 
     def errors(x: Array) -> tuple[Array, Array]:
-        R, t, arm = unpack(x)
-        mw, ma = _model(params, poses, arm)
+        R, t, _ = unpack(x)
+        mw, ma = model(x)
         return (np.linalg.norm(cl @ R.T + t - mw, axis=1),
                 np.arccos(np.clip(np.sum((al @ R.T) * ma, axis=1), -1.0, 1.0)))
 

@@ -101,3 +101,22 @@ def test_a_step_over_also_goes_straight_where_the_extrapolated_turn_misses() -> 
     assert det.detect(_strip_turned_before_gap()).corners.shape[0] == 0
     c = det.retry_with_gaps()
     np.testing.assert_allclose(c.corners, [[69.5, 59.5], [69.5, 89.5], [69.5, 149.5]], atol=0.2)
+
+
+def test_a_box_searched_with_a_lower_cl_threshold_finds_the_chain_the_whole_frame_missed() -> None:
+    """Path-traced 2323/57's left view (tests/data/pbr/coded_stripe_row): beside the stripe a
+    plain corner's normalised CL is 0.057, under the threshold of 0.06, so neither the whole-frame
+    search nor its gap retry finds a chain; in the box of those rows, with the threshold halved,
+    the chain steps over the corner under the stripe: 4 corners, on the truth's corner row."""
+    from tests.cvs.tracking.pbr_pairs import load_pbr_pair
+
+    left, _, _ = load_pbr_pair("coded_stripe_row")
+    det = MarkerCornerDetector()
+    assert det.detect(left).corners.shape[0] == 0 and det.retry_with_gaps().corners.shape[0] == 0
+    box = (500, 20, 250, 230)
+    assert det.retry_in_box(left, box, 1.0).corners.shape[0] == 0  # the same threshold: nothing
+    found = det.retry_in_box(left, box, 0.5).corners
+    assert found.shape[0] == 4
+    np.testing.assert_allclose(found[[0, -1]], [[602, 55], [662, 207]], atol=1.5)
+    with pytest.raises(ValueError, match="cl_scale"):
+        det.retry_in_box(left, box, 0.0)

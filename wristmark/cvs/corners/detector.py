@@ -203,12 +203,35 @@ class MarkerCornerDetector:
         new image search; the ROI follows the result. Empty without a search or with max_gaps 0."""
         t0 = time.perf_counter()
         extras: dict[str, float] = {}
-        if self._searched is None or self.settings.max_gaps <= 0:
-            return self._result(XCorners.empty(), None, t0, extras)
+        return self._result(self._gap_chain(extras), None, t0, extras)
+
+    def _gap_chain(self, extras: dict[str, float]) -> XCorners:
+        """:meth:`retry_with_gaps`'s corners (the last search's candidates and settings)."""
+        if self._searched is None or self._searched[1].max_gaps <= 0:
+            return XCorners.empty()
+        t0 = time.perf_counter()
         cands, s, x0, y0, magnify = self._searched
         chain = find_chain(cands, s, s.max_gaps)
-        extras["chain_ms"] = 1e3 * (time.perf_counter() - t0)
-        return self._result(self._corners(cands, chain, s, x0, y0, extras, magnify), None, t0, extras)
+        extras["chain_ms"] = extras.get("chain_ms", 0.0) + 1e3 * (time.perf_counter() - t0)
+        return self._corners(cands, chain, s, x0, y0, extras, magnify)
+
+    def retry_in_box(self, gray: Any, roi: Roi, cl_scale: float) -> CornerChain:
+        """The marker chain in ``roi`` = (x, y, w, h) [px] of a uint8 grey or BGR image, its
+        candidates kept down to ``cl_scale`` (0-1] times the CL threshold and the chain stepping
+        over ``settings.max_gaps`` missed corners: the tracker's try on a view whose chain the
+        other view's has placed (beside a highlight stripe a corner's normalised CL drops under
+        the threshold, and among a whole frame's candidates it falls beyond ``max_candidates``).
+        The ROI follows the result."""
+        t0 = time.perf_counter()
+        img = check_image(gray)
+        if not 0.0 < cl_scale <= 1.0:
+            raise InputError(f"cl_scale must be in (0, 1], got {cl_scale}")
+        s = replace(self.settings, cl_threshold=self.settings.cl_threshold * cl_scale)
+        extras: dict[str, float] = {}
+        xc = self._chain_in(img, roi, s, extras)
+        if xc.corners.shape[0] == 0:
+            xc = self._gap_chain(extras)
+        return self._result(xc, roi, t0, extras)
 
     def chains_of_two(self, gray: Any, max_chains: int = 8) -> list[XCorners]:
         """Chains of exactly two corners in the whole image at full scale (uint8 grey or BGR), at

@@ -155,7 +155,14 @@ class TrackerSettings:
     included); the best is kept where it has two_pairs_min_bars samples or more, two_pairs_margin
     times as many as any other hypothesis, corners and bars within edge_max_rms_px, its code read
     with the same roll, and the tip's sigma from corners and bars within the bars gate's bounds
-    (0 min bars: off; needs edge_sigma_px > 0; cvs.tracking.two_pairs, MarkerTracker._retry_two_pairs)."""
+    (0 min bars: off; needs edge_sigma_px > 0; cvs.tracking.two_pairs, MarkerTracker._retry_two_pairs).
+    other_view_cl_scale [-], other_view_depths_m [m]: a pair lost for too few corners whose chains
+    stepping over a missed corner give one view a chain and the other none has the other view
+    searched once more in the box where that chain's corners can appear (their rays between the
+    two depths, cvs.tracking.epipolar_box, grown by two spacings), its candidates down to
+    other_view_cl_scale times the CL threshold, stepping over missed corners too, under every gate
+    (0: off; a highlight stripe's edge lowered a plain corner's normalised CL to 0.057 against the
+    threshold's 0.06, path-traced 2323/57; docs/notes/highlight-stripe.md)."""
 
     min_corners: int = 3
     min_pairs: int = 2
@@ -198,6 +205,8 @@ class TrackerSettings:
     eroded_min_clipped_px: int = 200
     bars_gate: bool = True
     partner_max_px: float = 1.0
+    other_view_cl_scale: float = 0.5
+    other_view_depths_m: tuple[float, float] = (0.015, 0.3)
     reduced_scales: tuple[int, ...] = (2, 3, 4)
     wide_sigma_px: float = 8.0
     two_pairs_min_bars: int = 24
@@ -249,6 +258,13 @@ class TrackerSettings:
         if not float(self.max_contrast_tip_sigma_m) > 0:
             raise InputError(f"TrackerSettings.max_contrast_tip_sigma_m must be > 0 (inf: off), "
                              f"got {self.max_contrast_tip_sigma_m}")
+        if not 0 <= float(self.other_view_cl_scale) <= 1:  # NaN too
+            raise InputError(f"TrackerSettings.other_view_cl_scale must be in [0, 1] (0: off), "
+                             f"got {self.other_view_cl_scale}")
+        near, far = (float(v) for v in self.other_view_depths_m)
+        if not 0 < near < far < float("inf"):
+            raise InputError(f"TrackerSettings.other_view_depths_m must be two depths 0 < near < far [m], "
+                             f"got {list(self.other_view_depths_m)}")
         if int(self.two_pairs_min_bars) < 0:
             raise InputError(f"TrackerSettings.two_pairs_min_bars must be >= 0 (0: off), got {self.two_pairs_min_bars}")
         if not float(self.two_pairs_margin) >= 1:  # NaN too

@@ -83,6 +83,7 @@ from wristmark.cvs.tracking.corner_refit import (
     refit_corners,
     refit_corners_clipped,
 )
+from wristmark.cvs.tracking.epipolar_box import epipolar_box
 from wristmark.cvs.tracking.foreshortening import htm_bias
 from wristmark.cvs.tracking.homography_init import homography_pose
 from wristmark.cvs.tracking.print_edges import (
@@ -181,6 +182,7 @@ class MarkerTracker:
         self._misfits: list[tuple[Array, Array, Array | None, Array | None]] = []  # this pair's
         # this pair's fits refused as hinging on single-view corners (_retry_partners)
         self._hinged: list[tuple[Array, Array, Array, Array, MarkerPose, StereoMatch]] = []
+        self._gap_chains: tuple[Any, Any] | None = None  # this pair's chains from _retry_with_gaps
         self._views: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None  # the pair track() is on
         self._use_second = self.settings.detector == "auto" and type(self.detector_left).__name__ != (
             "SaddleCornerDetector")
@@ -211,6 +213,7 @@ class MarkerTracker:
         self._continuous = False
         self._misfits = []
         self._hinged = []
+        self._gap_chains = None
         il = check_view(left_img, self.camera.image_size, "left")
         ir = check_view(right_img, self.camera.image_size, "right")
         self._views = (il, ir)  # the tip-sigma gate looks at each used corner here
@@ -264,6 +267,9 @@ class MarkerTracker:
             res = self._retry_reduced(res, il, ir, t0)
         if not res.ok and not roi_only and res.reason.startswith(_ERODED_REASONS):
             res = self._retry_eroded(res, il, ir, t0)
+        if not res.ok and not roi_only:
+            res = self._retry_other_view(res, (il, ir), t0)
+        self._gap_chains = None
         found = res.ok
         if found and self.settings.magnify > 1.0:  # only the enlarged search uses them
             self._seen = (res.corners_left.copy(), res.corners_right.copy())
@@ -705,15 +711,48 @@ class MarkerTracker:
         """A pair lost for too few corners: a highlight over the corner each camera sees best
         breaks the chain in two. One more try with the chains of each view's last search that
         step over a missed corner (cvs.corners.detector ``retry_with_gaps``: no new image search),
-        under the same pose gates; ``res`` unchanged when that fails or the detectors cannot."""
+        under the same pose gates; ``res`` unchanged when that fails or the detectors cannot (its
+        chains kept for :meth:`_retry_other_view`)."""
         retry = [getattr(d, "retry_with_gaps", None) for d in (self.detector_left, self.detector_right)]
         if not all(callable(r) for r in retry):
             return res
         t1 = time.perf_counter()
-        bl, br = (r() for r in retry)  # type: ignore[misc]
-        res2 = self.track_corners(bl.corners, br.corners, bl.polarity, br.polarity, _t0=t0)
+        chains = [r() for r in retry]  # type: ignore[misc]
+        res2 = self.track_corners(chains[0].corners, chains[1].corners, chains[0].polarity, chains[1].polarity,
+                                  _t0=t0)
+        if not res2.ok:
+            self._gap_chains = (chains[0], chains[1])
         out = res2 if res2.ok else res
         out.timings["gap_chain"] = 1e3 * (time.perf_counter() - t1)
+        return out
+
+    def _retry_other_view(self, res: TrackResult, views: tuple[Any, Any], t0: float) -> TrackResult:
+        """A pair still lost after every search whose chains stepping over a missed corner (kept by
+        :meth:`_retry_with_gaps`) gave one view a chain and the other none: the other view searched
+        where that chain's corners can appear (:func:`epipolar_box`, rays between
+        ``other_view_depths_m``, grown by two spacings), its candidates down to
+        ``other_view_cl_scale`` times the CL threshold (``retry_in_box``), under the same pose gates.
+        Last, so that it never replaces a search that tracks the pair; ``res`` unchanged when it
+        fails or does not apply."""
+        s, chains, self._gap_chains = self.settings, self._gap_chains, None
+        if chains is None or s.other_view_cl_scale <= 0:
+            return res
+        found = [c.corners.shape[0] >= s.min_corners for c in chains]
+        seen = 0 if found[0] else 1
+        search = getattr(self.detector_right if seen == 0 else self.detector_left, "retry_in_box", None)
+        if found[0] == found[1] or not callable(search):
+            return res
+        t1 = time.perf_counter()
+        uv = np.asarray(chains[seen].corners, float)
+        spacing = float(np.median(np.linalg.norm(np.diff(uv, axis=0), axis=1)))
+        box = epipolar_box(self.camera, uv, seen == 1, s.other_view_depths_m, 2.0 * spacing)
+        if box is None:
+            return res
+        got = search(views[1 - seen], box, s.other_view_cl_scale)
+        cl, cr = (chains[0], got) if seen == 0 else (got, chains[1])
+        res2 = self.track_corners(cl.corners, cr.corners, cl.polarity, cr.polarity, _t0=t0)
+        out = res2 if res2.ok else res
+        out.timings["other_view"] = 1e3 * (time.perf_counter() - t1)
         return out
 
     def _retry_without_chain_ends(self, res: TrackResult, t0: float) -> TrackResult:

@@ -280,9 +280,12 @@ def solve_registration(params: Arm, poses: list[RegistrationPose], estimate_arm:
     backlash = estimate_arm and any(np.any(p.motion_sign != 0) for p in poses)
     unpack_arm, n_arm = _arm_unpacker(params, backlash) if estimate_arm else (None, 0)
 
+    def pose_of(x: Array) -> tuple[Array, Array]:
+        return Rotation.from_rotvec(x[:3]).as_matrix(), x[3:6]
+
     def unpack(x: Array) -> tuple[Array, Array, ArmCorrection]:
         arm = unpack_arm(x[6:]) if unpack_arm is not None else ArmCorrection.for_arm(params)
-        return Rotation.from_rotvec(x[:3]).as_matrix(), x[3:6], arm
+        return *pose_of(x), arm
 
     # with the plays estimated, a visit whose outputs' place in the dead band is unknown (any arm's
     # first visit) is not fitted: a lag guessed wrong by up to a play pulls the camera along the
@@ -305,14 +308,14 @@ def solve_registration(params: Arm, poses: list[RegistrationPose], estimate_arm:
         return last[key]
 
     def residuals(x: Array) -> Array:
-        R, t, _ = unpack(x)
+        R, t = pose_of(x)
         mw, ma = model(x)
         rc = (cl @ R.T + t - mw) / SIGMA_CENTRE
         ra = (al @ R.T - ma) / SIGMA_AXIS
         return np.concatenate([rc[keep].ravel(), ra[keep].ravel()])
 
     def errors(x: Array) -> tuple[Array, Array]:
-        R, t, _ = unpack(x)
+        R, t = pose_of(x)
         mw, ma = model(x)
         return (np.linalg.norm(cl @ R.T + t - mw, axis=1),
                 np.arccos(np.clip(np.sum((al @ R.T) * ma, axis=1), -1.0, 1.0)))

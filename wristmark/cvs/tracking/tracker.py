@@ -182,7 +182,7 @@ class MarkerTracker:
         self._misfits: list[tuple[Array, Array, Array | None, Array | None]] = []  # this pair's
         # this pair's fits refused as hinging on single-view corners (_retry_partners)
         self._hinged: list[tuple[Array, Array, Array, Array, MarkerPose, StereoMatch]] = []
-        self._gap_chains: tuple[Any, Any] | None = None  # this pair's chains from _retry_with_gaps
+        self._gap_chains: tuple[Any, Any] | None = None  # this pair's chains (CornerChain), from _retry_with_gaps
         self._views: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None  # the pair track() is on
         self._use_second = self.settings.detector == "auto" and type(self.detector_left).__name__ != (
             "SaddleCornerDetector")
@@ -269,7 +269,6 @@ class MarkerTracker:
             res = self._retry_eroded(res, il, ir, t0)
         if not res.ok and not roi_only:
             res = self._retry_other_view(res, (il, ir), t0)
-        self._gap_chains = None
         found = res.ok
         if found and self.settings.magnify > 1.0:  # only the enlarged search uses them
             self._seen = (res.corners_left.copy(), res.corners_right.copy())
@@ -726,7 +725,8 @@ class MarkerTracker:
         out.timings["gap_chain"] = 1e3 * (time.perf_counter() - t1)
         return out
 
-    def _retry_other_view(self, res: TrackResult, views: tuple[Any, Any], t0: float) -> TrackResult:
+    def _retry_other_view(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],
+                          t0: float) -> TrackResult:
         """A pair still lost after every search whose chains stepping over a missed corner (kept by
         :meth:`_retry_with_gaps`) gave one view a chain and the other none: the other view searched
         where that chain's corners can appear (:func:`epipolar_box`, rays between

@@ -15,7 +15,9 @@ with these TrackerSettings fields, VALUE in JSON, e.g. ``--baseline reduced_scal
 ``--baseline max_dy_px=2.0`` or, for a field of a settings group, ``--baseline axis.arm_offsets=[]``:
 an A/B of one setting on the same pairs): tracked rate, wrong (tip
 more than ``--wrong-mm`` off), tip error mean [mm], the coded sleeve's roll-known rate and
-rotation error mean [deg], median time [ms]. ``--loop-hint`` gives the trackers the marker's true
+rotation error mean [deg], median time [ms], and the tracked tips' errors over their own
+reported sigma (``TrackResult.tip_sigma_m``: median, 99th percentile, largest, how many beyond
+3, how many without one). ``--loop-hint`` gives the trackers the marker's true
 axis as the direction hint, as the servo loop gives the commanded model's. ``--cache DIR`` keeps
 the rendered pairs, so a tracker change is measured again on the same pairs without rendering
 (about 5 s a pair at half size, 25 s at 1080p here).
@@ -59,6 +61,17 @@ def _tilt_deg(T: np.ndarray) -> float:
 
 def _rotation_deg(R_est: np.ndarray, R_true: np.ndarray) -> float:
     return float(np.degrees(np.arccos(np.clip((np.trace(R_true.T @ R_est) - 1.0) / 2.0, -1.0, 1.0))))
+
+
+def _honesty(ok: list[dict]) -> dict[str, Any]:
+    """The tracked tips' errors over their own reported sigma (TrackResult.tip_sigma_m): median,
+    99th percentile and largest, how many are more than 3 of it off, and how many have no sigma."""
+    z = np.array([o["tip_mm"] / o["sigma_mm"] for o in ok if o.get("sigma_mm")])
+    out: dict[str, Any] = {"median": None, "p99": None, "max": None, "beyond_3": 0}
+    if z.size:
+        out = {"median": float(np.median(z)), "p99": float(np.percentile(z, 99)), "max": float(z.max()),
+               "beyond_3": int((z > 3.0).sum())}
+    return out | {"without_sigma": sum(not o.get("sigma_mm") for o in ok)}
 
 
 @dataclass(frozen=True)
@@ -188,6 +201,7 @@ def main() -> int:
             if r.ok and r.tip_left is not None and r.T_left_marker is not None:
                 out["tip_mm"] = 1e3 * float(np.linalg.norm(r.tip_left - pair.tip_left))
                 out["rot_deg"] = _rotation_deg(r.T_left_marker[:3, :3], pair.T_left_marker[:3, :3])
+                out["sigma_mm"] = 1e3 * r.tip_sigma_m if np.isfinite(r.tip_sigma_m) else None
             row[k] = out
         rows.append(row)
     report: dict = {"pairs": len(rows), "image_size": list(cam.image_size), "spp": a.spp, "seed": a.seed,
@@ -206,6 +220,7 @@ def main() -> int:
             "coded_roll_known_rate": len(known) / max(len(coded), 1),
             "coded_rotation_mean_deg": float(np.mean([o["rot_deg"] for o in known])) if known else None,
             "time_ms_median": float(np.median([r[k]["ms"] for r in rows])),
+            "tip_error_over_sigma": _honesty(ok),
             "lost": [{"pair": r["pair"], "sleeve": r["sleeve"], "roughness": round(r["roughness"], 3),
                       "tilt_deg": round(r["tilt_deg"], 1),
                       "reason": r[k]["reason"]} for r in rows if not r[k]["ok"]],

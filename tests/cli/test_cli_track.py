@@ -56,6 +56,8 @@ def test_json_lines_match_truth(dataset: Path, capsys: pytest.CaptureFixture[str
         assert np.allclose(R[:, 2], t.R[:, 2], atol=0.05)  # marker axis; roll is relative
         assert np.linalg.norm(np.array(o["t"]) - t.t) < 0.2e-3
         assert np.array(o["corners_left"]).shape[1] == 2 and o["rms_px"] < 0.75 and o["time_ms"] > 0
+        # the tip's own standard deviation [m] (TrackResult.tip_sigma_m): the error within 3 of it
+        assert 0 < o["tip_sigma_m"] < 0.5e-3 and np.linalg.norm(np.array(o["tip"]) - t.tip) < 3 * o["tip_sigma_m"]
 
 
 def test_direction_is_right_or_ambiguous_by_default(dataset: Path, capsys: pytest.CaptureFixture[str]) -> None:

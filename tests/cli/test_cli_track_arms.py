@@ -49,7 +49,7 @@ def test_two_sleeves_in_each_pair_are_both_reported_each_under_its_own_arm(
         assert x["ok"], x
         tip = truth[k // 2]["arms"][x["arm"]]["tip"]
         other = truth[k // 2]["arms"]["b" if x["arm"] == "a" else "a"]["tip"]
-        assert sum((p - q) ** 2 for p, q in zip(x["tip"], tip)) ** 0.5 < 3e-4
+        assert sum((p - q) ** 2 for p, q in zip(x["tip"], tip)) ** 0.5 < min(3e-4, 3 * x["tip_sigma_m"])
         assert sum((p - q) ** 2 for p, q in zip(x["tip"], other)) ** 0.5 > 5e-3
 
 

@@ -168,6 +168,8 @@ def result_fields(res: Any) -> dict[str, Any]:
         "time_ms": round(res.time_ms, 3),
     }
     if res.ok:
+        sigma = float(res.tip_sigma_m)
+        out["tip_sigma_m"] = round(sigma, 9) if np.isfinite(sigma) else None
         out["axis_source"] = res.axis_source
         out["roll_known"] = res.roll_known
         out["ids"] = _ids(res)

@@ -78,6 +78,24 @@ def test_corners_that_fit_worse_than_their_contrast_raise_the_sigma() -> None:
     assert sigmas[0.6] > 3.0 * sigmas[0.0] and sigmas[0.6] > 0.5e-3
 
 
+def test_a_result_reports_the_sigma_its_gate_judged() -> None:
+    """TrackResult.tip_sigma_m: the gate's sigma of the pose reported (no corner here is near a
+    clipped pixel); a refused fit says its sigma too; without the gate nothing is estimated."""
+    pair, gated, open_ = _alone("a")
+    views = (pair.left, pair.right)
+    res = gated.track(pair.left, pair.right)
+    assert res.ok and res.tip_left is not None
+    assert res.tip_sigma_m == pytest.approx(gated.contrast_tip_sigma(res, views), rel=1e-9)
+    assert 0.0 < res.tip_sigma_m < 0.25e-3
+    assert np.linalg.norm(res.tip_left - pair.tip_left) < 3.0 * res.tip_sigma_m
+    dark, gated_c, _ = _alone("c")
+    refused = gated_c.track(dark.left, dark.right)
+    assert not refused.ok and refused.tip_sigma_m > gated_c.settings.max_contrast_tip_sigma_m
+    assert f"{1e3 * refused.tip_sigma_m:.2f} mm" in refused.reason  # the reason's own number
+    free = open_.track(pair.left, pair.right)
+    assert free.ok and np.isnan(free.tip_sigma_m)
+
+
 def test_the_gate_settings_are_checked() -> None:
     for bad in ({"max_contrast_tip_sigma_m": 0.0}, {"gate_contrast_noise": -1.0}, {"gate_min_spacing_px": np.nan}):
         with pytest.raises(InputError):

@@ -30,7 +30,13 @@ class TrackResult:
     absolute corner ids of corners_left / right (-1: not used); otherwise roll is known modulo
     one column and ids are None; code: the code reading (coded sleeves); corner_sigmas: the
     noise [px] of each matched corner (left, right: as corners_*[match.index_* >= 0]) that
-    weighted the pose solve (TrackerSettings.solve_contrast_noise), None when unweighted.
+    weighted the pose solve (TrackerSettings.solve_contrast_noise), None when unweighted;
+    tip_sigma_m: the tip's standard deviation [m] (the larger of the sleeve's two ends, along its
+    worst direction) at the used corners' contrast noise and residuals, the print's bars
+    included where they were weighed in: what the contrast gate judged
+    (MarkerTracker.contrast_tip_sigma; on the path-traced sets no tracked tip was more than 2.5 of
+    it off, docs/notes/highlight-stripe.md); NaN where not estimated (the gate off, or corners
+    under TrackerSettings.gate_min_spacing_px apart).
     """
 
     ok: bool
@@ -52,3 +58,4 @@ class TrackResult:
     ids_right: IntArray | None = None
     code: CodeReading | None = None
     corner_sigmas: tuple[Array, Array] | None = None
+    tip_sigma_m: float = float("nan")

@@ -103,7 +103,7 @@ from wristmark.cvs.tracking.settings import CornerDetector, TrackerSettings, mak
 from wristmark.cvs.tracking.sleeve_facing import corner_facing, turned_start
 from wristmark.cvs.tracking.stereo_match import StereoMatch, StereoRectifier, match_corners
 from wristmark.cvs.tracking.stereo_pose import MarkerPose, StereoPoseSolver
-from wristmark.cvs.tracking.tip_uncertainty import corner_sigmas, tip_sigma
+from wristmark.cvs.tracking.tip_uncertainty import corner_sigmas, near_clipped, tip_sigma
 from wristmark.cvs.tracking.two_pairs import RollFit, StereoChord, axis_from_edges, roll_hypotheses, stereo_chords
 from wristmark.models.errors import InputError
 from wristmark.models.marker import MarkerModel
@@ -130,6 +130,15 @@ def _median(x: Array) -> float:
     s = np.sort(x)
     m = s.size // 2
     return float(s[m]) if s.size % 2 else float((s[m - 1] + s[m]) / 2.0)
+
+
+def _with_clipped(view: NDArray[np.uint8], uv: Array, sigma: Array, s: TrackerSettings,
+                  spacing: float) -> tuple[Array, bool]:
+    """``sigma`` [px] of the corners ``uv`` [px] combined with ``s.clipped_sigma_px`` where a pixel
+    of ``s.clipped_level`` or more lies within ``s.clipped_radius`` times ``spacing`` [px]
+    (cvs.tracking.tip_uncertainty.near_clipped), and whether any corner has one."""
+    near = near_clipped(view, uv, s.clipped_radius * spacing, s.clipped_level) if len(uv) else np.zeros(0, bool)
+    return np.asarray(np.sqrt(sigma**2 + np.where(near, s.clipped_sigma_px**2, 0.0)), float), bool(near.any())
 
 
 def _median_spacing(*chains: Array) -> float:
@@ -331,7 +340,7 @@ class MarkerTracker:
         n = self.marker.columns
         return replace(res, tip_left=tip_left, tip_world=tip_world, T_left_marker=T, pose=pose, rms_px=pose.rms_px,
                        match=sub, ids_left=code.absolute_ids(sub.index_left, n),
-                       ids_right=code.absolute_ids(sub.index_right, n))
+                       ids_right=code.absolute_ids(sub.index_right, n), tip_sigma_m=math.nan)  # not this fit's
 
     def _contrast_weighted(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],
                            debias: bool = False) -> TrackResult:
@@ -442,8 +451,11 @@ class MarkerTracker:
         pixel residuals, at least 1. 0 where the gate does not apply: no fit, no contrast noise, or
         the chains' median spacing under ``settings.gate_min_spacing_px``."""
         got = self._contrast_sigmas(res, views, contrast_noise)
-        if got is None:
-            return 0.0
+        return 0.0 if got is None else self._sigma_at(res, got)
+
+    def _sigma_at(self, res: TrackResult, got: tuple[IntArray, IntArray, tuple[Array, Array], float]) -> float:
+        """The tip's standard deviation [m] of ``res``'s fit at the corner noise ``got``
+        (:meth:`_contrast_sigmas`)."""
         idx_l, idx_r, sig, factor = got
         assert res.pose is not None
         tip = np.asarray(self.marker.tip(), float)
@@ -452,15 +464,19 @@ class MarkerTracker:
                                   self.settings.corner_sigma_px, sig)
 
     def _contrast_sigmas(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],
-                         contrast_noise: float | None) -> tuple[IntArray, IntArray, tuple[Array, Array], float] | None:
+                         contrast_noise: float | None, clipped: bool = False
+                         ) -> tuple[IntArray, IntArray, tuple[Array, Array], float] | None:
         """:meth:`contrast_tip_sigma`'s corner noise: the used corners' model indices of each
         view, their contrast noise [px] and the fit's residual factor; None where the gate does
-        not apply."""
+        not apply. ``clipped``: each corner with a pixel of ``clipped_level`` or more within
+        ``clipped_radius`` times the chains' spacing is ``clipped_sigma_px`` noisier, as in the
+        tip-sigma gate; None where no corner is."""
         m, pose, s = res.match, res.pose, self.settings
         noise = s.gate_contrast_noise if contrast_noise is None else float(contrast_noise)
         if m is None or pose is None or noise <= 0:
             return None
-        if _median_spacing(res.corners_left, res.corners_right) < s.gate_min_spacing_px:
+        spacing = _median_spacing(res.corners_left, res.corners_right)
+        if spacing < s.gate_min_spacing_px:
             return None
         kl, kr = m.index_left >= 0, m.index_right >= 0
         in_l, in_r = np.asarray(pose.inliers_left, bool), np.asarray(pose.inliers_right, bool)
@@ -472,6 +488,12 @@ class MarkerTracker:
         else:
             sig = (corner_sigmas(views[0], ul, s.corner_sigma_px, noise),
                    corner_sigmas(views[1], ur, s.corner_sigma_px, noise))
+        if clipped and s.clipped_sigma_px > 0:
+            (sl, near_l), (sr, near_r) = (_with_clipped(v, uv, sg, s, spacing)
+                                          for v, uv, sg in zip(views, (ul, ur), sig))
+            if not (near_l or near_r):
+                return None  # no corner near a clipped pixel: the noise without it
+            sig = (sl, sr)
         P, T = self.solver.marker_points, pose.T_fit
         chi2 = 0.0
         for project, idx, uv, sg in ((self.camera.project_left, idx_l, ul, sig[0]),
@@ -482,6 +504,14 @@ class MarkerTracker:
         dof = 2 * (idx_l.size + idx_r.size) - 6
         factor = max(1.0, float(np.sqrt(chi2 / dof))) if dof > 0 else 1.0
         return idx_l, idx_r, sig, factor
+
+    def _reported_sigma(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],
+                        contrast_noise: float | None, sigma: float) -> float:
+        """The ``tip_sigma_m`` a result reports: its contrast gate's ``sigma`` [m] with each used
+        corner near a clipped pixel ``clipped_sigma_px`` noisier (:meth:`_contrast_sigmas`,
+        ``clipped``); ``sigma`` itself where no corner is."""
+        got = self._contrast_sigmas(res, views, contrast_noise, clipped=True)
+        return sigma if got is None else self._sigma_at(res, got)
 
     def contrast_gate(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],
                       contrast_noise: float | None = None, max_sigma_m: float | None = None) -> TrackResult:
@@ -494,6 +524,8 @@ class MarkerTracker:
             return res
         t = time.perf_counter()
         sigma = self.contrast_tip_sigma(res, views, contrast_noise)
+        if sigma > 0:  # 0: the gate does not apply (no fit, or corners too close together)
+            res = replace(res, tip_sigma_m=self._reported_sigma(res, views, contrast_noise, sigma))
         res.timings["contrast_gate"] = 1e3 * (time.perf_counter() - t)
         if sigma <= bound:
             return res
@@ -602,13 +634,15 @@ class MarkerTracker:
 
         sigma = at(gate_sig)
         contrast = self._contrast_sigmas(out, views, None)
-        c_sigma = 0.0
+        c_sigma, shown = 0.0, math.nan
         if contrast is not None and np.isfinite(s.max_contrast_tip_sigma_m):
             c_sigma = at((contrast[3] * contrast[2][0], contrast[3] * contrast[2][1]))
+            clipped = self._contrast_sigmas(out, views, None, clipped=True)
+            shown = c_sigma if clipped is None else at((clipped[3] * clipped[2][0], clipped[3] * clipped[2][1]))
         res.timings["bars_gate"] = out.timings["bars_gate"] = 1e3 * (time.perf_counter() - t)
         if not (sigma <= s.max_tip_sigma_m and c_sigma <= s.max_contrast_tip_sigma_m):
             return res
-        return replace(out, time_ms=1e3 * (time.perf_counter() - t0))
+        return replace(out, time_ms=1e3 * (time.perf_counter() - t0), tip_sigma_m=shown)
 
     def _retry_two_pairs(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],
                          t0: float) -> TrackResult:
@@ -683,6 +717,7 @@ class MarkerTracker:
         gate_sig = [corner_sigmas(views[i], uv[i], s.corner_sigma_px, s.corner_contrast_noise, s.clipped_sigma_px,
                                   s.clipped_level, s.clipped_radius * _median_spacing(uv[i])) for i in (0, 1)]
         contrast = [corner_sigmas(views[i], uv[i], s.corner_sigma_px, s.gate_contrast_noise) for i in (0, 1)]
+        shown = [_with_clipped(views[i], uv[i], contrast[i], s, _median_spacing(uv[i]))[0] for i in (0, 1)]
         chi2 = 0.0
         for project, u, sg in ((self.camera.project_left, uv[0], contrast[0]),
                                (self.camera.project_right, uv[1], contrast[1])):
@@ -704,7 +739,8 @@ class MarkerTracker:
         pose = MarkerPose(T, T, tip_left, tip_world, fit.corner_rms_px, 2, 2, inl, inl.copy(), self.marker.beta, 0.0)
         return TrackResult(True, "", tip_left, tip_world, T, uv[0].copy(), uv[1].copy(), fit.corner_rms_px, 0.0,
                            dict(timings), pose=pose, match=match, axis_source="code", roll_known=True,
-                           ids_left=ids.copy(), ids_right=ids.copy(), code=reading)
+                           ids_left=ids.copy(), ids_right=ids.copy(), code=reading,
+                           tip_sigma_m=at([factor * c for c in shown]))
 
     def _retry_with_gaps(self, res: TrackResult, t0: float) -> TrackResult:
         """A pair lost for too few corners: a highlight over the corner each camera sees best

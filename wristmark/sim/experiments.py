@@ -181,7 +181,8 @@ def run_accuracy(setup: SimSetup, out_dir: Path, n: int = 40, progress: bool = T
         err = float(np.linalg.norm(m.p_world - p_trk)) if m.ok and m.p_world is not None else float("nan")
         rows.append({"index": i, "target": p.tolist(), "tracker": p_trk.tolist(), "true": shape.tip.tolist(),
                      "estimate": None if m.p_world is None else m.p_world.tolist(), "ok": m.ok,
-                     "reason": m.reason, "error_mm": 1000 * err, "rms_px": m.rms_px})
+                     "reason": m.reason, "error_mm": 1000 * err, "rms_px": m.rms_px,
+                     "tip_sigma_mm": 1000 * m.tip_sigma_m if np.isfinite(m.tip_sigma_m) else None})
     errs = np.array([r["error_mm"] for r in rows]) / 1000.0
     st = error_stats(errs)
     true_errs = np.array([np.linalg.norm(np.subtract(r["estimate"], r["true"])) if r["ok"] else np.nan

@@ -37,7 +37,9 @@ class TipMeasurement:
     R_world: the tip frame's orientation in {w} (3x3; = {wm}'s) when measured, roll_known: its roll
     about z is known (a coded sleeve whose code was read), else only its z axis is meaningful (the
     reference sleeve: roll modulo one column); T_world_marker: the marker's pose {wm} in {w} (4x4
-    [m]) when measured (published as ``NS/marker/measured_cp`` by ``servo --ros2``)."""
+    [m]) when measured (published as ``NS/marker/measured_cp`` by ``servo --ros2``); tip_sigma_m:
+    the tip's own standard deviation [m] as the tracker reports it (TrackResult.tip_sigma_m; NaN:
+    not estimated)."""
 
     ok: bool
     p_world: Array | None
@@ -52,6 +54,7 @@ class TipMeasurement:
     R_world: Array | None = None
     roll_known: bool = False
     T_world_marker: Array | None = None
+    tip_sigma_m: float = float("nan")
 
 
 class TipSensor(Protocol):
@@ -103,7 +106,7 @@ def tip_measurement(res: TrackResult, frame: StereoFrame, ms: float, T_world_lef
     T = None if res.T_left_marker is None else np.asarray(res.T_left_marker, float)
     return TipMeasurement(True, p, "", ms, float(res.rms_px), frame.t_capture, frame.index, corners, T,
                           np.asarray(res.tip_left, float), None if T is None else W[:3, :3] @ T[:3, :3],
-                          bool(res.roll_known), None if T is None else W @ T)
+                          bool(res.roll_known), None if T is None else W @ T, float(res.tip_sigma_m))
 
 
 class DeadlineTipSensor:

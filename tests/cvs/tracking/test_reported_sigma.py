@@ -1,6 +1,7 @@
 """The tip sigma a result reports (TrackResult.tip_sigma_m) on the committed 1080p path-traced
 pairs (tests/data/pbr): every tracked tip lies within 3 of its own sigma, whichever search found
-it, and corners beside clipped pixels count as noisier in it than in the contrast gate."""
+it, and corners that the reduced search refitted beside clipped pixels count as noisier in it
+than in the contrast gate."""
 
 from __future__ import annotations
 
@@ -39,12 +40,12 @@ def test_every_tracked_tip_is_within_three_of_its_own_sigma(name: str, trackers:
 def test_corners_beside_clipped_whites_count_as_noisier(trackers: dict[str, MarkerTracker]) -> None:
     """coded_clipped (whites clipped over the corners, found by the reduced search): its tip is
     0.115 mm off; the contrast gate's sigma alone says 0.042 mm (2.7 of it off), the reported one
-    counts each corner beside a clipped pixel 1 px noisier, as the tip-sigma gate does."""
+    counts each corner beside a clipped pixel 1 px noisier, as the reduced search's gate does."""
     left, right, truth = load_pbr_pair("coded_clipped")
     tracker = trackers["coded"]
     tracker.reset()
     res = tracker.track(left, right)
-    assert res.ok and res.tip_left is not None
+    assert res.ok and res.tip_left is not None and "reduced_refit" in res.timings
     error = float(np.linalg.norm(res.tip_left - np.asarray(truth["tip_left"])))
     gate = tracker.contrast_tip_sigma(res, (left, right))
     assert error > 2.0 * gate  # the contrast noise alone is overconfident here

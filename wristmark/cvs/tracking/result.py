@@ -34,9 +34,11 @@ class TrackResult:
     tip_sigma_m: the tip's standard deviation [m] (the larger of the sleeve's two ends, along its
     worst direction) at the used corners' contrast noise and residuals, the print's bars
     included where they were weighed in: what the contrast gate judged
-    (MarkerTracker.contrast_tip_sigma; on the path-traced sets no tracked tip was more than 2.5 of
-    it off, docs/notes/highlight-stripe.md); NaN where not estimated (the gate off, or corners
-    under TrackerSettings.gate_min_spacing_px apart).
+    (MarkerTracker.contrast_tip_sigma), and where the reduced or eroded search fitted the corners
+    again with their clipped pixels censored, each corner beside a clipped pixel clipped_sigma_px
+    noisier (on the path-traced sets no tracked tip was more than 2.5 of it off,
+    docs/notes/highlight-stripe.md); NaN where not estimated (the gate off, or corners under
+    TrackerSettings.gate_min_spacing_px apart).
     """
 
     ok: bool

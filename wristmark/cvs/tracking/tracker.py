@@ -518,10 +518,21 @@ class MarkerTracker:
         """``res`` when it is not ok or its :meth:`contrast_tip_sigma` is at most ``max_sigma_m``
         (default ``settings.max_contrast_tip_sigma_m``); else the same result ok false, without
         its tip and pose (``pose`` and ``match`` kept), the reason saying by how much the tip is
-        uncertain (docs/notes/highlight-stripe.md, docs/notes/several-arms.md)."""
-        bound = self.settings.max_contrast_tip_sigma_m if max_sigma_m is None else float(max_sigma_m)
+        uncertain (docs/notes/highlight-stripe.md, docs/notes/several-arms.md). Where the chains'
+        median spacing is under ``gate_min_spacing_px`` (no contrast noise model there), refused
+        instead where the fit's RMS is over ``max_rms_spacing`` times that spacing."""
+        s = self.settings
+        bound = s.max_contrast_tip_sigma_m if max_sigma_m is None else float(max_sigma_m)
+        noise = s.gate_contrast_noise if contrast_noise is None else float(contrast_noise)
         if not res.ok or not np.isfinite(bound):
             return res
+        spacing = _median_spacing(res.corners_left, res.corners_right)
+        if spacing < s.gate_min_spacing_px and noise > 0 and s.max_rms_spacing > 0 and res.pose is not None:
+            if res.rms_px <= s.max_rms_spacing * spacing:
+                return res
+            return replace(res, ok=False, tip_left=None, tip_world=None, T_left_marker=None, reason=(
+                f"the fit's residual {res.rms_px:.2f} px is over {100 * s.max_rms_spacing:g} % of the corners' "
+                f"{spacing:.1f} px spacing (corners that do not fit the marker)"))
         t = time.perf_counter()
         sigma = self.contrast_tip_sigma(res, views, contrast_noise)
         if sigma > 0:  # 0: the gate does not apply (no fit, or corners too close together)

@@ -146,5 +146,7 @@ def test_corners_closer_than_the_measured_spacing_keep_the_pose(seed: int) -> No
     assert res.tip_left is not None and np.linalg.norm(res.tip_left - pair.tip_left) < 0.3e-3
     gaps = np.concatenate([np.hypot(*np.diff(c, axis=0).T) for c in (res.corners_left, res.corners_right)])
     assert 16.0 <= np.median(gaps) < TrackerSettings().gate_min_spacing_px  # the regime of the lab
+    # the sigma reported there: every corner at corner_sigma_px, times the fit's residual over it
+    assert np.linalg.norm(res.tip_left - pair.tip_left) < 3.0 * res.tip_sigma_m < 3.0 * 1e-3
     old = MarkerTracker(cam, one.marker, TrackerSettings(gate_min_spacing_px=16.0)).track(pair.left, pair.right)
     assert not old.ok and "contrast noise" in old.reason  # what the 16 px floor did

@@ -102,7 +102,7 @@ class TrackerSettings:
     marker; such corners keep the gate at corner_sigma_px alone, and max_rms_spacing [-]: there
     the gate refuses a fit whose reprojection RMS is over this fraction of the spacing, 0.02: the
     corners do not fit the marker (a coded sleeve 109 mm away, its chain stepping over the
-    stripe, 21 px apart: 0.61 px, 0.54 mm off; every other tracked path-traced or fast-rendered
+    stripe, 21 px apart: 0.61 px, 0.53 mm off; every other tracked path-traced or fast-rendered
     pair, at 0.35-1 x 1080p, at most 0.014; 0: off). gate_contrast_noise 0 or
     max_contrast_tip_sigma_m inf disables both (cvs.tracking.arm_set applies the same gate after
     clearing each arm's corners). edge_sigma_px [px], edge_max_rms_px [px], edge_min_samples,

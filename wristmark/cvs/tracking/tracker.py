@@ -543,7 +543,7 @@ class MarkerTracker:
                 f"the fit's residual {res.rms_px:.2f} px is over {100 * s.max_rms_spacing:g} % of the corners' "
                 f"{spacing:.1f} px spacing (corners that do not fit the marker)"))
         sigma = self.contrast_tip_sigma(res, views, contrast_noise)
-        if sigma > 0:  # 0: the gate does not apply (no fit, or corners too close together)
+        if sigma > 0:  # 0: no fit to judge
             res = replace(res, tip_sigma_m=self._reported_sigma(res, views, contrast_noise, sigma))
         res.timings["contrast_gate"] = 1e3 * (time.perf_counter() - t)
         if sigma <= bound:

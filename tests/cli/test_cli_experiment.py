@@ -71,6 +71,10 @@ def test_run_folder_holds_config_log_results_and_plots(short_cube: tuple) -> Non
         rows = list(csv.DictReader(f))
     phases = {row["phase"] for row in rows}
     assert {"open_loop", "closed_loop"} <= phases
+    # each measured cycle's tip sigma [m] as the tracker reported it; none without a measurement
+    measured = [row for row in rows if row["p_est_x"] != ""]
+    assert measured and all(0 < float(row["tip_sigma"]) < 1e-3 for row in measured)
+    assert all(row["tip_sigma"] == "" for row in rows if row["p_est_x"] == "")
     assert "paper (Fig. 8)" in r.stdout and "wristmark" in r.stdout
 
 

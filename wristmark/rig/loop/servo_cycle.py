@@ -157,4 +157,5 @@ def cycle_record(params: Arm, psi_cmd: Array, target: CycleTarget, t_wall: float
         R_des=target.R_des, R_est=meas.R_world if ok and meas is not None else None,
         R_true=np.asarray(truth.R_true, float), R_trk=np.asarray(truth.R_trk, float),
         T_marker_est=meas.T_world_marker if ok and meas is not None else None,
+        tip_sigma=meas.tip_sigma_m if ok and meas is not None else float("nan"),
     )

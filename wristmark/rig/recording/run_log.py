@@ -57,7 +57,7 @@ def log_columns(psi_names: tuple[str, ...] | None = None,
         + tuple(f"rot_{k}_{a}" for k in ("des", "est", "true", "trk") for a in _XYZ)
         + ("orientation_error", "t_act")
         + tuple(f"act_{k}_{a}" for k in ("cmd", "meas") for a in act_names)
-        + ("open_on_lost",)
+        + ("open_on_lost", "tip_sigma")
     )
 
 
@@ -95,6 +95,7 @@ class CycleRecord:
     act_cmd: Array | None = None  # the box's last target [rad or m each] (None: unknown)
     act_meas: Array | None = None  # its encoder readings at t_act
     open_on_lost: bool = False  # the marker lost, the loop walked on along the target open loop (rig open_loop_on_lost)
+    tip_sigma: float = math.nan  # [m] the measured tip's own standard deviation (TrackResult.tip_sigma_m)
 
     def orientation_error(self, which: str = "R_trk") -> float:
         """Angle [rad] between the orientation ``which`` (R_trk, R_true or R_est) and the
@@ -120,6 +121,7 @@ class CycleRecord:
         for a in (self.act_cmd, self.act_meas):
             vals += [_num(float(x), "{:.9g}") for x in np.asarray(a, float)] if a is not None else [""] * actuators
         vals.append(int(self.open_on_lost))
+        vals.append(_num(self.tip_sigma, "{:.6g}"))
         return vals
 
 

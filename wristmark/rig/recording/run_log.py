@@ -18,7 +18,10 @@ empty when either is missing); then the actuators as the box saw them: t_act (wh
 were read, on the frames' clock, as t_capture [s]), act_cmd_<name> (the target last sent to the
 box, after any ``--model`` link) and act_meas_<name> (its encoder readings) per actuator
 (models.arm_spec.actuator_names: phi, d, s1a, s1b, s2a, s2b for the reference arm) [rad or m]:
-what ``wristmark identify --from-log RUN`` fits.
+what ``wristmark identify --from-log RUN`` fits; open_on_lost (1: the marker lost, the cycle
+walked on open loop); tip_sigma (the measured tip's own standard deviation [m] as the tracker
+reported it, cvs.tracking.result.TrackResult.tip_sigma_m; empty without a measurement or an
+estimate).
 ``config.json`` holds every configuration used; ``result.json`` the metrics.
 """
 

@@ -37,7 +37,8 @@ class TruthClockSource(OnDemandSource):
 class NoisyTruthSensor:
     """The true tip of ``arm`` plus isotropic Gaussian noise of 3D RMS ``rms`` [m], and the true
     tip frame's orientation turned by a random rotation of RMS angle ``rotation_rms`` [rad]
-    (drawn from its own stream, so the position noise is the same with or without it)."""
+    (drawn from its own stream, so the position noise is the same with or without it). Its
+    measurements report that noise's standard deviation along each axis as their tip sigma."""
 
     def __init__(self, arm: ActuatedArm, rms: float, seed: int = 0, rotation_rms: float = np.deg2rad(0.2)) -> None:
         self.arm = arm
@@ -58,4 +59,4 @@ class NoisyTruthSensor:
         noisy[:3, :3], noisy[:3, 3] = R, p
         T_marker = noisy @ np.linalg.inv(T_tip) @ shape.frames.T_world_marker
         return TipMeasurement(True, p, t_capture=frame.t_capture, frame_index=frame.index, R_world=R,
-                              roll_known=True, T_world_marker=T_marker)
+                              roll_known=True, T_world_marker=T_marker, tip_sigma_m=float(self._sigma))

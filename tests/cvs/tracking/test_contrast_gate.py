@@ -96,30 +96,8 @@ def test_a_result_reports_the_sigma_its_gate_judged() -> None:
     assert free.ok and np.isnan(free.tip_sigma_m)
 
 
-def test_under_the_measured_spacing_a_fit_whose_residual_is_large_for_it_is_refused() -> None:
-    """tests/data/pbr/coded_far_residual (held-out seed 2525 pair 33): a coded sleeve 109 mm away
-    whose chains step over the stripe, 21 px apart, under gate_min_spacing_px, so no contrast
-    noise judges it. Its fit reprojects at 0.61 px, 2.9 % of the spacing, and is 0.53 mm off:
-    refused (max_rms_spacing 0.02), the fit kept for the reason; without that bound it is taken."""
-    from tests.cvs.tracking.pbr_pairs import load_pbr_pair
-    from wristmark.cvs.calibration.load import load_calibration
-    from wristmark.models.config_files import default_config
-    from wristmark.models.marker import MarkerModel
-
-    cam = load_calibration(str(default_config("camera.yaml")))
-    marker = MarkerModel.load(default_config("marker_coded.yaml"))
-    left, right, truth = load_pbr_pair("coded_far_residual")
-    res = MarkerTracker(cam, marker).track(left, right)
-    assert not res.ok and "do not fit the marker" in res.reason, res.reason
-    assert res.tip_left is None and res.pose is not None and res.rms_px > 0.02 * 21.0
-    taken = MarkerTracker(cam, marker, TrackerSettings(max_rms_spacing=0.0)).track(left, right)
-    assert taken.ok and taken.tip_left is not None
-    assert np.linalg.norm(taken.tip_left - np.asarray(truth["tip_left"])) > 0.5e-3  # the wrong pose it refuses
-
-
 def test_the_gate_settings_are_checked() -> None:
-    for bad in ({"max_contrast_tip_sigma_m": 0.0}, {"gate_contrast_noise": -1.0}, {"gate_min_spacing_px": np.nan},
-                {"max_rms_spacing": -0.01}):
+    for bad in ({"max_contrast_tip_sigma_m": 0.0}, {"gate_contrast_noise": -1.0}, {"gate_min_spacing_px": np.nan}):
         with pytest.raises(InputError):
             TrackerSettings(**bad)  # type: ignore[arg-type]
 
@@ -146,7 +124,6 @@ def test_corners_closer_than_the_measured_spacing_keep_the_pose(seed: int) -> No
     assert res.tip_left is not None and np.linalg.norm(res.tip_left - pair.tip_left) < 0.3e-3
     gaps = np.concatenate([np.hypot(*np.diff(c, axis=0).T) for c in (res.corners_left, res.corners_right)])
     assert 16.0 <= np.median(gaps) < TrackerSettings().gate_min_spacing_px  # the regime of the lab
-    # the sigma reported there: every corner at corner_sigma_px, times the fit's residual over it
-    assert np.linalg.norm(res.tip_left - pair.tip_left) < 3.0 * res.tip_sigma_m < 3.0 * 1e-3
+    assert np.isnan(res.tip_sigma_m)  # not estimated there: the relation overstates the noise
     old = MarkerTracker(cam, one.marker, TrackerSettings(gate_min_spacing_px=16.0)).track(pair.left, pair.right)
     assert not old.ok and "contrast noise" in old.reason  # what the 16 px floor did

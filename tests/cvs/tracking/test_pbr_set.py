@@ -32,7 +32,6 @@ def test_every_path_traced_pair_is_tracked_and_right(name: str) -> None:
         assert res.ok, (lp.name, res.reason)
         assert res.tip_left is not None and res.T_left_marker is not None
         assert np.linalg.norm(res.tip_left - truth.tip) < 0.25e-3  # half size: 960 x 540
-        assert np.linalg.norm(res.tip_left - truth.tip) < 3.0 * res.tip_sigma_m  # its own sigma
         if coded:  # the code gives the whole rotation
             assert res.roll_known and _rotation_deg(res.T_left_marker[:3, :3], truth.R) < 1.0
 

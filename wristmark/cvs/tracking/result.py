@@ -36,10 +36,10 @@ class TrackResult:
     included where they were weighed in: what the contrast gate judged
     (MarkerTracker.contrast_tip_sigma), and where the reduced or eroded search fitted the corners
     again with their clipped pixels censored, each corner beside a clipped pixel clipped_sigma_px
-    noisier; with corners under TrackerSettings.gate_min_spacing_px apart, every corner at
-    corner_sigma_px times the fit's residual over it (on the path-traced sets no tracked tip was
-    more than 2.5 of it off, docs/notes/highlight-stripe.md); NaN where not estimated (the
-    contrast gate off).
+    noisier (on the path-traced sets no tracked tip was more than 2.5 of it off,
+    docs/notes/highlight-stripe.md); NaN where not estimated (corners under
+    TrackerSettings.gate_min_spacing_px apart, where the contrast relation overstates the noise,
+    or the contrast gate off).
     """
 
     ok: bool

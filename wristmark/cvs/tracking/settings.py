@@ -99,12 +99,8 @@ class TrackerSettings:
     where the chains' median spacing is under gate_min_spacing_px (23 px: the contrast relation
     was measured on corners 23-80 px apart; below, it overstates the noise: at 0.35 x 1080p, 16 px
     apart, it gave 0.5-0.6 mm of sigma to poses 0.15 mm off, and the loop stopped for a lost
-    marker; such corners keep the gate at corner_sigma_px alone, and max_rms_spacing [-]: there
-    the gate refuses a fit whose reprojection RMS is over this fraction of the spacing, 0.02: the
-    corners do not fit the marker (a coded sleeve 109 mm away, its chain stepping over the
-    stripe, 21 px apart: 0.61 px, 0.53 mm off; every other tracked path-traced or fast-rendered
-    pair, at 0.35-1 x 1080p, at most 0.014; 0: off). gate_contrast_noise 0 or
-    max_contrast_tip_sigma_m inf disables both (cvs.tracking.arm_set applies the same gate after
+    marker; such corners keep the gate at corner_sigma_px alone). gate_contrast_noise 0 or
+    max_contrast_tip_sigma_m inf disables (cvs.tracking.arm_set applies the same gate after
     clearing each arm's corners). edge_sigma_px [px], edge_max_rms_px [px], edge_min_samples,
     edge_min_spacing_px [px]: a
     good, oriented result is solved again from its corners and the centre lines of the print's
@@ -197,7 +193,6 @@ class TrackerSettings:
     gate_contrast_noise: float = 7.0
     max_contrast_tip_sigma_m: float = 0.5e-3
     gate_min_spacing_px: float = 23.0
-    max_rms_spacing: float = 0.02
     paper_detector: DetectorSettings = field(default_factory=DetectorSettings)
     magnify_below_px: float = 20.0
     edge_sigma_px: float = 0.5
@@ -233,7 +228,7 @@ class TrackerSettings:
             raise InputError(f"TrackerSettings.eroded_min_clipped_px must be >= 0, got {self.eroded_min_clipped_px}")
         if not float(self.max_dy_px) > 0:  # NaN too
             raise InputError(f"TrackerSettings.max_dy_px must be > 0 [px], got {self.max_dy_px}")
-        for name in ("gate_contrast_noise", "gate_min_spacing_px", "max_rms_spacing"):
+        for name in ("gate_contrast_noise", "gate_min_spacing_px"):
             v = float(getattr(self, name))
             if not v >= 0:  # NaN too
                 raise InputError(f"TrackerSettings.{name} must be >= 0, got {v}")

@@ -458,30 +458,27 @@ class MarkerTracker:
                                   self.settings.corner_sigma_px, sig)
 
     def _contrast_sigmas(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],
-                         contrast_noise: float | None, clipped: bool = False, floor: bool = False
+                         contrast_noise: float | None, clipped: bool = False
                          ) -> tuple[IntArray, IntArray, tuple[Array, Array], float] | None:
         """:meth:`contrast_tip_sigma`'s corner noise: the used corners' model indices of each
         view, their contrast noise [px] and the fit's residual factor; None where the gate does
         not apply. ``clipped``: each corner with a pixel of ``clipped_level`` or more within
         ``clipped_radius`` times the chains' spacing is ``clipped_sigma_px`` noisier, as in the
-        tip-sigma gate; None where no corner is. ``floor``: every corner at ``corner_sigma_px``, at
-        any spacing (under ``gate_min_spacing_px`` the contrast relation overstates the noise)."""
+        tip-sigma gate; None where no corner is."""
         m, pose, s = res.match, res.pose, self.settings
         noise = s.gate_contrast_noise if contrast_noise is None else float(contrast_noise)
         if m is None or pose is None or noise <= 0:
             return None
         spacing = _median_spacing(res.corners_left, res.corners_right)
-        if spacing < s.gate_min_spacing_px and not floor:
+        if spacing < s.gate_min_spacing_px:
             return None
         kl, kr = m.index_left >= 0, m.index_right >= 0
         in_l, in_r = np.asarray(pose.inliers_left, bool), np.asarray(pose.inliers_right, bool)
         idx_l, idx_r = m.index_left[kl][in_l], m.index_right[kr][in_r]
         ul, ur = res.corners_left[kl][in_l], res.corners_right[kr][in_r]
         own = res.corner_sigmas  # the weighted solve's, of every matched corner, at solve_contrast_noise
-        if floor:
-            sig = (np.full(ul.shape[0], s.corner_sigma_px), np.full(ur.shape[0], s.corner_sigma_px))
-        elif (own is not None and noise == s.solve_contrast_noise
-              and (own[0].size, own[1].size) == (in_l.size, in_r.size)):
+        if (own is not None and noise == s.solve_contrast_noise
+                and (own[0].size, own[1].size) == (in_l.size, in_r.size)):
             sig = (own[0][in_l], own[1][in_r])
         else:
             sig = (corner_sigmas(views[0], ul, s.corner_sigma_px, noise),
@@ -522,28 +519,13 @@ class MarkerTracker:
         """``res`` when it is not ok or its :meth:`contrast_tip_sigma` is at most ``max_sigma_m``
         (default ``settings.max_contrast_tip_sigma_m``); else the same result ok false, without
         its tip and pose (``pose`` and ``match`` kept), the reason saying by how much the tip is
-        uncertain (docs/notes/highlight-stripe.md, docs/notes/several-arms.md). Where the chains'
-        median spacing is under ``gate_min_spacing_px`` (no contrast noise model there), refused
-        instead where the fit's RMS is over ``max_rms_spacing`` times that spacing, its reported
-        sigma at ``corner_sigma_px`` times the fit's residual over it."""
-        s = self.settings
-        bound = s.max_contrast_tip_sigma_m if max_sigma_m is None else float(max_sigma_m)
-        noise = s.gate_contrast_noise if contrast_noise is None else float(contrast_noise)
+        uncertain (docs/notes/highlight-stripe.md, docs/notes/several-arms.md)."""
+        bound = self.settings.max_contrast_tip_sigma_m if max_sigma_m is None else float(max_sigma_m)
         if not res.ok or not np.isfinite(bound):
             return res
         t = time.perf_counter()
-        spacing = _median_spacing(res.corners_left, res.corners_right)
-        if spacing < s.gate_min_spacing_px and noise > 0 and res.pose is not None:
-            got = self._contrast_sigmas(res, views, contrast_noise, floor=True)
-            res = replace(res, tip_sigma_m=math.nan if got is None else self._sigma_at(res, got))
-            res.timings["contrast_gate"] = 1e3 * (time.perf_counter() - t)
-            if s.max_rms_spacing <= 0 or res.rms_px <= s.max_rms_spacing * spacing:
-                return res
-            return replace(res, ok=False, tip_left=None, tip_world=None, T_left_marker=None, reason=(
-                f"the fit's residual {res.rms_px:.2f} px is over {100 * s.max_rms_spacing:g} % of the corners' "
-                f"{spacing:.1f} px spacing (corners that do not fit the marker)"))
         sigma = self.contrast_tip_sigma(res, views, contrast_noise)
-        if sigma > 0:  # 0: no fit to judge
+        if sigma > 0:  # 0: the gate does not apply (no fit, or corners too close together)
             res = replace(res, tip_sigma_m=self._reported_sigma(res, views, contrast_noise, sigma))
         res.timings["contrast_gate"] = 1e3 * (time.perf_counter() - t)
         if sigma <= bound:

@@ -99,7 +99,10 @@ class TrackerSettings:
     where the chains' median spacing is under gate_min_spacing_px (23 px: the contrast relation
     was measured on corners 23-80 px apart; below, it overstates the noise: at 0.35 x 1080p, 16 px
     apart, it gave 0.5-0.6 mm of sigma to poses 0.15 mm off, and the loop stopped for a lost
-    marker; such corners keep the gate at corner_sigma_px alone). gate_contrast_noise 0 or
+    marker; such corners keep the gate at corner_sigma_px alone), except a fit on chains that
+    step over a missed corner, judged there with every corner at corner_sigma_px times its
+    residual over it (held-out path-traced 2525/33: 21 px apart, 0.61 px, 0.53 mm off, refused
+    at 0.62 mm). gate_contrast_noise 0 or
     max_contrast_tip_sigma_m inf disables (cvs.tracking.arm_set applies the same gate after
     clearing each arm's corners). edge_sigma_px [px], edge_max_rms_px [px], edge_min_samples,
     edge_min_spacing_px [px]: a

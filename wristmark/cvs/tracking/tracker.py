@@ -122,6 +122,9 @@ _CONTRAST_GATE_CAUSE = "at the corners' contrast noise and residuals"  # contras
 # the timings keys of a result whose corners were fitted again with their clipped pixels censored
 # (MarkerTracker._retry_reduced, _retry_eroded): its reported sigma counts its clipped corners noisier
 _CLIPPED_REFITS = ("reduced_refit", "eroded_refit")
+# the timings key of a result fitted on chains that step over a missed corner (MarkerTracker._retry_with_gaps,
+# _retry_other_view): under gate_min_spacing_px the contrast gate judges it at corner_sigma_px
+_GAP_FIT = "gap_chain_fit"
 _TWO_PAIRS_MAX_CHORDS = 4  # stereo chords of two corners judged (MarkerTracker._retry_two_pairs), at most
 
 
@@ -442,8 +445,15 @@ class MarkerTracker:
         (default ``settings.gate_contrast_noise``) over its contrast in ``views``
         (cvs.tracking.tip_uncertainty.corner_sigmas), multiplied by the fit's residual over that
         noise where the residual is the larger: sqrt(chi^2 / (2 N - 6)) over the N used corners'
-        pixel residuals, at least 1. 0 where the gate does not apply: no fit, no contrast noise, or
-        the chains' median spacing under ``settings.gate_min_spacing_px``."""
+        pixel residuals, at least 1. Where the chains' median spacing is under
+        ``settings.gate_min_spacing_px`` (the contrast relation overstates the noise there), only
+        for a fit on chains that step over a missed corner (:meth:`_retry_with_gaps`,
+        :meth:`_retry_other_view`: a guess of the corners' indices across the gap), and with every
+        corner at ``corner_sigma_px``: such a fit whose corners do not fit the marker (held-out
+        path-traced 2525/33: 21 px apart, 0.61 px, 0.53 mm off) has a residual 6 times that noise,
+        where those of the fast renderer's gap fits under 23 px (0.35-0.5 x 1080p, glossy, default
+        and strong noise) gave 0.16-0.32 mm of sigma. 0 where the gate does not apply: no fit, no
+        contrast noise, or corners under that spacing not fitted on such chains."""
         got = self._contrast_sigmas(res, views, contrast_noise)
         return 0.0 if got is None else self._sigma_at(res, got)
 
@@ -470,14 +480,17 @@ class MarkerTracker:
         if m is None or pose is None or noise <= 0:
             return None
         spacing = _median_spacing(res.corners_left, res.corners_right)
-        if spacing < s.gate_min_spacing_px:
+        floor = spacing < s.gate_min_spacing_px  # too close together for the contrast relation
+        if floor and _GAP_FIT not in res.timings:
             return None
         kl, kr = m.index_left >= 0, m.index_right >= 0
         in_l, in_r = np.asarray(pose.inliers_left, bool), np.asarray(pose.inliers_right, bool)
         idx_l, idx_r = m.index_left[kl][in_l], m.index_right[kr][in_r]
         ul, ur = res.corners_left[kl][in_l], res.corners_right[kr][in_r]
         own = res.corner_sigmas  # the weighted solve's, of every matched corner, at solve_contrast_noise
-        if (own is not None and noise == s.solve_contrast_noise
+        if floor:  # chains stepping over a missed corner: each corner at corner_sigma_px, the residual judges
+            sig = (np.full(ul.shape[0], s.corner_sigma_px), np.full(ur.shape[0], s.corner_sigma_px))
+        elif (own is not None and noise == s.solve_contrast_noise
                 and (own[0].size, own[1].size) == (in_l.size, in_r.size)):
             sig = (own[0][in_l], own[1][in_r])
         else:
@@ -758,6 +771,8 @@ class MarkerTracker:
             self._gap_chains = (chains[0], chains[1])
         out = res2 if res2.ok else res
         out.timings["gap_chain"] = 1e3 * (time.perf_counter() - t1)
+        if res2.ok:
+            out.timings[_GAP_FIT] = out.timings["gap_chain"]
         return out
 
     def _retry_other_view(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],
@@ -788,6 +803,8 @@ class MarkerTracker:
         res2 = self.track_corners(cl.corners, cr.corners, cl.polarity, cr.polarity, _t0=t0)
         out = res2 if res2.ok else res
         out.timings["other_view"] = 1e3 * (time.perf_counter() - t1)
+        if res2.ok:
+            out.timings[_GAP_FIT] = out.timings["other_view"]
         return out
 
     def _retry_without_chain_ends(self, res: TrackResult, t0: float) -> TrackResult:
@@ -871,6 +888,8 @@ class MarkerTracker:
         again = self._refit_matched(matched, views, parity, t0,  # refit_corners converts its crops alone
                                     lambda view, uv, edges: refit_corners(view, uv, edges, radius, s.wide_sigma_px))
         if again is not None and again.ok:
+            if _GAP_FIT in res.timings:  # the same corners' indices, guessed across a gap
+                again.timings[_GAP_FIT] = res.timings[_GAP_FIT]
             again = self._judged(again, views, hint, gate=True)
         out = again if again is not None and again.ok else res
         out.timings["wide"] = 1e3 * (time.perf_counter() - t)

@@ -15,8 +15,9 @@ from wristmark.models.config_files import default_config
 from wristmark.models.marker import MarkerModel
 
 # every 1080p pair that the default tracker tracks cold (reference_open_jaws: direction ambiguous)
-PAIRS = ("coded_blurred_bars", "coded_clipped", "coded_close", "coded_far_residual", "coded_lit_column", "coded_saddle",
-         "coded_steep", "coded_stripe_row", "coded_two_corners", "reference_defocused", "reference_tool_shadow")
+PAIRS = ("coded_blurred_bars", "coded_clipped", "coded_close", "coded_far_residual", "coded_gap_defocused",
+         "coded_lit_column", "coded_saddle", "coded_steep", "coded_stripe_row", "coded_two_corners",
+         "reference_defocused", "reference_tool_shadow")
 
 
 @pytest.fixture(scope="module")

@@ -150,7 +150,13 @@ class TrackerSettings:
     the next, close to the lens and blurred by defocus, is fitted from its noisy centre alone) has
     its matched corners fitted again with weights up to wide_sigma_px in a window of 1.25 times
     that, at the fit's own edge directions, and is solved, oriented and judged again under every
-    gate (4 or less: off; MarkerTracker._retry_wide_windows). two_pairs_min_bars, two_pairs_margin
+    gate (4 or less: off; MarkerTracker._retry_wide_windows). wide_residual_factor [-]: a good
+    result that the contrast gate found reprojecting more than this times its corners' contrast
+    noise (the gate's residual factor) has its corners fitted again in wide windows too, and the
+    new result is kept where it passes every gate and reports a smaller tip sigma (0: off;
+    MarkerTracker._wide_if_surer; 2: on the path-traced sets 2020-2727 it took 9 tips 0.01-0.19
+    mm nearer the truth and 2 others 0.07-0.09 mm further off; 1.5 changed 8 more pairs by
+    -0.05 to +0.03 mm). two_pairs_min_bars, two_pairs_margin
     [-]: a coded sleeve still lost for too few corners or without a start pose, whose views each
     show a chain of only two corners (seen steeply, the next corners fail the X-corner test), is
     put on the chord those two stereo pairs fix, turned to the sleeve axis their edges show, in
@@ -212,6 +218,7 @@ class TrackerSettings:
     other_view_depths_m: tuple[float, float] = (0.015, 0.3)
     reduced_scales: tuple[int, ...] = (2, 3, 4)
     wide_sigma_px: float = 8.0
+    wide_residual_factor: float = 2.0
     two_pairs_min_bars: int = 24
     two_pairs_margin: float = 1.4
 
@@ -227,6 +234,9 @@ class TrackerSettings:
         if not float(self.wide_sigma_px) >= 0:  # NaN too
             raise InputError(f"TrackerSettings.wide_sigma_px must be >= 0 [px] (4 or less: off), "
                              f"got {self.wide_sigma_px}")
+        if not (float(self.wide_residual_factor) == 0 or float(self.wide_residual_factor) >= 1):  # NaN too
+            raise InputError(f"TrackerSettings.wide_residual_factor must be 0 (off) or >= 1, "
+                             f"got {self.wide_residual_factor}")
         if int(self.eroded_min_clipped_px) < 0:
             raise InputError(f"TrackerSettings.eroded_min_clipped_px must be >= 0, got {self.eroded_min_clipped_px}")
         if not float(self.max_dy_px) > 0:  # NaN too

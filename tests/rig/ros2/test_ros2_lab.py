@@ -96,6 +96,16 @@ def c_cycles(res: dict[str, Any]) -> int:
     return int(res["closed_loop"]["cycles"])
 
 
+def assert_the_marker_stayed_in_sight(c: dict[str, Any]) -> None:
+    """A run's lost cycles (``closed_loop``), told apart. A cycle without a new frame steps on the
+    last measurement: the lab's 15 fps camera under the 60 ms loop leaves one cycle in ten without
+    one (measured 6 of 51 on the point, 7-8 of 67 on the tendon arm's cube), a loaded host's late
+    frames more, so at most twice that. A frame that came and gave no measurement is the tracker's
+    (0-2 of 67 measured on the tendon arm's cube, idle and beside a busy core): at most 3."""
+    assert c["reused"] == c["no_frame"] <= 0.2 * c["cycles"], c
+    assert c["lost"] - c["no_frame"] <= 3, c
+
+
 def test_the_loop_drives_the_virtual_lab_over_ros2(cli_lab: dict[str, Any], tmp_path: Path) -> None:
     lab = cli_lab
     p = servo(lab, tmp_path, "--trajectory", "point", "--point", "0.0797", "0.0", "0.1449", "--duration", "3",
@@ -107,7 +117,8 @@ def test_the_loop_drives_the_virtual_lab_over_ros2(cli_lab: dict[str, Any], tmp_
     assert res["link"]["kind"] == "ros2" and res["link"]["port"] == f"ros2:/{lab['ns']}" and res["link"]["realtime"]
     assert res["link"]["sent"] > c_cycles(res) and res["link"]["malformed_measured_js"] == 0
     assert res["sensor"] == "vision (camera)" and res["frames"]["wall_clock"]
-    assert c["cycles"] >= 40 and c["lost"] <= 10 and c["rejected"] <= 2, c
+    assert c["cycles"] >= 40 and c["rejected"] <= 2, c
+    assert_the_marker_stayed_in_sight(c)
     assert c["mean_mm"] < 0.6, c
     assert res["safe_stop"]["held_and_disabled"] and res["ros2"]["publish_errors"] == 0
     truth = np.loadtxt(lab["truth"], delimiter=",", skiprows=1)
@@ -224,7 +235,8 @@ def test_the_loop_walks_a_format2_arm_on_the_ros2_lab(tmp_path: Path) -> None:
     assert res["link"]["kind"] == "ros2" and res["link"]["malformed_measured_js"] == 0 and res["link"]["sent"] > 50
     assert len(actuator_names(load_arm(robot))) == 10
     assert "psi_cmd_theta3" in (tmp_path / "run" / "log.csv").read_text().splitlines()[0]
-    assert c["cycles"] >= 50 and c["lost"] <= 10 and res["safe_stop"]["held_and_disabled"], c  # as the point above
+    assert c["cycles"] >= 50 and res["safe_stop"]["held_and_disabled"], c
+    assert_the_marker_stayed_in_sight(c)  # as the point above
     assert res["ros2"]["publish_errors"] == 0
     true = error_stats(true_tip_errors(tmp_path / "run" / "log.csv", lab["truth"]))
     print(f"\ntendon3 over ROS 2: true tip {true.mean_mm:.3f} / {true.max_mm:.3f} mm over {true.n} cycles; "

@@ -1,7 +1,7 @@
 """The tracker on rendered walks of an arm, two or more tracker settings side by side.
 
 Usage: python bench/tracker_walks.py --compare {facing,chain_polarity,tip_sigma,bars_gate,partners,
-           reduced,stereo_dy,single_view,wide_windows,two_pairs,blur_fit} [--robot tendon3] [--marker FILE]
+           reduced,stereo_dy,single_view,wide_windows,two_pairs,blur_fit,small_fit} [--robot tendon3] [--marker FILE]
            [--image-scale 0.25] [--walks 20] [--first-walk 0] [--frames 40] [--spread 0.02]
            [--wide] [--wrong-mm 1.5]
 Prints JSON. Each walk starts at the arm's home plus a seeded offset of ``--spread`` [rad or m]
@@ -43,7 +43,11 @@ Comparisons:
                   (MarkerTracker._retry_two_pairs; needs ``--marker configs/marker_coded.yaml``).
   blur_fit        bar edges by the largest gradient alone (``edge_blur_fit_px`` 0) and the
                   default, where a blurred edge the gradient refuses is measured by a fitted
-                  blurred step (print_edges.measure_edges).
+                  blurred step (print_edges.measure_edges);
+  small_fit       a fit whose corners are under 23 px apart judged by the tip-sigma gate
+                  alone (``max_small_fit_tip_sigma_m`` inf), the default, which also holds it to
+                  its residual (MarkerTracker._small_fit_sigma), and the default with the
+                  enlarged search of a lost pair (``magnify`` 2; docs/notes/steep-views.md).
 """
 
 from __future__ import annotations
@@ -87,6 +91,8 @@ COMPARISONS: dict[str, dict[str, TrackerSettings]] = {
     "wide_windows": {"without_wide_windows": TrackerSettings(wide_sigma_px=0.0), "default": TrackerSettings()},
     "two_pairs": {"without_two_pairs": TrackerSettings(two_pairs_min_bars=0), "default": TrackerSettings()},
     "blur_fit": {"without_blur_fit": TrackerSettings(edge_blur_fit_px=0.0), "default": TrackerSettings()},
+    "small_fit": {"without_small_fit_gate": TrackerSettings(max_small_fit_tip_sigma_m=np.inf),
+                  "default": TrackerSettings(), "magnified": TrackerSettings(magnify=2.0)},
 }
 
 

@@ -104,7 +104,12 @@ class TrackerSettings:
     residual over it (held-out path-traced 2525/33: 21 px apart, 0.61 px, 0.53 mm off, refused
     at 0.62 mm). gate_contrast_noise 0 or
     max_contrast_tip_sigma_m inf disables (cvs.tracking.arm_set applies the same gate after
-    clearing each arm's corners). edge_sigma_px [px], edge_max_rms_px [px], edge_min_samples,
+    clearing each arm's corners). max_small_fit_tip_sigma_m [m]: one arm's other fits under
+    gate_min_spacing_px are judged the same way (every corner at corner_sigma_px times the fit's
+    residual over it) against this bound, and report that sigma (inf: neither): in the loop at
+    0.25 and 0.35 x 1080p, 5800 such fits of four arms stayed under 0.95 mm, where two wrong ones
+    (single_tendon at 0.25 x, 3 corners 9 px apart at 0.37-0.67 px, 17-18 mm off) gave 2.8 and
+    5.2 mm (docs/notes/steep-views.md). edge_sigma_px [px], edge_max_rms_px [px], edge_min_samples,
     edge_min_spacing_px [px]: a
     good, oriented result is solved again from its corners and the centre lines of the print's
     dark bars (cvs.tracking.print_edges: the checker patches, and a coded sleeve's code cells
@@ -202,6 +207,7 @@ class TrackerSettings:
     gate_contrast_noise: float = 7.0
     max_contrast_tip_sigma_m: float = 0.5e-3
     gate_min_spacing_px: float = 23.0
+    max_small_fit_tip_sigma_m: float = 1.5e-3
     paper_detector: DetectorSettings = field(default_factory=DetectorSettings)
     magnify_below_px: float = 20.0
     edge_sigma_px: float = 0.5
@@ -268,6 +274,9 @@ class TrackerSettings:
         if not 0 <= float(self.foreshortening_blur_px) < float("inf"):
             raise InputError(f"TrackerSettings.foreshortening_blur_px must be >= 0 [px], "
                              f"got {self.foreshortening_blur_px}")
+        if not float(self.max_small_fit_tip_sigma_m) > 0:
+            raise InputError(f"TrackerSettings.max_small_fit_tip_sigma_m must be > 0 (inf: off), "
+                             f"got {self.max_small_fit_tip_sigma_m}")
         if not float(self.max_contrast_tip_sigma_m) > 0:
             raise InputError(f"TrackerSettings.max_contrast_tip_sigma_m must be > 0 (inf: off), "
                              f"got {self.max_contrast_tip_sigma_m}")

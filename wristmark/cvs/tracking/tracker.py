@@ -119,6 +119,7 @@ _REDUCED_REASONS = (*_FEW_CORNER_REASONS, "no start pose")
 # how the tip-sigma gate's refusal ends, after which the print's bars are weighed in (_retry_with_bars)
 _TIP_SIGMA_CAUSE = "to fix the marker's tilt)"
 _CONTRAST_GATE_CAUSE = "at the corners' contrast noise and residuals"  # contrast_gate's refusal
+_SMALL_FIT_CAUSE = "at a small marker's corner noise and residuals"  # contrast_gate's, under gate_min_spacing_px
 # the timings keys of a result whose corners were fitted again with their clipped pixels censored
 # (MarkerTracker._retry_reduced, _retry_eroded): its reported sigma counts its clipped corners noisier
 _CLIPPED_REFITS = ("reduced_refit", "eroded_refit")
@@ -471,27 +472,30 @@ class MarkerTracker:
                                   self.settings.corner_sigma_px, sig)
 
     def _contrast_sigmas(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],
-                         contrast_noise: float | None, clipped: bool = False
+                         contrast_noise: float | None, clipped: bool = False, small: bool = False
                          ) -> tuple[IntArray, IntArray, tuple[Array, Array], float] | None:
         """:meth:`contrast_tip_sigma`'s corner noise: the used corners' model indices of each
         view, their contrast noise [px] and the fit's residual factor; None where the gate does
         not apply. ``clipped``: each corner with a pixel of ``clipped_level`` or more within
         ``clipped_radius`` times the chains' spacing is ``clipped_sigma_px`` noisier, as in the
-        tip-sigma gate; None where no corner is."""
+        tip-sigma gate; None where no corner is. Under ``gate_min_spacing_px`` only fits on gap
+        chains are judged, unless ``small`` (:meth:`_small_fit_sigma`): every corner at
+        ``corner_sigma_px``, the fit's residual factor judging."""
         m, pose, s = res.match, res.pose, self.settings
         noise = s.gate_contrast_noise if contrast_noise is None else float(contrast_noise)
         if m is None or pose is None or noise <= 0:
             return None
         spacing = _median_spacing(res.corners_left, res.corners_right)
         floor = spacing < s.gate_min_spacing_px  # too close together for the contrast relation
-        if floor and _GAP_FIT not in res.timings:
+        if floor and not small and _GAP_FIT not in res.timings:
             return None
         kl, kr = m.index_left >= 0, m.index_right >= 0
         in_l, in_r = np.asarray(pose.inliers_left, bool), np.asarray(pose.inliers_right, bool)
         idx_l, idx_r = m.index_left[kl][in_l], m.index_right[kr][in_r]
         ul, ur = res.corners_left[kl][in_l], res.corners_right[kr][in_r]
         own = res.corner_sigmas  # the weighted solve's, of every matched corner, at solve_contrast_noise
-        if floor:  # chains stepping over a missed corner: each corner at corner_sigma_px, the residual judges
+        if floor:  # chains stepping over a missed corner, or a small fit: each corner at corner_sigma_px,
+            # the residual judges
             sig = (np.full(ul.shape[0], s.corner_sigma_px), np.full(ur.shape[0], s.corner_sigma_px))
         elif (own is not None and noise == s.solve_contrast_noise
                 and (own[0].size, own[1].size) == (in_l.size, in_r.size)):
@@ -517,6 +521,15 @@ class MarkerTracker:
         factor = max(1.0, float(np.sqrt(chi2 / dof))) if dof > 0 else 1.0
         return idx_l, idx_r, sig, factor
 
+    def _small_fit_sigma(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]]) -> float:
+        """The tip's standard deviation [m] of a fit whose corners are under
+        ``gate_min_spacing_px`` apart (and not on gap chains, which the contrast gate judges so
+        already): every corner at ``corner_sigma_px`` times the fit's residual factor; 0 where
+        there is no fit. A small marker's good fits stay under 1 mm; a wrong one (three corners
+        of a 9 px chain taken along the wrong line, 17 mm off) reprojects 4-7 times worse."""
+        got = self._contrast_sigmas(res, views, None, small=True)
+        return 0.0 if got is None else self._sigma_at(res, got)
+
     def _reported_sigma(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],
                         contrast_noise: float | None, sigma: float) -> float:
         """The ``tip_sigma_m`` a result reports: its contrast gate's ``sigma`` [m]; where the
@@ -531,11 +544,15 @@ class MarkerTracker:
         return sigma if got is None else self._sigma_at(res, got)
 
     def contrast_gate(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],
-                      contrast_noise: float | None = None, max_sigma_m: float | None = None) -> TrackResult:
+                      contrast_noise: float | None = None, max_sigma_m: float | None = None,
+                      small_fits: bool = False) -> TrackResult:
         """``res`` when it is not ok or its :meth:`contrast_tip_sigma` is at most ``max_sigma_m``
         (default ``settings.max_contrast_tip_sigma_m``); else the same result ok false, without
         its tip and pose (``pose`` and ``match`` kept), the reason saying by how much the tip is
-        uncertain (docs/notes/highlight-stripe.md, docs/notes/several-arms.md)."""
+        uncertain (docs/notes/highlight-stripe.md, docs/notes/several-arms.md). With
+        ``small_fits`` (one arm's tracking), a fit whose corners are too close together for that
+        gate is held to ``settings.max_small_fit_tip_sigma_m`` instead (:meth:`_small_fit_sigma`,
+        docs/notes/steep-views.md), and reports that sigma."""
         bound = self.settings.max_contrast_tip_sigma_m if max_sigma_m is None else float(max_sigma_m)
         self._gate_residual = float("nan")
         if not res.ok or not np.isfinite(bound):
@@ -546,6 +563,15 @@ class MarkerTracker:
         self._gate_residual = float("nan") if got is None else got[3]
         if sigma > 0:  # 0: the gate does not apply (no fit, or corners too close together)
             res = replace(res, tip_sigma_m=self._reported_sigma(res, views, contrast_noise, sigma))
+        elif small_fits and np.isfinite(self.settings.max_small_fit_tip_sigma_m):
+            small = self._small_fit_sigma(res, views)
+            if small > 0:
+                res = replace(res, tip_sigma_m=small)
+            if small > self.settings.max_small_fit_tip_sigma_m:
+                res.timings["contrast_gate"] = 1e3 * (time.perf_counter() - t)
+                return replace(res, ok=False, tip_left=None, tip_world=None, T_left_marker=None, reason=(
+                    f"the tip is uncertain by {1e3 * small:.2f} mm {_SMALL_FIT_CAUSE} "
+                    "(corners that fit worse than a small marker's corners do)"))
         res.timings["contrast_gate"] = 1e3 * (time.perf_counter() - t)
         if sigma <= bound:
             return res
@@ -866,7 +892,7 @@ class MarkerTracker:
         if res.ok and self.settings.edge_sigma_px > 0:
             res = self._edge_refined(res, views)
         if res.ok and gate:
-            res = self.contrast_gate(res, views)
+            res = self.contrast_gate(res, views, small_fits=True)
         return res
 
     def _retry_wide_windows(self, res: TrackResult, views: tuple[Any, Any], t0: float,

@@ -38,9 +38,10 @@ class TrackResult:
     again with their clipped pixels censored, each corner beside a clipped pixel clipped_sigma_px
     noisier (on the path-traced sets no tracked tip was more than 2.5 of it off,
     docs/notes/highlight-stripe.md); under TrackerSettings.gate_min_spacing_px of spacing, for a
-    fit on chains that step over a missed corner, every corner at corner_sigma_px times the fit's
-    residual over it; NaN where not estimated (other corners under that spacing, where the
-    contrast relation overstates the noise, or the contrast gate off).
+    fit on chains that step over a missed corner, and for one arm's other fits there (the
+    small-fit gate, max_small_fit_tip_sigma_m), every corner at corner_sigma_px times the fit's
+    residual over it; NaN where not estimated (several arms' other fits under that spacing,
+    where the contrast relation overstates the noise, or the contrast gate off).
     """
 
     ok: bool

@@ -4,9 +4,11 @@ Usage: python bench/pbr_pool.py REPORT.json [REPORT.json ...] [--wrong-mm MM] [-
 Each REPORT is the JSON that ``bench/pbr_tracking.py`` printed for one set (a seed, its cache).
 Prints JSON: for each set and for all the pairs together, the tracked count and rate, wrong
 (tip more than ``--wrong-mm`` off), the tip error mean and largest [mm], the coded sleeve's
-roll-known count and rate and its rotation error mean [deg], and the pairs lost (``SEED/PAIR``
-with the reason). The targets of issue #33 are stated per set of at least 60 pairs; pooling the
-sets is the same measurement on more pairs.
+roll-known count and rate and its rotation error mean [deg], the pairs lost (``SEED/PAIR``
+with the reason) and, for the default tracker, its used corners at the truth by the search that
+kept them (``corner_errors``: :func:`corner_summary`; reports of 7 December 2026 on). The
+targets of issue #33 are stated per set of at least 60 pairs; pooling the sets is the same
+measurement on more pairs.
 """
 
 from __future__ import annotations
@@ -18,6 +20,22 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+
+def corner_summary(corners: list[dict[str, Any]]) -> dict[str, Any]:
+    """Corners at the truth (bench/pbr_tracking.py's rows: search, near_clipped, error_px (x, y),
+    solve_sigma_px), per search and clipped or not: how many, the RMS error per coordinate [px],
+    the median, 90th percentile and largest distance [px], and the solve's median noise [px]."""
+    out: dict[str, Any] = {}
+    for search, near in sorted({(c["search"], c["near_clipped"]) for c in corners}):
+        sel = [c for c in corners if (c["search"], c["near_clipped"]) == (search, near)]
+        e = np.array([c["error_px"] for c in sel], float)
+        d = np.hypot(e[:, 0], e[:, 1])
+        out[f"{search}, {'near' if near else 'not near'} clipped"] = {
+            "corners": len(sel), "rms_px": float(np.sqrt(np.mean(e**2))), "median_px": float(np.median(d)),
+            "p90_px": float(np.percentile(d, 90)), "max_px": float(d.max()),
+            "solve_sigma_median_px": float(np.nanmedian([c["solve_sigma_px"] for c in sel]))}
+    return out
 
 
 def _summary(rows: list[dict[str, Any]], tracker: str, wrong_mm: float) -> dict[str, Any]:
@@ -37,6 +55,7 @@ def _summary(rows: list[dict[str, Any]], tracker: str, wrong_mm: float) -> dict[
         "coded_roll_known_rate": len(known) / max(len(coded), 1),
         "coded_rotation_mean_deg": float(np.mean([r[tracker]["rot_deg"] for r in known])) if known else None,
         "lost": [f"{r['seed']}/{r['pair']}: {r[tracker]['reason']}" for r in rows if not r[tracker]["ok"]],
+        "corner_errors": corner_summary([c for r in ok for c in r[tracker].get("corners", [])]),
     }
 
 

@@ -17,10 +17,14 @@ an A/B of one setting on the same pairs): tracked rate, wrong (tip
 more than ``--wrong-mm`` off), tip error mean [mm], the coded sleeve's roll-known rate and
 rotation error mean [deg], median time [ms], and the tracked tips' errors over their own
 reported sigma (``TrackResult.tip_sigma_m``: median, 99th percentile, largest, how many beyond
-3, how many without one). ``--loop-hint`` gives the trackers the marker's true
-axis as the direction hint, as the servo loop gives the commanded model's. ``--cache DIR`` keeps
-the rendered pairs, so a tracker change is measured again on the same pairs without rendering
-(about 5 s a pair at half size, 25 s at 1080p here).
+3, how many without one), and the default tracker's corners at the truth (``corner_errors``: each
+used corner's distance from the nearest of the true pose's projected ring corners, by the search
+whose fit was kept, first, gap, reduced or eroded, and by whether a clipped pixel lies within
+``clipped_radius`` times the chain's spacing; with the solve's own noise for them).
+``--loop-hint`` gives the trackers the marker's true axis as the direction hint, as the servo loop
+gives the commanded model's. ``--cache DIR`` keeps the rendered pairs, so a tracker change is
+measured again on the same pairs without rendering (about 5 s a pair at half size, 25 s at 1080p
+here).
 """
 
 from __future__ import annotations
@@ -41,7 +45,9 @@ import numpy as np
 from wristmark.cli.render import psi_spread
 from wristmark.cvs.calibration.load import load_calibration
 from wristmark.cvs.camera import scaled_stereo_camera
+from wristmark.cvs.gray_image import to_gray
 from wristmark.cvs.tracking.settings import TrackerSettings
+from wristmark.cvs.tracking.tip_uncertainty import near_clipped
 from wristmark.cvs.tracking.tracker import MarkerTracker
 from wristmark.cvs.tracking.warmup import warm_up
 from wristmark.models.arm_shape import arm_shape
@@ -52,6 +58,9 @@ from wristmark.models.robot_params import RobotParams
 from wristmark.sim.render.pbr import PbrSettings, PbrStereoRenderer, load_mitsuba
 from wristmark.sim.render.settings import noise_preset
 from wristmark.sim.visibility import random_visible_psi
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from pbr_pool import corner_summary  # noqa: E402 - the pooled report's own summary of the corners
 
 
 def _tilt_deg(T: np.ndarray) -> float:
@@ -72,6 +81,39 @@ def _honesty(ok: list[dict]) -> dict[str, Any]:
         out = {"median": float(np.median(z)), "p99": float(np.percentile(z, 99)), "max": float(z.max()),
                "beyond_3": int((z > 3.0).sum())}
     return out | {"without_sigma": sum(not o.get("sigma_mm") for o in ok)}
+
+
+# the searches whose kept fits carry a timings key of their own (the first search: none of them)
+_SEARCHES = (("reduced", "reduced_refit"), ("eroded", "eroded_refit"), ("gap", "gap_chain_fit"))
+
+
+def _corner_errors(tr: MarkerTracker, r: Any, pair: Any) -> list[dict[str, Any]]:
+    """Each used corner of a good result ``r``: its search, whether it is near a clipped pixel,
+    its error (x, y) [px] from the nearest ring corner of the true pose, and the solve's noise [px]."""
+    m, pose = r.match, r.pose
+    if not r.ok or m is None or pose is None:
+        return []
+    search = next((name for name, key in _SEARCHES if key in r.timings), "first")
+    s = tr.settings
+    ring = tr.solver.marker_points(np.arange(tr.marker.columns))
+    T = np.asarray(pair.T_left_marker, float)
+    spacing = float(np.median(np.concatenate([np.hypot(*np.diff(c, axis=0).T) for c in (r.corners_left,
+                                                                                          r.corners_right)])))
+    out = []
+    for k, (corners, index, inliers, project, view) in enumerate((
+            (r.corners_left, m.index_left, pose.inliers_left, tr.camera.project_left, pair.left),
+            (r.corners_right, m.index_right, pose.inliers_right, tr.camera.project_right, pair.right))):
+        used = np.asarray(inliers, bool)
+        uv = corners[index >= 0][used]
+        if not len(uv):
+            continue
+        true = np.asarray(project(ring @ T[:3, :3].T + T[:3, 3]), float).reshape(-1, 2)
+        err = uv - true[np.linalg.norm(uv[:, None] - true[None], axis=2).argmin(1)]
+        near = near_clipped(to_gray(view), uv, s.clipped_radius * spacing, s.clipped_level)
+        noise = (np.full(len(uv), np.nan) if r.corner_sigmas is None else np.asarray(r.corner_sigmas[k])[used])
+        out += [{"search": search, "near_clipped": bool(n), "error_px": [round(float(e[0]), 4), round(float(e[1]), 4)],
+                 "solve_sigma_px": round(float(g), 4)} for e, n, g in zip(err, near, noise)]
+    return out
 
 
 @dataclass(frozen=True)
@@ -202,6 +244,8 @@ def main() -> int:
                 out["tip_mm"] = 1e3 * float(np.linalg.norm(r.tip_left - pair.tip_left))
                 out["rot_deg"] = _rotation_deg(r.T_left_marker[:3, :3], pair.T_left_marker[:3, :3])
                 out["sigma_mm"] = 1e3 * r.tip_sigma_m if np.isfinite(r.tip_sigma_m) else None
+                if k == "default":  # its used corners at the truth
+                    out["corners"] = _corner_errors(tr, r, pair)
             row[k] = out
         rows.append(row)
     report: dict = {"pairs": len(rows), "image_size": list(cam.image_size), "spp": a.spp, "seed": a.seed,
@@ -225,6 +269,7 @@ def main() -> int:
                       "tilt_deg": round(r["tilt_deg"], 1),
                       "reason": r[k]["reason"]} for r in rows if not r[k]["ok"]],
         }
+    report["default"]["corner_errors"] = corner_summary([c for r in rows for c in r["default"].get("corners", [])])
     report["rows"] = rows  # per pair: the draw and each tracker's result
     print(json.dumps(report, indent=1))
     return 0

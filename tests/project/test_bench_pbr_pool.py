@@ -48,6 +48,28 @@ def test_sets_are_summed_per_set_and_in_all(tmp_path: Path) -> None:
     assert today["all"]["tracked"] == 0 and len(today["all"]["lost"]) == 5
 
 
+def test_corners_at_the_truth_are_pooled_by_search_and_clipping(tmp_path: Path) -> None:
+    """Each tracked pair's used corners (bench/pbr_tracking.py's rows) pooled per search and
+    clipped or not: RMS per coordinate, distances, the solve's noise; a lost pair's none."""
+    def corner(search: str, near: bool, ex: float, ey: float) -> dict:
+        return {"search": search, "near_clipped": near, "error_px": [ex, ey], "solve_sigma_px": 0.1}
+    a = {"seed": 1, "rows": [_row(0, "reference", True, 0.04), _row(1, "coded", False)]}
+    a["rows"][0]["default"]["corners"] = [corner("first", False, 0.3, 0.4), corner("first", False, 0.0, 0.0),
+                                          corner("reduced", True, 0.6, 0.8)]
+    a["rows"][1]["default"]["corners"] = [corner("first", False, 9.0, 9.0)]  # lost: not counted
+    b = {"seed": 2, "rows": [_row(0, "reference", True, 0.05)]}
+    b["rows"][0]["default"]["corners"] = [corner("first", False, 0.0, 1.0)]
+    r = _pool(tmp_path, [a, b])
+    assert r.returncode == 0, r.stderr
+    every = json.loads(r.stdout)["all"]["corner_errors"]
+    assert sorted(every) == ["first, not near clipped", "reduced, near clipped"]
+    first = every["first, not near clipped"]
+    assert first["corners"] == 3 and first["max_px"] == pytest.approx(1.0)
+    assert first["rms_px"] == pytest.approx(((0.09 + 0.16 + 1.0) / 6) ** 0.5)
+    assert first["median_px"] == pytest.approx(0.5) and first["solve_sigma_median_px"] == pytest.approx(0.1)
+    assert every["reduced, near clipped"]["p90_px"] == pytest.approx(1.0)
+
+
 def test_a_file_that_is_not_a_report_is_one_line_and_exit_2(tmp_path: Path) -> None:
     r = _pool(tmp_path, [{"seed": 1}])
     assert r.returncode == 2 and "not a report of bench/pbr_tracking.py" in r.stderr

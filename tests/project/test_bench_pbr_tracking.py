@@ -63,5 +63,8 @@ def test_pairs_rendered_and_kept_are_tracked_again_the_same_from_the_cache(tmp_p
     assert a["pairs"] == 2 and a["image_size"] == [960, 540]
     assert [r["sleeve"] for r in a["rows"]] == ["reference", "coded"]
     assert a["default"]["tracked_rate"] > 0  # half-size pairs: measured 2 of 2 (0.45 and 0.15 mm)
+    # the tracked pairs' corners at the truth, by search: the first search's within a pixel
+    first = a["default"]["corner_errors"]["first, not near clipped"]
+    assert first["corners"] >= 3 and first["rms_px"] < 0.5 and first["max_px"] < 1.5
     # the kept pairs are the rendered ones, bit for bit (NaN, a lost pair's RMS, compared as text)
     assert json.dumps(_stripped(a), sort_keys=True) == json.dumps(_stripped(b), sort_keys=True)

@@ -1,7 +1,8 @@
 """The tracker on rendered walks of an arm, two or more tracker settings side by side.
 
 Usage: python bench/tracker_walks.py --compare {facing,chain_polarity,tip_sigma,bars_gate,partners,
-           reduced,stereo_dy,single_view,wide_windows,two_pairs,blur_fit,small_fit} [--robot tendon3] [--marker FILE]
+           reduced,stereo_dy,single_view,wide_windows,two_pairs,blur_fit,small_fit,
+           reduced_noise} [--robot tendon3] [--marker FILE]
            [--image-scale 0.25] [--walks 20] [--first-walk 0] [--frames 40] [--spread 0.02]
            [--wide] [--wrong-mm 1.5]
 Prints JSON. Each walk starts at the arm's home plus a seeded offset of ``--spread`` [rad or m]
@@ -47,7 +48,11 @@ Comparisons:
   small_fit       a fit whose corners are under 23 px apart judged by the tip-sigma gate
                   alone (``max_small_fit_tip_sigma_m`` inf), the default, which also holds it to
                   its residual (MarkerTracker._small_fit_sigma), and the default with the
-                  enlarged search of a lost pair (``magnify`` 2; docs/notes/steep-views.md).
+                  enlarged search of a lost pair (``magnify`` 2; docs/notes/steep-views.md);
+  reduced_noise   the reduced search's corners counted as the first search's, 1 px beside
+                  clipped pixels (``reduced_sigma_px`` 0), and the default, where a reduced fit
+                  that passes only at their measured 0.5 px is the pair's last resort
+                  (MarkerTracker._last_resort; docs/notes/highlight-stripe.md).
 """
 
 from __future__ import annotations
@@ -93,6 +98,7 @@ COMPARISONS: dict[str, dict[str, TrackerSettings]] = {
     "blur_fit": {"without_blur_fit": TrackerSettings(edge_blur_fit_px=0.0), "default": TrackerSettings()},
     "small_fit": {"without_small_fit_gate": TrackerSettings(max_small_fit_tip_sigma_m=np.inf),
                   "default": TrackerSettings(), "magnified": TrackerSettings(magnify=2.0)},
+    "reduced_noise": {"clipped_model": TrackerSettings(reduced_sigma_px=0.0), "default": TrackerSettings()},
 }
 
 

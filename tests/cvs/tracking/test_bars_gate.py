@@ -30,11 +30,26 @@ def _tip_mm(r, truth: dict) -> float:
 
 
 def test_the_steep_sleeve_is_refused_on_its_corners_alone(pair) -> None:
-    """Path-traced seed 1010 pair 15 (44 deg from square): 3 corners a view, tip sigma 1.05 mm."""
+    """Path-traced seed 1010 pair 15 (44 deg from square): 3 corners a view, tip sigma 1.05 mm
+    (the reduced search's last resort off: below)."""
     left, right, _ = pair
-    r = MarkerTracker(CAM, CODED, TrackerSettings(bars_gate=False)).track(left, right)
+    r = MarkerTracker(CAM, CODED, TrackerSettings(bars_gate=False, reduced_sigma_px=0.0)).track(left, right)
     assert not r.ok and r.reason.startswith("the tip is uncertain by") and "to fix the marker's tilt" in r.reason
     assert "bars_gate" not in r.timings
+
+
+def test_without_the_bars_the_reduced_search_is_its_last_resort(pair) -> None:
+    """Without the bars' retry the reduced search finds the same 3 corners a view, and with each
+    at its measured noise (reduced_sigma_px) the fit passes: kept as the last resort, 0.05 mm
+    off, reporting 0.75 mm of sigma where the bars' fit reports 0.07 mm."""
+    left, right, truth = pair
+    r = MarkerTracker(CAM, CODED, TrackerSettings(bars_gate=False)).track(left, right)
+    assert r.ok and r.tip_left is not None, r.reason
+    assert "reduced_refit" in r.timings and "bars_gate" not in r.timings
+    assert _tip_mm(r, truth) < 0.1
+    with_bars = MarkerTracker(CAM, CODED).track(left, right)
+    assert with_bars.ok and "reduced_refit" not in with_bars.timings
+    assert r.tip_sigma_m > 5.0 * with_bars.tip_sigma_m
 
 
 def test_with_the_bars_weighed_in_it_is_tracked_and_right(pair) -> None:
@@ -58,7 +73,8 @@ def test_it_is_tracked_again_on_the_next_pair(pair) -> None:
     assert _tip_mm(second, truth) < 0.1
 
 
-@pytest.mark.parametrize("settings", [TrackerSettings(edge_sigma_px=0.0), TrackerSettings(edge_min_samples=10_000)],
+@pytest.mark.parametrize("settings", [TrackerSettings(edge_sigma_px=0.0, reduced_sigma_px=0.0),
+                                      TrackerSettings(edge_min_samples=10_000, reduced_sigma_px=0.0)],
                          ids=["bars_off", "too_few_bars"])
 def test_without_enough_bars_the_refusal_stands(pair, settings: TrackerSettings) -> None:
     left, right, _ = pair

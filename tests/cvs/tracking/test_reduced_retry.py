@@ -69,6 +69,25 @@ def test_the_reduced_chain_is_in_the_views_own_pixels_and_coarser_than_the_refit
         assert np.mean(_offsets(refit, project, truth)) < np.mean(coarse)
 
 
+def test_a_steep_reference_beside_clipped_whites_is_tracked_at_the_reduced_corners_noise() -> None:
+    """Held-out path-traced 2626/26 (tests/data/pbr/reference_reduced_steep): a reference sleeve
+    48 mm deep, 44.5 deg from square, blurred, its whites clipped beside two of its three corners a
+    view; only the views reduced show them. At reduced_sigma_px (0.5 px: the reduced search's
+    corners as measured, clipped or not) the tip is uncertain by 0.74 mm and is 0.13 mm off; with
+    clipped corners counted at clipped_sigma_px (1 px), as before, the pair was refused at 1.3 mm."""
+    left, right, truth = load_pbr_pair("reference_reduced_steep")
+    cam = load_calibration(str(default_config("camera.yaml")))
+    r = MarkerTracker(cam, MarkerModel()).track(left, right)
+    assert r.ok and r.tip_left is not None, r.reason
+    assert "reduced_refit" in r.timings
+    err = float(np.linalg.norm(r.tip_left - np.asarray(truth["tip_left"])))
+    assert err < 0.3e-3
+    # reported at the noise its gate counted: within the gate, and honest for this pair
+    assert err < 3 * r.tip_sigma_m <= 3 * TrackerSettings().max_tip_sigma_m
+    before = MarkerTracker(cam, MarkerModel(), TrackerSettings(reduced_sigma_px=0)).track(left, right)
+    assert not before.ok and "reduced" in before.timings and "reduced_refit" not in before.timings
+
+
 def test_a_reduction_must_be_an_integer_of_two_or_more(pair) -> None:
     left = pair[0]
     for k in (1, 0, 2.5, True):
@@ -78,6 +97,9 @@ def test_a_reduction_must_be_an_integer_of_two_or_more(pair) -> None:
         with pytest.raises(InputError, match="reduced_scales"):
             TrackerSettings(reduced_scales=scales)  # type: ignore[arg-type]
     assert TrackerSettings(reduced_scales=[3, 2]).reduced_scales == (3, 2)  # type: ignore[arg-type]
+    for noise in (-0.1, float("nan")):
+        with pytest.raises(InputError, match="reduced_sigma_px must be >= 0"):
+            TrackerSettings(reduced_sigma_px=noise)
 
 
 def test_a_tiny_image_has_no_reduced_chain() -> None:

@@ -149,7 +149,17 @@ class TrackerSettings:
     averaging; a sleeve close to the lens or out of focus, its corners blurred over several pixels,
     fails the X-corner test at full and half scale), its corners then fitted on the views themselves
     as in the eroded search, under the same gates; the first factor that passes is kept (empty: off;
-    MarkerTracker._retry_reduced). wide_sigma_px [px]: a fit the contrast gate refused whose
+    MarkerTracker._retry_reduced). reduced_sigma_px [px]: the noise of each corner of the reduced
+    search's fits (its place from the reduced view or, beside clipped pixels, fitted again with them
+    censored): a reduced fit that passes the tip-sigma gates (max_tip_sigma_m) only with every
+    corner at this noise is the pair's last resort, used where every later search leaves it lost
+    (MarkerTracker._last_resort), and every reduced result reports its sigma at it; measured
+    0.24-0.35 px RMS per coordinate on the held-out path-traced sets 2020-2828, beside clipped
+    pixels or not, where the contrast relation says 0.12 px (bench/pbr_tracking.py, corner_errors:
+    the gates, counting those beside clipped pixels at clipped_sigma_px, refused steep references
+    0.13-0.30 mm off at 1.08-1.34 mm; docs/notes/highlight-stripe.md); 0: off (the results report
+    each corner beside a clipped pixel clipped_sigma_px noisier). wide_sigma_px [px]: a fit the
+    contrast gate refused whose
     corners lie further apart than the detector's HTM window serves (its Gaussian weights, 0.12
     times the distance to the nearest other corner, stop at 4 px: a corner more than ~33 px from
     the next, close to the lens and blurred by defocus, is fitted from its noisy centre alone) has
@@ -223,6 +233,7 @@ class TrackerSettings:
     other_view_cl_scale: float = 0.5
     other_view_depths_m: tuple[float, float] = (0.015, 0.3)
     reduced_scales: tuple[int, ...] = (2, 3, 4)
+    reduced_sigma_px: float = 0.5
     wide_sigma_px: float = 8.0
     wide_residual_factor: float = 2.0
     two_pairs_min_bars: int = 24
@@ -237,6 +248,9 @@ class TrackerSettings:
         if any(not isinstance(k, int) or isinstance(k, bool) or k < 2 for k in scales):
             raise InputError(f"TrackerSettings.reduced_scales must be integers >= 2 (empty: off), got {scales}")
         object.__setattr__(self, "reduced_scales", scales)
+        if not float(self.reduced_sigma_px) >= 0:  # NaN too
+            raise InputError(f"TrackerSettings.reduced_sigma_px must be >= 0 [px] (0: the clipped-pixel model), "
+                             f"got {self.reduced_sigma_px}")
         if not float(self.wide_sigma_px) >= 0:  # NaN too
             raise InputError(f"TrackerSettings.wide_sigma_px must be >= 0 [px] (4 or less: off), "
                              f"got {self.wide_sigma_px}")

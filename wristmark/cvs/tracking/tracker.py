@@ -190,6 +190,7 @@ class MarkerTracker:
         # this pair's fits refused as hinging on single-view corners (_retry_partners)
         self._hinged: list[tuple[Array, Array, Array, Array, MarkerPose, StereoMatch]] = []
         self._gap_chains: tuple[Any, Any] | None = None  # this pair's chains (CornerChain), from _retry_with_gaps
+        self._reduced_last_resort: TrackResult | None = None  # this pair's reduced fit for the end (_last_resort)
         self._gate_residual = float("nan")  # the last contrast gate's residual factor (_wide_if_surer)
         self._views: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None  # the pair track() is on
         self._use_second = self.settings.detector == "auto" and type(self.detector_left).__name__ != (
@@ -222,6 +223,7 @@ class MarkerTracker:
         self._misfits = []
         self._hinged = []
         self._gap_chains = None
+        self._reduced_last_resort = None
         il = check_view(left_img, self.camera.image_size, "left")
         ir = check_view(right_img, self.camera.image_size, "right")
         self._views = (il, ir)  # the tip-sigma gate looks at each used corner here
@@ -296,6 +298,9 @@ class MarkerTracker:
                 _ERODED_REASONS):
             res = self._retry_two_pairs(res, (to_gray(il), to_gray(ir)), t0)
             found = found or res.ok
+        if not res.ok and self._reduced_last_resort is not None:
+            res = self._last_resort(res, (il, ir), axis_hint_left, gate)
+            found = found or res.pose is not None
         self._tracking = found  # an ambiguous direction keeps the corners' ROIs
         self._last_pose = res.pose if found else None
         self._last_oriented = res.ok
@@ -472,7 +477,8 @@ class MarkerTracker:
                                   self.settings.corner_sigma_px, sig)
 
     def _contrast_sigmas(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],
-                         contrast_noise: float | None, clipped: bool = False, small: bool = False
+                         contrast_noise: float | None, clipped: bool = False, small: bool = False,
+                         noise_px: float | None = None
                          ) -> tuple[IntArray, IntArray, tuple[Array, Array], float] | None:
         """:meth:`contrast_tip_sigma`'s corner noise: the used corners' model indices of each
         view, their contrast noise [px] and the fit's residual factor; None where the gate does
@@ -480,21 +486,24 @@ class MarkerTracker:
         ``clipped_radius`` times the chains' spacing is ``clipped_sigma_px`` noisier, as in the
         tip-sigma gate; None where no corner is. Under ``gate_min_spacing_px`` only fits on gap
         chains are judged, unless ``small`` (:meth:`_small_fit_sigma`): every corner at
-        ``corner_sigma_px``, the fit's residual factor judging."""
+        ``corner_sigma_px``, the fit's residual factor judging. ``noise_px``: every corner at this
+        noise [px] instead (the reduced search's, :meth:`_reported_sigma`), at any spacing."""
         m, pose, s = res.match, res.pose, self.settings
         noise = s.gate_contrast_noise if contrast_noise is None else float(contrast_noise)
         if m is None or pose is None or noise <= 0:
             return None
         spacing = _median_spacing(res.corners_left, res.corners_right)
         floor = spacing < s.gate_min_spacing_px  # too close together for the contrast relation
-        if floor and not small and _GAP_FIT not in res.timings:
+        if floor and not small and _GAP_FIT not in res.timings and noise_px is None:
             return None
         kl, kr = m.index_left >= 0, m.index_right >= 0
         in_l, in_r = np.asarray(pose.inliers_left, bool), np.asarray(pose.inliers_right, bool)
         idx_l, idx_r = m.index_left[kl][in_l], m.index_right[kr][in_r]
         ul, ur = res.corners_left[kl][in_l], res.corners_right[kr][in_r]
         own = res.corner_sigmas  # the weighted solve's, of every matched corner, at solve_contrast_noise
-        if floor:  # chains stepping over a missed corner, or a small fit: each corner at corner_sigma_px,
+        if noise_px is not None:  # a search whose corners were measured at one noise
+            sig = (np.full(ul.shape[0], float(noise_px)), np.full(ur.shape[0], float(noise_px)))
+        elif floor:  # chains stepping over a missed corner, or a small fit: each corner at corner_sigma_px,
             # the residual judges
             sig = (np.full(ul.shape[0], s.corner_sigma_px), np.full(ur.shape[0], s.corner_sigma_px))
         elif (own is not None and noise == s.solve_contrast_noise
@@ -503,7 +512,7 @@ class MarkerTracker:
         else:
             sig = (corner_sigmas(views[0], ul, s.corner_sigma_px, noise),
                    corner_sigmas(views[1], ur, s.corner_sigma_px, noise))
-        if clipped and s.clipped_sigma_px > 0:
+        if clipped and s.clipped_sigma_px > 0 and noise_px is None:
             near = [near_clipped(view, uv, s.clipped_radius * spacing, s.clipped_level) if len(uv) else
                     np.zeros(0, bool) for view, uv in zip(views, (ul, ur))]
             if not (near[0].any() or near[1].any()):
@@ -536,11 +545,17 @@ class MarkerTracker:
         result's corners were fitted again with their clipped pixels censored (the reduced and
         eroded searches: such corners are 0.3-0.9 px off), with each used corner near a clipped
         pixel ``clipped_sigma_px`` noisier (:meth:`_contrast_sigmas`, ``clipped``), as those
-        searches' own gate counts them. Elsewhere a clipped white beside a corner does not move it
-        (0.13 px RMS against 0.15 px for the others on path-traced pairs), and is not counted."""
+        searches' own gate counts them; the reduced search's, with ``settings.reduced_sigma_px`` (>
+        0), with every corner at that noise (its corners were measured so, clipped or not), times
+        the fit's residual over it where that is the larger. Elsewhere a clipped white beside a
+        corner does not move it (0.13 px RMS against 0.15 px for the others on path-traced pairs),
+        and is not counted."""
         if not any(k in res.timings for k in _CLIPPED_REFITS):
             return sigma
-        got = self._contrast_sigmas(res, views, contrast_noise, clipped=True)
+        if "reduced_refit" in res.timings and self.settings.reduced_sigma_px > 0:
+            got = self._contrast_sigmas(res, views, contrast_noise, noise_px=self.settings.reduced_sigma_px)
+        else:
+            got = self._contrast_sigmas(res, views, contrast_noise, clipped=True)
         return sigma if got is None else self._sigma_at(res, got)
 
     def contrast_gate(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],
@@ -1114,49 +1129,83 @@ class MarkerTracker:
         reduced view: a plain HTM fit in the same window was further off on the path-traced pairs)
         and solved again under the same gates and the clipped-noise tip gate (as
         :meth:`_retry_eroded`); the first factor whose refitted corners pass is kept, else
-        ``res``. Paper detector only (not the saddle)."""
+        ``res``. With ``settings.reduced_sigma_px`` (> 0), where no factor passes so, the first
+        fit that passes both tip-sigma gates with every corner at that noise (as measured for this
+        search's corners, beside clipped pixels or not) is kept for :meth:`_last_resort`; every
+        result of this search reports its sigma at that noise (:meth:`_reported_sigma`). Paper
+        detector only (not the saddle)."""
         scales = self.settings.reduced_scales
         dets = (self.detector_left, self.detector_right)
         if not scales or not all(hasattr(d, "detect_reduced") for d in dets):
             return res
         t1 = time.perf_counter()
         gl, gr = to_gray(il), to_gray(ir)
+        measured = self.settings.reduced_sigma_px or None  # None: no last resort
         out = res
         for k in scales:
             dl, dr = (d.detect_reduced(g, k) for d, g in zip(dets, (gl, gr)))  # type: ignore[attr-defined]
-            first = self.track_corners(dl.corners, dr.corners, dl.polarity, dr.polarity, _t0=t0)
-            if not first.ok:
-                continue
-            again = self._refit_matched(first, (gl, gr), (dl.polarity, dr.polarity), t0, self._refit_clipped)
-            if again is not None and again.ok and self._clipped_tip_sigma(again) <= self.settings.max_tip_sigma_m:
+            for noise in (None, measured) if measured and self._reduced_last_resort is None else (None,):
+                first = self.track_corners(dl.corners, dr.corners, dl.polarity, dr.polarity, _t0=t0,
+                                           _noise_px=noise)
+                if not first.ok:
+                    continue
+                again = self._refit_matched(first, (gl, gr), (dl.polarity, dr.polarity), t0, self._refit_clipped,
+                                            noise)
+                if (again is None or not again.ok
+                        or self._clipped_tip_sigma(again, noise) > self.settings.max_tip_sigma_m):
+                    continue
                 again.timings["reduced_refit"] = again.timings.pop("refit", 0.0)
+                if noise is not None:  # passes only at the measured noise: kept for the end
+                    self._reduced_last_resort = again
+                    break
                 out = again
+                self._reduced_last_resort = None
                 for d, c in zip(dets, (again.corners_left, again.corners_right)):
                     d.follow(c)
                 break
+            if out is not res:
+                break
         out.timings["reduced"] = 1e3 * (time.perf_counter() - t1)
         return out
+
+    def _last_resort(self, res: TrackResult, views: tuple[Any, Any], hint: Array | None, gate: bool) -> TrackResult:
+        """``res`` (lost after every search) or, where the reduced search found a fit that passes
+        its tip-sigma gates only with its corners at ``settings.reduced_sigma_px`` (their measured
+        noise) rather than at ``clipped_sigma_px`` beside clipped pixels, that fit oriented and
+        judged (:meth:`_judged`); kept for the end so that it never takes the place of a pair
+        another search tracks (held-out path-traced 2626/26: 0.13 mm off at 0.74 mm of sigma)."""
+        fit, self._reduced_last_resort = self._reduced_last_resort, None
+        if fit is None or res.ok:
+            return res
+        for d, c in zip((self.detector_left, self.detector_right), (fit.corners_left, fit.corners_right)):
+            d.follow(c)
+        fit.timings.update({k: v for k, v in res.timings.items() if k not in fit.timings})
+        return self._judged(fit, views, hint, gate)
 
     def _refit_clipped(self, view: Any, uv: Array, edges: Array) -> Array:
         """The corners ``uv`` [px] of the grey ``view`` fitted again by the HTM model with the
         pixels at ``settings.clipped_level`` or more censored (cvs.tracking.corner_refit)."""
         return refit_corners_clipped(view, uv, edges, float(self.settings.clipped_level))[0]
 
-    def _clipped_tip_sigma(self, res: TrackResult) -> float:
+    def _clipped_tip_sigma(self, res: TrackResult, corner_sigma_px: float | None = None) -> float:
         """The tip's standard deviation [m] of a good result's fit with every used corner at
-        ``settings.clipped_sigma_px`` of noise: corners between clipped white squares are
-        0.3-0.8 px off where the two squares' exposures differ (cvs.corners.clipped_fit)."""
+        ``corner_sigma_px`` of noise, by default ``settings.clipped_sigma_px``: corners between
+        clipped white squares are 0.3-0.8 px off where the two squares' exposures differ
+        (cvs.corners.clipped_fit)."""
         m, pose = res.match, res.pose
         if m is None or pose is None:
             return float("inf")
+        noise = self.settings.clipped_sigma_px if corner_sigma_px is None else corner_sigma_px
         return self._tip_sigma(pose, m.index_left[m.index_left >= 0], m.index_right[m.index_right >= 0],
-                               corner_sigma_px=self.settings.clipped_sigma_px)
+                               corner_sigma_px=noise)
 
     def _refit_matched(self, res: TrackResult, views: tuple[Any, Any], polarity: tuple[Array | None, Array | None],
-                       t0: float, refit: Callable[[Any, Array, Array], Array]) -> TrackResult | None:
+                       t0: float, refit: Callable[[Any, Array, Array], Array],
+                       noise_px: float | None = None) -> TrackResult | None:
         """``res``'s matched corners, each fitted again by ``refit(view, uv, edges)`` at the fit's
         own edge directions (cvs.tracking.corner_refit.corner_edge_angles), solved again under
-        the same gates (timings key 'refit'); None when ``res`` has no fit."""
+        the same gates (timings key 'refit'; ``noise_px``: as :meth:`track_corners`'s
+        ``_noise_px``); None when ``res`` has no fit."""
         m, pose = res.match, res.pose
         if m is None or pose is None:
             return None
@@ -1173,7 +1222,7 @@ class MarkerTracker:
             if k.any():
                 out[k] = refit(view, out[k], corner_edge_angles(T_cam, self.solver.marker_points(index[k]), project))
             refit_uv.append(out)
-        again = self.track_corners(refit_uv[0], refit_uv[1], polarity[0], polarity[1], _t0=t0)
+        again = self.track_corners(refit_uv[0], refit_uv[1], polarity[0], polarity[1], _t0=t0, _noise_px=noise_px)
         again.timings["refit"] = 1e3 * (time.perf_counter() - t)
         return again
 
@@ -1526,8 +1575,11 @@ class MarkerTracker:
         polarity_left: Array | None = None,
         polarity_right: Array | None = None,
         _t0: float | None = None,
+        _noise_px: float | None = None,
     ) -> TrackResult:
-        """Pose and tip from raw-pixel corners (N, 2) of each image and optional polarities (+-1)."""
+        """Pose and tip from raw-pixel corners (N, 2) of each image and optional polarities (+-1)
+        (``_noise_px``: the tip-sigma gate counts every corner at this noise [px], the reduced
+        search's; None: each at its own, as :meth:`_tip_sigma` says)."""
         t0 = time.perf_counter() if _t0 is None else _t0
         s = self.settings
         cl = np.asarray(corners_left, float).reshape(-1, 2)
@@ -1590,7 +1642,7 @@ class MarkerTracker:
             doubt = f"reprojection RMS {best.rms_px:.2f} px above {s.max_rms_px} px: corners do not fit the marker"
         elif not best_facing:
             doubt = "the fit puts marker corners on the far side of the sleeve (too few corners to tell its tilt)"
-        elif (sigma := self._tip_sigma(best, idx_l, idx_r, (ul, ur))) > s.max_tip_sigma_m:
+        elif (sigma := self._tip_sigma(best, idx_l, idx_r, (ul, ur), _noise_px)) > s.max_tip_sigma_m:
             doubt = (f"the tip is uncertain by {1e3 * sigma:.2f} mm at the corners' noise "
                      f"(too few corners, seen too steeply or beside a highlight, {_TIP_SIGMA_CAUSE}")
         elif (shift := self._single_view_shift(best, idx_l, ul, idx_r, ur, m)) > s.max_single_view_shift_m:

@@ -34,14 +34,16 @@ class TrackResult:
     tip_sigma_m: the tip's standard deviation [m] (the larger of the sleeve's two ends, along its
     worst direction) at the used corners' contrast noise and residuals, the print's bars
     included where they were weighed in: what the contrast gate judged
-    (MarkerTracker.contrast_tip_sigma), and where the reduced or eroded search fitted the corners
-    again with their clipped pixels censored, each corner beside a clipped pixel clipped_sigma_px
-    noisier (on the path-traced sets no tracked tip was more than 2.5 of it off,
-    docs/notes/highlight-stripe.md); under TrackerSettings.gate_min_spacing_px of spacing, for a
-    fit on chains that step over a missed corner, and for one arm's other fits there (the
-    small-fit gate, max_small_fit_tip_sigma_m), every corner at corner_sigma_px times the fit's
-    residual over it; NaN where not estimated (several arms' other fits under that spacing,
-    where the contrast relation overstates the noise, or the contrast gate off).
+    (MarkerTracker.contrast_tip_sigma), and where the eroded search fitted the corners again with
+    their clipped pixels censored, each corner beside a clipped pixel clipped_sigma_px noisier;
+    the reduced search's, every corner at TrackerSettings.reduced_sigma_px (its corners' measured
+    noise) times the fit's residual over it where that is the larger (on the held-out path-traced
+    sets no tracked tip was more than 2.61 of it off, docs/notes/highlight-stripe.md); under
+    TrackerSettings.gate_min_spacing_px of spacing, for a fit on chains that step over a missed
+    corner, and for one arm's other fits there (the small-fit gate, max_small_fit_tip_sigma_m),
+    every corner at corner_sigma_px times the fit's residual over it; NaN where not estimated
+    (several arms' other fits under that spacing, where the contrast relation overstates the
+    noise, or the contrast gate off).
     """
 
     ok: bool

@@ -542,14 +542,13 @@ class MarkerTracker:
     def _reported_sigma(self, res: TrackResult, views: tuple[NDArray[np.uint8], NDArray[np.uint8]],
                         contrast_noise: float | None, sigma: float) -> float:
         """The ``tip_sigma_m`` a result reports: its contrast gate's ``sigma`` [m]; where the
-        result's corners were fitted again with their clipped pixels censored (the reduced and
-        eroded searches: such corners are 0.3-0.9 px off), with each used corner near a clipped
-        pixel ``clipped_sigma_px`` noisier (:meth:`_contrast_sigmas`, ``clipped``), as those
-        searches' own gate counts them; the reduced search's, with ``settings.reduced_sigma_px`` (>
-        0), with every corner at that noise (its corners were measured so, clipped or not), times
-        the fit's residual over it where that is the larger. Elsewhere a clipped white beside a
-        corner does not move it (0.13 px RMS against 0.15 px for the others on path-traced pairs),
-        and is not counted."""
+        eroded search fitted the corners again with their clipped pixels censored, with each used
+        corner near a clipped pixel ``clipped_sigma_px`` noisier (:meth:`_contrast_sigmas`,
+        ``clipped``), as its own gate counts them; where the reduced search found them, with every
+        corner at ``settings.reduced_sigma_px`` (their measured noise, beside clipped pixels or
+        not; 0: as the eroded search's), times the fit's residual over it where that is the
+        larger. Elsewhere a clipped white beside a corner does not move it (0.13 px RMS against
+        0.15 px for the others on path-traced pairs), and is not counted."""
         if not any(k in res.timings for k in _CLIPPED_REFITS):
             return sigma
         if "reduced_refit" in res.timings and self.settings.reduced_sigma_px > 0:

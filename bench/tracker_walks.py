@@ -2,7 +2,7 @@
 
 Usage: python bench/tracker_walks.py --compare {facing,chain_polarity,tip_sigma,bars_gate,partners,
            reduced,stereo_dy,single_view,wide_windows,two_pairs,blur_fit,small_fit,
-           reduced_noise} [--robot tendon3] [--marker FILE]
+           reduced_noise,refine_window} [--robot tendon3] [--marker FILE]
            [--image-scale 0.25] [--walks 20] [--first-walk 0] [--frames 40] [--spread 0.02]
            [--wide] [--wrong-mm 1.5]
 Prints JSON. Each walk starts at the arm's home plus a seeded offset of ``--spread`` [rad or m]
@@ -53,6 +53,10 @@ Comparisons:
                   clipped pixels (``reduced_sigma_px`` 0), and the default, where a reduced fit
                   that passes only at their measured 0.5 px is the pair's last resort
                   (MarkerTracker._last_resort; docs/notes/highlight-stripe.md).
+  refine_window   the paper detector's HTM fit in a 9 x 9 window for every corner, the default
+                  (``refine_window_sigmas`` 0), and in a window of at least 1.5 sigma of its
+                  Gaussian weights (13 x 13 for corners 28 px or more apart; docs/notes/
+                  highlight-stripe.md).
 """
 
 from __future__ import annotations
@@ -99,6 +103,8 @@ COMPARISONS: dict[str, dict[str, TrackerSettings]] = {
     "small_fit": {"without_small_fit_gate": TrackerSettings(max_small_fit_tip_sigma_m=np.inf),
                   "default": TrackerSettings(), "magnified": TrackerSettings(magnify=2.0)},
     "reduced_noise": {"clipped_model": TrackerSettings(reduced_sigma_px=0.0), "default": TrackerSettings()},
+    "refine_window": {"default": TrackerSettings(),
+                      "window_1.5_sigma": TrackerSettings(paper_detector=DetectorSettings(refine_window_sigmas=1.5))},
 }
 
 

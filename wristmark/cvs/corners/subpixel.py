@@ -263,22 +263,46 @@ def _htm_fit(
         eout[k, 0], eout[k, 1] = esrc[0], esrc[1]
 
 
+def htm_radius(sigma_w: Array | float, r: int = 4, window_sigmas: float = 0.0) -> NDArray[np.int64]:
+    """The HTM fit's window half-size [px] for Gaussian weights ``sigma_w`` [px]: ``r``, or
+    ``window_sigmas`` times the weights' sigma where that is larger (0: ``r`` for all), so that
+    the window does not cut the weights short (4 px weights in a 9 x 9 window end at one sigma)."""
+    sw = np.atleast_1d(np.asarray(sigma_w, float))
+    if window_sigmas <= 0:
+        return np.full(sw.shape, int(r), np.int64)
+    return np.maximum(int(r), np.ceil(window_sigmas * sw - 1e-9)).astype(np.int64)
+
+
 def htm_refine(
-    img: Image, pts: Array, edges: Array, r: int = 4, sigma_w: Array | float = 4.0, iters: int = 3
+    img: Image, pts: Array, edges: Array, r: int = 4, sigma_w: Array | float = 4.0, iters: int = 3,
+    window_sigmas: float = 0.0
 ) -> tuple[Array, Array, NDArray[np.bool_]]:
     """Least-squares fit of the HTM grey-level model b + a tanh(u_a/s) tanh(u_b/s) + g.(p - c) to
-    the (2r+1)^2 patch of ``img`` around each point (Gaussian weights sigma_w [px]): Gauss-Newton
-    on the centre c, both edge angles (as in XCorners.edges), s, a, b and g, started from the
-    linear least-squares a, b, g at the given centre and edges (3 steps converge to ~1e-3 px).
-    Returns points (N, 2) [px], edge angles (N, 2) [rad] and ok (N,): False (input returned) where
-    the fit fails or moves more than 1.5 px."""
+    the (2r+1)^2 patch of ``img`` around each point (Gaussian weights sigma_w [px]; with
+    ``window_sigmas`` > 0 each point's r at least that many sigma_w, :func:`htm_radius`):
+    Gauss-Newton on the centre c, both edge angles (as in XCorners.edges), s, a, b and g, started
+    from the linear least-squares a, b, g at the given centre and edges (3 steps converge to
+    ~1e-3 px). Returns points (N, 2) [px], edge angles (N, 2) [rad] and ok (N,): False (input
+    returned) where the fit fails or moves more than 1.5 px."""
     pts = np.ascontiguousarray(pts, np.float64).reshape(-1, 2)
     edges = np.ascontiguousarray(edges, np.float64).reshape(-1, 2)
     n = pts.shape[0]
     sw = np.ascontiguousarray(np.broadcast_to(np.asarray(sigma_w, np.float64), (n,)))
     out, eout, ok = np.empty((n, 2)), np.empty((n, 2)), np.empty(n, np.bool_)
-    if n:
-        _htm_fit(np.asarray(img), pts, edges, sw, int(r), int(iters), out, eout, ok)
+    if not n:
+        return out, eout, ok
+    radii = htm_radius(sw, r, window_sigmas)
+    for radius in np.unique(radii):  # one kernel call per window size (one, or a few)
+        k = np.flatnonzero(radii == radius)
+        if k.size == n:
+            _htm_fit(np.asarray(img), pts, edges, sw, int(radius), int(iters), out, eout, ok)
+            break
+        o, e, g = np.empty((k.size, 2)), np.empty((k.size, 2)), np.empty(k.size, np.bool_)
+        sw_k = np.ascontiguousarray(sw[k])
+        sw_k.flags.writeable = False  # as the whole call's (a broadcast view): the same compiled kernel
+        _htm_fit(np.asarray(img), np.ascontiguousarray(pts[k]), np.ascontiguousarray(edges[k]),
+                 sw_k, int(radius), int(iters), o, e, g)
+        out[k], eout[k], ok[k] = o, e, g
     return out, eout, ok
 
 
@@ -295,6 +319,7 @@ def subpixel(
     edges = cands.edges[idx]
     if not s.refine or idx.size == 0:
         return q, q.copy(), edges
-    ref, e, ok = htm_refine(cands.gray, cands.points(idx), edges, s.refine_radius, htm_weight_sigma(spacing))
+    ref, e, ok = htm_refine(cands.gray, cands.points(idx), edges, s.refine_radius, htm_weight_sigma(spacing),
+                            window_sigmas=s.refine_window_sigmas)
     ref[~ok] = q[~ok]
     return ref, q, e

@@ -27,7 +27,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.cvs.corners.clipped_fit import clipped_htm_refine
-from wristmark.cvs.corners.subpixel import HTM_WEIGHT_MAX_PX, HTM_WEIGHT_PER_SPACING, htm_refine, htm_weight_sigma
+from wristmark.cvs.corners.subpixel import (
+    HTM_WEIGHT_MAX_PX,
+    HTM_WEIGHT_PER_SPACING,
+    htm_radius,
+    htm_refine,
+    htm_weight_sigma,
+)
 from wristmark.cvs.corners.xcorner_test import htm_correlation
 from wristmark.cvs.gray_image import gray_crop
 
@@ -63,11 +69,12 @@ def nearest_spacing(uv: Array) -> Array:
 
 
 def refit_corners(view: NDArray[np.uint8], uv: Array, edges: Array, radius: int = 4,
-                  max_sigma_px: float = HTM_WEIGHT_MAX_PX) -> Array:
+                  max_sigma_px: float = HTM_WEIGHT_MAX_PX, window_sigmas: float = 0.0) -> Array:
     """The corners ``uv`` (N, 2) [raw px] of ``view`` (grey or BGR) fitted again by the HTM model
-    (cvs.corners.subpixel.htm_refine: (2 radius + 1)^2 window, Gaussian weights 0.12 times the
-    distance to the nearest other corner, in [1.5, ``max_sigma_px``] px; the defaults are the
-    paper detector's own fit), started at ``uv`` and ``edges`` (N, 2) [rad]; a corner whose fit
+    (cvs.corners.subpixel.htm_refine: (2 radius + 1)^2 window, or ``window_sigmas`` times the
+    weights' sigma where larger, Gaussian weights 0.12 times the distance to the nearest other
+    corner, in [1.5, ``max_sigma_px``] px; radius 4 and window_sigmas 1.5 are the paper
+    detector's own fit), started at ``uv`` and ``edges`` (N, 2) [rad]; a corner whose fit
     fails, moves more than 1.5 px or whose window leaves the image keeps its position."""
     pts = np.asarray(uv, float).reshape(-1, 2)
     out = pts.copy()
@@ -75,17 +82,17 @@ def refit_corners(view: NDArray[np.uint8], uv: Array, edges: Array, radius: int 
     if n == 0:
         return out
     h, w = view.shape[:2]
-    pad = radius + 2
+    spacing = nearest_spacing(pts) if n > 1 else np.full(1, HTM_WEIGHT_MAX_PX / HTM_WEIGHT_PER_SPACING)
+    pad = int(htm_radius(htm_weight_sigma(spacing, max_sigma_px), radius, window_sigmas).max()) + 2
     inside = (pts[:, 0] >= pad) & (pts[:, 0] < w - pad) & (pts[:, 1] >= pad) & (pts[:, 1] < h - pad)
     if not inside.any():
         return out
-    spacing = nearest_spacing(pts) if n > 1 else np.full(1, HTM_WEIGHT_MAX_PX / HTM_WEIGHT_PER_SPACING)
     x0, y0 = int(np.floor(pts[inside, 0].min())) - pad, int(np.floor(pts[inside, 1].min())) - pad
     x1, y1 = int(np.ceil(pts[inside, 0].max())) + pad + 1, int(np.ceil(pts[inside, 1].max())) + pad + 1
     x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, w), min(y1, h)
     grey = gray_crop(view, (x0, y0, x1, y1))
     ref, _, ok = htm_refine(grey, pts[inside] - [x0, y0], np.asarray(edges, float).reshape(-1, 2)[inside], radius,
-                            htm_weight_sigma(spacing[inside], max_sigma_px))
+                            htm_weight_sigma(spacing[inside], max_sigma_px), window_sigmas=window_sigmas)
     moved = out[inside]
     moved[ok] = ref[ok] + [x0, y0]
     out[inside] = moved
@@ -109,11 +116,12 @@ def refit_corners_clipped(view: NDArray[np.uint8], uv: Array, edges: Array,
 
 def partner_corners(view: NDArray[np.uint8], uv: Array, edges: Array, spacing: Array | float,
                     clip_level: float = 250.0, radius: int = 4, cc_min: float = 0.8,
-                    cc_radius: int = 4) -> tuple[Array, NDArray[np.bool_]]:
+                    cc_radius: int = 4, window_sigmas: float = 0.0) -> tuple[Array, NDArray[np.bool_]]:
     """Corners of the grey image ``view`` fitted by the HTM model from predicted places ``uv``
     (N, 2) [raw px] and edge angles ``edges`` (N, 2) [rad], each ``spacing`` [px] from its
     nearest neighbouring corner (per corner or one value): the paper detector's fit ((2
-    ``radius`` + 1)^2 window, Gaussian weights 0.12 ``spacing`` in [1.5, 4] px) where no pixel of
+    ``radius`` + 1)^2 window, or ``window_sigmas`` times the weights' sigma where larger, Gaussian
+    weights 0.12 ``spacing`` in [1.5, 4] px) where no pixel of
     that window reaches ``clip_level``, else the fit with the clipped pixels censored
     (:func:`refit_corners_clipped`'s). Returns the fitted corners (N, 2) and ok (N,): False (input
     returned) where the fit fails, moves more than 1.5 px or its window leaves the image, or
@@ -126,16 +134,17 @@ def partner_corners(view: NDArray[np.uint8], uv: Array, edges: Array, spacing: A
     out, ok = pts.copy(), np.zeros(pts.shape[0], bool)
     h, w = view.shape[:2]
     for k, (x, y) in enumerate(pts):
-        pad = int(np.ceil(max(radius, 0.3 * gaps[k]))) + 2
+        sw = float(htm_weight_sigma(gaps[k]))
+        r = int(htm_radius(sw, radius, window_sigmas)[0])
+        pad = int(np.ceil(max(r, 0.3 * gaps[k]))) + 2
         if not (pad <= x < w - pad and pad <= y < h - pad):
             continue
-        x0, y0 = int(round(x)) - radius, int(round(y)) - radius
-        grey = gray_crop(view, (x0, y0, x0 + 2 * radius + 1, y0 + 2 * radius + 1))
+        x0, y0 = int(round(x)) - r, int(round(y)) - r
+        grey = gray_crop(view, (x0, y0, x0 + 2 * r + 1, y0 + 2 * r + 1))
         if grey.max() >= clip_level:
             fit, good = clipped_htm_refine(view, pts[k:k + 1], e[k:k + 1], gaps[k], clip_level, max_move=1.5)
         else:
-            fit, _, good = htm_refine(grey, pts[k:k + 1] - [x0, y0], e[k:k + 1], radius,
-                                      float(htm_weight_sigma(gaps[k])))
+            fit, _, good = htm_refine(grey, pts[k:k + 1] - [x0, y0], e[k:k + 1], r, sw)
             fit = fit + [x0, y0]
             cx, cy = int(round(fit[0, 0])), int(round(fit[0, 1]))
             good &= (cc_radius <= cx < w - cc_radius and cc_radius <= cy < h - cc_radius

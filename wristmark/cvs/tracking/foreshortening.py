@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from wristmark.cvs.camera import Camera
-from wristmark.cvs.corners.subpixel import htm_refine, htm_weight_sigma
+from wristmark.cvs.corners.subpixel import htm_radius, htm_refine, htm_weight_sigma
 from wristmark.cvs.tracking.corner_refit import corner_edge_angles
 
 Array = NDArray[np.float64]
@@ -172,13 +172,14 @@ def run_kernels_once() -> None:
 
 def htm_bias(camera: Camera, T_cam_marker: Array, points_marker: Array, spacing_px: Array, radius: float,
              beta: float, facing: Array, max_facing: float = 0.7, blur_px: float = 1.0,
-             refine_radius: int = 4, adaptive: bool = True) -> Array:
+             refine_radius: int = 4, adaptive: bool = True, window_sigmas: float = 0.0) -> Array:
     """Where the HTM fit lands [px] (N, 2), relative to the true place, at each corner
     ``points_marker`` (N, 3) in {wm} [m] of a checker sleeve (``radius`` [m], columns ``beta``
     [rad]) seen by ``camera`` at the pose ``T_cam_marker`` (4x4, {wm} in its frame), each
     ``spacing_px`` (N,) [px] from its nearest neighbour (the fit's Gaussian weights) and facing
     the camera at the cosine ``facing`` (N,): :func:`corner_patch` fitted by
-    cvs.corners.subpixel.htm_refine ((2 ``refine_radius`` + 1)^2 window) from the true corner
+    cvs.corners.subpixel.htm_refine ((2 ``refine_radius`` + 1)^2 window, or ``window_sigmas``
+    times its weights' sigma where larger, as the detector's) from the true corner
     and the print's edge angles there (``adaptive``: corner_patch's). Zero where ``facing`` is
     above ``max_facing`` or not positive, or where the fit fails."""
     P = np.asarray(points_marker, float).reshape(-1, 3)
@@ -191,10 +192,11 @@ def htm_bias(camera: Camera, T_cam_marker: Array, points_marker: Array, spacing_
     true = camera.project(P[sel] @ T[:3, :3].T + T[:3, 3])
     edges = corner_edge_angles(T, P[sel], camera.project)
     for i, k in enumerate(sel):
-        half = refine_radius + 3
+        sw = float(htm_weight_sigma(float(spacing_px[k])))
+        r = int(htm_radius(sw, refine_radius, window_sigmas)[0])
+        half = r + 3
         patch, _ = corner_patch(camera, T, radius, beta, true[i], half, blur_px=blur_px, adaptive=adaptive)
-        fit, _, ok = htm_refine(patch, np.array([[half, half]], float), edges[i:i + 1], refine_radius,
-                                float(htm_weight_sigma(float(spacing_px[k]))))
+        fit, _, ok = htm_refine(patch, np.array([[half, half]], float), edges[i:i + 1], r, sw)
         if ok[0]:
             bias[k] = fit[0] - half
     return bias

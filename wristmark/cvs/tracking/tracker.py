@@ -439,7 +439,8 @@ class MarkerTracker:
             facing = corner_facing(T, P, np.zeros(3))
             spacing = chain_spacing(uv)[k]  # the detector's windows: its chain's order (ends narrower)
             bias = htm_bias(camera, T, P, spacing, self.marker.radius, self.marker.beta, facing,
-                            s.foreshortening_max_facing, s.foreshortening_blur_px)
+                            s.foreshortening_max_facing, s.foreshortening_blur_px, s.paper_detector.refine_radius,
+                            window_sigmas=s.paper_detector.refine_window_sigmas)
             fixed = np.asarray(uv, float).copy()
             fixed[k] -= bias
             corners.append(fixed)
@@ -986,7 +987,9 @@ class MarkerTracker:
                 uv = np.asarray(project(C), float).reshape(-1, 2)
                 edges = corner_edge_angles(T_cam, P, project)
                 gaps = np.linalg.norm(uv[:, None] - corners[view][None], axis=2).min(axis=1)
-                found, ok = partner_corners(views[view], uv, edges, gaps, s.clipped_level)
+                found, ok = partner_corners(views[view], uv, edges, gaps, s.clipped_level,
+                                            s.paper_detector.refine_radius,
+                                            window_sigmas=s.paper_detector.refine_window_sigmas)
                 ok &= np.linalg.norm(found - uv, axis=1) <= s.partner_max_px
                 if ok.any():
                     corners[view] = np.vstack([corners[view], found[ok]])
@@ -1059,7 +1062,9 @@ class MarkerTracker:
         (cvs.tracking.corner_refit), solved again under the same gates: that result when it is
         good, else ``res``. The saddle's chain through a corner whose edge a highlight bends, the
         paper detector's accuracy (path-traced seed 404 pair 41: 0.06-0.50 px -> 0.05-0.18)."""
-        again = self._refit_matched(res, views, polarity, t0, refit_corners)
+        d = self.settings.paper_detector
+        again = self._refit_matched(res, views, polarity, t0, lambda view, uv, edges: refit_corners(
+            view, uv, edges, d.refine_radius, window_sigmas=d.refine_window_sigmas))
         if again is None:
             return res
         out = again if again.ok else res

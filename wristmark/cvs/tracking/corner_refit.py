@@ -73,9 +73,10 @@ def refit_corners(view: NDArray[np.uint8], uv: Array, edges: Array, radius: int 
     """The corners ``uv`` (N, 2) [raw px] of ``view`` (grey or BGR) fitted again by the HTM model
     (cvs.corners.subpixel.htm_refine: (2 radius + 1)^2 window, or ``window_sigmas`` times the
     weights' sigma where larger, Gaussian weights 0.12 times the distance to the nearest other
-    corner, in [1.5, ``max_sigma_px``] px; radius 4 and window_sigmas 1.5 are the paper
-    detector's own fit), started at ``uv`` and ``edges`` (N, 2) [rad]; a corner whose fit
-    fails, moves more than 1.5 px or whose window leaves the image keeps its position."""
+    corner, in [1.5, ``max_sigma_px``] px; the paper detector's own fit with its
+    ``refine_radius`` and ``refine_window_sigmas``, by default 4 and 0), started at ``uv`` and
+    ``edges`` (N, 2) [rad]; a corner whose fit fails, moves more than 1.5 px or whose window
+    leaves the image keeps its position."""
     pts = np.asarray(uv, float).reshape(-1, 2)
     out = pts.copy()
     n = pts.shape[0]

@@ -246,3 +246,43 @@ def test_an_actuator_the_feedback_alone_turns_back_and_forth_has_its_play_shrunk
 def test_the_buzz_settings_are_validated(key: str, value: float, why: str) -> None:
     with pytest.raises(ConfigError, match=f"'{key}' must be .*{why[:6]}"):
         dataclasses.replace(ControllerConfig(), **{key: value}).validate()
+
+
+def _outputs_after_a_frozen_winding(release: float) -> tuple[np.ndarray, np.ndarray]:
+    """One actuator of 30 um play (known, no learning, no motor lag): the path walks it down
+    (side -), then stands 1.8 s, the sides frozen after 0.5 s, while the feedback winds the
+    nominal command 24 um up inside the band, then walks it up. Returns the arm's output and the
+    nominal command per cycle [m]."""
+    inv = PlayObserverInverse(np.array([1.6e-4]), 0.01, start=3e-5 / 1.6e-4, fraction=0.75, learn=False,
+                              freeze=0.5, release=release)
+    a, y, m, ys, us = 0.0, np.zeros(1), np.zeros(1), [], []
+    for k in range(70):
+        rate = -2e-5 / DT if k < 10 else (0.0 if k < 40 else 1e-6 / DT)
+        a += rate * DT + (2e-6 if 20 <= k < 32 else 0.0)
+        inv.observe(m)
+        m = a + inv.offset(np.array([a]), DT, np.array([rate]))
+        y = _play_operator(y, m, np.array([3e-5]))
+        ys.append(float(y[0]))
+        us.append(a)
+    return np.array(ys), np.array(us)
+
+
+def test_a_winding_held_by_a_freeze_is_let_out_over_the_release_time() -> None:
+    """A standing path freezes the sides: the feedback's winding against the side stays inside
+    the band and the output stands. When the path moves again, released at once the first change
+    of side lets the output jump by the winding (the tip kicked at a walk's first cycles); with
+    ``release`` it is let out over that time constant, and the output ends on the command alike."""
+    at_once, u = _outputs_after_a_frozen_winding(0.0)
+    gradual, _ = _outputs_after_a_frozen_winding(0.4)
+    np.testing.assert_array_equal(at_once[:40], gradual[:40])  # the same until the path moves
+    assert np.ptp(at_once[19:40]) < 1e-9  # the winding moved no output while frozen
+    jump_at_once, jump_gradual = np.max(np.diff(at_once[39:50])), np.max(np.diff(gradual[39:50]))
+    assert jump_at_once > 1.5e-5  # most of the 24 um at once
+    assert jump_gradual < 0.35 * jump_at_once
+    steady = 0.5 * (1 - 0.75) * 3e-5  # the output follows the command this far behind on side +
+    assert abs(gradual[-1] - (u[-1] - steady)) < 1.5e-6 and abs(at_once[-1] - (u[-1] - steady)) < 1.5e-6
+
+
+def test_the_release_setting_is_validated() -> None:
+    with pytest.raises(ConfigError, match="'backlash_release' must be >= 0"):
+        dataclasses.replace(ControllerConfig(), backlash_release=-0.1).validate()

@@ -75,6 +75,9 @@ class ControllerConfig:
     backlash_margin x the bound; without readings nothing is inverted; once the desired path has
     stood still for backlash_freeze [s] the sides stay as they are until it moves (a held
     point's measurement noise does not send the motors across the band; 0 = never);
+    backlash_release [s]: when the path moves again after such a freeze, what the feedback wound
+    inside the bands meanwhile is let out with this time constant instead of by the first changes
+    of side at once (the output's jump kicked the tip at a walk's first cycles; 0 = at once);
     backlash_buzz_time [s], backlash_buzz_turns, backlash_buzz_shrink: an actuator the feedback
     alone turns, its backlash_buzz_turns-th turn within backlash_buzz_time, buzzes across an
     overestimated play (a probe's under a loaded host): its play estimate is scaled by
@@ -139,6 +142,7 @@ class ControllerConfig:
     backlash_buzz_shrink: float = 0.7
     backlash_buzz_turns: int = 3
     backlash_freeze: float = 0.5
+    backlash_release: float = 0.4
     backlash_motor_burst: bool = True
     backlash_kinds: tuple[str, ...] = ("qp",)
     backlash_actuator_space: bool = True
@@ -157,7 +161,7 @@ class ControllerConfig:
                 raise ConfigError(f"'{k}' must be > 0, got {getattr(self, k)}")
         for k in ("kp", "orientation_weight", "pose_orientation_weight", "kr", "ki", "integral_speed_limit",
                   "clearance_m", "backlash_hysteresis", "backlash_window", "backlash_lead", "backlash_margin",
-                  "backlash_freeze", "backlash_buzz_time"):
+                  "backlash_freeze", "backlash_release", "backlash_buzz_time"):
             if getattr(self, k) < 0:
                 raise ConfigError(f"'{k}' must be >= 0, got {getattr(self, k)}")
         if not self.backlash_play_max or min(self.backlash_play_max) < 0:
@@ -232,7 +236,8 @@ CONTROLLER_SECTIONS: dict[str, tuple[str, tuple[str, ...]]] = {
     "backlash": ("the dead-band inversion, either kind",
                  ("backlash_compensation", "backlash_play_max", "backlash_start", "backlash_fraction",
                   "backlash_hysteresis", "backlash_learning", "backlash_window", "backlash_learning_rate",
-                  "backlash_lead", "backlash_method", "backlash_margin", "backlash_freeze", "backlash_motor_burst",
+                  "backlash_lead", "backlash_method", "backlash_margin", "backlash_freeze", "backlash_release",
+                  "backlash_motor_burst",
                   "backlash_buzz_time", "backlash_buzz_shrink", "backlash_buzz_turns",
                   "backlash_kinds", "backlash_actuator_space")),
     "probe": ("the play probe before the first closed-loop walk",
@@ -471,6 +476,7 @@ def make_inverse(config: ControllerConfig, play_max: Array | None = None) -> Bac
         from wristmark.solvers.play_observer import PlayObserverInverse
 
         return PlayObserverInverse(play_max, config.backlash_margin, freeze=config.backlash_freeze,
+                                   release=config.backlash_release,
                                    motor_burst=config.backlash_motor_burst, buzz_time=config.backlash_buzz_time,
                                    buzz_shrink=config.backlash_buzz_shrink, buzz_turns=config.backlash_buzz_turns,
                                    **common)  # type: ignore[arg-type]

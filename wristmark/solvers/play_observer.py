@@ -76,8 +76,11 @@ class PlayObserverInverse(BacklashInverse):
     def __init__(self, play_max: Array, margin: float, start: float = 0.5, fraction: float = 0.5,
                  learn: bool = True, window: float = 0.4, rate: float = 0.3, lead: float = 0.0,
                  freeze: float = 0.0, motor_burst: bool = False, buzz_time: float = 0.0,
-                 buzz_shrink: float = 1.0, buzz_turns: int = 3) -> None:
+                 buzz_shrink: float = 1.0, buzz_turns: int = 3, release: float = 0.0) -> None:
         self.margin = float(margin)
+        # the path moves again after a freeze: what the feedback wound inside the bands meanwhile
+        # is let out over this time constant [s] (0: at once, by the first changes of side)
+        self.release = float(release)
         # an actuator turned by the feedback alone (its path does not move it to the new side) and
         # for the ``buzz_turns``-th time within ``buzz_time`` [s] buzzes across an overestimated
         # play: each turn moves the motor by the inverted play, the tip over, the feedback back. Its
@@ -98,6 +101,8 @@ class PlayObserverInverse(BacklashInverse):
         super().reset(keep_estimate)
         self.output: Array | None = None
         self._stood = 0.0  # how long the desired path has stood still [s]
+        self.wound = np.zeros(self.play_max.size)  # held back of the nominal command after a freeze
+        self._held = np.zeros(self.play_max.size)  # the winding at the last frozen cycle
         self._seed: tuple[NDArray[np.bool_], Array] | None = None
         self._motor: Array | None = None  # the last encoder readings (micro-units)
         self._turns: list[tuple[float, NDArray[np.int_]]] = []  # (time [s], which turned) within buzz_time
@@ -153,6 +158,40 @@ class PlayObserverInverse(BacklashInverse):
         the band gets, instead of the lead's burst, the target that brings a first-order motor of
         the probed lag tau from where it is to the steady target u + side * fraction * b_hat / 2
         in one cycle: m + (goal - m) / (1 - exp(-dt / tau)), within the lead's largest offset."""
+        self._unwind(np.asarray(a_nom, float), dt, a_dot_path)
+        a_nom = np.asarray(a_nom, float) - self.wound
+        return self._offset_of(a_nom, dt, a_dot_path) - self.wound
+
+    @property
+    def half(self) -> Array:
+        """Half the largest offset per actuator [rad, m, ...]: the inversion's, plus what a
+        release after a freeze may hold back (``release`` > 0)."""
+        held = 0.5 * self.fraction * self.play_max if self.release > 0.0 else 0.0
+        return np.asarray(super().half + held, float)
+
+    def _unwind(self, a: Array, dt: float, a_dot_path: Array | None) -> None:
+        """The path moves after standing past ``freeze`` (sides frozen): each actuator's nominal
+        command ``a`` has been wound against its side inside the band by the feedback (the arm did
+        not follow: the other actuators made up for it), and a change of side now would let the
+        output jump by as much (the tip by J x that, at the walk's first cycle). That winding, a - y
+        beyond the steady (1 - fraction) x b_hat / 2 of its side, within half the inverted bound, is
+        held back and let out over ``release`` [s], so the feedback unwinds the others meanwhile."""
+        moving = a_dot_path is not None and bool(np.any(np.abs(np.asarray(a_dot_path, float)) > 0.0))
+        frozen = self.freeze > 0.0 and self._stood >= self.freeze - 1e-9
+        if self.release <= 0.0:
+            return
+        if frozen and not moving and self.output is not None:  # the winding so far (before the path's step)
+            d = self.direction
+            steady = d * 0.5 * (1.0 - self.fraction) * self.play
+            bound = 0.5 * self.fraction * self.play_max
+            wound = np.where(d != 0.0, a - self.output - steady, 0.0)
+            self._held = np.where(d * wound < 0.0, np.clip(wound, -bound, bound), 0.0)  # against the side only
+        elif frozen and moving:
+            self.wound = np.asarray(self._held, float)
+        elif dt > 0.0:
+            self.wound = self.wound * math.exp(-dt / self.release)
+
+    def _offset_of(self, a_nom: Array, dt: float, a_dot_path: Array | None) -> Array:
         old = self.direction.copy()
         burst = super().offset(a_nom, dt, a_dot_path)
         if not self.motor_burst or self._motor is None or self.output is None or dt <= 0.0:

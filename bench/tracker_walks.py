@@ -53,10 +53,10 @@ Comparisons:
                   clipped pixels (``reduced_sigma_px`` 0), and the default, where a reduced fit
                   that passes only at their measured 0.5 px is the pair's last resort
                   (MarkerTracker._last_resort; docs/notes/highlight-stripe.md).
-  refine_window   the paper detector's HTM fit in a 9 x 9 window for every corner, the default
-                  (``refine_window_sigmas`` 0), and in a window of at least 1.5 sigma of its
-                  Gaussian weights (13 x 13 for corners 28 px or more apart; docs/notes/
-                  highlight-stripe.md).
+  refine_window   the paper detector's HTM fit in a 9 x 9 window for every corner
+                  (``refine_window_sigmas`` 0, before stop 69), and the default, in a window
+                  of at least 1.5 sigma of its Gaussian weights (13 x 13 for corners 28 px or
+                  more apart; docs/notes/highlight-stripe.md).
 """
 
 from __future__ import annotations
@@ -103,8 +103,8 @@ COMPARISONS: dict[str, dict[str, TrackerSettings]] = {
     "small_fit": {"without_small_fit_gate": TrackerSettings(max_small_fit_tip_sigma_m=np.inf),
                   "default": TrackerSettings(), "magnified": TrackerSettings(magnify=2.0)},
     "reduced_noise": {"clipped_model": TrackerSettings(reduced_sigma_px=0.0), "default": TrackerSettings()},
-    "refine_window": {"default": TrackerSettings(),
-                      "window_1.5_sigma": TrackerSettings(paper_detector=DetectorSettings(refine_window_sigmas=1.5))},
+    "refine_window": {"window_9x9": TrackerSettings(paper_detector=DetectorSettings(refine_window_sigmas=0.0)),
+                      "default": TrackerSettings()},
 }
 
 

@@ -3,8 +3,8 @@ has it, so the fit hinges on it; the missed corner is then looked for where that
 and with it found the pair is a stereo fit again (MarkerTracker._retry_partners).
 
 The pair misses its corner with the paper detector's HTM fit in a 9 x 9 window for every corner
-(``refine_window_sigmas`` 0, the default), set here explicitly: the partner search is tested
-there. In a window of 1.5 sigma of the fit's weights the left view finds a chain of three itself."""
+(``refine_window_sigmas`` 0, the default before stop 69), set here explicitly: the partner search is tested
+there. In a window of 1.5 sigma of the fit's weights (the default) the left view finds a chain of three itself."""
 
 from __future__ import annotations
 

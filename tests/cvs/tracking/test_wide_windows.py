@@ -6,8 +6,8 @@ more than twice its corners' noise is fitted again in such windows too, and the 
 it reports a smaller sigma (MarkerTracker._wide_if_surer, TrackerSettings.wide_residual_factor).
 
 The retries are tested from the detector's fit in a 9 x 9 window for every corner
-(``refine_window_sigmas`` 0, the default, set here explicitly), where these pairs need them. In
-a window of at least 1.5 sigma of the weights (13 x 13 here) the detector's own fit of the close
+(``refine_window_sigmas`` 0, the default before stop 69, set here explicitly), where these pairs need them. In
+a window of at least 1.5 sigma of the weights (the default; 13 x 13 here) the detector's own fit of the close
 sleeve passes the gate, and the retry still improves it."""
 
 from __future__ import annotations

@@ -30,9 +30,9 @@ class DetectorSettings:
     template_scale: tanh edge width of the HTM [px]; quad_size: side of the quadric patch [px];
     refine: HTM least-squares refinement after eq. 10; refine_radius: its window half-size [px],
     at least; refine_window_sigmas: ... or this many times the fit's Gaussian weights' sigma
-    where larger (0, the default: refine_radius for all; 1.5: 11 x 11 for corners 22-28 px apart,
-    13 x 13 above, closer on defocused path-traced pairs but not yet the default, as a loop test
-    moved with it: cvs.corners.subpixel.htm_radius, docs/notes/highlight-stripe.md) [-];
+    where larger (1.5, the default: 11 x 11 for corners 22-28 px apart, 13 x 13 above, closer on
+    defocused path-traced pairs; 0: refine_radius for all, as before stop 69:
+    cvs.corners.subpixel.htm_radius, docs/notes/highlight-stripe.md) [-];
     max_step_px: search distance for the second marker corner [px]; stop_ratio: chain search
     limit in units of the last spacing [-]; edge_tol_deg: angle between a step and the found
     corner's edge [deg]; cross_edge_tol_deg: angle between consecutive chain corners' edges across
@@ -65,7 +65,7 @@ class DetectorSettings:
     quad_size: int = 7
     refine: bool = True
     refine_radius: int = 4
-    refine_window_sigmas: float = 0.0
+    refine_window_sigmas: float = 1.5
     max_step_px: float = 120.0
     stop_ratio: float = 2.0
     edge_tol_deg: float = 20.0

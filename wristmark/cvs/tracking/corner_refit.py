@@ -74,7 +74,7 @@ def refit_corners(view: NDArray[np.uint8], uv: Array, edges: Array, radius: int 
     (cvs.corners.subpixel.htm_refine: (2 radius + 1)^2 window, or ``window_sigmas`` times the
     weights' sigma where larger, Gaussian weights 0.12 times the distance to the nearest other
     corner, in [1.5, ``max_sigma_px``] px; the paper detector's own fit with its
-    ``refine_radius`` and ``refine_window_sigmas``, by default 4 and 0), started at ``uv`` and
+    ``refine_radius`` and ``refine_window_sigmas``, by default 4 and 1.5), started at ``uv`` and
     ``edges`` (N, 2) [rad]; a corner whose fit fails, moves more than 1.5 px or whose window
     leaves the image keeps its position."""
     pts = np.asarray(uv, float).reshape(-1, 2)

@@ -286,3 +286,25 @@ def test_a_winding_held_by_a_freeze_is_let_out_over_the_release_time() -> None:
 def test_the_release_setting_is_validated() -> None:
     with pytest.raises(ConfigError, match="'backlash_release' must be >= 0"):
         dataclasses.replace(ControllerConfig(), backlash_release=-0.1).validate()
+
+
+def test_the_release_changes_nothing_on_a_path_that_never_stands() -> None:
+    """Without a freeze nothing is held back: the same offsets, motor bursts included (their
+    bound is the inversion's own largest offset, not the wider one a release may need)."""
+    offsets = {}
+    for release in (0.0, 0.4):
+        inv = PlayObserverInverse(PLAY, 0.01, start=1.0, fraction=0.75, learn=True, lead=0.03, freeze=0.5,
+                                  motor_burst=True, release=release)
+        inv.seed(PLAY, np.zeros(6), np.ones(6, bool), motor_tau=np.full(6, TAU))
+        alpha = 1.0 - np.exp(-DT / TAU)
+        m, out = np.zeros(6), []
+        for k in range(200):
+            u = 3 * PLAY * np.sin(2 * np.pi * k * DT / 3.0 + np.arange(6))
+            rate = 3 * PLAY * 2 * np.pi / 3.0 * np.cos(2 * np.pi * k * DT / 3.0 + np.arange(6))
+            inv.observe(m)
+            off = inv.offset(u, DT, rate)
+            m = m + alpha * (u + off - m)
+            out.append(off)
+        offsets[release] = np.array(out)
+    assert np.max(np.abs(offsets[0.0])) > 0.5 * 0.75 * PLAY[0]  # the inversion and its bursts acted
+    np.testing.assert_array_equal(offsets[0.0], offsets[0.4])

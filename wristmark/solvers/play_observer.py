@@ -204,7 +204,8 @@ class PlayObserverInverse(BacklashInverse):
         alpha = np.where(np.isfinite(tau) & (tau > 0.0), alpha, 1.0)
         a = np.asarray(a_nom, float)
         goal = a + self._off  # the steady target (the lead's state is the steady offset)
-        sized = np.clip(m + (goal - m) / alpha - a, -self.half, self.half)
+        lim = super().half  # the inversion's own largest offset (not what a release holds back)
+        sized = np.clip(m + (goal - m) / alpha - a, -lim, lim)
         return np.asarray(np.where(crossing, sized, burst), float)
 
     def _turn(self, a: Array) -> tuple[NDArray[np.bool_], Array]:

@@ -157,7 +157,9 @@ class PlayObserverInverse(BacklashInverse):
         reversed and whose motor (the last encoder reading) has not reached the new side's edge of
         the band gets, instead of the lead's burst, the target that brings a first-order motor of
         the probed lag tau from where it is to the steady target u + side * fraction * b_hat / 2
-        in one cycle: m + (goal - m) / (1 - exp(-dt / tau)), within the lead's largest offset."""
+        in one cycle: m + (goal - m) / (1 - exp(-dt / tau)), within the lead's largest offset.
+        With ``release``, the winding held back after a freeze (:meth:`_unwind`) is taken off the
+        nominal command first and off the offset returned."""
         self._unwind(np.asarray(a_nom, float), dt, a_dot_path)
         a_nom = np.asarray(a_nom, float) - self.wound
         return self._offset_of(a_nom, dt, a_dot_path) - self.wound
@@ -176,10 +178,10 @@ class PlayObserverInverse(BacklashInverse):
         output jump by as much (the tip by J x that, at the walk's first cycle). That winding, a - y
         beyond the steady (1 - fraction) x b_hat / 2 of its side, within half the inverted bound, is
         held back and let out over ``release`` [s], so the feedback unwinds the others meanwhile."""
-        moving = a_dot_path is not None and bool(np.any(np.abs(np.asarray(a_dot_path, float)) > 0.0))
-        frozen = self.freeze > 0.0 and self._stood >= self.freeze - 1e-9
         if self.release <= 0.0:
             return
+        moving = a_dot_path is not None and bool(np.any(np.abs(np.asarray(a_dot_path, float)) > 0.0))
+        frozen = self.freeze > 0.0 and self._stood >= self.freeze - 1e-9
         if frozen and not moving and self.output is not None:  # the winding so far (before the path's step)
             d = self.direction
             steady = d * 0.5 * (1.0 - self.fraction) * self.play
@@ -187,7 +189,7 @@ class PlayObserverInverse(BacklashInverse):
             wound = np.where(d != 0.0, a - self.output - steady, 0.0)
             self._held = np.where(d * wound < 0.0, np.clip(wound, -bound, bound), 0.0)  # against the side only
         elif frozen and moving:
-            self.wound = np.asarray(self._held, float)
+            self.wound = self._held
         elif dt > 0.0:
             self.wound = self.wound * math.exp(-dt / self.release)
 
